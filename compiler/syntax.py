@@ -1,0 +1,384 @@
+"""Source text -> AST, with precise syntax errors.
+
+The AST is built *while* Lark's LALR parser reduces (an inline transformer): no parse
+tree is ever materialised, which makes the whole parse cheaper than a bare tree parse.
+Syntax errors become :class:`Diagnostic` s; after an error inside a statement the parser
+resynchronises at the statement's ``;`` and goes on, so one run reports several.
+"""
+from __future__ import annotations
+
+from lark import Token, Transformer, v_args
+from lark.exceptions import UnexpectedCharacters, UnexpectedInput, UnexpectedToken
+
+from grammar import make_parser
+
+from . import ast
+from .diagnostics import CompileError, Diagnostic, did_you_mean
+
+#: Clause names that a move accepts (also used for "did you mean" on syntax errors).
+CLAUSES = ("speed_ptp", "acc_ptp", "speed", "acc", "approx", "act_rob")
+
+MAX_SYNTAX_ERRORS = 20
+
+
+def _span(tok: Token) -> ast.Span:
+    return ast.Span(tok.line, tok.column, tok.end_line, tok.end_column)
+
+
+def _start(item) -> ast.Span:
+    return item.span if not isinstance(item, Token) else _span(item)
+
+
+def _stmts(items) -> tuple:
+    return tuple(item for item in items if not isinstance(item, (Token, _Elsif, _Else)))
+
+
+class _Elsif(tuple):
+    """(cond, body) of an ``elsif`` branch, marked so ``if_stmt`` can tell it apart."""
+
+
+class _Else(tuple):
+    """The body of an ``else`` branch."""
+
+
+@v_args(inline=True)
+class _Builder(Transformer):
+    """One method per grammar rule or alias; each returns an AST node."""
+
+    # -- program structure --
+    def start(self, program_kw, name, *rest):
+        spec = spec_span = None
+        decls = []
+        for item in rest[:-2]:
+            if isinstance(item, tuple) and item and item[0] == "spec":
+                spec, spec_span = item[1], item[2]
+            elif isinstance(item, list):
+                decls.extend(item)
+            elif isinstance(item, ast.Procedure):
+                decls.append(item)
+        body, end_kw = rest[-2], rest[-1]
+        return ast.Program(name.value.lower(), spec, spec_span, tuple(decls), body,
+                           _span(program_kw).to(_span(end_kw)))
+
+    def spec(self, kw, string):
+        return ("spec", _unquote(string.value), _span(string))
+
+    def const_section(self, kw, *items):
+        return list(items)
+
+    def const_item(self, name, value):
+        return ast.ConstDecl(name.value.lower(), value, _span(name).to(value.span))
+
+    def var_section(self, kw, *items):
+        return list(items)
+
+    def var_item(self, *items):
+        names, type_, init = items[:-2], items[-2], items[-1]
+        end = init.span if init is not None else type_.span
+        return ast.VarDecl(tuple(n.value.lower() for n in names), type_, init,
+                           _span(names[0]).to(end), tuple(_span(n) for n in names))
+
+    def named_type(self, name):
+        return ast.NamedType(name.value.lower(), _span(name))
+
+    def array_type(self, kw, low, high, element):
+        return ast.ArrayType(low, high, element, _span(kw).to(element.span))
+
+    def procedure(self, kw, name, *rest):
+        params = ()
+        variables = []
+        for item in rest[:-2]:
+            if isinstance(item, list):
+                variables.extend(item)
+            else:
+                params = item
+        return ast.Procedure(name.value.lower(), params, tuple(variables), rest[-2],
+                             _span(kw).to(_span(rest[-1])), _span(name))
+
+    def params(self, *groups):
+        return tuple(p for group in groups if group is not None for p in group)
+
+    def param(self, *items):
+        names, type_ = items[:-1], items[-1]
+        return [ast.Param(n.value.lower(), type_, _span(n)) for n in names]
+
+    def block(self, seq_kw, *items):
+        return _stmts(items)
+
+    # -- statements --
+    def assign(self, name, index, value):
+        return ast.Assign(name.value.lower(), index, value, _span(name).to(value.span), _span(name))
+
+    def out_stmt(self, kw, index, value):
+        return ast.OutSet(index, value, _span(kw).to(value.span))
+
+    def move(self, kw, kind, *rest):
+        targets = tuple(item for item in rest if not isinstance(item, ast.Clause))
+        clauses = tuple(item for item in rest if isinstance(item, ast.Clause))
+        return ast.Move(kind.value.lower(), targets, clauses, _span(kw).to(rest[-1].span))
+
+    def clause(self, name, value):
+        return ast.Clause(name.value.lower(), value, _span(name).to(value.span), _span(name))
+
+    def if_stmt(self, kw, cond, *rest):
+        branches = [(cond, _stmts(rest))]
+        orelse = ()
+        for item in rest:
+            if isinstance(item, _Elsif):
+                branches.append((item[0], item[1]))
+            elif isinstance(item, _Else):
+                orelse = tuple(item)
+        return ast.If(tuple(branches), orelse, _span(kw).to(_span(rest[-1])))
+
+    def elsif(self, kw, cond, *body):
+        return _Elsif((cond, _stmts(body)))
+
+    def else_part(self, kw, *body):
+        return _Else(_stmts(body))
+
+    def while_stmt(self, kw, cond, *rest):
+        return ast.While(cond, _stmts(rest), _span(kw).to(_span(rest[-1])))
+
+    def repeat_stmt(self, kw, *rest):
+        cond = rest[-1]
+        return ast.Repeat(_stmts(rest[:-1]), cond, _span(kw).to(cond.span))
+
+    def for_stmt(self, kw, name, start, stop, step, *rest):
+        return ast.For(name.value.lower(), start, stop, step, _stmts(rest),
+                       _span(kw).to(_span(rest[-1])), _span(name))
+
+    def wait_time(self, kw, seconds, sec):
+        return ast.WaitTime(seconds, _span(kw).to(_span(sec)))
+
+    def wait_for(self, kw, for_kw, cond, timeout, sec):
+        end = _span(sec) if sec is not None else cond.span
+        return ast.WaitFor(cond, timeout, _span(kw).to(end))
+
+    def call_stmt(self, kw, name, *args):
+        args = tuple(a for a in args if a is not None)
+        end = args[-1].span if args else _span(name)
+        return ast.CallProc(name.value.lower(), args, _span(kw).to(end), _span(name))
+
+    def print_stmt(self, kw, *values):
+        return ast.Print(values, _span(kw).to(values[-1].span))
+
+    def pause(self, kw):
+        return ast.Pause(_span(kw))
+
+    def halt(self, kw):
+        return ast.Halt(_span(kw))
+
+    # -- expressions --
+    def binary(self, left, op, right):
+        return ast.Binary(op.value.lower(), left, right, left.span.to(right.span), _span(op))
+
+    def unary(self, op, operand):
+        return ast.Unary(op.value.lower(), operand, _span(op).to(operand.span))
+
+    def index(self, base, index):
+        return ast.Index(base, index, base.span.to(index.span))
+
+    def field(self, base, name):
+        return ast.Field(base, name.value.lower(), base.span.to(_span(name)))
+
+    def number(self, tok):
+        text = tok.value
+        value = int(text) if text.isdigit() else float(text)
+        return ast.Number(value, _span(tok))
+
+    def string(self, tok):
+        return ast.String(_unquote(tok.value), _span(tok))
+
+    def true(self, tok):
+        return ast.Bool(True, _span(tok))
+
+    def false(self, tok):
+        return ast.Bool(False, _span(tok))
+
+    def ref(self, name):
+        return ast.Ref(name.value.lower(), _span(name))
+
+    def call(self, name, *args):
+        args = tuple(a for a in args if a is not None)
+        span = _span(name)
+        return ast.Call(name.value.lower(), args, span.to(args[-1].span) if args else span, span)
+
+    def input(self, kw, index):
+        return ast.Input(index, _span(kw).to(index.span))
+
+
+def _unquote(text: str) -> str:
+    return text[1:-1].replace('\\"', '"').replace("\\\\", "\\")
+
+
+_PARSER = None
+
+
+def _parser():
+    global _PARSER
+    if _PARSER is None:
+        _PARSER = make_parser(transformer=_Builder())
+    return _PARSER
+
+
+# ---- syntax errors --------------------------------------------------------------------
+
+_REGEX_NAMES = {"NAME": "a name", "NUMBER": "a number", "STRING": "a string",
+                "COMPARE": "a comparison", "ADD_OP": "'+' or '-'", "MUL_OP": "'*' or '/'",
+                "$END": "end of file"}
+
+#: Tokens that open or close a block: resynchronising across one would only cascade.
+_STRUCTURE = {"PROGRAM", "ENDPROGRAM", "SEQ", "ENDSEQ", "PROCEDURE", "ENDPROCEDURE", "IF",
+              "ELSIF", "ELSE", "ENDIF", "WHILE", "ENDWHILE", "REPEAT", "UNTIL", "FOR",
+              "ENDFOR", "THEN", "DO", "VAR", "CONST"}
+_KEYWORD_TYPES = _STRUCTURE | {"MOVE", "WAIT", "OUT", "CALL", "PRINT", "PAUSE", "HALT", "ENDPROGRAM"}
+_STMT_BOUNDARY = {"SEMICOLON", "SEQ", "THEN", "DO", "ELSE", "REPEAT"}
+
+
+def _describe_terminal(name: str) -> str:
+    if name in _REGEX_NAMES:
+        return _REGEX_NAMES[name]
+    for term in _parser().terminals:
+        if term.name == name:
+            value = term.pattern.value
+            if term.pattern.type == "str":
+                return f"'{value}'"
+            return f"'{name.lower()}'"
+    return name.lower()
+
+
+def _expected_text(expected) -> str:
+    names = sorted({_describe_terminal(n) for n in expected})
+    if len(names) > 6:
+        return "one of " + ", ".join(names[:6]) + ", ..."
+    return names[0] if len(names) == 1 else "one of " + ", ".join(names)
+
+
+_KEYWORDS: list[str] = []
+
+
+def _keywords() -> list[str]:
+    if not _KEYWORDS:
+        _KEYWORDS.extend(t.pattern.value for t in _parser().terminals
+                         if t.pattern.type == "str" and t.pattern.value.replace("_", "").isalpha())
+    return _KEYWORDS
+
+
+def _tokens(text: str) -> list[Token]:
+    """All tokens of ``text``, lexing on past characters that are no token's."""
+    for _ in range(MAX_SYNTAX_ERRORS):
+        try:
+            return list(_parser().lex(text))
+        except UnexpectedCharacters as err:
+            text = _blank(text, err.pos_in_stream, err.pos_in_stream + 1)
+    return []
+
+
+def _diag(file, span: ast.Span, message, hint=None) -> Diagnostic:
+    return Diagnostic(file, span.line, span.col, span.end_line, span.end_col, "error", message, hint)
+
+
+def _classify(err: UnexpectedInput, text: str, file: str, tokens: list[Token]) -> tuple[Diagnostic, int, bool]:
+    """A diagnostic for ``err``, the text offset it is about, and whether to resync."""
+    if isinstance(err, UnexpectedCharacters):
+        span = ast.Span(err.line, err.column, err.line, err.column + 1)
+        char = text[err.pos_in_stream]
+        hint = "strings are written in double quotes" if char == "'" else None
+        return _diag(file, span, f"unexpected character {char!r}", hint), err.pos_in_stream, True
+
+    assert isinstance(err, UnexpectedToken)
+    tok = err.token
+    expected = set(err.expected)
+    prev = None
+    for candidate in tokens:
+        if candidate.start_pos is not None and tok.start_pos is not None and candidate.start_pos >= tok.start_pos:
+            break
+        prev = candidate
+    at_end = tok.type == "$END"
+    if at_end:
+        last = tokens[-1] if tokens else None
+        line = last.end_line if last else 1
+        col = last.end_column if last else 1
+        return (_diag(file, ast.Span(line, col, line, col + 1),
+                      f"unexpected end of file; expected {_expected_text(expected)}"), len(text), False)
+
+    # "speed ptp := 0.1": two words that, joined by '_', make a clause or keyword.
+    if prev is not None and prev.type == "NAME" and tok.type != "$END":
+        joined = f"{prev.value}_{tok.value}".lower()
+        if joined in CLAUSES or joined in _keywords():
+            return (_diag(file, _span(prev).to(_span(tok)), f"unexpected '{tok.value}' after '{prev.value}'",
+                          f"did you mean '{joined}'?"), tok.start_pos, True)
+
+    # "endseg" where "endseq" belongs: a misspelled keyword reads as a name, and the
+    # parser only notices at the token after it.
+    if prev is not None and prev.type == "NAME" and "NAME" not in expected:
+        guess = did_you_mean(prev.value, _keywords(), cutoff=0.75)
+        if guess and guess != prev.value.lower():
+            # A misspelled block keyword leaves the block open: going on would cascade.
+            resync = guess.upper() not in _STRUCTURE
+            return (_diag(file, _span(prev), f"unexpected name '{prev.value}'", f"did you mean '{guess}'?"),
+                    prev.start_pos, resync)
+
+    hint = None
+    if tok.type == "NAME" and tok.value.lower() not in _keywords():
+        keywords = [_describe_terminal(n).strip("'") for n in expected
+                    if n not in _REGEX_NAMES and _describe_terminal(n).strip("'").isalpha()]
+        guess = did_you_mean(tok.value, keywords, cutoff=0.7)
+        if guess:
+            hint = f"did you mean '{guess}'?"
+    is_keyword = tok.type in _KEYWORD_TYPES or tok.value.upper() in _KEYWORD_TYPES
+    if "SEMICOLON" in expected and prev is not None and (prev.end_line < tok.line or is_keyword or tok.type == "NAME"):
+        span = ast.Span(prev.end_line, prev.end_column, prev.end_line, prev.end_column + 1)
+        return _diag(file, span, f"expected ';' after '{prev.value}'", hint), tok.start_pos, True
+    return (_diag(file, _span(tok), f"unexpected '{tok.value}'; expected {_expected_text(expected)}", hint),
+            tok.start_pos, True)
+
+
+def _resync_region(tokens: list[Token], offset: int) -> tuple[int, int] | None:
+    """The [start, end) text range of the statement around ``offset``, if blanking it is safe."""
+    start_index = 0
+    for i, tok in enumerate(tokens):
+        if tok.start_pos >= offset:
+            break
+        if tok.type in _STMT_BOUNDARY:
+            start_index = i + 1
+    end_index = None
+    for i in range(start_index, len(tokens)):
+        if tokens[i].start_pos >= offset and tokens[i].type == "SEMICOLON":
+            end_index = i
+            break
+    if end_index is None or start_index >= len(tokens):
+        return None
+    if any(t.type in _STRUCTURE for t in tokens[start_index:end_index + 1]):
+        return None
+    return tokens[start_index].start_pos, tokens[end_index].end_pos
+
+
+def _blank(text: str, start: int, end: int) -> str:
+    middle = "".join(c if c == "\n" else " " for c in text[start:end])
+    return text[:start] + middle + text[end:]
+
+
+def parse(text: str, file: str = "<input>") -> ast.Program:
+    """Parse L-IRL source; raises :class:`CompileError` with every syntax error found."""
+    parser = _parser()
+    try:
+        return parser.parse(text)
+    except UnexpectedInput as first:
+        err = first
+    diagnostics: list[Diagnostic] = []
+    while True:
+        tokens = _tokens(text)
+        diag, offset, resync = _classify(err, text, file, tokens)
+        if not any((d.line, d.column) == (diag.line, diag.column) for d in diagnostics):
+            diagnostics.append(diag)
+        region = _resync_region(tokens, offset) if resync else None
+        if region is None or len(diagnostics) >= MAX_SYNTAX_ERRORS:
+            break
+        text = _blank(text, *region)
+        try:
+            parser.parse(text)
+            break
+        except UnexpectedInput as again:
+            err = again
+    raise CompileError(diagnostics)

@@ -1,0 +1,175 @@
+"""Run-time values of L-IRL that are more than a Python scalar.
+
+Shared by the compiler (constant folding, the constant pool) and the runtime (the VM),
+so this module imports nothing heavy. All are immutable and compare by value; lengths in
+mm, angles in degrees.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+
+@dataclass(frozen=True, slots=True)
+class MainJoint:
+    """``mainjoint(a1, ..., an)``: only meaningful as an argument of ``joint``."""
+
+    values: tuple[float, ...]
+
+    def __str__(self) -> str:
+        return f"mainjoint({_nums(self.values)})"
+
+
+@dataclass(frozen=True, slots=True)
+class AddJoint:
+    """``addjoint(e1, ..., em)``: only meaningful as an argument of ``joint``."""
+
+    values: tuple[float, ...]
+
+    def __str__(self) -> str:
+        return f"addjoint({_nums(self.values)})"
+
+
+@dataclass(frozen=True, slots=True)
+class Joint:
+    """One value per axis: main axes then additional axes (deg or mm)."""
+
+    main: tuple[float, ...]
+    add: tuple[float, ...] = ()
+
+    @property
+    def axes(self) -> tuple[float, ...]:
+        return self.main + self.add
+
+    def __str__(self) -> str:
+        text = f"joint(mainjoint({_nums(self.main)})"
+        if self.add:
+            text += f", addjoint({_nums(self.add)})"
+        return text + ")"
+
+
+@dataclass(frozen=True, slots=True)
+class Position:
+    """``pos(x, y, z)`` in mm."""
+
+    x: float
+    y: float
+    z: float
+
+    def __str__(self) -> str:
+        return f"pos({_nums((self.x, self.y, self.z))})"
+
+
+@dataclass(frozen=True, slots=True)
+class Rpy:
+    """``rpy(roll, pitch, yaw)`` in degrees."""
+
+    roll: float
+    pitch: float
+    yaw: float
+
+    def __str__(self) -> str:
+        return f"rpy({_nums((self.roll, self.pitch, self.yaw))})"
+
+
+@dataclass(frozen=True, slots=True)
+class Quat:
+    """``quat(w, x, y, z)``, a unit quaternion."""
+
+    w: float
+    x: float
+    y: float
+    z: float
+
+    def __str__(self) -> str:
+        return f"quat({_nums((self.w, self.x, self.y, self.z))})"
+
+
+@dataclass(frozen=True, slots=True)
+class Pose:
+    """The tool centre point in the robot's base frame."""
+
+    position: Position
+    orientation: Rpy | Quat
+
+    def __str__(self) -> str:
+        return f"pose({self.position}, {self.orientation})"
+
+
+def format_number(value: float | int) -> str:
+    """Shortest text that reads back as the same number (``45.0`` -> ``45``)."""
+    if isinstance(value, float) and value.is_integer() and abs(value) < 1e15:
+        return str(int(value))
+    return repr(value)
+
+
+def _nums(values) -> str:
+    return ", ".join(format_number(v) for v in values)
+
+
+def format_value(value) -> str:
+    """A value as L-IRL source text."""
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, str):
+        return '"' + value.replace("\\", "\\\\").replace('"', '\\"') + '"'
+    if isinstance(value, (int, float)):
+        return format_number(value)
+    if isinstance(value, list):
+        return "[" + ", ".join(format_value(v) for v in value) + "]"
+    return str(value)
+
+
+# ---- plain-data form, for msgpack and JSON -------------------------------------------
+# Scalars are themselves; a structured value is a list whose first item is its kind.
+
+def to_plain(value):
+    """A value as msgpack/JSON-friendly data."""
+    if isinstance(value, (bool, int, float, str)):
+        return value
+    if isinstance(value, Joint):
+        return ["joint", list(value.main), list(value.add)]
+    if isinstance(value, Position):
+        return ["pos", value.x, value.y, value.z]
+    if isinstance(value, Rpy):
+        return ["rpy", value.roll, value.pitch, value.yaw]
+    if isinstance(value, Quat):
+        return ["quat", value.w, value.x, value.y, value.z]
+    if isinstance(value, Pose):
+        return ["pose", to_plain(value.position), to_plain(value.orientation)]
+    raise TypeError(f"not an L-IRL constant: {value!r}")
+
+
+def _floats(items, count: int | None, what: str) -> tuple[float, ...]:
+    if not isinstance(items, list) or (count is not None and len(items) != count):
+        raise ValueError(f"{what}: expected {count if count is not None else 'a list of'} numbers")
+    for item in items:
+        if isinstance(item, bool) or not isinstance(item, (int, float)):
+            raise ValueError(f"{what}: {item!r} is not a number")
+    return tuple(float(item) for item in items)
+
+
+def from_plain(data):
+    """The inverse of :func:`to_plain`; raises ValueError on anything malformed."""
+    if isinstance(data, (bool, int, float, str)):
+        return data
+    if not isinstance(data, list) or not data or not isinstance(data[0], str):
+        raise ValueError(f"not a constant: {data!r:.60}")
+    kind, rest = data[0], data[1:]
+    if kind == "joint":
+        if len(rest) != 2:
+            raise ValueError("joint: expected [main, add]")
+        return Joint(_floats(rest[0], None, "joint main axes"), _floats(rest[1], None, "joint additional axes"))
+    if kind == "pos":
+        return Position(*_floats(rest, 3, "pos"))
+    if kind == "rpy":
+        return Rpy(*_floats(rest, 3, "rpy"))
+    if kind == "quat":
+        return Quat(*_floats(rest, 4, "quat"))
+    if kind == "pose":
+        if len(rest) != 2:
+            raise ValueError("pose: expected [position, orientation]")
+        position, orientation = from_plain(rest[0]), from_plain(rest[1])
+        if not isinstance(position, Position) or not isinstance(orientation, (Rpy, Quat)):
+            raise ValueError("pose: expected a position and an orientation")
+        return Pose(position, orientation)
+    raise ValueError(f"unknown constant kind {kind!r:.30}")

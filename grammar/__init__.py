@@ -1,0 +1,23 @@
+"""The L-IRL grammar (``lirl.lark``) and a tiny loader for it.
+
+The grammar is data; this module only finds it and builds a Lark LALR parser whose
+tables are cached on disk (Lark's own cache, keyed by the grammar's hash), so a command
+like ``irl check`` does not rebuild them at every start.
+"""
+from __future__ import annotations
+
+from pathlib import Path
+
+GRAMMAR_PATH = Path(__file__).with_name("lirl.lark")
+
+
+def grammar_text() -> str:
+    return GRAMMAR_PATH.read_text(encoding="utf-8")
+
+
+def make_parser(transformer=None, **options):
+    """A Lark LALR parser for L-IRL; ``transformer`` builds the result while parsing."""
+    from lark import Lark
+
+    return Lark(grammar_text(), parser="lalr", transformer=transformer,
+                maybe_placeholders=True, cache=True, **options)

@@ -1,0 +1,465 @@
+"""The object-code contract between the offline compiler and the runtime.
+
+One instruction table (:data:`INSTRUCTIONS`) is the source of truth: the encoder, the
+decoder, the verifier, the disassembler, the VM's dispatch and the generated reference
+in ``docs/objcode.md`` all derive from it. A :class:`Program` is plain data; on disk and
+on the wire it is ``MAGIC + version (u16, big-endian) + CRC-32 of the body (u32) +
+body``, the body being msgpack.
+
+This module imports nothing from Lark, so the runtime loads object code without the
+compiler's parser.
+"""
+from __future__ import annotations
+
+import struct
+import zlib
+from dataclasses import dataclass, field
+from typing import Callable
+
+import msgpack
+
+from .values import from_plain, to_plain
+
+MAGIC = b"IRLO"
+FORMAT_VERSION = 1
+_HEADER = struct.Struct(">4sHI")
+
+#: Largest object file the decoder accepts (a 10,000-line program is well under 1 MiB).
+MAX_SIZE = 64 * 1024 * 1024
+
+
+class ObjectCodeError(Exception):
+    """Object code that is malformed or does not fit the robot; says what and where."""
+
+    def __init__(self, message: str, offset: int | None = None):
+        self.message = message
+        self.offset = offset
+        super().__init__(message if offset is None else f"at offset {offset}: {message}")
+
+
+# ---- the tables ---------------------------------------------------------------------
+
+#: Operand kinds: what an operand's value means and how it is checked.
+OPERAND_KINDS = {
+    "const": "index into the constant pool",
+    "global": "global variable slot",
+    "local": "local variable slot of the current procedure",
+    "target": "code offset to jump to",
+    "proc": "index into the procedure table",
+    "count": "a non-negative count",
+    "int": "a signed integer",
+    "builtin": "built-in function number (see below)",
+    "field": "field number: 0 x, 1 y, 2 z",
+    "clauses": "bit mask of the move's clauses (see below)",
+    "flag": "0 or 1",
+}
+
+#: Built-in functions: name -> number of arguments. Angles in degrees.
+BUILTINS: dict[str, int] = {
+    "sin": 1, "cos": 1, "tan": 1, "asin": 1, "acos": 1, "atan2": 2, "sqrt": 1,
+    "abs": 1, "min": 2, "max": 2, "round": 1, "trunc": 1,
+}
+BUILTIN_NAMES = tuple(BUILTINS)
+
+FIELDS = ("x", "y", "z")
+
+#: Move clauses, in bit order; the values of the present ones are pushed in this order.
+CLAUSES = ("speed_ptp", "acc_ptp", "speed", "acc", "approx", "act_rob")
+
+MOTION_KINDS = ("ptp", "lin", "circ")
+
+
+def clause_names(mask: int) -> list[str]:
+    return [name for bit, name in enumerate(CLAUSES) if mask & (1 << bit)]
+
+
+def _bits(mask: int) -> int:
+    return bin(mask).count("1")
+
+
+@dataclass(frozen=True)
+class InstrDef:
+    """One instruction: its name, opcode, operands (name, kind), stack effect and doc.
+
+    ``pops`` is how many values the instruction takes from the stack, either a number or
+    a function of (operands, program); ``effect`` says the same for people.
+    """
+
+    name: str
+    code: int
+    operands: tuple[tuple[str, str], ...]
+    pops: int | Callable
+    pushes: int
+    doc: str
+    effect: str = ""
+    flow: str = "next"  # next | jump | branch | wait | call | return | stop
+
+    def pop_count(self, operands: tuple, program: "Program") -> int:
+        return self.pops if isinstance(self.pops, int) else self.pops(operands, program)
+
+
+def _call_pops(operands, program):
+    return program.procedures[operands[0]].params
+
+
+_DEFS = [
+    # name, operands, pops, pushes, doc, effect, flow
+    ("NOP", (), 0, 0, "Do nothing.", "", "next"),
+    ("CONST", (("k", "const"),), 0, 1, "Push constant k.", "-> value", "next"),
+    ("LOAD_GLOBAL", (("g", "global"),), 0, 1, "Push global variable g.", "-> value", "next"),
+    ("STORE_GLOBAL", (("g", "global"),), 1, 0, "Pop a value into global variable g.", "value ->", "next"),
+    ("LOAD_LOCAL", (("l", "local"),), 0, 1, "Push local variable (or parameter) l.", "-> value", "next"),
+    ("STORE_LOCAL", (("l", "local"),), 1, 0, "Pop a value into local variable l.", "value ->", "next"),
+    ("COPY", (), 1, 1, "Replace an array on top of the stack by a copy of it (arrays are values).",
+     "array -> array'", "next"),
+    ("TO_REAL", (), 1, 1, "Convert the integer on top of the stack to real.", "int -> real", "next"),
+    ("NEG", (), 1, 1, "Negate a number.", "a -> -a", "next"),
+    ("NOT", (), 1, 1, "Logical not.", "a -> not a", "next"),
+    ("ADD", (), 2, 1, "a + b (numbers, or two strings joined).", "a b -> a+b", "next"),
+    ("SUB", (), 2, 1, "a - b.", "a b -> a-b", "next"),
+    ("MUL", (), 2, 1, "a * b.", "a b -> a*b", "next"),
+    ("DIV", (), 2, 1, "a / b, real division; division by zero is a run-time error.", "a b -> a/b", "next"),
+    ("IDIV", (), 2, 1, "a div b, integer division truncating toward zero.", "a b -> a div b", "next"),
+    ("MOD", (), 2, 1, "a mod b, the remainder of div (sign of a).", "a b -> a mod b", "next"),
+    ("EQ", (), 2, 1, "a = b.", "a b -> bool", "next"),
+    ("NE", (), 2, 1, "a <> b.", "a b -> bool", "next"),
+    ("LT", (), 2, 1, "a < b.", "a b -> bool", "next"),
+    ("LE", (), 2, 1, "a <= b.", "a b -> bool", "next"),
+    ("GT", (), 2, 1, "a > b.", "a b -> bool", "next"),
+    ("GE", (), 2, 1, "a >= b.", "a b -> bool", "next"),
+    ("AND", (), 2, 1, "a and b (both are evaluated).", "a b -> bool", "next"),
+    ("OR", (), 2, 1, "a or b (both are evaluated).", "a b -> bool", "next"),
+    ("CALL_BUILTIN", (("fn", "builtin"), ("argc", "count")), lambda ops, p: ops[1], 1,
+     "Call built-in function fn with argc arguments.", "args... -> result", "next"),
+    ("MAKE_JOINT", (("main", "count"), ("add", "count")), lambda ops, p: ops[0] + ops[1], 1,
+     "Build a joint value from main + add axis values.", "a1..an e1..em -> joint", "next"),
+    ("MAKE_POS", (), 3, 1, "Build pos(x, y, z).", "x y z -> position", "next"),
+    ("MAKE_RPY", (), 3, 1, "Build rpy(roll, pitch, yaw).", "r p y -> orientation", "next"),
+    ("MAKE_QUAT", (), 4, 1, "Build quat(w, x, y, z), normalised; a zero quaternion is a run-time error.",
+     "w x y z -> orientation", "next"),
+    ("MAKE_POSE", (), 2, 1, "Build pose(position, orientation).", "position orientation -> pose", "next"),
+    ("MAKE_ARRAY", (("n", "count"),), 1, 1, "Build an array of n copies of the value on top.",
+     "element -> array", "next"),
+    ("GET_ITEM", (("low", "int"),), 2, 1, "Array element; index out of low..high is a run-time error.",
+     "array index -> element", "next"),
+    ("SET_ITEM", (("low", "int"),), 3, 0, "Store into an array element (the array is changed in place).",
+     "array index value ->", "next"),
+    ("GET_AXIS", (), 2, 1, "Axis value of a joint, axes numbered from 1.", "joint axis -> real", "next"),
+    ("SET_AXIS", (), 3, 1, "A joint with one axis value replaced.", "joint axis value -> joint", "next"),
+    ("GET_FIELD", (("f", "field"),), 1, 1, "Field x, y or z of a position or pose (mm).",
+     "position|pose -> real", "next"),
+    ("JUMP", (("target", "target"),), 0, 0, "Continue at target.", "", "jump"),
+    ("JUMP_IF_FALSE", (("target", "target"),), 1, 0, "Pop a bool; continue at target when false.",
+     "bool ->", "branch"),
+    ("CALL", (("p", "proc"),), _call_pops, 0,
+     "Call procedure p; its parameters are popped into its first local slots.", "args... ->", "call"),
+    ("RET", (), 0, 0, "Return from the current procedure.", "", "return"),
+    ("IN_GET", (), 1, 1, "Read digital input n (bool).", "n -> bool", "next"),
+    ("OUT_SET", (), 2, 0, "Set digital output n.", "n value ->", "next"),
+    ("MOVE_PTP", (("clauses", "clauses"),), lambda ops, p: 1 + _bits(ops[0]), 0,
+     "Point-to-point move to a joint or pose target, with the clauses in the mask.",
+     "target clause-values... ->", "wait"),
+    ("MOVE_LIN", (("clauses", "clauses"),), lambda ops, p: 1 + _bits(ops[0]), 0,
+     "Straight-line move of the tool centre point to a pose.", "pose clause-values... ->", "wait"),
+    ("MOVE_CIRC", (("clauses", "clauses"),), lambda ops, p: 2 + _bits(ops[0]), 0,
+     "Circular move through a via pose to an end pose.", "via end clause-values... ->", "wait"),
+    ("DWELL", (), 1, 0, "Stand still for the given seconds.", "seconds ->", "wait"),
+    ("WAIT_BEGIN", (("timeout", "flag"),), lambda ops, p: ops[0], 0,
+     "Start a 'wait for'; with timeout = 1, pop the time-out in seconds.", "[seconds] ->", "next"),
+    ("WAIT_TEST", (("target", "target"),), 1, 0,
+     "Pop the condition; when false and not timed out, yield and continue at target next cycle.",
+     "bool ->", "branch"),
+    ("PRINT", (("n", "count"),), lambda ops, p: ops[0], 0, "Send n values to the operator log.",
+     "values... ->", "next"),
+    ("PAUSE", (), 0, 0, "Hold until the operator resumes.", "", "wait"),
+    ("HALT", (), 0, 0, "End the program here.", "", "stop"),
+    ("END", (), 0, 0, "The end of the main program.", "", "stop"),
+]
+
+INSTRUCTIONS: tuple[InstrDef, ...] = tuple(
+    InstrDef(name, code, operands, pops, pushes, doc, effect, flow)
+    for code, (name, operands, pops, pushes, doc, effect, flow) in enumerate(_DEFS)
+)
+BY_NAME: dict[str, InstrDef] = {d.name: d for d in INSTRUCTIONS}
+BY_CODE: dict[int, InstrDef] = {d.code: d for d in INSTRUCTIONS}
+OP = type("OP", (), {d.name: d.code for d in INSTRUCTIONS})  # OP.CONST == 1, ...
+
+
+# ---- the program ----------------------------------------------------------------------
+
+@dataclass(frozen=True)
+class ProcInfo:
+    """A procedure: where its code starts, how many parameters, its local slots."""
+
+    name: str
+    entry: int
+    params: int
+    locals: tuple[tuple[str, str], ...]  # (name, type) per slot, parameters first
+
+
+@dataclass(frozen=True)
+class Program:
+    """Object code as plain data. ``code`` holds (opcode, operand, ...) tuples."""
+
+    name: str
+    source: str
+    spec_name: str
+    spec_hash: str
+    robots: tuple[str, ...]
+    constants: tuple
+    code: tuple[tuple[int, ...], ...]
+    lines: tuple[tuple[int, int, int], ...]  # (offset, line, column), offsets ascending
+    globals: tuple[tuple[str, str], ...]  # (name, type) per slot
+    procedures: tuple[ProcInfo, ...] = ()
+    format_version: int = FORMAT_VERSION
+
+    def line_at(self, offset: int) -> tuple[int, int]:
+        """The (line, column) of the statement that ``offset`` belongs to, or (0, 0)."""
+        from bisect import bisect_right
+
+        i = bisect_right(self.lines, (offset, float("inf"), 0)) - 1
+        return (self.lines[i][1], self.lines[i][2]) if i >= 0 else (0, 0)
+
+
+# ---- encoding ---------------------------------------------------------------------------
+
+def _body(program: Program) -> dict:
+    flat_code: list[int] = []
+    for instr in program.code:
+        flat_code.extend(instr)
+    return {
+        "name": program.name,
+        "source": program.source,
+        "spec": [program.spec_name, program.spec_hash],
+        "robots": list(program.robots),
+        "constants": [to_plain(c) for c in program.constants],
+        "code": flat_code,
+        "lines": [x for entry in program.lines for x in entry],
+        "globals": [list(g) for g in program.globals],
+        "procedures": [[p.name, p.entry, p.params, [list(l) for l in p.locals]] for p in program.procedures],
+    }
+
+
+def encode(program: Program) -> bytes:
+    """The object file's bytes: header (magic, version, CRC-32) + msgpack body."""
+    body = msgpack.packb(_body(program), use_bin_type=True)
+    return _HEADER.pack(MAGIC, program.format_version, zlib.crc32(body)) + body
+
+
+def checksum_of(data: bytes) -> int:
+    """The CRC-32 recorded in an object file's header."""
+    return _HEADER.unpack_from(data)[2]
+
+
+def _expect(cond: bool, message: str) -> None:
+    if not cond:
+        raise ObjectCodeError(message)
+
+
+def _is_str(x) -> bool:
+    return isinstance(x, str)
+
+
+def _is_int(x) -> bool:
+    return isinstance(x, int) and not isinstance(x, bool)
+
+
+def _pairs(data, what: str) -> tuple[tuple[str, str], ...]:
+    _expect(isinstance(data, list) and all(isinstance(x, list) and len(x) == 2 and all(map(_is_str, x))
+                                           for x in data), f"{what}: expected a list of [name, type] pairs")
+    return tuple((a, b) for a, b in data)
+
+
+def decode(data: bytes) -> Program:
+    """Bytes -> Program, checking the header and the body's shape (not its logic: see
+    :func:`verify`). Raises :class:`ObjectCodeError` for anything malformed."""
+    if not isinstance(data, (bytes, bytearray, memoryview)):
+        raise ObjectCodeError("object code must be bytes")
+    data = bytes(data)
+    _expect(len(data) >= _HEADER.size and data[:4] == MAGIC, "not an L-IRL object file (bad magic)")
+    _expect(len(data) <= MAX_SIZE, f"object file too large ({len(data)} bytes, limit {MAX_SIZE})")
+    magic, version, crc = _HEADER.unpack_from(data)
+    _expect(version == FORMAT_VERSION,
+            f"object format version {version} is not supported (this build reads version {FORMAT_VERSION})")
+    body_bytes = data[_HEADER.size:]
+    _expect(zlib.crc32(body_bytes) == crc, "checksum mismatch: the object file is corrupt")
+    try:
+        body = msgpack.unpackb(body_bytes, raw=False, strict_map_key=True, use_list=True)
+    except Exception as exc:  # msgpack raises several unrelated types for bad input
+        raise ObjectCodeError(f"body is not valid msgpack ({type(exc).__name__})") from None
+    _expect(isinstance(body, dict), "body: expected a map")
+    keys = {"name", "source", "spec", "robots", "constants", "code", "lines", "globals", "procedures"}
+    missing = keys - set(body)
+    _expect(not missing, f"body: missing {', '.join(sorted(missing))}")
+    _expect(_is_str(body["name"]) and _is_str(body["source"]), "body: name and source must be strings")
+    spec = body["spec"]
+    _expect(isinstance(spec, list) and len(spec) == 2 and all(map(_is_str, spec)),
+            "body: spec must be [name, hash]")
+    robots = body["robots"]
+    _expect(isinstance(robots, list) and all(map(_is_str, robots)), "body: robots must be a list of strings")
+    _expect(isinstance(body["constants"], list), "body: constants must be a list")
+    constants = []
+    for i, c in enumerate(body["constants"]):
+        try:
+            constants.append(from_plain(c))
+        except ValueError as exc:
+            raise ObjectCodeError(f"constant {i}: {exc}") from None
+    flat = body["code"]
+    _expect(isinstance(flat, list) and all(map(_is_int, flat)), "body: code must be a list of integers")
+    code = []
+    pos = 0
+    while pos < len(flat):
+        op = flat[pos]
+        definition = BY_CODE.get(op)
+        if definition is None:
+            raise ObjectCodeError(f"unknown opcode {op}", len(code))
+        n = len(definition.operands)
+        if pos + 1 + n > len(flat):
+            raise ObjectCodeError(f"{definition.name}: code ends inside its operands", len(code))
+        code.append(tuple(flat[pos:pos + 1 + n]))
+        pos += 1 + n
+    lines = body["lines"]
+    _expect(isinstance(lines, list) and len(lines) % 3 == 0 and all(map(_is_int, lines)),
+            "body: lines must be a flat list of (offset, line, column) integers")
+    line_table = tuple(tuple(lines[i:i + 3]) for i in range(0, len(lines), 3))
+    procs = body["procedures"]
+    _expect(isinstance(procs, list), "body: procedures must be a list")
+    procedures = []
+    for i, p in enumerate(procs):
+        _expect(isinstance(p, list) and len(p) == 4 and _is_str(p[0]) and _is_int(p[1]) and _is_int(p[2]),
+                f"procedure {i}: expected [name, entry, params, locals]")
+        procedures.append(ProcInfo(p[0], p[1], p[2], _pairs(p[3], f"procedure {p[0]} locals")))
+    return Program(body["name"], body["source"], spec[0], spec[1], tuple(robots), tuple(constants),
+                   tuple(code), line_table, _pairs(body["globals"], "globals"), tuple(procedures), version)
+
+
+# ---- verification ------------------------------------------------------------------------
+
+def _check_operand(kind: str, value: int, program: Program, nlocals: int | None) -> str | None:
+    """None when ``value`` is valid for an operand of ``kind``, else what is wrong."""
+    if kind == "const":
+        ok, limit = 0 <= value < len(program.constants), f"0..{len(program.constants) - 1}"
+    elif kind == "global":
+        ok, limit = 0 <= value < len(program.globals), f"0..{len(program.globals) - 1}"
+    elif kind == "local":
+        if nlocals is None:
+            return "local variable used outside a procedure"
+        ok, limit = 0 <= value < nlocals, f"0..{nlocals - 1}"
+    elif kind == "target":
+        ok, limit = 0 <= value < len(program.code), f"0..{len(program.code) - 1}"
+    elif kind == "proc":
+        ok, limit = 0 <= value < len(program.procedures), f"0..{len(program.procedures) - 1}"
+    elif kind == "count":
+        ok, limit = 0 <= value <= 255, "0..255"
+    elif kind == "int":
+        ok, limit = -(2 ** 31) <= value < 2 ** 31, "a 32-bit integer"
+    elif kind == "builtin":
+        ok, limit = 0 <= value < len(BUILTIN_NAMES), f"0..{len(BUILTIN_NAMES) - 1}"
+    elif kind == "field":
+        ok, limit = 0 <= value < len(FIELDS), f"0..{len(FIELDS) - 1}"
+    elif kind == "clauses":
+        ok, limit = 0 <= value < (1 << len(CLAUSES)), f"a mask below {1 << len(CLAUSES)}"
+    elif kind == "flag":
+        ok, limit = value in (0, 1), "0 or 1"
+    else:  # pragma: no cover - the table only uses the kinds above
+        return f"unknown operand kind {kind}"
+    return None if ok else f"{value} is out of range ({limit})"
+
+
+def _verify_routine(program: Program, entry: int, nlocals: int | None, owner: list) -> int:
+    """Walk every path from ``entry``; returns the largest stack depth reached."""
+    code = program.code
+    depth_at: dict[int, int] = {entry: 0}
+    work = [entry]
+    deepest = 0
+    while work:
+        pc = work.pop()
+        depth = depth_at[pc]
+        if owner[pc] is None:
+            owner[pc] = entry
+        elif owner[pc] != entry:
+            raise ObjectCodeError("code is shared between two routines", pc)
+        instr = code[pc]
+        definition = BY_CODE[instr[0]]
+        operands = instr[1:]
+        for (name, kind), value in zip(definition.operands, operands):
+            problem = _check_operand(kind, value, program, nlocals)
+            if problem:
+                raise ObjectCodeError(f"{definition.name} operand {name}: {problem}", pc)
+        if definition.name == "CALL_BUILTIN" and BUILTINS[BUILTIN_NAMES[operands[0]]] != operands[1]:
+            raise ObjectCodeError(f"CALL_BUILTIN {BUILTIN_NAMES[operands[0]]} takes "
+                                  f"{BUILTINS[BUILTIN_NAMES[operands[0]]]} arguments, not {operands[1]}", pc)
+        pops = definition.pop_count(operands, program)
+        if pops > depth:
+            raise ObjectCodeError(f"{definition.name} needs {pops} stack values but the stack holds {depth}", pc)
+        depth = depth - pops + definition.pushes
+        deepest = max(deepest, depth)
+        flow = definition.flow
+        successors = []
+        if flow in ("next", "call", "wait"):
+            successors.append(pc + 1)
+        elif flow == "jump":
+            successors.append(operands[0])
+        elif flow == "branch":
+            successors.extend((pc + 1, operands[0]))
+        elif flow == "return" and nlocals is None:
+            raise ObjectCodeError("RET outside a procedure", pc)
+        elif flow == "stop" and definition.name == "END" and nlocals is not None:
+            raise ObjectCodeError("END inside a procedure", pc)
+        if flow in ("return", "stop") and depth != 0:
+            raise ObjectCodeError(f"{definition.name} with {depth} values left on the stack", pc)
+        for nxt in successors:
+            if nxt >= len(code):
+                raise ObjectCodeError("execution runs past the end of the code", pc)
+            known = depth_at.get(nxt)
+            if known is None:
+                depth_at[nxt] = depth
+                work.append(nxt)
+            elif known != depth:
+                raise ObjectCodeError(f"inconsistent stack depth: {known} on one path, {depth} on another", nxt)
+    return deepest
+
+
+def verify(program: Program, spec_hash: str | None = None) -> int:
+    """Check that ``program`` is safe to run; returns the largest stack depth it needs.
+
+    Checks every opcode and operand, jump targets, procedure entries, the stack depth on
+    every path, and (when ``spec_hash`` is given) that it was compiled for that robot.
+    Raises :class:`ObjectCodeError` naming the offset of the first problem.
+    """
+    if program.format_version != FORMAT_VERSION:
+        raise ObjectCodeError(f"object format version {program.format_version} is not supported")
+    if spec_hash is not None and program.spec_hash != spec_hash:
+        raise ObjectCodeError(
+            f"compiled for specification {program.spec_name!r} ({program.spec_hash[:12]}), "
+            f"but this robot's specification is {spec_hash[:12]}: recompile the program")
+    if not program.code:
+        raise ObjectCodeError("the program has no code")
+    for offset, instr in enumerate(program.code):
+        definition = BY_CODE.get(instr[0]) if instr else None
+        if definition is None or len(instr) != 1 + len(definition.operands):
+            raise ObjectCodeError("malformed instruction", offset)
+    previous = -1
+    for offset, line, column in program.lines:
+        if not (0 <= offset < len(program.code)) or offset < previous or line < 1 or column < 1:
+            raise ObjectCodeError(f"line table entry ({offset}, {line}, {column}) is invalid")
+        previous = offset
+    owner: list = [None] * len(program.code)
+    deepest = _verify_routine(program, 0, None, owner)
+    for proc in program.procedures:
+        if not (0 <= proc.entry < len(program.code)):
+            raise ObjectCodeError(f"procedure {proc.name!r} starts outside the code ({proc.entry})")
+        if not (0 <= proc.params <= len(proc.locals)):
+            raise ObjectCodeError(f"procedure {proc.name!r} has {proc.params} parameters "
+                                  f"but {len(proc.locals)} local slots")
+        if owner[proc.entry] is not None:
+            raise ObjectCodeError(f"procedure {proc.name!r} starts inside other code", proc.entry)
+        deepest = max(deepest, _verify_routine(program, proc.entry, len(proc.locals), owner))
+    return deepest
+
+
+def load(data: bytes, spec_hash: str | None = None) -> Program:
+    """Decode and verify: what the runtime calls on every program it receives."""
+    program = decode(data)
+    verify(program, spec_hash)
+    return program

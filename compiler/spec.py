@@ -1,0 +1,275 @@
+"""The system specification (``.spc``): a TOML file that describes one robot.
+
+Loading validates every key: a missing or wrong one is a :class:`SpecError` that names
+the file, the key and what was expected; an unknown key is an error too (a misspelled
+limit must never be silently ignored). The hash of a specification is taken over its
+parsed content, so reformatting or comments do not change it.
+
+Imports nothing from Lark, NumPy or ZeroMQ.
+"""
+from __future__ import annotations
+
+import hashlib
+import json
+import math
+import tomllib
+from dataclasses import dataclass
+from pathlib import Path
+
+from .diagnostics import did_you_mean
+
+
+class SpecError(Exception):
+    """A specification that cannot be used: says which file, which key and why."""
+
+    def __init__(self, file: str, key: str | None, message: str):
+        self.file, self.key, self.message = file, key, message
+        where = f"{file}: {key}: " if key else f"{file}: "
+        super().__init__(where + message)
+
+
+@dataclass(frozen=True)
+class DH:
+    """Denavit-Hartenberg parameters of one link (standard convention; mm and deg)."""
+
+    a: float
+    alpha: float
+    d: float
+    theta_offset: float = 0.0
+
+
+@dataclass(frozen=True)
+class Axis:
+    name: str
+    kind: str  # "revolute" (deg) or "prismatic" (mm)
+    min: float
+    max: float
+    max_velocity: float
+    max_acceleration: float
+    max_jerk: float
+    group: str = "main"  # "main" or "additional"
+    dh: DH | None = None
+    home: float = 0.0  # the start position the initialization sequence drives to
+    gear_ratio: float = 100.0
+    encoder_counts: int = 4096  # counts per motor revolution (after quadrature)
+
+    @property
+    def unit(self) -> str:
+        return "deg" if self.kind == "revolute" else "mm"
+
+
+@dataclass(frozen=True)
+class Defaults:
+    """Values of the move clauses that a program leaves out."""
+
+    speed_ptp: float = 0.5
+    acc_ptp: float = 0.5
+    speed: float = 250.0  # mm/s
+    acc: float = 1000.0  # mm/s^2
+    approx: float = 0.0
+
+
+@dataclass(frozen=True)
+class Spec:
+    name: str
+    file: str
+    axes: tuple[Axis, ...]
+    defaults: Defaults
+    max_speed: float  # tool centre point, mm/s
+    max_acceleration: float  # mm/s^2
+    inputs: int
+    outputs: int
+    tool: tuple[float, ...]  # x, y, z (mm), roll, pitch, yaw (deg) of the TCP in the flange frame
+    controller: dict
+    hash: str
+    description: str = ""
+
+    @property
+    def main_axes(self) -> tuple[Axis, ...]:
+        return tuple(a for a in self.axes if a.group == "main")
+
+    @property
+    def additional_axes(self) -> tuple[Axis, ...]:
+        return tuple(a for a in self.axes if a.group == "additional")
+
+    def reach(self) -> float:
+        """An upper bound of the distance (mm) from the base origin to any reachable TCP."""
+        total = 0.0
+        for axis in self.main_axes:
+            if axis.dh is not None:
+                total += math.hypot(axis.dh.a, axis.dh.d)
+        return total + math.hypot(*self.tool[:3])
+
+
+# ---- validation helpers ----------------------------------------------------------------
+
+class _Reader:
+    """Reads one TOML table, recording which keys were used so the rest can be refused."""
+
+    def __init__(self, file: str, prefix: str, table, required: bool = True):
+        if not isinstance(table, dict):
+            raise SpecError(file, prefix, "expected a table")
+        self.file, self.prefix, self.table, self.used = file, prefix, table, set()
+
+    def key(self, name: str) -> str:
+        return f"{self.prefix}.{name}" if self.prefix else name
+
+    def get(self, name: str, kind: str, default=..., check=None, expect: str = ""):
+        self.used.add(name)
+        if name not in self.table:
+            if default is ...:
+                typo = did_you_mean(name, [k for k in self.table if k not in self.used], cutoff=0.8)
+                hint = f" (is '{typo}' a misspelling of it?)" if typo else ""
+                raise SpecError(self.file, self.key(name), f"missing; expected {expect or kind}{hint}")
+            return default
+        value = self.table[name]
+        if kind == "number":
+            ok = isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
+            value = float(value) if ok else value
+        elif kind == "integer":
+            ok = isinstance(value, int) and not isinstance(value, bool)
+        elif kind == "string":
+            ok = isinstance(value, str) and value != ""
+        elif kind == "table":
+            ok = isinstance(value, dict)
+        else:  # pragma: no cover
+            raise AssertionError(kind)
+        if ok and check is not None:
+            ok = check(value)
+        if not ok:
+            raise SpecError(self.file, self.key(name), f"expected {expect or kind}, got {value!r}")
+        return value
+
+    def finish(self) -> None:
+        for name in self.table:
+            if name not in self.used:
+                guess = did_you_mean(name, self.used)
+                hint = f" (did you mean '{guess}'?)" if guess else ""
+                raise SpecError(self.file, self.key(name), f"unknown key{hint}")
+
+
+def _positive(x) -> bool:
+    return x > 0
+
+
+def _canonical_hash(data: dict) -> str:
+    text = json.dumps(data, sort_keys=True, separators=(",", ":"), ensure_ascii=True)
+    return hashlib.sha256(text.encode()).hexdigest()
+
+
+def _axis(file: str, index: int, table) -> Axis:
+    r = _Reader(file, f"axis[{index + 1}]", table)
+    name = r.get("name", "string")
+    kind = r.get("kind", "string", check=lambda k: k in ("revolute", "prismatic"),
+                 expect='"revolute" or "prismatic"')
+    unit = "deg" if kind == "revolute" else "mm"
+    low = r.get("min", "number", expect=f"a number ({unit})")
+    high = r.get("max", "number", check=lambda v: v > low, expect=f"a number ({unit}) greater than min ({low:g})")
+    vel = r.get("max_velocity", "number", check=_positive, expect=f"a positive number ({unit}/s)")
+    acc = r.get("max_acceleration", "number", check=_positive, expect=f"a positive number ({unit}/s^2)")
+    jerk = r.get("max_jerk", "number", check=_positive, expect=f"a positive number ({unit}/s^3)")
+    group = r.get("group", "string", "main", check=lambda g: g in ("main", "additional"),
+                  expect='"main" or "additional"')
+    home = r.get("home", "number", 0.0, check=lambda v: low <= v <= high,
+                 expect=f"a number ({unit}) within min..max")
+    gear = r.get("gear_ratio", "number", 100.0, check=_positive, expect="a positive number")
+    counts = r.get("encoder_counts", "integer", 4096, check=_positive,
+                   expect="a positive integer (counts per motor revolution)")
+    dh = None
+    if "dh" in r.table:
+        d = _Reader(file, r.key("dh"), r.get("dh", "table"))
+        dh = DH(d.get("a", "number", expect="a number (mm)"), d.get("alpha", "number", expect="a number (deg)"),
+                d.get("d", "number", expect="a number (mm)"),
+                d.get("theta_offset", "number", 0.0, expect="a number (deg)"))
+        d.finish()
+    r.finish()
+    return Axis(name, kind, low, high, vel, acc, jerk, group, dh, home, gear, counts)
+
+
+def parse_spec(text: str, file: str = "<spec>") -> Spec:
+    """Validate the text of a specification; raises :class:`SpecError`."""
+    try:
+        data = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise SpecError(file, None, f"not valid TOML: {exc}") from None
+    top = _Reader(file, "", data)
+    robot = _Reader(file, "robot", top.get("robot", "table", expect="a [robot] table"))
+    name = robot.get("name", "string", expect="the robot's name (what act_rob names)")
+    description = robot.get("description", "string", "")
+    max_speed = robot.get("max_speed", "number", 2000.0, check=_positive, expect="a positive number (mm/s)")
+    max_acc = robot.get("max_acceleration", "number", 10000.0, check=_positive,
+                        expect="a positive number (mm/s^2)")
+    robot.finish()
+
+    top.used.add("axis")
+    axis_tables = data.get("axis")
+    if not isinstance(axis_tables, list) or not axis_tables:
+        raise SpecError(file, "axis", "missing; expected one [[axis]] table per axis")
+    axes = tuple(_axis(file, i, t) for i, t in enumerate(axis_tables))
+    seen = set()
+    for i, axis in enumerate(axes):
+        if axis.name in seen:
+            raise SpecError(file, f"axis[{i + 1}].name", f"{axis.name!r} names two axes")
+        seen.add(axis.name)
+    if not any(a.group == "main" for a in axes):
+        raise SpecError(file, "axis", "expected at least one main axis")
+    groups = [a.group for a in axes]
+    if "additional" in groups and "main" in groups[groups.index("additional"):]:
+        raise SpecError(file, "axis", "main axes must come before additional axes")
+
+    defaults = Defaults()
+    if "defaults" in data:
+        d = _Reader(file, "defaults", top.get("defaults", "table"))
+        fraction = lambda v: 0 < v <= 1  # noqa: E731
+        defaults = Defaults(
+            d.get("speed_ptp", "number", 0.5, check=fraction, expect="a fraction 0 < x <= 1"),
+            d.get("acc_ptp", "number", 0.5, check=fraction, expect="a fraction 0 < x <= 1"),
+            d.get("speed", "number", min(250.0, max_speed), check=lambda v: 0 < v <= max_speed,
+                  expect=f"a speed 0 < x <= robot.max_speed ({max_speed:g} mm/s)"),
+            d.get("acc", "number", min(1000.0, max_acc), check=lambda v: 0 < v <= max_acc,
+                  expect=f"an acceleration 0 < x <= robot.max_acceleration ({max_acc:g} mm/s^2)"),
+            d.get("approx", "number", 0.0, check=lambda v: v >= 0, expect="a number >= 0"),
+        )
+        d.finish()
+    else:
+        top.get("defaults", "table", None)
+
+    inputs = outputs = 16
+    if "io" in data:
+        io = _Reader(file, "io", top.get("io", "table"))
+        inputs = io.get("inputs", "integer", 16, check=lambda v: 0 <= v <= 4096, expect="an integer 0..4096")
+        outputs = io.get("outputs", "integer", 16, check=lambda v: 0 <= v <= 4096, expect="an integer 0..4096")
+        io.finish()
+    else:
+        top.get("io", "table", None)
+
+    tool = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
+    if "kinematics" in data:
+        k = _Reader(file, "kinematics", top.get("kinematics", "table"))
+        raw_tool = k.get("tool", "table", {})
+        t = _Reader(file, "kinematics.tool", raw_tool)
+        tool = tuple(t.get(key, "number", 0.0) for key in ("x", "y", "z", "roll", "pitch", "yaw"))
+        t.finish()
+        k.finish()
+    else:
+        top.get("kinematics", "table", None)
+
+    controller = top.get("controller", "table", {})
+    for key, value in controller.items():
+        if isinstance(value, bool) or not isinstance(value, (int, float, str)):
+            raise SpecError(file, f"controller.{key}", f"expected a number or a string, got {value!r}")
+    top.finish()
+    return Spec(name, file, axes, defaults, max_speed, max_acc, inputs, outputs, tool, dict(controller),
+                _canonical_hash(data), description)
+
+
+def load_spec(path: str | Path) -> Spec:
+    """Read and validate a specification file; raises :class:`SpecError`."""
+    path = Path(path)
+    try:
+        text = path.read_text(encoding="utf-8")
+    except OSError as exc:
+        raise SpecError(str(path), None, f"cannot read: {exc.strerror or exc}") from None
+    except UnicodeDecodeError:
+        raise SpecError(str(path), None, "not a text file (expected UTF-8 TOML)") from None
+    return parse_spec(text, str(path))

@@ -1,0 +1,794 @@
+"""Semantic checks: names, types, clauses and limits against the system specification.
+
+The checker walks the AST once, reporting *every* error of the file, and records what
+code generation needs in side tables keyed by ``id(node)``: each expression's type, its
+value when it is a compile-time constant (folded with :mod:`compiler.semantics`, the
+same code the VM runs), and what each name refers to.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+from . import ast
+from .diagnostics import Diagnostic, did_you_mean
+from .objcode import BUILTINS, CLAUSES
+from .semantics import EvalError, binary, call_builtin, make_joint, make_pos, make_quat, make_rpy, unary
+from .spec import Spec
+from .values import AddJoint, Joint, MainJoint, Pose, Position, Quat, Rpy
+
+# ---- types ---------------------------------------------------------------------------------
+
+INTEGER, REAL, BOOL, STRING = "integer", "real", "bool", "string"
+JOINT, POSITION, ORIENTATION, POSE = "joint", "position", "orientation", "pose"
+MAINJOINT, ADDJOINT = "mainjoint(...)", "addjoint(...)"
+ERROR = "<error>"  # the type of an expression already reported: suppresses follow-on errors
+
+NAMED_TYPES = (INTEGER, REAL, BOOL, STRING, JOINT, POSITION, ORIENTATION, POSE)
+NUMERIC = (INTEGER, REAL)
+MAX_ARRAY_LENGTH = 100_000
+
+
+@dataclass(frozen=True)
+class ArrayT:
+    low: int
+    high: int
+    element: object
+
+    def __str__(self) -> str:
+        return f"array[{self.low}..{self.high}] of {self.element}"
+
+    @property
+    def length(self) -> int:
+        return self.high - self.low + 1
+
+
+def type_name(t) -> str:
+    return str(t)
+
+
+def assignable(target, value) -> bool:
+    return target == value or (target == REAL and value == INTEGER) or ERROR in (target, value)
+
+
+# ---- symbols -------------------------------------------------------------------------------
+
+@dataclass
+class Symbol:
+    kind: str  # "const", "global", "local", "proc"
+    name: str
+    type: object
+    span: ast.Span
+    slot: int = -1
+    value: object = None
+    params: tuple = ()  # for procedures: parameter types
+    index: int = -1  # for procedures: index in the procedure table
+
+
+@dataclass
+class ProcScope:
+    node: ast.Procedure
+    symbol: Symbol
+    names: dict[str, Symbol] = field(default_factory=dict)
+    slots: list[tuple[str, str]] = field(default_factory=list)
+
+
+@dataclass
+class CheckedProgram:
+    """The AST plus everything the checker learned; input to code generation."""
+
+    program: ast.Program
+    spec: Spec
+    types: dict[int, object]
+    values: dict[int, object]
+    symbols: dict[int, Symbol]
+    globals: list[tuple[str, str]]  # (name, type) per global slot
+    global_symbols: dict[str, Symbol]
+    procedures: list[ProcScope]
+    robots: tuple[str, ...]
+
+
+_NO_VALUE = object()
+
+
+class Checker:
+    def __init__(self, program: ast.Program, spec: Spec, file: str):
+        self.program, self.spec, self.file = program, spec, file
+        self.diagnostics: list[Diagnostic] = []
+        self.types: dict[int, object] = {}
+        self.values: dict[int, object] = {}
+        self.symbols: dict[int, Symbol] = {}
+        self.globals: dict[str, Symbol] = {}
+        self.global_slots: list[tuple[str, str]] = []
+        self.procs: list[ProcScope] = []
+        self.scope: ProcScope | None = None
+        self.loop_vars: list[str] = []
+        self.robots: list[str] = []
+
+    # -- reporting --
+    def error(self, span: ast.Span, message: str, hint: str | None = None) -> None:
+        self.diagnostics.append(Diagnostic(self.file, span.line, span.col, span.end_line, span.end_col,
+                                           "error", message, hint))
+
+    # -- names --
+    def lookup(self, name: str) -> Symbol | None:
+        if self.scope is not None and name in self.scope.names:
+            return self.scope.names[name]
+        return self.globals.get(name)
+
+    def visible_names(self) -> list[str]:
+        names = list(self.globals)
+        if self.scope is not None:
+            names += list(self.scope.names)
+        return names
+
+    def unknown(self, span: ast.Span, name: str, what: str = "name") -> None:
+        guess = did_you_mean(name, self.visible_names())
+        self.error(span, f"undeclared {what} '{name}'", f"did you mean '{guess}'?" if guess else None)
+
+    def declare(self, table: dict[str, Symbol], symbol: Symbol) -> bool:
+        previous = table.get(symbol.name)  # a local may shadow a global: tables are per scope
+        if previous is not None:
+            self.error(symbol.span, f"'{symbol.name}' is already declared",
+                       f"the first declaration is at line {previous.span.line}")
+            return False
+        table[symbol.name] = symbol
+        return True
+
+    # -- types --
+    def resolve_type(self, node: ast.TypeExpr):
+        if isinstance(node, ast.NamedType):
+            if node.name in NAMED_TYPES:
+                return node.name
+            guess = did_you_mean(node.name, NAMED_TYPES + ("array",))
+            self.error(node.span, f"unknown type '{node.name}'",
+                       f"did you mean '{guess}'?" if guess else f"types are {', '.join(NAMED_TYPES)}, array")
+            return ERROR
+        low = self.const_int(node.low, "an array's lower bound")
+        high = self.const_int(node.high, "an array's upper bound")
+        element = self.resolve_type(node.element)
+        if ERROR in (low, high, element):
+            return ERROR
+        if high < low:
+            self.error(node.span, f"array bounds {low}..{high} are empty", "the upper bound must be >= the lower")
+            return ERROR
+        length = high - low + 1
+        if isinstance(element, ArrayT):
+            length *= element.length
+        if length > MAX_ARRAY_LENGTH:
+            self.error(node.span, f"array of {length} elements is too large (limit {MAX_ARRAY_LENGTH})")
+            return ERROR
+        return ArrayT(low, high, element)
+
+    def const_int(self, expr: ast.Expr, what: str):
+        t = self.expr(expr)
+        if t == ERROR:
+            return ERROR
+        value = self.values.get(id(expr), _NO_VALUE)
+        if t != INTEGER or value is _NO_VALUE:
+            self.error(expr.span, f"{what} must be an integer known at compile time")
+            return ERROR
+        return value
+
+    def expect(self, expr: ast.Expr, wanted, what: str):
+        """Check ``expr`` and that its type fits ``wanted`` (a type or a tuple of types)."""
+        t = self.expr(expr)
+        options = wanted if isinstance(wanted, tuple) else (wanted,)
+        if t != ERROR and not any(assignable(w, t) for w in options):
+            self.error(expr.span, f"{what} must be {' or '.join(map(type_name, options))}, not {type_name(t)}")
+            return ERROR
+        return t
+
+    def fold(self, node, fn, *args):
+        """Record ``fn(*args)`` as ``node``'s constant value; a folding error is reported."""
+        try:
+            self.values[id(node)] = fn(*args)
+        except EvalError as exc:
+            self.error(node.span, str(exc))
+        except (OverflowError, ValueError) as exc:
+            self.error(node.span, f"cannot compute this constant: {exc}")
+
+    def value_of(self, expr: ast.Expr):
+        return self.values.get(id(expr), _NO_VALUE)
+
+    # ---- expressions ----
+    def expr(self, node: ast.Expr):
+        t = getattr(self, "e_" + type(node).__name__)(node)
+        self.types[id(node)] = t
+        return t
+
+    def e_Number(self, node: ast.Number):
+        self.values[id(node)] = node.value
+        return INTEGER if isinstance(node.value, int) else REAL
+
+    def e_String(self, node: ast.String):
+        self.values[id(node)] = node.value
+        return STRING
+
+    def e_Bool(self, node: ast.Bool):
+        self.values[id(node)] = node.value
+        return BOOL
+
+    def e_Ref(self, node: ast.Ref):
+        symbol = self.lookup(node.name)
+        if symbol is None:
+            if node.name in BUILTINS or node.name in CONSTRUCTORS:
+                self.error(node.span, f"'{node.name}' is a function: it needs arguments in parentheses")
+            else:
+                self.unknown(node.span, node.name)
+            return ERROR
+        if symbol.kind == "proc":
+            self.error(node.span, f"'{node.name}' is a procedure, not a value",
+                       f"call it as a statement: call {node.name}(...);")
+            return ERROR
+        self.symbols[id(node)] = symbol
+        if symbol.kind == "const" and symbol.value is not _NO_VALUE:
+            self.values[id(node)] = symbol.value
+        return symbol.type
+
+    def e_Unary(self, node: ast.Unary):
+        if node.op == "not":
+            t = self.expect(node.operand, BOOL, "the operand of 'not'")
+            result = BOOL
+        else:
+            t = self.expect(node.operand, NUMERIC, f"the operand of unary '{node.op}'")
+            result = self.types[id(node.operand)]
+        if t == ERROR:
+            return ERROR
+        value = self.value_of(node.operand)
+        if value is not _NO_VALUE:
+            self.fold(node, unary, node.op, value)
+        return result
+
+    def e_Binary(self, node: ast.Binary):
+        op = node.op
+        lt, rt = self.expr(node.left), self.expr(node.right)
+        if ERROR in (lt, rt):
+            return ERROR
+        result = self.binary_type(node, op, lt, rt)
+        if result == ERROR:
+            return ERROR
+        a, b = self.value_of(node.left), self.value_of(node.right)
+        if a is not _NO_VALUE and b is not _NO_VALUE:
+            self.fold(node, binary, op, a, b)
+        return result
+
+    def binary_type(self, node: ast.Binary, op: str, lt, rt):
+        pair = f"{type_name(lt)} {op} {type_name(rt)}"
+        if op in ("and", "or"):
+            if lt == BOOL and rt == BOOL:
+                return BOOL
+            self.error(node.op_span, f"'{op}' needs two bool operands, not {pair}")
+            return ERROR
+        if op in ("div", "mod"):
+            if lt == INTEGER and rt == INTEGER:
+                return INTEGER
+            self.error(node.op_span, f"'{op}' needs two integers, not {pair}",
+                       "use '/' for real division" if op == "div" else None)
+            return ERROR
+        if op in ("=", "<>"):
+            if lt == rt or (lt in NUMERIC and rt in NUMERIC):
+                if isinstance(lt, ArrayT):
+                    self.error(node.op_span, "arrays cannot be compared")
+                    return ERROR
+                return BOOL
+            self.error(node.op_span, f"cannot compare {pair}")
+            return ERROR
+        if op in ("<", "<=", ">", ">="):
+            if (lt in NUMERIC and rt in NUMERIC) or (lt == STRING and rt == STRING):
+                return BOOL
+            self.error(node.op_span, f"'{op}' needs two numbers or two strings, not {pair}")
+            return ERROR
+        if lt in NUMERIC and rt in NUMERIC:
+            if op == "/":
+                return REAL
+            return INTEGER if lt == rt == INTEGER else REAL
+        if op == "+" and lt == STRING and rt == STRING:
+            return STRING
+        self.error(node.op_span, f"'{op}' needs two numbers, not {pair}")
+        return ERROR
+
+    def e_Index(self, node: ast.Index):
+        base = self.expr(node.base)
+        index = self.expect(node.index, INTEGER, "an index")
+        if ERROR in (base, index):
+            return ERROR
+        i = self.value_of(node.index)
+        if isinstance(base, ArrayT):
+            if i is not _NO_VALUE and not base.low <= i <= base.high:
+                self.error(node.index.span, f"index {i} is outside the array bounds {base.low}..{base.high}")
+            return base.element
+        if base == JOINT:
+            n = len(self.spec.axes)
+            if i is not _NO_VALUE and not 1 <= i <= n:
+                self.error(node.index.span, f"axis {i} does not exist: {self.spec.name} has axes 1..{n}")
+            j = self.value_of(node.base)
+            if j is not _NO_VALUE and i is not _NO_VALUE and 1 <= i <= n:
+                self.values[id(node)] = j.axes[i - 1]
+            return REAL
+        self.error(node.base.span, f"a {type_name(base)} cannot be indexed", "only arrays and joints can")
+        return ERROR
+
+    def e_Field(self, node: ast.Field):
+        base = self.expr(node.base)
+        if base == ERROR:
+            return ERROR
+        if base not in (POSITION, POSE):
+            self.error(node.span, f"a {type_name(base)} has no field '{node.name}'",
+                       "fields x, y, z belong to positions and poses")
+            return ERROR
+        if node.name not in ("x", "y", "z"):
+            guess = did_you_mean(node.name, ("x", "y", "z"))
+            self.error(node.span, f"a {base} has no field '{node.name}'",
+                       f"did you mean '{guess}'?" if guess else "its fields are x, y, z")
+            return ERROR
+        value = self.value_of(node.base)
+        if value is not _NO_VALUE:
+            position = value.position if isinstance(value, Pose) else value
+            self.values[id(node)] = getattr(position, node.name)
+        return REAL
+
+    def e_Input(self, node: ast.Input):
+        if self.expect(node.index, INTEGER, "an input number") != ERROR:
+            self.check_io_index(node.index, self.spec.inputs, "input")
+        return BOOL
+
+    def check_io_index(self, index: ast.Expr, count: int, what: str) -> None:
+        i = self.value_of(index)
+        if i is not _NO_VALUE and not 1 <= i <= count:
+            self.error(index.span, f"digital {what} {i} does not exist: {self.spec.name} has {what}s 1..{count}")
+
+    def e_Call(self, node: ast.Call):
+        name = node.name
+        if name in CONSTRUCTORS:
+            return CONSTRUCTORS[name](self, node)
+        if name in BUILTINS:
+            return self.builtin(node)
+        symbol = self.lookup(name)
+        if symbol is not None and symbol.kind == "proc":
+            self.error(node.name_span, f"procedure '{name}' has no value", f"call it as a statement: call {name}(...);")
+        elif symbol is not None:
+            self.error(node.name_span, f"'{name}' is a {type_name(symbol.type)}, not a function")
+        else:
+            guess = did_you_mean(name, list(BUILTINS) + list(CONSTRUCTORS))
+            self.error(node.name_span, f"unknown function '{name}'", f"did you mean '{guess}'?" if guess else None)
+        for arg in node.args:
+            self.expr(arg)
+        return ERROR
+
+    def arity(self, node: ast.Call, count: int) -> bool:
+        if len(node.args) != count:
+            self.error(node.span, f"{node.name} takes {count} argument{'s' if count != 1 else ''}, "
+                                  f"not {len(node.args)}")
+            for arg in node.args:
+                self.expr(arg)
+            return False
+        return True
+
+    def builtin(self, node: ast.Call):
+        name = node.name
+        if not self.arity(node, BUILTINS[name]):
+            return ERROR
+        types = [self.expect(arg, NUMERIC, f"the argument of {name}") for arg in node.args]
+        if ERROR in types:
+            return ERROR
+        if name in ("round", "trunc"):
+            result = INTEGER
+        elif name in ("abs", "min", "max"):
+            result = INTEGER if all(t == INTEGER for t in types) else REAL
+        else:
+            result = REAL
+        values = [self.value_of(arg) for arg in node.args]
+        if _NO_VALUE not in values:
+            if result == REAL:
+                values = [float(v) for v in values]
+            self.fold(node, call_builtin, name, values)
+        return result
+
+    def numbers(self, node: ast.Call, count: int | None, what: str):
+        """Check numeric arguments; returns their constant values or None."""
+        if count is not None and not self.arity(node, count):
+            return ERROR
+        ok = all([self.expect(arg, NUMERIC, f"{what}") != ERROR for arg in node.args])
+        if not ok:
+            return ERROR
+        values = [self.value_of(arg) for arg in node.args]
+        return None if _NO_VALUE in values else values
+
+    def c_mainjoint(self, node: ast.Call, group: str = "main"):
+        axes = self.spec.main_axes if group == "main" else self.spec.additional_axes
+        values = self.numbers(node, None, f"an axis value of {node.name}")
+        if values == ERROR:
+            return ERROR
+        if len(node.args) != len(axes):
+            names = ", ".join(a.name for a in axes) or "none"
+            self.error(node.span, f"{node.name} has {len(node.args)} value{'s' if len(node.args) != 1 else ''} "
+                                  f"but {self.spec.name} has {len(axes)} {group} axes ({names})")
+            return ERROR
+        if values is not None:
+            cls = MainJoint if group == "main" else AddJoint
+            self.values[id(node)] = cls(tuple(float(v) for v in values))
+        return MAINJOINT if group == "main" else ADDJOINT
+
+    def c_addjoint(self, node: ast.Call):
+        return self.c_mainjoint(node, "additional")
+
+    def c_joint(self, node: ast.Call):
+        if not 1 <= len(node.args) <= 2:
+            self.error(node.span, "joint takes mainjoint(...) and, for additional axes, addjoint(...)",
+                       "write joint(mainjoint(a1, ..., an))")
+            for arg in node.args:
+                self.expr(arg)
+            return ERROR
+        first = self.expr(node.args[0])
+        ok = first != ERROR
+        if ok and first != MAINJOINT:
+            self.error(node.args[0].span, f"the first argument of joint must be mainjoint(...), not {type_name(first)}",
+                       "write joint(mainjoint(a1, ..., an))")
+            ok = False
+        add_value = AddJoint(())
+        if len(node.args) == 2:
+            second = self.expr(node.args[1])
+            if second not in (ADDJOINT, ERROR):
+                self.error(node.args[1].span, f"the second argument of joint must be addjoint(...), "
+                                              f"not {type_name(second)}")
+                ok = False
+            ok = ok and second != ERROR
+            add_value = self.value_of(node.args[1])
+        elif self.spec.additional_axes:
+            self.error(node.span, f"{self.spec.name} has additional axes: joint needs addjoint(...) too")
+            ok = False
+        if not ok:
+            return ERROR
+        main_value = self.value_of(node.args[0])
+        if main_value is not _NO_VALUE and add_value is not _NO_VALUE:
+            self.values[id(node)] = make_joint(main_value.values, add_value.values)
+        return JOINT
+
+    def c_pos(self, node: ast.Call):
+        values = self.numbers(node, 3, "a coordinate of pos (mm)")
+        if values == ERROR:
+            return ERROR
+        if values is not None:
+            self.values[id(node)] = make_pos(*values)
+        return POSITION
+
+    def c_rpy(self, node: ast.Call):
+        values = self.numbers(node, 3, "an angle of rpy (deg)")
+        if values == ERROR:
+            return ERROR
+        if values is not None:
+            self.values[id(node)] = make_rpy(*values)
+        return ORIENTATION
+
+    def c_quat(self, node: ast.Call):
+        values = self.numbers(node, 4, "a component of quat")
+        if values == ERROR:
+            return ERROR
+        if values is not None:
+            self.fold(node, make_quat, *(float(v) for v in values))
+        return ORIENTATION
+
+    def c_pose(self, node: ast.Call):
+        if not self.arity(node, 2):
+            return ERROR
+        p = self.expect(node.args[0], POSITION, "the first argument of pose")
+        o = self.expect(node.args[1], ORIENTATION, "the second argument of pose")
+        if ERROR in (p, o):
+            return ERROR
+        pv, ov = self.value_of(node.args[0]), self.value_of(node.args[1])
+        if pv is not _NO_VALUE and ov is not _NO_VALUE:
+            self.values[id(node)] = Pose(pv, ov)
+        return POSE
+
+    # ---- statements ----
+    def stmts(self, body) -> None:
+        for stmt in body:
+            getattr(self, "s_" + type(stmt).__name__)(stmt)
+
+    def variable(self, name: str, span: ast.Span, node) -> Symbol | None:
+        symbol = self.lookup(name)
+        if symbol is None:
+            self.unknown(span, name, "variable")
+            return None
+        if symbol.kind == "const":
+            self.error(span, f"'{name}' is a constant and cannot be assigned")
+            return None
+        if symbol.kind == "proc":
+            self.error(span, f"'{name}' is a procedure and cannot be assigned")
+            return None
+        self.symbols[id(node)] = symbol
+        return symbol
+
+    def s_Assign(self, node: ast.Assign):
+        symbol = self.variable(node.name, node.name_span, node)
+        if symbol is not None and node.name in self.loop_vars:
+            self.error(node.name_span, f"'{node.name}' is the variable of an enclosing for loop",
+                       "a for loop's variable cannot be assigned inside the loop")
+        target = symbol.type if symbol is not None else ERROR
+        if node.index is not None:
+            index_t = self.expect(node.index, INTEGER, "an index")
+            if isinstance(target, ArrayT):
+                i = self.value_of(node.index)
+                if i is not _NO_VALUE and not target.low <= i <= target.high:
+                    self.error(node.index.span, f"index {i} is outside the array bounds {target.low}..{target.high}")
+                target = target.element
+            elif target == JOINT:
+                target = REAL
+            elif target != ERROR:
+                self.error(node.name_span, f"'{node.name}' is a {type_name(target)} and cannot be indexed")
+                target = ERROR
+            if index_t == ERROR:
+                target = ERROR
+        value = self.expr(node.value)
+        if ERROR not in (target, value) and not assignable(target, value):
+            self.error(node.value.span, f"cannot assign a {type_name(value)} to '{node.name}', "
+                                        f"which is a {type_name(target)}")
+
+    def s_OutSet(self, node: ast.OutSet):
+        if self.expect(node.index, INTEGER, "an output number") != ERROR:
+            self.check_io_index(node.index, self.spec.outputs, "output")
+        self.expect(node.value, BOOL, "a digital output's value")
+
+    def s_Move(self, node: ast.Move):
+        wanted = {"ptp": (JOINT, POSE), "lin": (POSE,), "circ": (POSE,)}[node.kind]
+        names = ["the via pose", "the end pose"] if node.kind == "circ" else ["the target"]
+        if len(node.targets) != len(names):
+            self.error(node.span, "move circ takes two poses: via, end" if node.kind == "circ"
+                       else f"move {node.kind} takes one target, not {len(node.targets)}")
+            for target in node.targets:
+                self.expr(target)
+        else:
+            for target, what in zip(node.targets, names):
+                t = self.expect(target, wanted, f"{what} of move {node.kind}")
+                value = self.value_of(target)
+                if t == JOINT and value is not _NO_VALUE:
+                    self.check_joint_limits(target, value)
+                elif t == POSE and value is not _NO_VALUE:
+                    self.check_reach(target, value)
+        self.clauses(node)
+
+    def check_joint_limits(self, target: ast.Expr, value: Joint) -> None:
+        for axis, v in zip(self.spec.axes, value.axes):
+            if not axis.min <= v <= axis.max:
+                self.error(target.span, f"axis {axis.name} target {v:g} {axis.unit} is outside its limits "
+                                        f"{axis.min:g}..{axis.max:g} {axis.unit}")
+
+    def check_reach(self, target: ast.Expr, value: Pose) -> None:
+        p = value.position
+        distance = (p.x * p.x + p.y * p.y + p.z * p.z) ** 0.5
+        reach = self.spec.reach()
+        if reach > 0 and distance > reach:
+            self.error(target.span, f"pose at {distance:.1f} mm from the base is out of reach "
+                                    f"({self.spec.name} reaches at most {reach:.1f} mm)")
+
+    def clauses(self, node: ast.Move) -> None:
+        seen: dict[str, ast.Clause] = {}
+        ptp = node.kind == "ptp"
+        spec = self.spec
+        for clause in node.clauses:
+            name = clause.name
+            if name not in CLAUSES:
+                guess = did_you_mean(name, CLAUSES)
+                hint = f"did you mean '{guess}'?" if guess else f"clauses are {', '.join(CLAUSES)}"
+                if clause.span.line > node.span.line and not guess:
+                    hint = f"is a ';' missing at the end of line {clause.span.line - 1}?"
+                self.error(clause.name_span, f"unknown clause '{name}'", hint)
+                self.expr(clause.value)
+                continue
+            if name in seen:
+                self.error(clause.name_span, f"clause '{name}' is given twice",
+                           f"the first is at line {seen[name].span.line}, column {seen[name].span.col}")
+            seen[name] = clause
+            if name in ("speed_ptp", "acc_ptp") and not ptp:
+                alt = name.replace("_ptp", "")
+                self.error(clause.name_span, f"clause '{name}' applies to ptp moves, not {node.kind}",
+                           f"use '{alt}' (mm/s{'^2' if alt == 'acc' else ''}) for a {node.kind} move")
+            if name in ("speed", "acc") and ptp:
+                self.error(clause.name_span, f"clause '{name}' applies to lin and circ moves, not ptp",
+                           f"use '{name}_ptp' (a fraction of each axis's maximum) for a ptp move")
+            if name == "act_rob":
+                self.act_rob(clause)
+                continue
+            if self.expect(clause.value, NUMERIC, f"clause '{name}'") == ERROR:
+                continue
+            v = self.value_of(clause.value)
+            if v is _NO_VALUE:
+                continue
+            if name in ("speed_ptp", "acc_ptp") and not 0 < v <= 1:
+                self.error(clause.value.span, f"{name} = {v:g} is out of range: expected 0 < {name} <= 1",
+                           "it is a fraction of each axis's maximum")
+            elif name == "speed" and not 0 < v <= spec.max_speed:
+                self.error(clause.value.span, f"speed = {v:g} mm/s is out of range: expected "
+                                              f"0 < speed <= {spec.max_speed:g} (the robot's maximum)")
+            elif name == "acc" and not 0 < v <= spec.max_acceleration:
+                self.error(clause.value.span, f"acc = {v:g} mm/s^2 is out of range: expected "
+                                              f"0 < acc <= {spec.max_acceleration:g} (the robot's maximum)")
+            elif name == "approx" and v < 0:
+                self.error(clause.value.span, f"approx = {v:g} is out of range: expected approx >= 0")
+            elif name == "approx" and ptp and v > 1:
+                self.error(clause.value.span, f"approx = {v:g} is out of range for a ptp move: "
+                                              "expected a fraction 0..1 of the move")
+        if "act_rob" not in seen and self.spec.name not in self.robots:
+            self.robots.append(self.spec.name)
+
+    def act_rob(self, clause: ast.Clause) -> None:
+        if self.expect(clause.value, STRING, "clause 'act_rob'") == ERROR:
+            return
+        robot = self.value_of(clause.value)
+        if robot is _NO_VALUE:
+            self.error(clause.value.span, "act_rob must be a robot's name known at compile time")
+            return
+        if robot != self.spec.name:
+            guess = did_you_mean(robot, [self.spec.name], cutoff=0.5)
+            self.error(clause.value.span, f"act_rob names robot \"{robot}\", but the system specification "
+                                          f"describes \"{self.spec.name}\"",
+                       f"did you mean \"{guess}\"?" if guess else None)
+            return
+        if robot not in self.robots:
+            self.robots.append(robot)
+
+    def s_If(self, node: ast.If):
+        for cond, body in node.branches:
+            self.expect(cond, BOOL, "a condition")
+            self.stmts(body)
+        self.stmts(node.orelse)
+
+    def s_While(self, node: ast.While):
+        self.expect(node.cond, BOOL, "a condition")
+        self.stmts(node.body)
+
+    def s_Repeat(self, node: ast.Repeat):
+        self.stmts(node.body)
+        self.expect(node.cond, BOOL, "a condition")
+
+    def s_For(self, node: ast.For):
+        symbol = self.lookup(node.var)
+        if symbol is None:
+            self.error(node.var_span, f"undeclared loop variable '{node.var}'",
+                       f"declare it: var {node.var} : integer;")
+        elif symbol.kind in ("const", "proc"):
+            self.error(node.var_span, f"'{node.var}' is a {'constant' if symbol.kind == 'const' else 'procedure'}"
+                                      f" and cannot be a loop variable")
+        elif symbol.type not in (INTEGER, ERROR):
+            self.error(node.var_span, f"the loop variable '{node.var}' must be an integer, "
+                                      f"not {type_name(symbol.type)}")
+        else:
+            self.symbols[id(node)] = symbol
+        if node.var in self.loop_vars:
+            self.error(node.var_span, f"'{node.var}' is already the variable of an enclosing for loop")
+        self.expect(node.start, INTEGER, "a for loop's start")
+        self.expect(node.stop, INTEGER, "a for loop's end")
+        if node.step is not None:
+            step = self.const_int(node.step, "a for loop's step")
+            if step == 0:
+                self.error(node.step.span, "a for loop's step must not be 0")
+        self.loop_vars.append(node.var)
+        self.stmts(node.body)
+        self.loop_vars.pop()
+
+    def s_WaitTime(self, node: ast.WaitTime):
+        if self.expect(node.seconds, NUMERIC, "a wait time (seconds)") != ERROR:
+            v = self.value_of(node.seconds)
+            if v is not _NO_VALUE and v < 0:
+                self.error(node.seconds.span, f"a wait time of {v:g} s is negative")
+
+    def s_WaitFor(self, node: ast.WaitFor):
+        self.expect(node.cond, BOOL, "the condition of 'wait for'")
+        if node.timeout is not None and self.expect(node.timeout, NUMERIC, "a time-out (seconds)") != ERROR:
+            v = self.value_of(node.timeout)
+            if v is not _NO_VALUE and v <= 0:
+                self.error(node.timeout.span, f"a time-out of {v:g} s must be positive")
+
+    def s_CallProc(self, node: ast.CallProc):
+        symbol = self.lookup(node.name)
+        if symbol is None or symbol.kind != "proc":
+            if symbol is None:
+                procs = [s.name for s in self.globals.values() if s.kind == "proc"]
+                guess = did_you_mean(node.name, procs)
+                self.error(node.name_span, f"undeclared procedure '{node.name}'",
+                           f"did you mean '{guess}'?" if guess else None)
+            else:
+                self.error(node.name_span, f"'{node.name}' is not a procedure")
+            for arg in node.args:
+                self.expr(arg)
+            return
+        self.symbols[id(node)] = symbol
+        if len(node.args) != len(symbol.params):
+            self.error(node.span, f"procedure '{node.name}' takes {len(symbol.params)} argument"
+                                  f"{'s' if len(symbol.params) != 1 else ''}, not {len(node.args)}")
+            for arg in node.args:
+                self.expr(arg)
+            return
+        for i, (arg, param_t) in enumerate(zip(node.args, symbol.params), 1):
+            t = self.expr(arg)
+            if t != ERROR and not assignable(param_t, t):
+                self.error(arg.span, f"argument {i} of '{node.name}' must be {type_name(param_t)}, "
+                                     f"not {type_name(t)}")
+
+    def s_Print(self, node: ast.Print):
+        for value in node.values:
+            self.expr(value)
+
+    def s_Pause(self, node):
+        pass
+
+    def s_Halt(self, node):
+        pass
+
+    # ---- declarations ----
+    def const_decl(self, decl: ast.ConstDecl) -> None:
+        t = self.expr(decl.value)
+        value = self.value_of(decl.value)
+        if t != ERROR and value is _NO_VALUE:
+            self.error(decl.value.span, f"the value of constant '{decl.name}' must be known at compile time")
+        if t in (MAINJOINT, ADDJOINT):
+            self.error(decl.value.span, f"{t} is only meaningful inside joint(...)")
+            t = ERROR
+        self.declare(self.globals, Symbol("const", decl.name, t, decl.span, value=value))
+
+    def var_decl(self, decl: ast.VarDecl, table: dict, slots: list, kind: str) -> None:
+        t = self.resolve_type(decl.type)
+        if decl.init is not None:
+            vt = self.expr(decl.init)
+            if ERROR not in (t, vt) and not assignable(t, vt):
+                self.error(decl.init.span, f"cannot initialise a {type_name(t)} with a {type_name(vt)}")
+        for name, span in zip(decl.names, decl.spans):
+            symbol = Symbol(kind, name, t, span, slot=len(slots))
+            if self.declare(table, symbol):
+                slots.append((name, type_name(t)))
+
+    def check(self) -> CheckedProgram:
+        program = self.program
+        # Procedures first, so a call may come before the procedure's declaration.
+        for decl in program.decls:
+            if isinstance(decl, ast.Procedure):
+                self.declare_procedure(decl)
+        for decl in program.decls:
+            if isinstance(decl, ast.ConstDecl):
+                self.const_decl(decl)
+            elif isinstance(decl, ast.VarDecl):
+                self.var_decl(decl, self.globals, self.global_slots, "global")
+        for scope in self.procs:
+            self.scope = scope
+            for var in scope.node.variables:
+                self.var_decl(var, scope.names, scope.slots, "local")
+            self.stmts(scope.node.body)
+            self.scope = None
+        self.stmts(program.body)
+        if not self.robots:
+            self.robots.append(self.spec.name)
+        return CheckedProgram(program, self.spec, self.types, self.values, self.symbols,
+                              self.global_slots, self.globals, self.procs, tuple(self.robots))
+
+    def declare_procedure(self, node: ast.Procedure) -> None:
+        symbol = Symbol("proc", node.name, "procedure", node.name_span, index=len(self.procs))
+        if not self.declare(self.globals, symbol):
+            return
+        scope = ProcScope(node, symbol)
+        params = []
+        for param in node.params:
+            t = self.resolve_type(param.type)
+            params.append(t)
+            p = Symbol("local", param.name, t, param.span, slot=len(scope.slots))
+            if self.declare(scope.names, p):
+                scope.slots.append((param.name, type_name(t)))
+        symbol.params = tuple(params)
+        self.procs.append(scope)
+
+
+CONSTRUCTORS = {
+    "joint": Checker.c_joint,
+    "mainjoint": Checker.c_mainjoint,
+    "addjoint": Checker.c_addjoint,
+    "pos": Checker.c_pos,
+    "rpy": Checker.c_rpy,
+    "quat": Checker.c_quat,
+    "pose": Checker.c_pose,
+}
+
+
+def check(program: ast.Program, spec: Spec, file: str) -> tuple[CheckedProgram, list[Diagnostic]]:
+    """Check ``program`` against ``spec``; returns the result and every error found."""
+    checker = Checker(program, spec, file)
+    checked = checker.check()
+    return checked, checker.diagnostics

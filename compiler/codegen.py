@@ -1,0 +1,327 @@
+"""Checked AST -> object code (:class:`compiler.objcode.Program`).
+
+A single pass over the checked program, in the style of clox's compiler: every
+expression leaves one value on the stack, every statement leaves the stack as it found
+it, and constant expressions (folded by the checker) become one ``CONST``.
+"""
+from __future__ import annotations
+
+from pathlib import Path
+
+from . import ast
+from .check import (BOOL, INTEGER, JOINT, ORIENTATION, POSE, POSITION, REAL, STRING, ArrayT,
+                    CheckedProgram, Symbol)
+from .objcode import BUILTIN_NAMES, CLAUSES, FIELDS, OP, ProcInfo, Program
+from .values import Joint, Pose, Position, Rpy
+
+_BINARY_OPS = {"+": OP.ADD, "-": OP.SUB, "*": OP.MUL, "/": OP.DIV, "div": OP.IDIV, "mod": OP.MOD,
+               "=": OP.EQ, "<>": OP.NE, "<": OP.LT, "<=": OP.LE, ">": OP.GT, ">=": OP.GE,
+               "and": OP.AND, "or": OP.OR}
+_BUILTIN_INDEX = {name: i for i, name in enumerate(BUILTIN_NAMES)}
+_NO_VALUE = object()
+
+
+class CodeGen:
+    def __init__(self, checked: CheckedProgram):
+        self.checked = checked
+        self.types = checked.types
+        self.values = checked.values
+        self.symbols = checked.symbols
+        self.code: list[list[int]] = []
+        self.lines: list[tuple[int, int, int]] = []
+        self.constants: list = []
+        self.constant_index: dict = {}
+        self.globals = list(checked.globals)
+        self.locals: list | None = None  # slots of the procedure being generated
+
+    # -- emitting --
+    def emit(self, op: int, *operands: int) -> int:
+        self.code.append([op, *operands])
+        return len(self.code) - 1
+
+    def patch(self, at: int, target: int | None = None) -> None:
+        self.code[at][1] = len(self.code) if target is None else target
+
+    def mark(self, span: ast.Span) -> None:
+        entry = (len(self.code), span.line, span.col)
+        if self.lines and self.lines[-1][0] == entry[0]:
+            self.lines[-1] = entry
+        elif not self.lines or self.lines[-1][1:] != entry[1:]:
+            self.lines.append(entry)
+
+    def constant(self, value) -> None:
+        key = (type(value), value)
+        index = self.constant_index.get(key)
+        if index is None:
+            index = self.constant_index[key] = len(self.constants)
+            self.constants.append(value)
+        self.emit(OP.CONST, index)
+
+    def temp(self, name: str, type_: str) -> tuple[int, int]:
+        """A hidden variable slot: (load op, slot)."""
+        slots = self.locals if self.locals is not None else self.globals
+        slots.append((name, type_))
+        return (OP.LOAD_LOCAL if self.locals is not None else OP.LOAD_GLOBAL), len(slots) - 1
+
+    @staticmethod
+    def load_op(symbol: Symbol) -> int:
+        return OP.LOAD_LOCAL if symbol.kind == "local" else OP.LOAD_GLOBAL
+
+    @staticmethod
+    def store_op(symbol: Symbol) -> int:
+        return OP.STORE_LOCAL if symbol.kind == "local" else OP.STORE_GLOBAL
+
+    # -- expressions --
+    def value(self, node: ast.Expr, want=None) -> None:
+        """Push ``node``'s value, converted for a slot of type ``want``."""
+        folded = self.values.get(id(node), _NO_VALUE)
+        t = self.types[id(node)]
+        if folded is not _NO_VALUE:
+            if want == REAL and t == INTEGER:
+                folded = float(folded)
+            self.constant(folded)
+            return
+        getattr(self, "e_" + type(node).__name__)(node)
+        if want == REAL and t == INTEGER:
+            self.emit(OP.TO_REAL)
+        elif isinstance(t, ArrayT) and isinstance(node, (ast.Ref, ast.Index)):
+            self.emit(OP.COPY)  # arrays are values: a stored or passed array is a copy
+
+    def e_Ref(self, node: ast.Ref) -> None:
+        symbol = self.symbols[id(node)]
+        self.emit(self.load_op(symbol), symbol.slot)
+
+    def e_Unary(self, node: ast.Unary) -> None:
+        self.value(node.operand)
+        if node.op == "-":
+            self.emit(OP.NEG)
+        elif node.op == "not":
+            self.emit(OP.NOT)
+
+    def e_Binary(self, node: ast.Binary) -> None:
+        self.value(node.left)
+        self.value(node.right)
+        self.emit(_BINARY_OPS[node.op])
+
+    def e_Index(self, node: ast.Index) -> None:
+        base_t = self.types[id(node.base)]
+        self.e_raw(node.base)
+        self.value(node.index)
+        if isinstance(base_t, ArrayT):
+            self.emit(OP.GET_ITEM, base_t.low)
+        else:
+            self.emit(OP.GET_AXIS)
+
+    def e_raw(self, node: ast.Expr) -> None:
+        """Push a value without copying it (to read from it, not to keep it)."""
+        if isinstance(node, ast.Ref) and id(node) not in self.values:
+            self.e_Ref(node)
+        elif isinstance(node, ast.Index) and id(node) not in self.values:
+            self.e_Index(node)
+        else:
+            self.value(node)
+
+    def e_Field(self, node: ast.Field) -> None:
+        self.value(node.base)
+        self.emit(OP.GET_FIELD, FIELDS.index(node.name))
+
+    def e_Input(self, node: ast.Input) -> None:
+        self.value(node.index)
+        self.emit(OP.IN_GET)
+
+    def e_Call(self, node: ast.Call) -> None:
+        name = node.name
+        if name in _BUILTIN_INDEX:
+            want = REAL if self.types[id(node)] == REAL else None
+            for arg in node.args:
+                self.value(arg, want)
+            self.emit(OP.CALL_BUILTIN, _BUILTIN_INDEX[name], len(node.args))
+        elif name == "joint":
+            counts = []
+            for part in node.args:  # mainjoint(...) [, addjoint(...)]
+                for arg in part.args:
+                    self.value(arg, REAL)
+                counts.append(len(part.args))
+            self.emit(OP.MAKE_JOINT, counts[0], counts[1] if len(counts) > 1 else 0)
+        elif name in ("pos", "rpy", "quat"):
+            for arg in node.args:
+                self.value(arg, REAL)
+            self.emit({"pos": OP.MAKE_POS, "rpy": OP.MAKE_RPY, "quat": OP.MAKE_QUAT}[name])
+        elif name == "pose":
+            self.value(node.args[0])
+            self.value(node.args[1])
+            self.emit(OP.MAKE_POSE)
+        else:  # pragma: no cover - the checker rejects everything else
+            raise AssertionError(f"cannot generate a call of {name}")
+
+    # -- statements --
+    def stmts(self, body) -> None:
+        for stmt in body:
+            self.mark(stmt.span)
+            getattr(self, "s_" + type(stmt).__name__)(stmt)
+
+    def s_Assign(self, node: ast.Assign) -> None:
+        symbol = self.symbols[id(node)]
+        if node.index is None:
+            self.value(node.value, symbol.type)
+            self.emit(self.store_op(symbol), symbol.slot)
+        elif isinstance(symbol.type, ArrayT):
+            self.emit(self.load_op(symbol), symbol.slot)
+            self.value(node.index)
+            self.value(node.value, symbol.type.element)
+            self.emit(OP.SET_ITEM, symbol.type.low)
+        else:  # an axis of a joint
+            self.emit(self.load_op(symbol), symbol.slot)
+            self.value(node.index)
+            self.value(node.value, REAL)
+            self.emit(OP.SET_AXIS)
+            self.emit(self.store_op(symbol), symbol.slot)
+
+    def s_OutSet(self, node: ast.OutSet) -> None:
+        self.value(node.index)
+        self.value(node.value)
+        self.emit(OP.OUT_SET)
+
+    def s_Move(self, node: ast.Move) -> None:
+        for target in node.targets:
+            self.value(target)
+        given = {c.name: c for c in node.clauses}
+        mask = 0
+        for bit, name in enumerate(CLAUSES):
+            if name in given:
+                mask |= 1 << bit
+                self.value(given[name].value, None if name == "act_rob" else REAL)
+        self.emit({"ptp": OP.MOVE_PTP, "lin": OP.MOVE_LIN, "circ": OP.MOVE_CIRC}[node.kind], mask)
+
+    def s_If(self, node: ast.If) -> None:
+        to_end = []
+        last = len(node.branches) - 1
+        for i, (cond, body) in enumerate(node.branches):
+            if i:
+                self.mark(cond.span)
+            self.value(cond)
+            skip = self.emit(OP.JUMP_IF_FALSE, -1)
+            self.stmts(body)
+            if i < last or node.orelse:
+                to_end.append(self.emit(OP.JUMP, -1))
+            self.patch(skip)
+        self.stmts(node.orelse)
+        for at in to_end:
+            self.patch(at)
+
+    def s_While(self, node: ast.While) -> None:
+        top = len(self.code)
+        self.value(node.cond)
+        exit_ = self.emit(OP.JUMP_IF_FALSE, -1)
+        self.stmts(node.body)
+        self.emit(OP.JUMP, top)
+        self.patch(exit_)
+
+    def s_Repeat(self, node: ast.Repeat) -> None:
+        top = len(self.code)
+        self.stmts(node.body)
+        self.mark(node.cond.span)
+        self.value(node.cond)
+        self.emit(OP.JUMP_IF_FALSE, top)
+
+    def s_For(self, node: ast.For) -> None:
+        var = self.symbols[id(node)]
+        step = self.values[id(node.step)] if node.step is not None else 1
+        self.value(node.start)
+        self.emit(self.store_op(var), var.slot)
+        load_end, end_slot = self.temp(f"$end@{node.span.line}:{node.span.col}", INTEGER)
+        self.value(node.stop)
+        self.emit(OP.STORE_LOCAL if load_end == OP.LOAD_LOCAL else OP.STORE_GLOBAL, end_slot)
+        top = len(self.code)
+        self.emit(self.load_op(var), var.slot)
+        self.emit(load_end, end_slot)
+        self.emit(OP.LE if step > 0 else OP.GE)
+        exit_ = self.emit(OP.JUMP_IF_FALSE, -1)
+        self.stmts(node.body)
+        self.mark(node.span)
+        self.emit(self.load_op(var), var.slot)
+        self.constant(step)
+        self.emit(OP.ADD)
+        self.emit(self.store_op(var), var.slot)
+        self.emit(OP.JUMP, top)
+        self.patch(exit_)
+
+    def s_WaitTime(self, node: ast.WaitTime) -> None:
+        self.value(node.seconds, REAL)
+        self.emit(OP.DWELL)
+
+    def s_WaitFor(self, node: ast.WaitFor) -> None:
+        if node.timeout is not None:
+            self.value(node.timeout, REAL)
+        self.emit(OP.WAIT_BEGIN, 1 if node.timeout is not None else 0)
+        top = len(self.code)
+        self.value(node.cond)
+        self.emit(OP.WAIT_TEST, top)
+
+    def s_CallProc(self, node: ast.CallProc) -> None:
+        symbol = self.symbols[id(node)]
+        for arg, param_t in zip(node.args, symbol.params):
+            self.value(arg, param_t)
+        self.emit(OP.CALL, symbol.index)
+
+    def s_Print(self, node: ast.Print) -> None:
+        for value in node.values:
+            self.value(value)
+        self.emit(OP.PRINT, len(node.values))
+
+    def s_Pause(self, node) -> None:
+        self.emit(OP.PAUSE)
+
+    def s_Halt(self, node) -> None:
+        self.emit(OP.HALT)
+
+    # -- declarations --
+    def default(self, t) -> None:
+        if isinstance(t, ArrayT):
+            self.default(t.element)
+            self.emit(OP.MAKE_ARRAY, t.length)
+            return
+        zeros = {INTEGER: 0, REAL: 0.0, BOOL: False, STRING: "",
+                 JOINT: Joint(tuple(0.0 for _ in self.checked.spec.main_axes),
+                              tuple(0.0 for _ in self.checked.spec.additional_axes)),
+                 POSITION: Position(0.0, 0.0, 0.0), ORIENTATION: Rpy(0.0, 0.0, 0.0),
+                 POSE: Pose(Position(0.0, 0.0, 0.0), Rpy(0.0, 0.0, 0.0))}
+        self.constant(zeros[t])
+
+    def init_vars(self, decls, lookup) -> None:
+        for decl in decls:
+            self.mark(decl.span)
+            for name in decl.names:
+                symbol = lookup(name)
+                if decl.init is not None:
+                    self.value(decl.init, symbol.type)
+                else:
+                    self.default(symbol.type)
+                self.emit(self.store_op(symbol), symbol.slot)
+
+    def generate(self, source_name: str) -> Program:
+        checked = self.checked
+        program = checked.program
+        gvars = [d for d in program.decls if isinstance(d, ast.VarDecl)]
+        self.init_vars(gvars, checked.global_symbols.__getitem__)
+        self.stmts(program.body)
+        end = program.span
+        self.mark(ast.Span(end.end_line, 1, end.end_line, end.end_col))
+        self.emit(OP.END)
+        procedures = []
+        for scope in checked.procedures:
+            self.locals = scope.slots
+            entry = len(self.code)
+            self.init_vars(scope.node.variables, scope.names.__getitem__)
+            self.stmts(scope.node.body)
+            self.emit(OP.RET)
+            procedures.append(ProcInfo(scope.node.name, entry, len(scope.node.params), tuple(self.locals)))
+            self.locals = None
+        spec = checked.spec
+        return Program(program.name, source_name, spec.name, spec.hash, checked.robots,
+                       tuple(self.constants), tuple(tuple(i) for i in self.code), tuple(self.lines),
+                       tuple(self.globals), tuple(procedures))
+
+
+def generate(checked: CheckedProgram, source_file: str) -> Program:
+    return CodeGen(checked).generate(Path(source_file).name)

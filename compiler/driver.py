@@ -1,0 +1,80 @@
+"""The compiler's front door: source text or file -> object code, or diagnostics.
+
+``irl check``, ``irl compile``, ``irl dis FILE.irl`` and ``irl run FILE.irl`` all come
+through here, so they agree on every diagnostic.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+from .diagnostics import CompileError, Diagnostic
+from .objcode import Program
+from .spec import Spec, SpecError, load_spec
+
+
+@dataclass
+class Result:
+    """What compiling one file gave: a program, or the diagnostics that stopped it."""
+
+    file: str
+    source: str | None
+    program: Program | None
+    diagnostics: list[Diagnostic]
+    spec: Spec | None = None
+
+    @property
+    def ok(self) -> bool:
+        return self.program is not None and not any(d.severity == "error" for d in self.diagnostics)
+
+
+def _error(file: str, message: str, span=None, hint=None) -> Diagnostic:
+    if span is None:
+        return Diagnostic(file, 1, 1, 1, 1, "error", message, hint)
+    return Diagnostic(file, span.line, span.col, span.end_line, span.end_col, "error", message, hint)
+
+
+def resolve_spec(tree, file: str, spec_path: str | Path | None) -> tuple[Spec | None, list[Diagnostic]]:
+    """Load the program's system specification (``spec_path`` overrides the program's)."""
+    if spec_path is None:
+        if tree.spec is None:
+            return None, [_error(file, "the program names no system specification", tree.span,
+                                 'add: system_specification "ROBOT.spc"; (or pass --spec FILE.spc)')]
+        spec_path = Path(file).parent / tree.spec
+    try:
+        return load_spec(spec_path), []
+    except SpecError as exc:
+        span = tree.spec_span if tree.spec is not None else None
+        return None, [_error(file, f"system specification: {exc}", span)]
+
+
+def compile_source(source: str, file: str = "<input>", spec_path: str | Path | None = None,
+                   generate_code: bool = True) -> Result:
+    """Parse, check and (unless ``generate_code`` is false) generate object code."""
+    from .check import check
+    from .codegen import generate
+    from .syntax import parse
+
+    try:
+        tree = parse(source, file)
+    except CompileError as exc:
+        return Result(file, source, None, exc.diagnostics)
+    spec, diagnostics = resolve_spec(tree, file, spec_path)
+    if spec is None:
+        return Result(file, source, None, diagnostics)
+    checked, diagnostics = check(tree, spec, file)
+    if diagnostics:
+        diagnostics.sort(key=lambda d: (d.line, d.column))
+        return Result(file, source, None, diagnostics, spec)
+    program = generate(checked, file) if generate_code else None
+    return Result(file, source, program, [], spec)
+
+
+def read_source(path: str | Path) -> str:
+    """The text of a source file; OSError and UnicodeDecodeError pass to the caller."""
+    return Path(path).read_text(encoding="utf-8")
+
+
+def compile_file(path: str | Path, spec_path: str | Path | None = None, generate_code: bool = True) -> Result:
+    path = Path(path)
+    return compile_source(read_source(path), str(path), spec_path, generate_code)

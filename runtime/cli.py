@@ -1,0 +1,191 @@
+"""The ``irl`` command. A thin entry point: ``main(argv, env) -> exit status``.
+
+Exit status: 0 success, 1 the program or object file is wrong, 2 usage or file errors.
+Each command imports what it needs when it runs, so ``irl check`` starts without NumPy
+or ZeroMQ. Nothing imports this module.
+"""
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import TextIO
+
+EXIT_OK, EXIT_INVALID, EXIT_USAGE, EXIT_INTERNAL = 0, 1, 2, 70
+
+
+@dataclass
+class Environment:
+    """Where the command reads and writes; tests pass their own to run it in-process."""
+
+    stdout: TextIO = field(default_factory=lambda: sys.stdout)
+    stderr: TextIO = field(default_factory=lambda: sys.stderr)
+
+
+class UsageError(Exception):
+    """A bad command line or an unreadable file: exit status 2."""
+
+
+class _Parser(argparse.ArgumentParser):
+    def error(self, message):  # argparse would print and sys.exit(2)
+        raise UsageError(f"{message}\n{self.format_usage().strip()}")
+
+
+def _print(env: Environment, text: str = "") -> None:
+    env.stdout.write(text + "\n")
+
+
+def _err(env: Environment, text: str) -> None:
+    env.stderr.write(text + "\n")
+
+
+def _compile(path: str, spec: str | None, generate_code: bool = True):
+    from compiler.driver import compile_file
+
+    try:
+        return compile_file(path, spec, generate_code)
+    except FileNotFoundError:
+        raise UsageError(f"cannot read {path}: no such file") from None
+    except IsADirectoryError:
+        raise UsageError(f"cannot read {path}: it is a directory") from None
+    except UnicodeDecodeError:
+        raise UsageError(f"cannot read {path}: not a UTF-8 text file") from None
+    except OSError as exc:
+        raise UsageError(f"cannot read {path}: {exc.strerror or exc}") from None
+
+
+def _report(env: Environment, result, as_json: bool) -> None:
+    if as_json:
+        import json
+
+        _print(env, json.dumps([d.as_json() for d in result.diagnostics], indent=2))
+    elif result.diagnostics:
+        from compiler.diagnostics import render_all
+
+        _err(env, render_all(result.diagnostics, result.source))
+        count = sum(1 for d in result.diagnostics if d.severity == "error")
+        _err(env, f"{count} error{'s' if count != 1 else ''} in {result.file}")
+
+
+def cmd_check(args, env: Environment) -> int:
+    result = _compile(args.file, args.spec, generate_code=False)
+    _report(env, result, args.json)
+    if not result.diagnostics and not args.json:
+        _print(env, f"{args.file}: ok")
+    return EXIT_OK if not result.diagnostics else EXIT_INVALID
+
+
+def _write_atomically(path: Path, data: bytes) -> None:
+    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
+    try:
+        tmp.write_bytes(data)
+        os.replace(tmp, path)
+    except OSError as exc:
+        tmp.unlink(missing_ok=True)
+        raise UsageError(f"cannot write {path}: {exc.strerror or exc}") from None
+
+
+def cmd_compile(args, env: Environment) -> int:
+    from compiler.objcode import encode
+
+    result = _compile(args.file, args.spec)
+    _report(env, result, args.json)
+    if not result.ok:
+        return EXIT_INVALID
+    out = Path(args.output) if args.output else Path(args.file).with_suffix(".irlo")
+    data = encode(result.program)
+    _write_atomically(out, data)
+    if not args.json:
+        _print(env, f"{args.file} -> {out} ({len(data)} bytes, {len(result.program.code)} instructions)")
+    return EXIT_OK
+
+
+def _read_object(path: str) -> bytes:
+    try:
+        return Path(path).read_bytes()
+    except FileNotFoundError:
+        raise UsageError(f"cannot read {path}: no such file") from None
+    except OSError as exc:
+        raise UsageError(f"cannot read {path}: {exc.strerror or exc}") from None
+
+
+def cmd_dis(args, env: Environment) -> int:
+    from compiler.disasm import format_json, format_text
+    from compiler.objcode import ObjectCodeError, decode, encode, verify
+
+    source = None
+    if args.file.endswith(".irl"):
+        result = _compile(args.file, args.spec)
+        _report(env, result, False)
+        if not result.ok:
+            return EXIT_INVALID
+        program, source = result.program, result.source
+        data = encode(program)
+    else:
+        data = _read_object(args.file)
+        try:
+            program = decode(data)
+            verify(program)
+        except ObjectCodeError as exc:
+            _err(env, f"{args.file}: invalid object code: {exc}")
+            return EXIT_INVALID
+    if args.json:
+        import json
+
+        _print(env, json.dumps(format_json(program, data), indent=2))
+    else:
+        env.stdout.write(format_text(program, data, source))
+    return EXIT_OK
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = _Parser(prog="irl", description="L-IRL robot programs: compile, inspect, run.")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
+    sub.required = True
+
+    p = sub.add_parser("check", help="check a program; print every diagnostic")
+    p.add_argument("file", metavar="FILE.irl")
+    p.add_argument("--spec", metavar="FILE.spc", help="use this system specification instead of the program's")
+    p.add_argument("--json", action="store_true", help="diagnostics as a JSON list (for editors)")
+    p.set_defaults(run=cmd_check)
+
+    p = sub.add_parser("compile", help="compile a program to object code (.irlo)")
+    p.add_argument("file", metavar="FILE.irl")
+    p.add_argument("-o", "--output", metavar="OUT.irlo", help="default: beside the source, suffix .irlo")
+    p.add_argument("--spec", metavar="FILE.spc", help="use this system specification instead of the program's")
+    p.add_argument("--json", action="store_true", help="diagnostics as a JSON list")
+    p.set_defaults(run=cmd_compile)
+
+    p = sub.add_parser("dis", help="disassemble object code (or compile a program and disassemble it)")
+    p.add_argument("file", metavar="FILE.irlo|FILE.irl")
+    p.add_argument("--spec", metavar="FILE.spc", help="for FILE.irl: the system specification to use")
+    p.add_argument("--json", action="store_true", help="the listing as JSON")
+    p.set_defaults(run=cmd_dis)
+    return parser
+
+
+def main(argv: list[str] | None = None, env: Environment | None = None) -> int:
+    env = env or Environment()
+    try:
+        args = build_parser().parse_args(argv)
+        return args.run(args, env)
+    except UsageError as exc:
+        _err(env, f"irl: {exc}")
+        return EXIT_USAGE
+    except SystemExit as exc:  # --help
+        return exc.code if isinstance(exc.code, int) else EXIT_OK
+    except KeyboardInterrupt:
+        _err(env, "irl: interrupted")
+        return 130
+    except BrokenPipeError:
+        return EXIT_OK
+    except Exception as exc:  # the last guard: a user never sees a traceback
+        _err(env, f"irl: internal error: {type(exc).__name__}: {exc}\n"
+                  "This is a bug in irl; please report it with the input that caused it.")
+        return EXIT_INTERNAL
+
+
+if __name__ == "__main__":
+    sys.exit(main())

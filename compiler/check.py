@@ -103,6 +103,8 @@ class Checker:
         self.scope: ProcScope | None = None
         self.loop_vars: list[str] = []
         self.robots: list[str] = []
+        self._expr = {cls: getattr(self, "e_" + cls.__name__) for cls in _EXPR_CLASSES}
+        self._stmt = {cls: getattr(self, "s_" + cls.__name__) for cls in _STMT_CLASSES}
 
     # -- reporting --
     def error(self, span: ast.Span, message: str, hint: str | None = None) -> None:
@@ -172,8 +174,10 @@ class Checker:
     def expect(self, expr: ast.Expr, wanted, what: str):
         """Check ``expr`` and that its type fits ``wanted`` (a type or a tuple of types)."""
         t = self.expr(expr)
+        if t == ERROR or t == wanted:
+            return t
         options = wanted if isinstance(wanted, tuple) else (wanted,)
-        if t != ERROR and not any(assignable(w, t) for w in options):
+        if t not in options and not any(assignable(w, t) for w in options):
             self.error(expr.span, f"{what} must be {' or '.join(map(type_name, options))}, not {type_name(t)}")
             return ERROR
         return t
@@ -192,7 +196,7 @@ class Checker:
 
     # ---- expressions ----
     def expr(self, node: ast.Expr):
-        t = getattr(self, "e_" + type(node).__name__)(node)
+        t = self._expr[type(node)](node)
         self.types[id(node)] = t
         return t
 
@@ -482,8 +486,9 @@ class Checker:
 
     # ---- statements ----
     def stmts(self, body) -> None:
+        dispatch = self._stmt
         for stmt in body:
-            getattr(self, "s_" + type(stmt).__name__)(stmt)
+            dispatch[type(stmt)](stmt)
 
     def variable(self, name: str, span: ast.Span, node) -> Symbol | None:
         symbol = self.lookup(name)
@@ -775,6 +780,11 @@ class Checker:
         symbol.params = tuple(params)
         self.procs.append(scope)
 
+
+_EXPR_CLASSES = (ast.Number, ast.String, ast.Bool, ast.Ref, ast.Call, ast.Index, ast.Field, ast.Unary,
+                 ast.Binary, ast.Input)
+_STMT_CLASSES = (ast.Assign, ast.OutSet, ast.Move, ast.If, ast.While, ast.Repeat, ast.For, ast.WaitTime,
+                 ast.WaitFor, ast.CallProc, ast.Print, ast.Pause, ast.Halt)
 
 CONSTRUCTORS = {
     "joint": Checker.c_joint,

@@ -27,20 +27,26 @@ class CodeGen:
         self.types = checked.types
         self.values = checked.values
         self.symbols = checked.symbols
-        self.code: list[list[int]] = []
+        self.code: list[tuple[int, ...]] = []
         self.lines: list[tuple[int, int, int]] = []
         self.constants: list = []
         self.constant_index: dict = {}
         self.globals = list(checked.globals)
         self.locals: list | None = None  # slots of the procedure being generated
+        self._expr = {cls: getattr(self, "e_" + cls.__name__)
+                      for cls in (ast.Ref, ast.Unary, ast.Binary, ast.Index, ast.Field, ast.Input, ast.Call)}
+        self._stmt = {cls: getattr(self, "s_" + cls.__name__)
+                      for cls in (ast.Assign, ast.OutSet, ast.Move, ast.If, ast.While, ast.Repeat, ast.For,
+                                  ast.WaitTime, ast.WaitFor, ast.CallProc, ast.Print, ast.Pause, ast.Halt)}
 
     # -- emitting --
     def emit(self, op: int, *operands: int) -> int:
-        self.code.append([op, *operands])
+        self.code.append((op, *operands))
         return len(self.code) - 1
 
     def patch(self, at: int, target: int | None = None) -> None:
-        self.code[at][1] = len(self.code) if target is None else target
+        """Point the jump at ``at`` to ``target`` (default: the next instruction emitted)."""
+        self.code[at] = (self.code[at][0], len(self.code) if target is None else target)
 
     def mark(self, span: ast.Span) -> None:
         entry = (len(self.code), span.line, span.col)
@@ -81,7 +87,7 @@ class CodeGen:
                 folded = float(folded)
             self.constant(folded)
             return
-        getattr(self, "e_" + type(node).__name__)(node)
+        self._expr[type(node)](node)
         if want == REAL and t == INTEGER:
             self.emit(OP.TO_REAL)
         elif isinstance(t, ArrayT) and isinstance(node, (ast.Ref, ast.Index)):
@@ -156,9 +162,10 @@ class CodeGen:
 
     # -- statements --
     def stmts(self, body) -> None:
+        dispatch = self._stmt
         for stmt in body:
             self.mark(stmt.span)
-            getattr(self, "s_" + type(stmt).__name__)(stmt)
+            dispatch[type(stmt)](stmt)
 
     def s_Assign(self, node: ast.Assign) -> None:
         symbol = self.symbols[id(node)]
@@ -319,7 +326,7 @@ class CodeGen:
             self.locals = None
         spec = checked.spec
         return Program(program.name, source_name, spec.name, spec.hash, checked.robots,
-                       tuple(self.constants), tuple(tuple(i) for i in self.code), tuple(self.lines),
+                       tuple(self.constants), tuple(self.code), tuple(self.lines),
                        tuple(self.globals), tuple(procedures))
 
 

@@ -5,6 +5,8 @@ through here, so they agree on every diagnostic.
 """
 from __future__ import annotations
 
+import gc
+from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -48,9 +50,28 @@ def resolve_spec(tree, file: str, spec_path: str | Path | None) -> tuple[Spec | 
         return None, [_error(file, f"system specification: {exc}", span)]
 
 
+@contextmanager
+def _no_cyclic_gc():
+    """Pause the cyclic garbage collector: a compile allocates a large, cycle-free AST
+    that the collector would otherwise scan again and again (reference counting still
+    frees everything)."""
+    was_enabled = gc.isenabled()
+    gc.disable()
+    try:
+        yield
+    finally:
+        if was_enabled:
+            gc.enable()
+
+
 def compile_source(source: str, file: str = "<input>", spec_path: str | Path | None = None,
                    generate_code: bool = True) -> Result:
     """Parse, check and (unless ``generate_code`` is false) generate object code."""
+    with _no_cyclic_gc():
+        return _compile(source, file, spec_path, generate_code)
+
+
+def _compile(source: str, file: str, spec_path, generate_code: bool) -> Result:
     from .check import check
     from .codegen import generate
     from .syntax import parse

@@ -133,10 +133,10 @@ TypeExpr = Union[NamedType, ArrayType]
 
 @dataclass(frozen=True, slots=True)
 class Assign:
-    """``name := value`` or ``name[index] := value``."""
+    """``name := value`` or ``name[i]...[k] := value`` (array elements, a joint's axis)."""
 
     name: str
-    index: Expr | None
+    indices: tuple[Expr, ...]
     value: Expr
     span: Span
     name_span: Span

@@ -9,6 +9,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
+from grammar import keywords
+
 from . import ast
 from .diagnostics import Diagnostic, did_you_mean
 from .objcode import BUILTINS, CLAUSES
@@ -26,6 +28,7 @@ ERROR = "<error>"  # the type of an expression already reported: suppresses foll
 NAMED_TYPES = (INTEGER, REAL, BOOL, STRING, JOINT, POSITION, ORIENTATION, POSE)
 NUMERIC = (INTEGER, REAL)
 MAX_ARRAY_LENGTH = 100_000
+INT_MIN, INT_MAX = -(2 ** 63), 2 ** 63 - 1  # integers are 64-bit, as in the object code
 
 
 @dataclass(frozen=True)
@@ -44,6 +47,12 @@ class ArrayT:
 
 def type_name(t) -> str:
     return str(t)
+
+
+def a(t) -> str:
+    """The type's name with its article: "an integer", "a pose"."""
+    name = type_name(t)
+    return ("an " if name[:1] in "aeiou" else "a ") + name
 
 
 def assignable(target, value) -> bool:
@@ -128,6 +137,10 @@ class Checker:
         self.error(span, f"undeclared {what} '{name}'", f"did you mean '{guess}'?" if guess else None)
 
     def declare(self, table: dict[str, Symbol], symbol: Symbol) -> bool:
+        if symbol.name in keywords():
+            self.error(symbol.span, f"'{symbol.name}' is a reserved word and cannot be declared",
+                       "choose another name")
+            return False
         previous = table.get(symbol.name)  # a local may shadow a global: tables are per scope
         if previous is not None:
             self.error(symbol.span, f"'{symbol.name}' is already declared",
@@ -182,14 +195,21 @@ class Checker:
             return ERROR
         return t
 
-    def fold(self, node, fn, *args):
-        """Record ``fn(*args)`` as ``node``'s constant value; a folding error is reported."""
+    def fold(self, node, fn, *args) -> bool:
+        """Record ``fn(*args)`` as ``node``'s constant value; False (reported) if it fails."""
         try:
-            self.values[id(node)] = fn(*args)
+            value = fn(*args)
         except EvalError as exc:
             self.error(node.span, str(exc))
+            return False
         except (OverflowError, ValueError) as exc:
             self.error(node.span, f"cannot compute this constant: {exc}")
+            return False
+        if isinstance(value, int) and not isinstance(value, bool) and not INT_MIN <= value <= INT_MAX:
+            self.error(node.span, f"integer overflow: {value:.3g} is outside the integer range (64-bit)")
+            return False
+        self.values[id(node)] = value
+        return True
 
     def value_of(self, expr: ast.Expr):
         return self.values.get(id(expr), _NO_VALUE)
@@ -201,8 +221,19 @@ class Checker:
         return t
 
     def e_Number(self, node: ast.Number):
-        self.values[id(node)] = node.value
-        return INTEGER if isinstance(node.value, int) else REAL
+        value = node.value
+        if isinstance(value, int):
+            if value > INT_MAX:
+                self.error(node.span, f"the integer {value} is too large (the largest is {INT_MAX})",
+                           "write it as a real (with a decimal point) if you need a larger number")
+                return ERROR
+            self.values[id(node)] = value
+            return INTEGER
+        if value == float("inf"):
+            self.error(node.span, "this number is too large for a real (the largest is about 1.8e308)")
+            return ERROR
+        self.values[id(node)] = value
+        return REAL
 
     def e_String(self, node: ast.String):
         self.values[id(node)] = node.value
@@ -239,8 +270,8 @@ class Checker:
         if t == ERROR:
             return ERROR
         value = self.value_of(node.operand)
-        if value is not _NO_VALUE:
-            self.fold(node, unary, node.op, value)
+        if value is not _NO_VALUE and not self.fold(node, unary, node.op, value):
+            return ERROR
         return result
 
     def e_Binary(self, node: ast.Binary):
@@ -251,9 +282,9 @@ class Checker:
         result = self.binary_type(node, op, lt, rt)
         if result == ERROR:
             return ERROR
-        a, b = self.value_of(node.left), self.value_of(node.right)
-        if a is not _NO_VALUE and b is not _NO_VALUE:
-            self.fold(node, binary, op, a, b)
+        left, right = self.value_of(node.left), self.value_of(node.right)
+        if left is not _NO_VALUE and right is not _NO_VALUE and not self.fold(node, binary, op, left, right):
+            return ERROR
         return result
 
     def binary_type(self, node: ast.Binary, op: str, lt, rt):
@@ -291,38 +322,44 @@ class Checker:
         self.error(node.op_span, f"'{op}' needs two numbers, not {pair}")
         return ERROR
 
-    def e_Index(self, node: ast.Index):
-        base = self.expr(node.base)
-        index = self.expect(node.index, INTEGER, "an index")
-        if ERROR in (base, index):
+    def element_type(self, container, index: ast.Expr, container_span: ast.Span, what: str):
+        """The type of ``container[index]``, checking the index; ERROR when it cannot be indexed."""
+        index_t = self.expect(index, INTEGER, "an index")
+        if ERROR in (container, index_t):
             return ERROR
-        i = self.value_of(node.index)
-        if isinstance(base, ArrayT):
-            if i is not _NO_VALUE and not base.low <= i <= base.high:
-                self.error(node.index.span, f"index {i} is outside the array bounds {base.low}..{base.high}")
-            return base.element
-        if base == JOINT:
+        i = self.value_of(index)
+        if isinstance(container, ArrayT):
+            if i is not _NO_VALUE and not container.low <= i <= container.high:
+                self.error(index.span, f"index {i} is outside the array bounds {container.low}..{container.high}")
+            return container.element
+        if container == JOINT:
             n = len(self.spec.axes)
             if i is not _NO_VALUE and not 1 <= i <= n:
-                self.error(node.index.span, f"axis {i} does not exist: {self.spec.name} has axes 1..{n}")
-            j = self.value_of(node.base)
-            if j is not _NO_VALUE and i is not _NO_VALUE and 1 <= i <= n:
-                self.values[id(node)] = j.axes[i - 1]
+                self.error(index.span, f"axis {i} does not exist: {self.spec.name} has axes 1..{n}")
             return REAL
-        self.error(node.base.span, f"a {type_name(base)} cannot be indexed", "only arrays and joints can")
+        self.error(container_span, f"{what} is {a(container)} and cannot be indexed", "only arrays and joints can")
         return ERROR
+
+    def e_Index(self, node: ast.Index):
+        base = self.expr(node.base)
+        t = self.element_type(base, node.index, node.base.span, "this")
+        if t == REAL and base == JOINT:
+            j, i = self.value_of(node.base), self.value_of(node.index)
+            if j is not _NO_VALUE and i is not _NO_VALUE and 1 <= i <= len(j.axes):
+                self.values[id(node)] = j.axes[i - 1]
+        return t
 
     def e_Field(self, node: ast.Field):
         base = self.expr(node.base)
         if base == ERROR:
             return ERROR
         if base not in (POSITION, POSE):
-            self.error(node.span, f"a {type_name(base)} has no field '{node.name}'",
+            self.error(node.span, f"{a(base)} has no field '{node.name}'",
                        "fields x, y, z belong to positions and poses")
             return ERROR
         if node.name not in ("x", "y", "z"):
             guess = did_you_mean(node.name, ("x", "y", "z"))
-            self.error(node.span, f"a {base} has no field '{node.name}'",
+            self.error(node.span, f"{a(base)} has no field '{node.name}'",
                        f"did you mean '{guess}'?" if guess else "its fields are x, y, z")
             return ERROR
         value = self.value_of(node.base)
@@ -351,7 +388,7 @@ class Checker:
         if symbol is not None and symbol.kind == "proc":
             self.error(node.name_span, f"procedure '{name}' has no value", f"call it as a statement: call {name}(...);")
         elif symbol is not None:
-            self.error(node.name_span, f"'{name}' is a {type_name(symbol.type)}, not a function")
+            self.error(node.name_span, f"'{name}' is {a(symbol.type)}, not a function")
         else:
             guess = did_you_mean(name, list(BUILTINS) + list(CONSTRUCTORS))
             self.error(node.name_span, f"unknown function '{name}'", f"did you mean '{guess}'?" if guess else None)
@@ -385,7 +422,8 @@ class Checker:
         if _NO_VALUE not in values:
             if result == REAL:
                 values = [float(v) for v in values]
-            self.fold(node, call_builtin, name, values)
+            if not self.fold(node, call_builtin, name, values):
+                return ERROR
         return result
 
     def numbers(self, node: ast.Call, count: int | None, what: str):
@@ -468,8 +506,8 @@ class Checker:
         values = self.numbers(node, 4, "a component of quat")
         if values == ERROR:
             return ERROR
-        if values is not None:
-            self.fold(node, make_quat, *(float(v) for v in values))
+        if values is not None and not self.fold(node, make_quat, *(float(v) for v in values)):
+            return ERROR
         return ORIENTATION
 
     def c_pose(self, node: ast.Call):
@@ -510,24 +548,16 @@ class Checker:
             self.error(node.name_span, f"'{node.name}' is the variable of an enclosing for loop",
                        "a for loop's variable cannot be assigned inside the loop")
         target = symbol.type if symbol is not None else ERROR
-        if node.index is not None:
-            index_t = self.expect(node.index, INTEGER, "an index")
-            if isinstance(target, ArrayT):
-                i = self.value_of(node.index)
-                if i is not _NO_VALUE and not target.low <= i <= target.high:
-                    self.error(node.index.span, f"index {i} is outside the array bounds {target.low}..{target.high}")
-                target = target.element
-            elif target == JOINT:
-                target = REAL
-            elif target != ERROR:
-                self.error(node.name_span, f"'{node.name}' is a {type_name(target)} and cannot be indexed")
+        for k, index in enumerate(node.indices):
+            if target == JOINT and k < len(node.indices) - 1:
+                self.error(index.span, "a joint's axis value is a real and cannot be indexed")
                 target = ERROR
-            if index_t == ERROR:
-                target = ERROR
+            target = self.element_type(target, index, node.name_span, f"'{node.name}'")
         value = self.expr(node.value)
         if ERROR not in (target, value) and not assignable(target, value):
-            self.error(node.value.span, f"cannot assign a {type_name(value)} to '{node.name}', "
-                                        f"which is a {type_name(target)}")
+            self.error(node.value.span, f"cannot assign {a(value)} to '{node.name}', "
+                                        f"which is {a(target)}" if not node.indices else
+                                        f"cannot assign {a(value)} to an element of type {type_name(target)}")
 
     def s_OutSet(self, node: ast.OutSet):
         if self.expect(node.index, INTEGER, "an output number") != ERROR:
@@ -560,11 +590,10 @@ class Checker:
 
     def check_reach(self, target: ast.Expr, value: Pose) -> None:
         p = value.position
-        distance = (p.x * p.x + p.y * p.y + p.z * p.z) ** 0.5
-        reach = self.spec.reach()
+        distance, reach = self.spec.shoulder_distance(p.x, p.y, p.z), self.spec.arm_reach()
         if reach > 0 and distance > reach:
-            self.error(target.span, f"pose at {distance:.1f} mm from the base is out of reach "
-                                    f"({self.spec.name} reaches at most {reach:.1f} mm)")
+            self.error(target.span, f"pose out of reach: its position is {distance:.1f} mm from the shoulder, "
+                                    f"but {self.spec.name}'s arm reaches at most {reach:.1f} mm")
 
     def clauses(self, node: ast.Move) -> None:
         seen: dict[str, ast.Clause] = {}
@@ -736,7 +765,7 @@ class Checker:
         if decl.init is not None:
             vt = self.expr(decl.init)
             if ERROR not in (t, vt) and not assignable(t, vt):
-                self.error(decl.init.span, f"cannot initialise a {type_name(t)} with a {type_name(vt)}")
+                self.error(decl.init.span, f"cannot initialise {a(t)} with {a(vt)}")
         for name, span in zip(decl.names, decl.spans):
             symbol = Symbol(kind, name, t, span, slot=len(slots))
             if self.declare(table, symbol):

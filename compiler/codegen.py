@@ -169,20 +169,47 @@ class CodeGen:
 
     def s_Assign(self, node: ast.Assign) -> None:
         symbol = self.symbols[id(node)]
-        if node.index is None:
+        indices = node.indices
+        if not indices:
             self.value(node.value, symbol.type)
             self.emit(self.store_op(symbol), symbol.slot)
-        elif isinstance(symbol.type, ArrayT):
+            return
+        # Walk down to the container of the last index: arrays are references in the VM,
+        # so changing an element of a nested array changes the variable.
+        container = symbol.type
+        for index in indices[:-1]:
+            container = container.element if isinstance(container, ArrayT) else REAL
+        if isinstance(container, ArrayT):
+            self.load_path(symbol, indices[:-1])
+            self.value(indices[-1])
+            self.value(node.value, container.element)
+            self.emit(OP.SET_ITEM, container.low)
+        elif len(indices) == 1:  # an axis of a joint variable
             self.emit(self.load_op(symbol), symbol.slot)
-            self.value(node.index)
-            self.value(node.value, symbol.type.element)
-            self.emit(OP.SET_ITEM, symbol.type.low)
-        else:  # an axis of a joint
-            self.emit(self.load_op(symbol), symbol.slot)
-            self.value(node.index)
+            self.value(indices[0])
             self.value(node.value, REAL)
             self.emit(OP.SET_AXIS)
             self.emit(self.store_op(symbol), symbol.slot)
+        else:  # an axis of a joint inside an array: a[i]...[k][axis] := v
+            holder = symbol.type
+            for index in indices[:-2]:
+                holder = holder.element
+            self.load_path(symbol, indices[:-2])
+            self.value(indices[-2])
+            self.load_path(symbol, indices[:-1])
+            self.value(indices[-1])
+            self.value(node.value, REAL)
+            self.emit(OP.SET_AXIS)
+            self.emit(OP.SET_ITEM, holder.low)
+
+    def load_path(self, symbol: Symbol, indices) -> None:
+        """Push the (uncopied) array ``symbol[i]...[k]``."""
+        self.emit(self.load_op(symbol), symbol.slot)
+        t = symbol.type
+        for index in indices:
+            self.value(index)
+            self.emit(OP.GET_ITEM, t.low)
+            t = t.element
 
     def s_OutSet(self, node: ast.OutSet) -> None:
         self.value(node.index)

@@ -6,11 +6,12 @@ through here, so they agree on every diagnostic.
 from __future__ import annotations
 
 import gc
+import sys
 from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 
-from .diagnostics import CompileError, Diagnostic
+from .diagnostics import Diagnostic
 from .objcode import Program
 from .spec import Spec, SpecError, load_spec
 
@@ -71,19 +72,37 @@ def compile_source(source: str, file: str = "<input>", spec_path: str | Path | N
         return _compile(source, file, spec_path, generate_code)
 
 
+#: How deeply a program may nest (expressions, statements) before it is refused; the
+#: checker and code generator recurse once or twice per level.
+MAX_NESTING = 4000
+
+
 def _compile(source: str, file: str, spec_path, generate_code: bool) -> Result:
+    limit = sys.getrecursionlimit()
+    sys.setrecursionlimit(max(limit, 3 * MAX_NESTING))
+    try:
+        return _compile_nested(source, file, spec_path, generate_code)
+    except RecursionError:
+        return Result(file, source, None, [_error(
+            file, f"the program nests too deeply (more than about {MAX_NESTING} levels of expressions "
+                  f"or statements)", hint="split long expressions with intermediate variables")])
+    finally:
+        sys.setrecursionlimit(limit)
+
+
+def _compile_nested(source: str, file: str, spec_path, generate_code: bool) -> Result:
     from .check import check
     from .codegen import generate
-    from .syntax import parse
+    from .syntax import parse_recovering
 
-    try:
-        tree = parse(source, file)
-    except CompileError as exc:
-        return Result(file, source, None, exc.diagnostics)
+    tree, syntax_errors = parse_recovering(source, file)
+    if tree is None:
+        return Result(file, source, None, syntax_errors)
     spec, diagnostics = resolve_spec(tree, file, spec_path)
     if spec is None:
-        return Result(file, source, None, diagnostics)
+        return Result(file, source, None, syntax_errors + diagnostics)
     checked, diagnostics = check(tree, spec, file)
+    diagnostics = syntax_errors + diagnostics
     if diagnostics:
         diagnostics.sort(key=lambda d: (d.line, d.column))
         return Result(file, source, None, diagnostics, spec)

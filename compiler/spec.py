@@ -92,13 +92,21 @@ class Spec:
     def additional_axes(self) -> tuple[Axis, ...]:
         return tuple(a for a in self.axes if a.group == "additional")
 
-    def reach(self) -> float:
-        """An upper bound of the distance (mm) from the base origin to any reachable TCP."""
-        total = 0.0
-        for axis in self.main_axes:
-            if axis.dh is not None:
-                total += math.hypot(axis.dh.a, axis.dh.d)
-        return total + math.hypot(*self.tool[:3])
+    def arm_reach(self) -> float:
+        """An upper bound (mm) of the distance from the shoulder (axis 2) to any reachable
+        TCP: the links after the first, plus the tool. 0 when the DH data are missing."""
+        links = self.main_axes[1:]
+        if not links or any(axis.dh is None for axis in self.main_axes):
+            return 0.0
+        return sum(math.hypot(axis.dh.a, axis.dh.d) for axis in links) + math.hypot(*self.tool[:3])
+
+    def shoulder_distance(self, x: float, y: float, z: float) -> float:
+        """Distance (mm) from a point in the base frame to the nearest place the shoulder
+        can be: a circle of radius a1 at height d1 around the vertical first axis."""
+        first = self.main_axes[0].dh
+        if first is None:
+            return math.sqrt(x * x + y * y + z * z)
+        return math.hypot(math.hypot(x, y) - abs(first.a), z - first.d)
 
 
 # ---- validation helpers ----------------------------------------------------------------

@@ -116,8 +116,8 @@ class _Builder(Transformer):
 
     # -- statements --
     def assign(self, c):
-        name, index, value = c
-        return ast.Assign(name.value.lower(), index, value, _span(name).to(value.span), _span(name))
+        name, *indices, value = c
+        return ast.Assign(name.value.lower(), tuple(indices), value, _span(name).to(value.span), _span(name))
 
     def out_stmt(self, c):
         kw, index, value = c
@@ -314,13 +314,32 @@ def _diag(file, span: ast.Span, message, hint=None) -> Diagnostic:
     return Diagnostic(file, span.line, span.col, span.end_line, span.end_col, "error", message, hint)
 
 
-def _classify(err: UnexpectedInput, text: str, file: str, tokens: list[Token]) -> tuple[Diagnostic, int, bool]:
-    """A diagnostic for ``err``, the text offset it is about, and whether to resync."""
+def _unexpected_character(err: UnexpectedCharacters, text: str, file: str):
+    pos = err.pos_in_stream
+    char = text[pos]
+    span = ast.Span(err.line, err.column, err.line, err.column + 1)
+    if char == "{" and "}" not in text[pos:]:
+        return _diag(file, span, "unterminated comment: this '{' is never closed by '}'"), None
+    if text.startswith("(*", pos) and "*)" not in text[pos:]:
+        return _diag(file, span.to(ast.Span(err.line, err.column + 1, err.line, err.column + 2)),
+                     "unterminated comment: this '(*' is never closed by '*)'"), None
+    if char == '"':
+        line_rest = text[pos + 1:].split("\n", 1)[0]
+        if '"' not in line_rest.replace('\\"', ""):
+            return (_diag(file, span, "unterminated string: a string must end on the line it starts",
+                          'close it with "'), ("resync", pos))
+        return (_diag(file, span, "invalid string", 'inside a string only \\" and \\\\ are escapes'),
+                ("resync", pos))
+    hint = "strings are written in double quotes" if char == "'" else None
+    return _diag(file, span, f"unexpected character {char!r}", hint), ("resync", pos)
+
+
+def _classify(err: UnexpectedInput, text: str, file: str, tokens: list[Token]):
+    """A diagnostic for ``err`` and how to recover from it: ``None`` (stop), ``("resync",
+    offset)`` (skip the statement around offset) or ``("patch", start, end, text)`` (a fix
+    of the same length, which keeps every position, so parsing can go on as if mended)."""
     if isinstance(err, UnexpectedCharacters):
-        span = ast.Span(err.line, err.column, err.line, err.column + 1)
-        char = text[err.pos_in_stream]
-        hint = "strings are written in double quotes" if char == "'" else None
-        return _diag(file, span, f"unexpected character {char!r}", hint), err.pos_in_stream, True
+        return _unexpected_character(err, text, file)
 
     assert isinstance(err, UnexpectedToken)
     tok = err.token
@@ -330,44 +349,46 @@ def _classify(err: UnexpectedInput, text: str, file: str, tokens: list[Token]) -
         if candidate.start_pos is not None and tok.start_pos is not None and candidate.start_pos >= tok.start_pos:
             break
         prev = candidate
-    at_end = tok.type == "$END"
-    if at_end:
+    if tok.type == "$END":
         last = tokens[-1] if tokens else None
         line = last.end_line if last else 1
         col = last.end_column if last else 1
         return (_diag(file, ast.Span(line, col, line, col + 1),
-                      f"unexpected end of file; expected {_expected_text(expected)}"), len(text), False)
+                      f"unexpected end of file; expected {_expected_text(expected)}"), None)
 
     # "speed ptp := 0.1": two words that, joined by '_', make a clause or keyword.
-    if prev is not None and prev.type == "NAME" and tok.type != "$END":
+    if prev is not None and prev.type == "NAME":
         joined = f"{prev.value}_{tok.value}".lower()
         if joined in CLAUSES or joined in _keywords():
-            return (_diag(file, _span(prev).to(_span(tok)), f"unexpected '{tok.value}' after '{prev.value}'",
-                          f"did you mean '{joined}'?"), tok.start_pos, True)
+            diag = _diag(file, _span(prev).to(_span(tok)), f"unexpected '{tok.value}' after '{prev.value}'",
+                         f"did you mean '{joined}'?")
+            if tok.start_pos - prev.end_pos == 1:
+                return diag, ("patch", prev.end_pos, tok.start_pos, "_")
+            return diag, ("resync", tok.start_pos)
 
     # "endseg" where "endseq" belongs: a misspelled keyword reads as a name, and the
     # parser only notices at the token after it.
     if prev is not None and prev.type == "NAME" and "NAME" not in expected:
         guess = did_you_mean(prev.value, _keywords(), cutoff=0.75)
         if guess and guess != prev.value.lower():
+            diag = _diag(file, _span(prev), f"unexpected name '{prev.value}'", f"did you mean '{guess}'?")
+            if len(guess) == len(prev.value):
+                return diag, ("patch", prev.start_pos, prev.end_pos, guess)
             # A misspelled block keyword leaves the block open: going on would cascade.
-            resync = guess.upper() not in _STRUCTURE
-            return (_diag(file, _span(prev), f"unexpected name '{prev.value}'", f"did you mean '{guess}'?"),
-                    prev.start_pos, resync)
+            return diag, (None if guess.upper() in _STRUCTURE else ("resync", prev.start_pos))
 
     hint = None
     if tok.type == "NAME" and tok.value.lower() not in _keywords():
-        keywords = [_describe_terminal(n).strip("'") for n in expected
-                    if n not in _REGEX_NAMES and _describe_terminal(n).strip("'").isalpha()]
-        guess = did_you_mean(tok.value, keywords, cutoff=0.7)
+        words = [_describe_terminal(n).strip("'") for n in expected if n not in _REGEX_NAMES]
+        guess = did_you_mean(tok.value, [w for w in words if w.replace("_", "").isalpha()], cutoff=0.7)
         if guess:
             hint = f"did you mean '{guess}'?"
     is_keyword = tok.type in _KEYWORD_TYPES or tok.value.upper() in _KEYWORD_TYPES
     if "SEMICOLON" in expected and prev is not None and (prev.end_line < tok.line or is_keyword or tok.type == "NAME"):
         span = ast.Span(prev.end_line, prev.end_column, prev.end_line, prev.end_column + 1)
-        return _diag(file, span, f"expected ';' after '{prev.value}'", hint), tok.start_pos, True
+        return _diag(file, span, f"expected ';' after '{prev.value}'", hint), ("resync", tok.start_pos)
     return (_diag(file, _span(tok), f"unexpected '{tok.value}'; expected {_expected_text(expected)}", hint),
-            tok.start_pos, True)
+            ("resync", tok.start_pos))
 
 
 def _resync_region(tokens: list[Token], offset: int) -> tuple[int, int] | None:
@@ -395,26 +416,49 @@ def _blank(text: str, start: int, end: int) -> str:
     return text[:start] + middle + text[end:]
 
 
-def parse(text: str, file: str = "<input>") -> ast.Program:
-    """Parse L-IRL source; raises :class:`CompileError` with every syntax error found."""
+def parse_recovering(text: str, file: str = "<input>") -> tuple[ast.Program | None, list[Diagnostic]]:
+    """Parse L-IRL source, going on after syntax errors.
+
+    Returns (tree, diagnostics). The tree is None when a statement had to be skipped to
+    go on; when every error could be mended in place (same length, so every position
+    holds) the tree of the mended text comes back, and it can still be checked.
+    """
     parser = _parser()
     try:
-        return parser.parse(text)
+        return parser.parse(text), []
     except UnexpectedInput as first:
         err = first
     diagnostics: list[Diagnostic] = []
-    while True:
+    mended_only = True
+    tree = None
+    while len(diagnostics) < MAX_SYNTAX_ERRORS:
         tokens = _tokens(text)
-        diag, offset, resync = _classify(err, text, file, tokens)
+        diag, recovery = _classify(err, text, file, tokens)
         if not any((d.line, d.column) == (diag.line, diag.column) for d in diagnostics):
             diagnostics.append(diag)
-        region = _resync_region(tokens, offset) if resync else None
-        if region is None or len(diagnostics) >= MAX_SYNTAX_ERRORS:
+        if recovery is None:
+            mended_only = False
             break
-        text = _blank(text, *region)
+        if recovery[0] == "patch":
+            _, start, end, replacement = recovery
+            text = text[:start] + replacement + text[end:]
+        else:
+            mended_only = False
+            region = _resync_region(tokens, recovery[1])
+            if region is None:
+                break
+            text = _blank(text, *region)
         try:
-            parser.parse(text)
+            tree = parser.parse(text)
             break
         except UnexpectedInput as again:
             err = again
-    raise CompileError(diagnostics)
+    return (tree if mended_only else None), diagnostics
+
+
+def parse(text: str, file: str = "<input>") -> ast.Program:
+    """Parse L-IRL source; raises :class:`CompileError` with every syntax error found."""
+    tree, diagnostics = parse_recovering(text, file)
+    if diagnostics:
+        raise CompileError(diagnostics)
+    return tree

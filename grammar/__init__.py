@@ -6,6 +6,8 @@ like ``irl check`` does not rebuild them at every start.
 """
 from __future__ import annotations
 
+import re
+from functools import cache
 from pathlib import Path
 
 GRAMMAR_PATH = Path(__file__).with_name("lirl.lark")
@@ -13,6 +15,12 @@ GRAMMAR_PATH = Path(__file__).with_name("lirl.lark")
 
 def grammar_text() -> str:
     return GRAMMAR_PATH.read_text(encoding="utf-8")
+
+
+@cache
+def keywords() -> frozenset[str]:
+    """The reserved words of L-IRL (every case-insensitive literal of the grammar)."""
+    return frozenset(re.findall(r'"([a-z_]+)"i', grammar_text()))
 
 
 def make_parser(transformer=None, **options):

@@ -1,0 +1,1 @@
+../../programs/lola15.spc

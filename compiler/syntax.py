@@ -387,6 +387,10 @@ def _classify(err: UnexpectedInput, text: str, file: str, tokens: list[Token]):
     if "SEMICOLON" in expected and prev is not None and (prev.end_line < tok.line or is_keyword or tok.type == "NAME"):
         span = ast.Span(prev.end_line, prev.end_column, prev.end_line, prev.end_column + 1)
         return _diag(file, span, f"expected ';' after '{prev.value}'", hint), ("resync", tok.start_pos)
+    if "NAME" in expected and tok.value.lower() in _keywords():
+        return (_diag(file, _span(tok), f"'{tok.value}' is a reserved word and cannot be used as a name",
+                      "choose another name"), ("resync", tok.start_pos))
+
     return (_diag(file, _span(tok), f"unexpected '{tok.value}'; expected {_expected_text(expected)}", hint),
             ("resync", tok.start_pos))
 

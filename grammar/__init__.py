@@ -24,8 +24,14 @@ def keywords() -> frozenset[str]:
 
 
 def make_parser(transformer=None, **options):
-    """A Lark LALR parser for L-IRL; ``transformer`` builds the result while parsing."""
+    """A Lark LALR parser for L-IRL; ``transformer`` builds the result while parsing.
+
+    Lark's basic lexer, not the contextual one: the grammar needs no context to lex, the
+    contextual lexer compiles one scanner per parser state at every start (~50 ms), and
+    it would let a keyword pass as a name wherever the keyword cannot stand.
+    """
     from lark import Lark
 
+    options.setdefault("lexer", "basic")  # one scanner to build at start-up; keywords always reserved
     return Lark(grammar_text(), parser="lalr", transformer=transformer,
                 maybe_placeholders=True, cache=True, **options)

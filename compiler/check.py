@@ -14,7 +14,8 @@ from grammar import keywords
 from . import ast
 from .diagnostics import Diagnostic, did_you_mean
 from .objcode import BUILTINS, CLAUSES
-from .semantics import EvalError, binary, call_builtin, make_joint, make_pos, make_quat, make_rpy, unary
+from .semantics import (INT_MAX, INT_MIN, EvalError, binary, call_builtin, make_joint, make_pos, make_quat,
+                        make_rpy, unary)
 from .spec import Spec
 from .values import AddJoint, Joint, MainJoint, Pose, Position, Quat, Rpy
 
@@ -28,7 +29,6 @@ ERROR = "<error>"  # the type of an expression already reported: suppresses foll
 NAMED_TYPES = (INTEGER, REAL, BOOL, STRING, JOINT, POSITION, ORIENTATION, POSE)
 NUMERIC = (INTEGER, REAL)
 MAX_ARRAY_LENGTH = 100_000
-INT_MIN, INT_MAX = -(2 ** 63), 2 ** 63 - 1  # integers are 64-bit, as in the object code
 
 
 @dataclass(frozen=True)
@@ -436,6 +436,23 @@ class Checker:
         values = [self.value_of(arg) for arg in node.args]
         return None if _NO_VALUE in values else values
 
+    def c_part(self, node: ast.Call):
+        """``mainjoint``/``addjoint`` anywhere but as an argument of ``joint``."""
+        for arg in node.args:
+            self.expr(arg)
+        self.error(node.span, f"{node.name}(...) is only meaningful as an argument of joint(...)",
+                   f"write joint({node.name}(...))" if node.name == "mainjoint" else
+                   "write joint(mainjoint(...), addjoint(...))")
+        return ERROR
+
+    def joint_part(self, node: ast.Expr, group: str):
+        """Check an argument of ``joint``: ``mainjoint(...)`` or ``addjoint(...)``."""
+        if isinstance(node, ast.Call) and node.name in ("mainjoint", "addjoint"):
+            t = self.c_mainjoint(node, "main" if node.name == "mainjoint" else "additional")
+            self.types[id(node)] = t
+            return t
+        return self.expr(node)
+
     def c_mainjoint(self, node: ast.Call, group: str = "main"):
         axes = self.spec.main_axes if group == "main" else self.spec.additional_axes
         values = self.numbers(node, None, f"an axis value of {node.name}")
@@ -451,9 +468,6 @@ class Checker:
             self.values[id(node)] = cls(tuple(float(v) for v in values))
         return MAINJOINT if group == "main" else ADDJOINT
 
-    def c_addjoint(self, node: ast.Call):
-        return self.c_mainjoint(node, "additional")
-
     def c_joint(self, node: ast.Call):
         if not 1 <= len(node.args) <= 2:
             self.error(node.span, "joint takes mainjoint(...) and, for additional axes, addjoint(...)",
@@ -461,7 +475,7 @@ class Checker:
             for arg in node.args:
                 self.expr(arg)
             return ERROR
-        first = self.expr(node.args[0])
+        first = self.joint_part(node.args[0], "main")
         ok = first != ERROR
         if ok and first != MAINJOINT:
             self.error(node.args[0].span, f"the first argument of joint must be mainjoint(...), not {type_name(first)}",
@@ -469,7 +483,7 @@ class Checker:
             ok = False
         add_value = AddJoint(())
         if len(node.args) == 2:
-            second = self.expr(node.args[1])
+            second = self.joint_part(node.args[1], "additional")
             if second not in (ADDJOINT, ERROR):
                 self.error(node.args[1].span, f"the second argument of joint must be addjoint(...), "
                                               f"not {type_name(second)}")
@@ -817,8 +831,8 @@ _STMT_CLASSES = (ast.Assign, ast.OutSet, ast.Move, ast.If, ast.While, ast.Repeat
 
 CONSTRUCTORS = {
     "joint": Checker.c_joint,
-    "mainjoint": Checker.c_mainjoint,
-    "addjoint": Checker.c_addjoint,
+    "mainjoint": Checker.c_part,
+    "addjoint": Checker.c_part,
     "pos": Checker.c_pos,
     "rpy": Checker.c_rpy,
     "quat": Checker.c_quat,

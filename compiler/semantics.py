@@ -64,15 +64,22 @@ BINARY = {
 }
 
 
+INT_MIN, INT_MAX = -(2 ** 63), 2 ** 63 - 1  # integers are 64-bit
+
+
 def binary(op: str, a, b):
     result = BINARY[op](a, b)
     if isinstance(result, float):
         _finite(result, f"the result of '{op}'")
+    elif isinstance(result, int) and not isinstance(result, bool) and not INT_MIN <= result <= INT_MAX:
+        raise EvalError(f"integer overflow in '{op}': the result is outside the 64-bit integer range")
     return result
 
 
 def unary(op: str, a):
     if op == "-":
+        if a == INT_MIN and not isinstance(a, float):
+            raise EvalError("integer overflow in '-': the result is outside the 64-bit integer range")
         return -a
     if op == "+":
         return a
@@ -123,6 +130,8 @@ def call_builtin(name: str, args):
     result = BUILTIN_FUNCTIONS[name](*args)
     if isinstance(result, float):
         _finite(result, f"{name}(...)")
+    elif isinstance(result, int) and not INT_MIN <= result <= INT_MAX:
+        raise EvalError(f"integer overflow in {name}(...): the result is outside the 64-bit integer range")
     return result
 
 

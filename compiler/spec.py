@@ -178,8 +178,9 @@ def _axis(file: str, index: int, table) -> Axis:
     jerk = r.get("max_jerk", "number", check=_positive, expect=f"a positive number ({unit}/s^3)")
     group = r.get("group", "string", "main", check=lambda g: g in ("main", "additional"),
                   expect='"main" or "additional"')
-    home = r.get("home", "number", 0.0, check=lambda v: low <= v <= high,
-                 expect=f"a number ({unit}) within min..max")
+    home_default = 0.0 if low <= 0.0 <= high else ...  # 0 is no default outside the limits
+    home = r.get("home", "number", home_default, check=lambda v: low <= v <= high,
+                 expect=f"a number ({unit}) within min..max ({low:g}..{high:g})")
     gear = r.get("gear_ratio", "number", 100.0, check=_positive, expect="a positive number")
     counts = r.get("encoder_counts", "integer", 4096, check=_positive,
                    expect="a positive integer (counts per motor revolution)")
@@ -225,7 +226,7 @@ def parse_spec(text: str, file: str = "<spec>") -> Spec:
     if "additional" in groups and "main" in groups[groups.index("additional"):]:
         raise SpecError(file, "axis", "main axes must come before additional axes")
 
-    defaults = Defaults()
+    defaults = Defaults(speed=min(250.0, max_speed), acc=min(1000.0, max_acc))
     if "defaults" in data:
         d = _Reader(file, "defaults", top.get("defaults", "table"))
         fraction = lambda v: 0 < v <= 1  # noqa: E731

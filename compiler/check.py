@@ -13,7 +13,7 @@ from grammar import keywords
 
 from . import ast
 from .diagnostics import Diagnostic, did_you_mean
-from .objcode import BUILTINS, CLAUSES
+from .objcode import BUILTINS, CLAUSES, MAX_COUNT
 from .semantics import (INT_MAX, INT_MIN, EvalError, binary, call_builtin, make_joint, make_pos, make_quat,
                         make_rpy, unary)
 from .spec import Spec
@@ -165,6 +165,9 @@ class Checker:
             return ERROR
         if high < low:
             self.error(node.span, f"array bounds {low}..{high} are empty", "the upper bound must be >= the lower")
+            return ERROR
+        if not -(2 ** 31) <= low <= high < 2 ** 31:
+            self.error(node.span, f"array bounds {low}..{high} must lie within the 32-bit integer range")
             return ERROR
         length = high - low + 1
         if isinstance(element, ArrayT):
@@ -754,6 +757,8 @@ class Checker:
                                      f"not {type_name(t)}")
 
     def s_Print(self, node: ast.Print):
+        if len(node.values) > MAX_COUNT:
+            self.error(node.span, f"print takes at most {MAX_COUNT} values")
         for value in node.values:
             self.expr(value)
 

@@ -42,9 +42,11 @@ def render(diagnostic: Diagnostic, source: str | None) -> str:
     """``file:line:col: error: message``, then the source line and a caret under the span."""
     d = diagnostic
     out = [f"{d.file}:{d.line}:{d.column}: {d.severity}: {d.message}"]
-    lines = source.splitlines() if source is not None else []
+    # Split at "\n" only, as the parser counts lines (splitlines() also breaks at form
+    # feeds and other characters that are plain white space in L-IRL).
+    lines = source.split("\n") if source is not None else []
     if 1 <= d.line <= len(lines):
-        text = lines[d.line - 1].expandtabs(1)
+        text = lines[d.line - 1].rstrip("\r").expandtabs(1)
         width = (d.end_column - d.column) if d.end_line == d.line else len(text) - d.column + 1
         width = max(1, min(width, len(text) - d.column + 1))
         out.append(f"  {text}")

@@ -116,7 +116,7 @@ def format_text(program: Program, data: bytes | None = None, source: str | None 
         out.append(f"globals ({len(program.globals)}):")
         for i, (name, type_) in enumerate(program.globals):
             out.append(f"  {i:4d}  {name} : {type_}")
-    source_lines = source.splitlines() if source is not None else None
+    source_lines = source.split("\n") if source is not None else None  # as the parser counts lines
     entries = {p.entry: p for p in program.procedures}
     out.append("")
     out.append("code:")

@@ -26,6 +26,8 @@ _HEADER = struct.Struct(">4sHI")
 
 #: Largest object file the decoder accepts (a 10,000-line program is well under 1 MiB).
 MAX_SIZE = 64 * 1024 * 1024
+#: Largest "count" operand (array length, values printed, arguments).
+MAX_COUNT = 1_000_000
 
 
 class ObjectCodeError(Exception):
@@ -46,7 +48,7 @@ OPERAND_KINDS = {
     "local": "local variable slot of the current procedure",
     "target": "code offset to jump to",
     "proc": "index into the procedure table",
-    "count": "a non-negative count",
+    "count": "a non-negative count (at most 1,000,000)",
     "int": "a signed integer",
     "builtin": "built-in function number (see below)",
     "field": "field number: 0 x, 1 y, 2 z",
@@ -350,7 +352,7 @@ def _check_operand(kind: str, value: int, program: Program, nlocals: int | None)
     elif kind == "proc":
         ok, limit = 0 <= value < len(program.procedures), f"0..{len(program.procedures) - 1}"
     elif kind == "count":
-        ok, limit = 0 <= value <= 255, "0..255"
+        ok, limit = 0 <= value <= MAX_COUNT, f"0..{MAX_COUNT}"
     elif kind == "int":
         ok, limit = -(2 ** 31) <= value < 2 ** 31, "a 32-bit integer"
     elif kind == "builtin":
@@ -383,9 +385,10 @@ def _verify_routine(program: Program, entry: int, nlocals: int | None, owner: li
         definition = BY_CODE[instr[0]]
         operands = instr[1:]
         for (name, kind), value in zip(definition.operands, operands):
-            problem = _check_operand(kind, value, program, nlocals)
-            if problem:
-                raise ObjectCodeError(f"{definition.name} operand {name}: {problem}", pc)
+            if kind == "local":  # the other kinds were checked for every instruction
+                problem = _check_operand(kind, value, program, nlocals)
+                if problem:
+                    raise ObjectCodeError(f"{definition.name} operand {name}: {problem}", pc)
         if definition.name == "CALL_BUILTIN" and BUILTINS[BUILTIN_NAMES[operands[0]]] != operands[1]:
             raise ObjectCodeError(f"CALL_BUILTIN {BUILTIN_NAMES[operands[0]]} takes "
                                   f"{BUILTINS[BUILTIN_NAMES[operands[0]]]} arguments, not {operands[1]}", pc)
@@ -444,14 +447,24 @@ def verify(program: Program, spec_hash: str | None = None) -> int:
         if not (0 <= offset < len(program.code)) or offset < previous or line < 1 or column < 1:
             raise ObjectCodeError(f"line table entry ({offset}, {line}, {column}) is invalid")
         previous = offset
-    owner: list = [None] * len(program.code)
-    deepest = _verify_routine(program, 0, None, owner)
     for proc in program.procedures:
         if not (0 <= proc.entry < len(program.code)):
             raise ObjectCodeError(f"procedure {proc.name!r} starts outside the code ({proc.entry})")
         if not (0 <= proc.params <= len(proc.locals)):
             raise ObjectCodeError(f"procedure {proc.name!r} has {proc.params} parameters "
                                   f"but {len(proc.locals)} local slots")
+    # Every operand is checked, reachable or not (what is loaded is also disassembled);
+    # the walks below then check local slots and stack depths per routine.
+    most_locals = max((len(p.locals) for p in program.procedures), default=None)
+    for offset, instr in enumerate(program.code):
+        definition = BY_CODE[instr[0]]
+        for (name, kind), value in zip(definition.operands, instr[1:]):
+            problem = _check_operand(kind, value, program, most_locals)
+            if problem:
+                raise ObjectCodeError(f"{definition.name} operand {name}: {problem}", offset)
+    owner: list = [None] * len(program.code)
+    deepest = _verify_routine(program, 0, None, owner)
+    for proc in program.procedures:
         if owner[proc.entry] is not None:
             raise ObjectCodeError(f"procedure {proc.name!r} starts inside other code", proc.entry)
         deepest = max(deepest, _verify_routine(program, proc.entry, len(proc.locals), owner))

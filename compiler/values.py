@@ -148,13 +148,23 @@ def _floats(items, count: int | None, what: str) -> tuple[float, ...]:
     return tuple(float(item) for item in items)
 
 
-def from_plain(data):
+def _shape(data) -> str:
+    """A short description of malformed data (never its repr: it may nest deeply)."""
+    if isinstance(data, list):
+        return f"a list of {len(data)} items" + (f" starting with {data[0]!r:.30}" if data and
+                                                   isinstance(data[0], (str, int, float)) else "")
+    return f"a {type(data).__name__}"
+
+
+def from_plain(data, nested: bool = False):
     """The inverse of :func:`to_plain`; raises ValueError on anything malformed."""
     if isinstance(data, (bool, int, float, str)):
         return data
     if not isinstance(data, list) or not data or not isinstance(data[0], str):
-        raise ValueError(f"not a constant: {data!r:.60}")
+        raise ValueError(f"not a constant: {_shape(data)}")
     kind, rest = data[0], data[1:]
+    if nested and kind == "pose":
+        raise ValueError("pose: a pose cannot contain a pose")
     if kind == "joint":
         if len(rest) != 2:
             raise ValueError("joint: expected [main, add]")
@@ -168,7 +178,7 @@ def from_plain(data):
     if kind == "pose":
         if len(rest) != 2:
             raise ValueError("pose: expected [position, orientation]")
-        position, orientation = from_plain(rest[0]), from_plain(rest[1])
+        position, orientation = from_plain(rest[0], nested=True), from_plain(rest[1], nested=True)
         if not isinstance(position, Position) or not isinstance(orientation, (Rpy, Quat)):
             raise ValueError("pose: expected a position and an orientation")
         return Pose(position, orientation)

@@ -39,6 +39,7 @@ def _error(file: str, message: str, span=None, hint=None) -> Diagnostic:
 
 def resolve_spec(tree, file: str, spec_path: str | Path | None) -> tuple[Spec | None, list[Diagnostic]]:
     """Load the program's system specification (``spec_path`` overrides the program's)."""
+    overridden = spec_path is not None
     if spec_path is None:
         if tree.spec is None:
             return None, [_error(file, "the program names no system specification", tree.span,
@@ -47,7 +48,7 @@ def resolve_spec(tree, file: str, spec_path: str | Path | None) -> tuple[Spec | 
     try:
         return load_spec(spec_path), []
     except SpecError as exc:
-        span = tree.spec_span if tree.spec is not None else None
+        span = tree.spec_span if tree.spec is not None and not overridden else None
         return None, [_error(file, f"system specification: {exc}", span)]
 
 

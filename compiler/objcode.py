@@ -438,10 +438,21 @@ def verify(program: Program, spec_hash: str | None = None) -> int:
             f"but this robot's specification is {spec_hash[:12]}: recompile the program")
     if not program.code:
         raise ObjectCodeError("the program has no code")
+    for i, constant in enumerate(program.constants):
+        try:
+            from_plain(to_plain(constant))  # the same rules as decoding: finite, 64-bit
+        except (TypeError, ValueError) as exc:
+            raise ObjectCodeError(f"constant {i}: {exc}") from None
     for offset, instr in enumerate(program.code):
-        definition = BY_CODE.get(instr[0]) if instr else None
-        if definition is None or len(instr) != 1 + len(definition.operands):
-            raise ObjectCodeError("malformed instruction", offset)
+        if not instr:
+            raise ObjectCodeError("empty instruction", offset)
+        definition = BY_CODE.get(instr[0])
+        if definition is None:
+            raise ObjectCodeError(f"unknown opcode {instr[0]}", offset)
+        if len(instr) != 1 + len(definition.operands):
+            n = len(definition.operands)
+            raise ObjectCodeError(f"{definition.name} takes {n} operand{'s' if n != 1 else ''}, "
+                                  f"not {len(instr) - 1}", offset)
     previous = -1
     for offset, line, column in program.lines:
         if not (0 <= offset < len(program.code)) or offset < previous or line < 1 or column < 1:

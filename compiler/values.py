@@ -6,6 +6,7 @@ mm, angles in degrees.
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 
@@ -144,7 +145,9 @@ def _floats(items, count: int | None, what: str) -> tuple[float, ...]:
         raise ValueError(f"{what}: expected {count if count is not None else 'a list of'} numbers")
     for item in items:
         if isinstance(item, bool) or not isinstance(item, (int, float)):
-            raise ValueError(f"{what}: {item!r} is not a number")
+            raise ValueError(f"{what}: {_shape(item)} is not a number")
+        if not math.isfinite(item):
+            raise ValueError(f"{what}: {item} is not a finite number")
     return tuple(float(item) for item in items)
 
 
@@ -156,9 +159,21 @@ def _shape(data) -> str:
     return f"a {type(data).__name__}"
 
 
+_INT_MIN, _INT_MAX = -(2 ** 63), 2 ** 63 - 1
+
+
 def from_plain(data, nested: bool = False):
-    """The inverse of :func:`to_plain`; raises ValueError on anything malformed."""
-    if isinstance(data, (bool, int, float, str)):
+    """The inverse of :func:`to_plain`; raises ValueError on anything malformed, and on
+    numbers no L-IRL value can hold (NaN, infinities, integers beyond 64 bits)."""
+    if isinstance(data, (bool, str)):
+        return data
+    if isinstance(data, int):
+        if not _INT_MIN <= data <= _INT_MAX:
+            raise ValueError("integer outside the 64-bit range")
+        return data
+    if isinstance(data, float):
+        if not math.isfinite(data):
+            raise ValueError(f"{data} is not a finite number")
         return data
     if not isinstance(data, list) or not data or not isinstance(data[0], str):
         raise ValueError(f"not a constant: {_shape(data)}")

@@ -95,6 +95,8 @@ def cmd_compile(args, env: Environment) -> int:
     if not result.ok:
         return EXIT_INVALID
     out = Path(args.output) if args.output else Path(args.file).with_suffix(".irlo")
+    if out.resolve() == Path(args.file).resolve():
+        raise UsageError(f"refusing to write the object code over its source {args.file}")
     data = encode(result.program)
     _write_atomically(out, data)
     if not args.json:

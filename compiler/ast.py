@@ -24,7 +24,10 @@ class Span(NamedTuple):
 
     def to(self, other: "Span") -> "Span":
         """The span from the start of ``self`` to the end of ``other``."""
-        return Span(self.line, self.col, other.end_line, other.end_col)
+        return _new_span(Span, (self[0], self[1], other[2], other[3]))
+
+
+_new_span = tuple.__new__  # builds a Span without the generated __new__'s extra call
 
 
 # ---- expressions -------------------------------------------------------------------

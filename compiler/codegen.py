@@ -80,14 +80,15 @@ class CodeGen:
     # -- expressions --
     def value(self, node: ast.Expr, want=None) -> None:
         """Push ``node``'s value, converted for a slot of type ``want``."""
-        folded = self.values.get(id(node), _NO_VALUE)
-        t = self.types[id(node)]
+        key = id(node)
+        folded = self.values.get(key, _NO_VALUE)
         if folded is not _NO_VALUE:
-            if want == REAL and t == INTEGER:
+            if want == REAL and type(folded) is int:
                 folded = float(folded)
             self.constant(folded)
             return
         self._expr[type(node)](node)
+        t = self.types[key]
         if want == REAL and t == INTEGER:
             self.emit(OP.TO_REAL)
         elif isinstance(t, ArrayT) and isinstance(node, (ast.Ref, ast.Index)):

@@ -21,8 +21,12 @@ CLAUSES = ("speed_ptp", "acc_ptp", "speed", "acc", "approx", "act_rob")
 MAX_SYNTAX_ERRORS = 20
 
 
+_Span = ast.Span
+_new_tuple = tuple.__new__
+
+
 def _span(tok: Token) -> ast.Span:
-    return ast.Span(tok.line, tok.column, tok.end_line, tok.end_column)
+    return _new_tuple(_Span, (tok.line, tok.column, tok.end_line, tok.end_column))
 
 
 def _stmts(items) -> tuple:

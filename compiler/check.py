@@ -503,29 +503,23 @@ class Checker:
             self.values[id(node)] = make_joint(main_value.values, add_value.values)
         return JOINT
 
-    def c_pos(self, node: ast.Call):
-        values = self.numbers(node, 3, "a coordinate of pos (mm)")
+    def numeric_constructor(self, node: ast.Call, count: int, what: str, make, result):
+        """``pos``, ``rpy``, ``quat``: ``count`` numbers in, folded when all are constant."""
+        values = self.numbers(node, count, what)
         if values == ERROR:
             return ERROR
-        if values is not None:
-            self.values[id(node)] = make_pos(*values)
-        return POSITION
+        if values is not None and not self.fold(node, make, *(float(v) for v in values)):
+            return ERROR
+        return result
+
+    def c_pos(self, node: ast.Call):
+        return self.numeric_constructor(node, 3, "a coordinate of pos (mm)", make_pos, POSITION)
 
     def c_rpy(self, node: ast.Call):
-        values = self.numbers(node, 3, "an angle of rpy (deg)")
-        if values == ERROR:
-            return ERROR
-        if values is not None:
-            self.values[id(node)] = make_rpy(*values)
-        return ORIENTATION
+        return self.numeric_constructor(node, 3, "an angle of rpy (deg)", make_rpy, ORIENTATION)
 
     def c_quat(self, node: ast.Call):
-        values = self.numbers(node, 4, "a component of quat")
-        if values == ERROR:
-            return ERROR
-        if values is not None and not self.fold(node, make_quat, *(float(v) for v in values)):
-            return ERROR
-        return ORIENTATION
+        return self.numeric_constructor(node, 4, "a component of quat", make_quat, ORIENTATION)
 
     def c_pose(self, node: ast.Call):
         if not self.arity(node, 2):

@@ -13,7 +13,7 @@ import hashlib
 import json
 import math
 import tomllib
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 from .diagnostics import did_you_mean
@@ -52,6 +52,19 @@ class Axis:
     home: float = 0.0  # the start position the initialization sequence drives to
     gear_ratio: float = 100.0
     encoder_counts: int = 4096  # counts per motor revolution (after quadrature)
+    sensor_position: float = -5.0  # centre of the inductive homing sensor's window
+    sensor_window: float = 0.5  # half-width of that window
+    search_velocity: float = 5.0  # speed of the initialization's searches (unit/s)
+
+    @property
+    def counts_per_unit(self) -> float:
+        """Encoder counts per deg (or mm) of axis motion."""
+        return self.encoder_counts * self.gear_ratio / (360.0 if self.kind == "revolute" else 1.0)
+
+    @property
+    def index_spacing(self) -> float:
+        """Axis distance between two index (Z) pulses: one motor revolution."""
+        return (360.0 if self.kind == "revolute" else 1.0) / self.gear_ratio
 
     @property
     def unit(self) -> str:
@@ -83,6 +96,7 @@ class Spec:
     controller: dict
     hash: str
     description: str = ""
+    simulation: dict = field(default_factory=dict)
 
     @property
     def main_axes(self) -> tuple[Axis, ...]:
@@ -188,6 +202,12 @@ def _axis(file: str, index: int, table) -> Axis:
     gear = r.get("gear_ratio", "number", 100.0, check=_positive, expect="a positive number")
     counts = r.get("encoder_counts", "integer", 4096, check=_positive,
                    expect="a positive integer (counts per motor revolution)")
+    sensor_default = home - 5.0 if low <= home - 5.0 else ...
+    sensor = r.get("sensor_position", "number", sensor_default, check=lambda v: low <= v <= high,
+                   expect=f"a number ({unit}) within min..max, where the homing sensor is")
+    window = r.get("sensor_window", "number", 0.5, check=_positive, expect=f"a positive number ({unit})")
+    search = r.get("search_velocity", "number", min(5.0, vel), check=lambda v: 0 < v <= vel,
+                   expect=f"a speed ({unit}/s) within 0..max_velocity")
     dh = None
     if "dh" in r.table:
         d = _Reader(file, r.key("dh"), r.get("dh", "table"))
@@ -196,7 +216,7 @@ def _axis(file: str, index: int, table) -> Axis:
                 d.get("theta_offset", "number", 0.0, expect="a number (deg)"))
         d.finish()
     r.finish()
-    return Axis(name, kind, low, high, vel, acc, jerk, group, dh, home, gear, counts)
+    return Axis(name, kind, low, high, vel, acc, jerk, group, dh, home, gear, counts, sensor, window, search)
 
 
 def parse_spec(text: str, file: str = "<spec>") -> Spec:
@@ -267,13 +287,16 @@ def parse_spec(text: str, file: str = "<spec>") -> Spec:
     else:
         top.get("kinematics", "table", None)
 
-    controller = top.get("controller", "table", {})
-    for key, value in controller.items():
-        if isinstance(value, bool) or not isinstance(value, (int, float, str)):
-            raise SpecError(file, f"controller.{key}", f"expected a number or a string, got {value!r}")
+    tables = {}
+    for section in ("controller", "simulation"):
+        table = top.get(section, "table", {})
+        for key, value in table.items():
+            if isinstance(value, bool) or not isinstance(value, (int, float, str)):
+                raise SpecError(file, f"{section}.{key}", f"expected a number or a string, got {value!r}")
+        tables[section] = dict(table)
     top.finish()
-    return Spec(name, file, axes, defaults, max_speed, max_acc, inputs, outputs, tool, dict(controller),
-                _canonical_hash(data), description)
+    return Spec(name, file, axes, defaults, max_speed, max_acc, inputs, outputs, tool, tables["controller"],
+                _canonical_hash(data), description, tables["simulation"])
 
 
 def load_spec(path: str | Path) -> Spec:

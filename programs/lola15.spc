@@ -101,3 +101,10 @@ max_jerk = 15000.0
 gear_ratio = 60.0
 encoder_counts = 4096
 dh = { a = 0.0, alpha = 0.0, d = 115.0 }
+
+# The simulated robot (`irl run` without hardware). Every axis parks at power-up within
+# `park_spread` of its home, its encoder counting from zero there.
+[simulation]
+drive_time_constant = 0.005   # s, first-order lag of each velocity-commanded drive
+max_drive_offset = 0.5        # deg/s, largest constant velocity offset of a drive
+park_spread = 3.0             # deg, power-up position: home +- this

@@ -142,6 +142,112 @@ def cmd_dis(args, env: Environment) -> int:
     return EXIT_OK
 
 
+def _load_program(path: str, spec_path: str | None, env: Environment):
+    """FILE.irl (compiled now) or FILE.irlo (decoded and verified): (program, spec) or None."""
+    from compiler.objcode import ObjectCodeError, decode, verify
+    from compiler.spec import SpecError, load_spec
+
+    if not path.endswith(".irlo"):
+        result = _compile(path, spec_path)
+        _report(env, result, False)
+        return (result.program, result.spec) if result.ok else None
+    data = _read_object(path)
+    try:
+        program = decode(data)
+    except ObjectCodeError as exc:
+        _err(env, f"{path}: invalid object code: {exc}")
+        return None
+    if spec_path is None:
+        guess = Path(path).with_name(program.source).with_suffix(".irl")
+        raise UsageError(f"{path}: give the robot's specification with --spec FILE.spc "
+                         f"(the object code names {program.spec_name!r}; its source was {guess.name})")
+    try:
+        spec = load_spec(spec_path)
+        verify(program, spec.hash)
+    except SpecError as exc:
+        raise UsageError(str(exc)) from None
+    except ObjectCodeError as exc:
+        _err(env, f"{path}: {exc}")
+        return None
+    return program, spec
+
+
+def _print_summary(env: Environment, s: dict) -> None:
+    _print(env, f"program {s['program']} on {s['robot']}: "
+                f"{'FAULT: ' + s['fault'] if s['fault'] else 'completed'}")
+    _print(env, "")
+    _print(env, "  state                      enter      time")
+    for st in s["states"]:
+        _print(env, f"  {st['name']:24s} {st['t_enter']:8.3f} s {st['t_exit'] - st['t_enter']:8.3f} s")
+    if s["moves"]:
+        _print(env, "")
+        _print(env, "  move  line   planned    actual")
+        for i, m in enumerate(s["moves"], 1):
+            actual = f"{m['actual_duration']:8.3f} s" if m["actual_duration"] is not None else "     (unfinished)"
+            _print(env, f"  {i:4d}  {m['line']:4d}  {m['planned_duration']:7.3f} s {actual}")
+    for entry in s["log"]:
+        _print(env, f"  [{entry['time']:8.3f} s] line {entry['line']}: {entry['text']}")
+    _print(env, "")
+    _print(env, "  final position: " + ", ".join(f"{x:.3f}" for x in s["final_position"]))
+    _print(env, f"  largest following error: {s['max_following_error']:.4f}")
+    _print(env, f"  deadline misses: {s['deadline_misses']}; ticks {s['ticks']}")
+    ratio = s["sim_time"] / s["wall_time"] if s["wall_time"] > 0 else float("inf")
+    _print(env, f"  simulated {s['sim_time']:.3f} s in {s['wall_time']:.3f} s wall ({ratio:.1f}x)")
+
+
+def cmd_run(args, env: Environment) -> int:
+    loaded = _load_program(args.file, args.spec, env)
+    if loaded is None:
+        return EXIT_INVALID
+    program, spec = loaded
+    from runtime.system import RobotSystem, RunOptions
+
+    options = RunOptions(seed=args.seed, realtime=args.realtime, report=args.report, state_dir=args.state_dir,
+                         max_time=args.max_time)
+    try:
+        summary = RobotSystem(spec, options).run(program)
+    except ValueError as exc:  # refused at load time (e.g. a move kind not supported yet)
+        _err(env, f"{args.file}: {exc}")
+        return EXIT_INVALID
+    if args.json:
+        import json
+
+        _print(env, json.dumps({k: v for k, v in summary.items()}, indent=2))
+    else:
+        _print_summary(env, summary)
+    if args.plot:
+        if not args.report:
+            raise UsageError("--plot needs --report (the plot is drawn from the report)")
+        status = _plot(args.report, args.plot, env)
+        if status:
+            return status
+    return EXIT_INVALID if summary["fault"] else EXIT_OK
+
+
+def _plot(report: str, out: str, env: Environment) -> int:
+    from runtime.plot import PlotError, plot_report
+
+    try:
+        plot_report(report, out)
+    except PlotError as exc:
+        _err(env, f"irl plot: {exc}")
+        return EXIT_USAGE
+    if env is not None:
+        _err(env, f"plot written to {out}")
+    return EXIT_OK
+
+
+def cmd_plot(args, env: Environment) -> int:
+    return _plot(args.report, args.output, env)
+
+
+def cmd_fsm(args, env: Environment) -> int:
+    from runtime.diagram import supervisor_diagram
+
+    env.stdout.write(supervisor_diagram(args.format))
+    return EXIT_OK
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = _Parser(prog="irl", description="L-IRL robot programs: compile, inspect, run.")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
@@ -165,6 +271,27 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--spec", metavar="FILE.spc", help="for FILE.irl: the system specification to use")
     p.add_argument("--json", action="store_true", help="the listing as JSON")
     p.set_defaults(run=cmd_dis)
+
+    p = sub.add_parser("run", help="run a program on the simulated robot, through every phase")
+    p.add_argument("file", metavar="FILE.irl|FILE.irlo")
+    p.add_argument("--spec", metavar="FILE.spc", help="the robot's specification (needed for FILE.irlo)")
+    p.add_argument("--report", metavar="OUT.csv", help="write the report (and OUT.states.csv)")
+    p.add_argument("--plot", metavar="OUT.png", help="draw the report (needs --report and matplotlib)")
+    p.add_argument("--realtime", action="store_true", help="run on the wall clock (default: simulated clock)")
+    p.add_argument("--seed", type=int, default=0, help="the simulated robot's seed (power-up position, offsets)")
+    p.add_argument("--state-dir", metavar="DIR", help="remember the calibration in DIR across runs")
+    p.add_argument("--max-time", type=float, default=3600.0, metavar="S", help="stop the run after S seconds")
+    p.add_argument("--json", action="store_true", help="the summary as one JSON object")
+    p.set_defaults(run=cmd_run)
+
+    p = sub.add_parser("plot", help="draw a report: position over time per axis, phases shaded")
+    p.add_argument("report", metavar="REPORT.csv")
+    p.add_argument("-o", "--output", metavar="FIG.png", required=True)
+    p.set_defaults(run=cmd_plot)
+
+    p = sub.add_parser("fsm", help="print the supervisor's state machine as a diagram")
+    p.add_argument("--format", choices=("mermaid", "dot"), default="mermaid")
+    p.set_defaults(run=cmd_fsm)
     return parser
 
 

@@ -1,0 +1,137 @@
+"""Components: one lifecycle vocabulary, properties, operations and data ports.
+
+As in OROCOS (the paper's framework): a component is configured, started, updated
+periodically by the executive, stopped and cleaned up; a failure puts it in ERROR.
+Components exchange data through latest-value data ports (``sens_pos``, ``desi_pos``,
+``init_pos``, ``out_vel``...): one writer, any number of readers, sharing one port object.
+Properties (settings) and operations (whitelisted methods) are declared per class so the
+scripting interface can list and reach them without ``eval``.
+"""
+from __future__ import annotations
+
+import enum
+
+
+class Lifecycle(enum.Enum):
+    UNCONFIGURED = "unconfigured"
+    STOPPED = "stopped"
+    RUNNING = "running"
+    ERROR = "error"
+
+
+class DataPort:
+    """A latest-value data port: the last value written, and when (real-time safe)."""
+
+    __slots__ = ("name", "value", "stamp", "writes")
+
+    def __init__(self, name: str, initial=None):
+        self.name = name
+        self.value = initial
+        self.stamp = -1.0
+        self.writes = 0
+
+    def write(self, value, stamp: float = 0.0) -> None:
+        """Real-time: store the value (no copy: writers pass immutable tuples)."""
+        self.value = value
+        self.stamp = stamp
+        self.writes += 1
+
+    def read(self):
+        """Real-time: the last value written (or the initial value)."""
+        return self.value
+
+
+class Component:
+    """Base class. Subclasses override the ``on_*`` hooks and ``update``.
+
+    ``PROPERTIES`` maps a property name to (type, doc); the value is the attribute of the
+    same name. ``OPERATIONS`` names the methods the scripting interface may call.
+    """
+
+    PROPERTIES: dict[str, tuple[type, str]] = {}
+    OPERATIONS: tuple[str, ...] = ("configure", "start", "stop", "cleanup")
+
+    def __init__(self, name: str, period: float):
+        self.name = name
+        self.period = period  # seconds between updates
+        self.lifecycle = Lifecycle.UNCONFIGURED
+        self.error_message: str | None = None
+
+    @property
+    def running(self) -> bool:
+        return self.lifecycle is Lifecycle.RUNNING
+
+    # -- lifecycle (not real-time: called on transitions, never per tick) --
+    def configure(self) -> bool:
+        """UNCONFIGURED/STOPPED -> STOPPED, if ``on_configure`` accepts the settings."""
+        if self.lifecycle is Lifecycle.RUNNING:
+            return False
+        if not self.on_configure():
+            return False
+        self.lifecycle = Lifecycle.STOPPED
+        self.error_message = None
+        return True
+
+    def start(self) -> bool:
+        """STOPPED -> RUNNING (configures first if needed)."""
+        if self.lifecycle is Lifecycle.RUNNING:
+            return True
+        if self.lifecycle is not Lifecycle.STOPPED and not self.configure():
+            return False
+        if not self.on_start():
+            return False
+        self.lifecycle = Lifecycle.RUNNING
+        return True
+
+    def stop(self) -> bool:
+        """RUNNING -> STOPPED."""
+        if self.lifecycle is not Lifecycle.RUNNING:
+            return False
+        self.on_stop()
+        self.lifecycle = Lifecycle.STOPPED
+        return True
+
+    def cleanup(self) -> bool:
+        """STOPPED/ERROR -> UNCONFIGURED."""
+        if self.lifecycle is Lifecycle.RUNNING:
+            return False
+        self.on_cleanup()
+        self.lifecycle = Lifecycle.UNCONFIGURED
+        return True
+
+    def error(self, message: str) -> None:
+        """Real-time safe: stop updating and remember why (the supervisor reads it)."""
+        self.lifecycle = Lifecycle.ERROR
+        self.error_message = message
+
+    # -- hooks --
+    def on_configure(self) -> bool:
+        return True
+
+    def on_start(self) -> bool:
+        return True
+
+    def on_stop(self) -> None:
+        pass
+
+    def on_cleanup(self) -> None:
+        pass
+
+    def update(self, now: float) -> None:
+        """Real-time: one period's work. No blocking, no I/O, no waiting loops."""
+
+    # -- properties (not real-time) --
+    def get_property(self, name: str):
+        if name not in self.PROPERTIES:
+            raise KeyError(f"{self.name} has no property {name!r}")
+        return getattr(self, name)
+
+    def set_property(self, name: str, value) -> None:
+        if name not in self.PROPERTIES:
+            raise KeyError(f"{self.name} has no property {name!r}")
+        kind, _doc = self.PROPERTIES[name]
+        if kind is float and isinstance(value, int) and not isinstance(value, bool):
+            value = float(value)
+        if not isinstance(value, kind) or isinstance(value, bool) and kind is not bool:
+            raise TypeError(f"{self.name}.{name} must be {kind.__name__}, not {type(value).__name__}")
+        setattr(self, name, value)

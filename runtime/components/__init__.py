@@ -1,0 +1,2 @@
+"""The robot's components, as in the paper: Robot Interface, Servo Controller,
+Initialization, Trajectory Generator and Report."""

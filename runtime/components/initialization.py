@@ -1,0 +1,238 @@
+"""Initialization: the homing sequence that gives incremental encoders an absolute zero.
+
+As in the paper: axis by axis the robot looks for its inductive sensor, then for the
+encoder's index (Z) pulse; from the known position of that pulse it resets the encoder;
+then all axes go to the start position. The Initialization component writes the
+setpoints (``init_pos``, every 5 ms); the sequence itself is a sub-machine of the
+supervisor's Initialization Sequence state (:meth:`Initialization.machine`). Every search
+is bounded: a sensor or pulse that does not come is a fault, never a hang.
+"""
+from __future__ import annotations
+
+from ..component import Component, DataPort
+from ..fsm import FSM, State, Transition
+from ..motion.planner import PtpInput, Result, plan_ptp
+
+HOME_SPEED = 0.2  # fraction of each axis's maximum velocity and acceleration for "Go To Start"
+FROZEN_AFTER = 0.5  # s of commanded motion without a single encoder count -> frozen encoder
+
+
+class Initialization(Component):
+    PROPERTIES = {"home_speed": (float, "fraction of the axis maxima used to go to the start position")}
+
+    def __init__(self, spec, robot, init_pos: DataPort, sens_pos: DataPort, clock, period: float = 0.005):
+        super().__init__("initialization", period)
+        self.robot_now = clock.now
+        self.spec, self.robot, self.init_pos, self.sens_pos = spec, robot, init_pos, sens_pos
+        self.axes = spec.axes
+        self.n = len(spec.axes)
+        self.home_speed = HOME_SPEED
+        self.positions = [0.0] * self.n
+        self.velocities = [0.0] * self.n
+        self.trajectory = None
+        self.t_trajectory = 0.0
+        self.fault: str | None = None
+        self.done = False
+        self.step_name = ""
+        self.on_encoder_reset = None  # called after an encoder reset (the servo re-bases)
+
+    # ---- the setpoint generator (real-time, every 5 ms) ----
+    def on_start(self) -> bool:
+        position = self.sens_pos.read() or (0.0,) * self.n
+        self.positions = list(position)
+        self.velocities = [0.0] * self.n
+        self.trajectory = None
+        self.fault = None
+        self.done = False
+        self.init_pos.write((0.0, tuple(self.positions), tuple(self.velocities)), -1.0)
+        return True
+
+    def update(self, now: float) -> None:
+        """Real-time: advance ramps or the go-to-start trajectory; write ``init_pos``."""
+        dt = self.period
+        if self.trajectory is not None:
+            self.t_trajectory += dt
+            pos, vel = self.trajectory.sample(self.t_trajectory)
+            self.positions, self.velocities = list(pos), list(vel)
+        else:
+            for i, v in enumerate(self.velocities):
+                if v:
+                    self.positions[i] += v * dt
+        self.init_pos.write((now, tuple(self.positions), tuple(self.velocities)), now)
+
+    # ---- commands from the sequence (between ticks) ----
+    def ramp(self, axis: int, velocity: float) -> None:
+        self.velocities[axis] = velocity
+
+    def halt_axis(self, axis: int) -> None:
+        self.velocities[axis] = 0.0
+
+    def shift(self, axis: int, delta: float) -> None:
+        """The encoder of ``axis`` was reset: move its setpoint into the new coordinates."""
+        self.positions[axis] += delta
+
+    def go_to_start(self) -> str | None:
+        start = tuple(self.positions)
+        target = tuple(a.home for a in self.axes)
+        f = self.home_speed
+        result, trajectory, message = plan_ptp(PtpInput(
+            start, target, tuple(a.max_velocity * f for a in self.axes),
+            tuple(a.max_acceleration * f for a in self.axes)))
+        if result < 0:
+            return message
+        self.trajectory, self.t_trajectory = trajectory, 0.0
+        return None
+
+    def at_start(self) -> bool:
+        return self.trajectory is not None and self.t_trajectory >= self.trajectory.duration
+
+    # ---- the sequence: a sub-machine for the supervisor ----
+    def machine(self, clock) -> FSM:
+        """Find Sensors -> Find Index -> Go To Start -> Done, each axis in turn."""
+        seq = _Sequence(self)
+        states = [
+            State("Find Sensors", entry=seq.begin_sensors, run=seq.run_sensors),
+            State("Find Index", entry=seq.begin_index, run=seq.run_index),
+            State("Go To Start", entry=seq.begin_start, run=seq.run_start),
+            State("Done", entry=seq.finish),
+        ]
+        transitions = [
+            Transition("Find Sensors", "Find Index", seq.all_axes_done, label="all sensors found"),
+            Transition("Find Index", "Go To Start", seq.all_axes_done, label="all index pulses found"),
+            Transition("Go To Start", "Done", self.at_start, label="at the start position"),
+        ]
+        return FSM("initialization", states, transitions, initial="Find Sensors", final="Done", clock=clock.now)
+
+
+class _Sequence:
+    """The programs of the initialization sub-machine; each call does one step's work."""
+
+    def __init__(self, init: Initialization):
+        self.init = init
+        self.robot = init.robot
+        self.axis = 0
+        self.phase = ""
+        self.travel_start = 0.0
+        self.edge_counts = [0] * init.n
+        self.index_seen = 0
+        self.last_counts = 0
+        self.still_since = 0.0
+
+    def _fail(self, message: str) -> None:
+        if self.init.fault is None:
+            self.init.fault = message
+            for i in range(self.init.n):
+                self.init.halt_axis(i)
+
+    def all_axes_done(self) -> bool:
+        return self.axis >= self.init.n
+
+    def _name(self) -> str:
+        return self.init.axes[self.axis].name
+
+    def _watch_encoder(self, now: float) -> None:
+        counts = self.robot.counts[self.axis]
+        if counts != self.last_counts:
+            self.last_counts, self.still_since = counts, now
+        elif now - self.still_since > FROZEN_AFTER:
+            self._fail(f"initialization: encoder of {self._name()} frozen (no counts for "
+                       f"{FROZEN_AFTER:g} s while the axis was commanded to move)")
+
+    def _travelled(self) -> float:
+        return abs(self.init.positions[self.axis] - self.travel_start)
+
+    # -- Find Sensors --
+    def begin_sensors(self) -> None:
+        self.axis = 0
+        self._start_axis_sensor()
+
+    def _start_axis_sensor(self) -> None:
+        if self.axis >= self.init.n:
+            return
+        a = self.init.axes[self.axis]
+        self.init.step_name = f"sensor {a.name}"
+        # Inside the window already? Leave it upwards first, so the edge found is the upper one.
+        self.phase = "leave" if self.robot.sensors[self.axis] else "search"
+        self.init.ramp(self.axis, a.search_velocity if self.phase == "leave" else -a.search_velocity)
+        self.travel_start = self.init.positions[self.axis]
+        self.last_counts, self.still_since = self.robot.counts[self.axis], self.init.robot_now()
+
+    def run_sensors(self) -> None:
+        if self.all_axes_done() or self.init.fault:
+            return
+        a = self.init.axes[self.axis]
+        now = self.init.robot_now()
+        self._watch_encoder(now)
+        active = self.robot.sensors[self.axis]
+        if self.phase == "leave":
+            if not active:
+                self.phase = "search"
+                self.init.ramp(self.axis, -a.search_velocity)
+                self.travel_start = self.init.positions[self.axis]
+            elif self._travelled() > 2 * a.sensor_window + 1.0:
+                self._fail(f"initialization: homing sensor of {a.name} does not turn off")
+            return
+        if active:
+            self.edge_counts[self.axis] = self.robot.counts[self.axis]
+            self.init.halt_axis(self.axis)
+            self.axis += 1
+            self._start_axis_sensor()
+        elif self._travelled() > a.max - a.min:
+            self._fail(f"initialization: homing sensor of {a.name} not found within the axis travel "
+                       f"({a.max - a.min:g} {a.unit})")
+
+    # -- Find Index --
+    def begin_index(self) -> None:
+        self.axis = 0
+        self._start_axis_index()
+
+    def _start_axis_index(self) -> None:
+        if self.axis >= self.init.n:
+            return
+        a = self.init.axes[self.axis]
+        self.init.step_name = f"index {a.name}"
+        self.index_seen = self.robot.index_events[self.axis]
+        self.init.ramp(self.axis, -a.search_velocity)
+        self.travel_start = self.init.positions[self.axis]
+        self.last_counts, self.still_since = self.robot.counts[self.axis], self.init.robot_now()
+
+    def run_index(self) -> None:
+        if self.all_axes_done() or self.init.fault:
+            return
+        i = self.axis
+        a = self.init.axes[i]
+        self._watch_encoder(self.init.robot_now())
+        if self.robot.index_events[i] != self.index_seen:
+            latched = self.robot.latched[i]
+            # The sensor's upper edge is at sensor_position + window (found moving down);
+            # the pulse just seen lies (latched - edge) counts further: its absolute
+            # position is the nearest multiple of the index spacing.
+            edge = a.sensor_position + a.sensor_window
+            estimate = edge + (latched - self.edge_counts[i]) / a.counts_per_unit
+            z_abs = round(estimate / a.index_spacing) * a.index_spacing
+            before = self.robot.positions[i]
+            self.robot.reset_encoder(i, latched, z_abs)
+            after = self.robot.counts[i] / a.counts_per_unit + self.robot.offset[i]
+            self.init.shift(i, after - before)
+            self.init.halt_axis(i)
+            if self.init.on_encoder_reset is not None:
+                self.init.on_encoder_reset()
+            self.axis += 1
+            self._start_axis_index()
+        elif self._travelled() > 2 * a.index_spacing + 2 * a.sensor_window:
+            self._fail(f"initialization: index pulse of {a.name} not found within "
+                       f"{2 * a.index_spacing + 2 * a.sensor_window:g} {a.unit} after its sensor")
+
+    # -- Go To Start --
+    def begin_start(self) -> None:
+        self.init.step_name = "start position"
+        problem = self.init.go_to_start()
+        if problem:
+            self._fail(f"initialization: cannot plan the move to the start position: {problem}")
+
+    def run_start(self) -> None:
+        pass
+
+    def finish(self) -> None:
+        self.init.step_name = "done"
+        self.init.done = True

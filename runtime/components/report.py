@@ -1,0 +1,126 @@
+"""Report: every 10 ms, one row of what the components exchanged.
+
+Columns: time, FSM state, and per axis ``sens_pos``, ``desi_pos`` (the servo's reference),
+``out_vel`` and the following error. The real-time side only appends a tuple of numbers;
+every 100 ms (ten rows) it hands the batch to a writer thread through a bounded queue,
+and the thread formats, writes and flushes the CSV, so a crash loses at most the last
+100 ms and the loop never does I/O. State transitions go to ``<report>.states.csv``.
+The bytes written depend only on the rows: with the simulated clock the same program
+and seed give the same file.
+"""
+from __future__ import annotations
+
+import queue
+import threading
+from pathlib import Path
+
+from ..component import Component, DataPort
+
+FLUSH_ROWS = 10  # rows per batch: 10 x 10 ms = 100 ms
+
+
+def _fmt(x: float) -> str:
+    return f"{x:.6f}"
+
+
+class ReportWriter(threading.Thread):
+    """Formats and writes batches of rows; not real-time (its own thread)."""
+
+    def __init__(self, path: Path, header: list[str]):
+        super().__init__(name="report-writer", daemon=True)
+        self.path = path
+        self.queue: queue.Queue = queue.Queue(maxsize=1000)
+        self.header = header
+        self.error: str | None = None
+        self.rows_written = 0
+
+    def run(self) -> None:
+        try:
+            with open(self.path, "w", encoding="utf-8", newline="") as f:
+                f.write(",".join(self.header) + "\n")
+                f.flush()
+                while True:
+                    batch = self.queue.get()
+                    if batch is None:
+                        break
+                    f.write("".join(_row(r) for r in batch))
+                    f.flush()
+                    self.rows_written += len(batch)
+        except OSError as exc:
+            self.error = f"cannot write the report {self.path}: {exc.strerror or exc}"
+
+
+def _row(r) -> str:
+    t, state = r[0], r[1]
+    return f"{t:.3f},{state}," + ",".join(map(_fmt, r[2:])) + "\n"
+
+
+class Report(Component):
+    PROPERTIES = {}
+
+    def __init__(self, spec, sens_pos: DataPort, out_vel: DataPort, servo, state_of, period: float = 0.01):
+        super().__init__("report", period)
+        self.spec = spec
+        self.sens_pos, self.out_vel, self.servo = sens_pos, out_vel, servo
+        self.state_of = state_of  # callable -> the FSM's current state path
+        self.names = [a.name for a in spec.axes]
+        self.path: Path | None = None
+        self.writer: ReportWriter | None = None
+        self.batch: list = []
+        self.rows: list = []  # every row, for the summary and plots (kept in memory)
+        self.keep_rows = True
+        self.dropped = 0
+
+    def header(self) -> list[str]:
+        cols = ["time", "state"]
+        for kind in ("sens_pos", "desi_pos", "out_vel", "following_error"):
+            cols += [f"{kind}_{n}" for n in self.names]
+        return cols
+
+    def open(self, path: str | Path | None) -> None:
+        """Not real-time: where to write (None: keep rows in memory only)."""
+        self.path = Path(path) if path else None
+        if self.path is not None:
+            self.writer = ReportWriter(self.path, self.header())
+            self.writer.start()
+
+    def update(self, now: float) -> None:
+        """Real-time: append one row; hand a full batch to the writer (never blocks)."""
+        n = len(self.names)
+        pos = self.sens_pos.read() or (0.0,) * n
+        vel = self.out_vel.read() or (0.0,) * n
+        servo = self.servo
+        row = (now, self.state_of(), *pos, *servo.reference, *vel, *servo.following_error)
+        if self.keep_rows:
+            self.rows.append(row)
+        self.batch.append(row)
+        if len(self.batch) >= FLUSH_ROWS:
+            self._hand_over()
+
+    def _hand_over(self) -> None:
+        if self.writer is not None and self.batch:
+            try:
+                self.writer.queue.put_nowait(self.batch)
+            except queue.Full:
+                self.dropped += len(self.batch)
+        self.batch = []
+
+    def on_stop(self) -> None:
+        self._hand_over()
+
+    def close(self) -> str | None:
+        """Not real-time: flush and close the file; returns an error message or None."""
+        self._hand_over()
+        if self.writer is not None:
+            self.writer.queue.put(None)
+            self.writer.join(timeout=10)
+            return self.writer.error
+        return None
+
+
+def write_states(path: Path, history) -> None:
+    """The state transitions, beside the report (not real-time)."""
+    with open(path, "w", encoding="utf-8") as f:
+        f.write("time,from,to\n")
+        for t, source, target in history:
+            f.write(f"{t:.3f},{source or ''},{target}\n")

@@ -1,0 +1,103 @@
+"""Robot Interface: the sensors and actuators of the arm behind one component.
+
+Sense (every 1 ms): read the incremental encoders, turn counts into axis positions
+(relative to power-up until the initialization resets the encoders), estimate each
+axis's velocity with an alpha-beta filter, and write ``sens_pos``. Act (every 1 ms):
+apply ``out_vel`` (plus the calibrated offset compensation) to the drives. The hardware
+is a backend; the simulated robot is the default, real hardware plugs in behind the
+same methods.
+"""
+from __future__ import annotations
+
+from ..component import Component, DataPort
+
+
+class RobotInterface(Component):
+    PROPERTIES = {"velocity_limit_scale": (float, "fraction of max_velocity the drives accept")}
+    OPERATIONS = Component.OPERATIONS + ("release_brakes", "apply_brakes")
+
+    def __init__(self, spec, backend, sens_pos: DataPort, out_vel: DataPort, estimator, tick: float = 0.001):
+        super().__init__("robot", tick)
+        self.spec = spec
+        self.backend = backend
+        self.sens_pos = sens_pos
+        self.out_vel = out_vel
+        self.estimator = estimator
+        self.tick = tick
+        self.axes = spec.axes
+        self.n = len(spec.axes)
+        self.scale = tuple(1.0 / a.counts_per_unit for a in spec.axes)
+        self.offset = [0.0] * self.n  # position = counts / counts_per_unit + offset
+        self.compensation = [0.0] * self.n  # added to every velocity command (calibration)
+        self.max_velocity = tuple(a.max_velocity for a in spec.axes)
+        self.velocity_limit_scale = 1.0
+        self.counts = (0,) * self.n
+        self.index_events = (0,) * self.n
+        self.latched = (0,) * self.n
+        self.sensors = (False,) * self.n
+        self.positions = (0.0,) * self.n
+        self.velocities = (0.0,) * self.n
+        self.last_command = (0.0,) * self.n
+
+    # -- lifecycle --
+    def on_start(self) -> bool:
+        self.read(0.0)
+        self.estimator.reset(self.positions)
+        return True
+
+    # -- real-time --
+    def read(self, now: float) -> None:
+        """Real-time (sense): encoders -> positions, velocity estimate -> ``sens_pos``."""
+        counts, events, latched, sensors = self.backend.read()
+        self.counts, self.index_events, self.latched, self.sensors = counts, events, latched, sensors
+        scale, offset = self.scale, self.offset
+        positions = tuple([c * s + o for c, s, o in zip(counts, scale, offset)])
+        self.positions = positions
+        _, self.velocities = self.estimator.update(positions)
+        self.sens_pos.write(positions, now)
+
+    def write(self, now: float) -> None:
+        """Real-time (act): ``out_vel`` + compensation, clamped, to the drives."""
+        command = self.out_vel.read()
+        if command is None:
+            command = (0.0,) * self.n
+        limit = self.velocity_limit_scale
+        out = []
+        for v, c, vmax in zip(command, self.compensation, self.max_velocity):
+            v += c
+            m = vmax * limit
+            out.append(m if v > m else -m if v < -m else v)
+        self.last_command = tuple(out)
+        self.backend.step(self.tick, self.last_command)
+
+    # -- operations (called by the supervisor between ticks) --
+    def release_brakes(self) -> None:
+        self.backend.release_brakes()
+
+    def apply_brakes(self) -> None:
+        self.backend.apply_brakes()
+
+    def brakes_released(self) -> bool:
+        return self.backend.brakes_released()
+
+    def brakes_applied(self) -> bool:
+        return self.backend.brakes_applied()
+
+    def reset_encoder(self, axis: int, counts_at: int, position_at: float) -> None:
+        """From now on, ``counts_at`` encoder counts read as ``position_at`` on ``axis``."""
+        new = position_at - counts_at * self.scale[axis]
+        delta = new - self.offset[axis]
+        self.offset[axis] = new
+        positions = list(self.estimator.positions)
+        positions[axis] += delta
+        self.estimator.reset(positions, self.estimator.velocities)
+        shifted = list(self.positions)
+        shifted[axis] += delta
+        self.positions = tuple(shifted)
+        self.sens_pos.write(self.positions, self.sens_pos.stamp)  # readers this tick see the new zero
+
+    def read_input(self, n: int) -> bool:
+        return self.backend.input(n)
+
+    def write_output(self, n: int, value: bool) -> None:
+        self.backend.set_output(n, value)

@@ -1,0 +1,157 @@
+"""Trajectory Generator: interpreter, path planner and interpolator, every 5 ms.
+
+It runs the program's object code (``runtime.vm``, a bounded number of instructions per
+update), and is the VM's motion host: a move instruction hands a segment to the planner;
+the trajectory is sampled every 5 ms into ``desi_pos`` (time, positions, velocities),
+which the servo interpolates to 1 ms. Each move's line, planned duration and actual
+duration (from its first setpoint to its last) are recorded for the run's summary.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from compiler.objcode import OP, Program
+from compiler.values import Joint, Pose
+
+from ..component import Component, DataPort
+from ..motion.planner import PtpInput, plan_ptp, scaled_limits
+from ..vm import VM, VMStatus
+
+
+@dataclass
+class MoveRecord:
+    line: int
+    kind: str
+    target: tuple
+    planned_duration: float
+    t_start: float
+    t_end: float | None = None
+
+    @property
+    def actual_duration(self) -> float | None:
+        return None if self.t_end is None else self.t_end - self.t_start
+
+
+def unsupported_moves(program: Program) -> str | None:
+    """Why the program cannot run here yet (lin/circ need the motion issue), or None."""
+    for offset, instr in enumerate(program.code):
+        if instr[0] in (OP.MOVE_LIN, OP.MOVE_CIRC):
+            line, _ = program.line_at(offset)
+            kind = "lin" if instr[0] == OP.MOVE_LIN else "circ"
+            return f"line {line}: move {kind} is not supported yet (this runtime executes ptp moves to joint targets)"
+    return None
+
+
+class TrajectoryGenerator(Component):
+    PROPERTIES = {"budget": (int, "object-code instructions per 5 ms update")}
+
+    def __init__(self, spec, robot, desi_pos: DataPort, sens_pos: DataPort, clock, period: float = 0.005):
+        super().__init__("trajectory", period)
+        self.spec, self.robot, self.desi_pos, self.sens_pos = spec, robot, desi_pos, sens_pos
+        self.clock = clock
+        self.n = len(spec.axes)
+        self.axes = spec.axes
+        self.budget = 200
+        self.program: Program | None = None
+        self.vm: VM | None = None
+        self.trajectory = None
+        self.t_move = 0.0
+        self.positions: tuple = (0.0,) * self.n
+        self.velocities: tuple = (0.0,) * self.n
+        self.moves: list[MoveRecord] = []
+        self.log_lines: list[tuple[float, int, str]] = []
+        self.fault: str | None = None
+
+    def load(self, program: Program) -> None:
+        """Not real-time: the program to run at the next start."""
+        self.program = program
+
+    def on_start(self) -> bool:
+        if self.program is None:
+            return False
+        position = self.sens_pos.read() or (0.0,) * self.n
+        self.positions = tuple(position)
+        self.velocities = (0.0,) * self.n
+        self.trajectory = None
+        self.moves = []
+        self.fault = None
+        self.vm = VM(self.program, self, self.budget)
+        self.desi_pos.write((self.clock.now(), self.positions, self.velocities), self.clock.now())
+        return True
+
+    @property
+    def finished(self) -> bool:
+        """The program ended (DONE) and its last move is complete."""
+        return self.vm is not None and self.vm.status == VMStatus.DONE and self.trajectory is None
+
+    @property
+    def line(self) -> int:
+        return self.vm.line if self.vm is not None else 0
+
+    def update(self, now: float) -> None:
+        """Real-time: sample the current move, then let the VM run its budget."""
+        trajectory = self.trajectory
+        if trajectory is not None:
+            self.t_move += self.period
+            self.positions, self.velocities = trajectory.sample(self.t_move)
+            if self.t_move >= trajectory.duration - 1e-12:
+                self.trajectory = None
+                self.velocities = (0.0,) * self.n
+                self.moves[-1].t_end = now
+        self.desi_pos.write((now, self.positions, self.velocities), now)
+        vm = self.vm
+        if vm is not None and vm.status not in (VMStatus.DONE, VMStatus.ERROR):
+            status = vm.step()
+            if status == VMStatus.ERROR and self.fault is None:
+                e = vm.error
+                self.fault = f"program error at line {e.line}: {e.message}"
+
+    # ---- the VM's motion host ----
+    def now(self) -> float:
+        return self.clock.now()
+
+    def move(self, kind: str, targets: tuple, clauses: dict, line: int) -> str | None:
+        if kind != "ptp":
+            return f"move {kind} is not supported yet"
+        target = targets[0]
+        if isinstance(target, Pose):
+            return "move ptp to a pose needs inverse kinematics, which is not supported yet"
+        if not isinstance(target, Joint) or len(target.axes) != self.n:
+            return f"the target must be a joint value with {self.n} axes"
+        robot = clauses.get("act_rob")
+        if robot is not None and robot != self.spec.name:
+            return f"act_rob names robot {robot!r}, but this runtime drives {self.spec.name!r}"
+        values = target.axes
+        for axis, v in zip(self.axes, values):
+            if not axis.min <= v <= axis.max:
+                return (f"axis {axis.name} target {v:g} {axis.unit} is outside its limits "
+                        f"{axis.min:g}..{axis.max:g} {axis.unit}")
+        defaults = self.spec.defaults
+        speed = clauses.get("speed_ptp", defaults.speed_ptp)
+        acc = clauses.get("acc_ptp", defaults.acc_ptp)
+        if not (0 < speed <= 1 and 0 < acc <= 1):
+            return f"speed_ptp and acc_ptp must be fractions in (0, 1], got {speed:g} and {acc:g}"
+        vmax, amax = scaled_limits(tuple(a.max_velocity for a in self.axes),
+                                   tuple(a.max_acceleration for a in self.axes), speed, acc)
+        result, trajectory, message = plan_ptp(PtpInput(self.positions, values, vmax, amax))
+        if result < 0:
+            return message
+        self.trajectory, self.t_move = trajectory, 0.0
+        self.moves.append(MoveRecord(line, kind, values, trajectory.duration, self.clock.now()))
+        return None
+
+    def motion_done(self) -> bool:
+        return self.trajectory is None
+
+    def read_input(self, n: int) -> bool:
+        if not 1 <= n <= self.spec.inputs:
+            raise IndexError(f"digital input {n} does not exist (1..{self.spec.inputs})")
+        return self.robot.read_input(n)
+
+    def write_output(self, n: int, value: bool) -> None:
+        if not 1 <= n <= self.spec.outputs:
+            raise IndexError(f"digital output {n} does not exist (1..{self.spec.outputs})")
+        self.robot.write_output(n, value)
+
+    def log(self, text: str, line: int) -> None:
+        self.log_lines.append((self.clock.now(), line, text))

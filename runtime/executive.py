@@ -1,0 +1,198 @@
+"""The cyclic executive: one thread, a 1 ms base tick, components at multiples of it.
+
+Each tick runs the due tasks in the fixed order sense -> decide -> plan -> control ->
+act -> record. Two clocks stand behind one interface: the simulated clock (time moves
+by exactly one tick per tick, as fast as the CPU allows, bit-for-bit deterministic) and
+the wall clock (sleep, then spin to the tick's deadline). Per task the executive measures
+execution time and lateness and counts deadline misses; each task has a miss policy:
+hard (one miss faults), firm (more than N misses in a window of W ticks faults), soft
+(counted only). Statistics live in preallocated arrays: a tick allocates nothing.
+"""
+from __future__ import annotations
+
+import time
+from array import array
+from dataclasses import dataclass, field
+from typing import Callable
+
+PHASES = ("sense", "decide", "plan", "control", "act", "record")
+
+#: Lateness histogram: 10 us bins up to 20 ms (the last bin holds everything later).
+_BIN = 10e-6
+_BINS = 2000
+
+
+class SimClock:
+    """Simulated time: ``now`` is exactly ``ticks * tick``; waiting costs nothing."""
+
+    simulated = True
+
+    def __init__(self, tick: float = 0.001):
+        self.tick = tick
+        self.ticks = 0
+
+    def now(self) -> float:
+        return self.ticks * self.tick
+
+    def wait_until(self, t: float) -> None:
+        """Real-time: jump to ``t`` (never backwards)."""
+        target = round(t / self.tick)
+        if target > self.ticks:
+            self.ticks = target
+
+
+class WallClock:
+    """Wall time since construction: sleep until shortly before a deadline, then spin."""
+
+    simulated = False
+
+    def __init__(self, spin: float = 0.0008):
+        self.spin = spin  # how long before the deadline sleeping stops and spinning starts
+        self._t0 = time.perf_counter()
+
+    def now(self) -> float:
+        return time.perf_counter() - self._t0
+
+    def wait_until(self, t: float) -> None:
+        """Sleep, then spin to ``t`` (the only place the loop waits)."""
+        remaining = t - self.now()
+        if remaining > self.spin:
+            time.sleep(remaining - self.spin)
+        while self.now() < t:
+            pass
+
+
+@dataclass
+class MissPolicy:
+    kind: str = "soft"  # "hard", "firm" or "soft"
+    limit: int = 3  # firm: more than `limit` misses ...
+    window: int = 1000  # ... within this many ticks faults
+
+
+class TaskStats:
+    """Execution time and lateness of one task (preallocated; no allocation per tick)."""
+
+    __slots__ = ("runs", "exec_total", "exec_max", "late_max", "misses", "histogram", "recent")
+
+    def __init__(self):
+        self.runs = 0
+        self.exec_total = 0.0
+        self.exec_max = 0.0
+        self.late_max = 0.0
+        self.misses = 0
+        self.histogram = array("l", bytes(8 * _BINS))
+        self.recent: list[int] = []  # ticks of recent misses (firm policy only)
+
+    def percentile(self, q: float) -> float:
+        """Lateness (s) at quantile q, from the histogram (bin resolution 10 us)."""
+        total = sum(self.histogram)
+        if not total:
+            return 0.0
+        rank, seen = q * total, 0
+        for i, n in enumerate(self.histogram):
+            seen += n
+            if seen >= rank:
+                return (i + 1) * _BIN
+        return _BINS * _BIN
+
+    def summary(self) -> dict:
+        return {"runs": self.runs, "misses": self.misses,
+                "exec_mean_us": 1e6 * self.exec_total / self.runs if self.runs else 0.0,
+                "exec_max_us": 1e6 * self.exec_max, "late_max_us": 1e6 * self.late_max,
+                "late_p99_us": 1e6 * self.percentile(0.99)}
+
+
+@dataclass
+class Task:
+    name: str
+    run: Callable[[float], None]
+    period: int  # in ticks
+    phase: str
+    enabled: Callable[[], bool] | None = None  # e.g. "is the component running?"
+    policy: MissPolicy = field(default_factory=MissPolicy)
+    stats: TaskStats = field(default_factory=TaskStats)
+
+
+class Executive:
+    """Runs tasks tick by tick; ``fault`` names the first deadline fault (then it stops)."""
+
+    def __init__(self, clock, tick: float = 0.001):
+        self.clock = clock
+        self.tick = tick
+        self.ticks = 0
+        self.tasks: list[Task] = []
+        self.fault: str | None = None
+        self.tick_late_max = 0.0
+
+    def add(self, name: str, run: Callable[[float], None], period: float, phase: str,
+            enabled: Callable[[], bool] | None = None, policy: MissPolicy | None = None) -> Task:
+        """Schedule ``run(now)`` every ``period`` seconds (a multiple of the tick)."""
+        if phase not in PHASES:
+            raise ValueError(f"phase must be one of {PHASES}, not {phase!r}")
+        ticks = round(period / self.tick)
+        if ticks < 1 or abs(ticks * self.tick - period) > 1e-9:
+            raise ValueError(f"{name}: period {period} s is not a multiple of the {self.tick} s tick")
+        task = Task(name, run, ticks, phase, enabled, policy or MissPolicy())
+        self.tasks.append(task)
+        self.tasks.sort(key=lambda t: PHASES.index(t.phase))  # stable: insertion order within a phase
+        return task
+
+    def step(self) -> None:
+        """One tick (real-time): wait for its start, then run every due task in phase order."""
+        k = self.ticks
+        scheduled = k * self.tick
+        clock = self.clock
+        clock.wait_until(scheduled)
+        simulated = clock.simulated
+        perf = time.perf_counter
+        if not simulated:
+            start_late = clock.now() - scheduled
+            if start_late > self.tick_late_max:
+                self.tick_late_max = start_late
+        for task in self.tasks:
+            if k % task.period:
+                continue
+            if task.enabled is not None and not task.enabled():
+                continue
+            t0 = perf()
+            task.run(scheduled)
+            spent = perf() - t0
+            stats = task.stats
+            stats.runs += 1
+            stats.exec_total += spent
+            if spent > stats.exec_max:
+                stats.exec_max = spent
+            if simulated:
+                continue  # simulated time does not pass while code runs: no lateness
+            late = clock.now() - scheduled
+            if late > stats.late_max:
+                stats.late_max = late
+            stats.histogram[min(int(late / _BIN), _BINS - 1)] += 1
+            if late > task.period * self.tick:
+                self._missed(task, k)
+        self.ticks = k + 1
+
+    def _missed(self, task: Task, k: int) -> None:
+        stats = task.stats
+        stats.misses += 1
+        policy = task.policy
+        if policy.kind == "hard":
+            self.fault = self.fault or f"deadline: {task.name} missed its {task.period} ms deadline (hard)"
+        elif policy.kind == "firm":
+            recent = stats.recent
+            recent.append(k)
+            while recent and recent[0] <= k - policy.window:
+                recent.pop(0)
+            if len(recent) > policy.limit:
+                self.fault = self.fault or (f"deadline: {task.name} missed {len(recent)} deadlines "
+                                            f"within {policy.window} ticks (firm)")
+
+    def run(self, until: Callable[[], bool], max_ticks: int) -> int:
+        """Step until ``until()`` holds or ``max_ticks`` ticks have run; returns ticks run."""
+        start = self.ticks
+        while self.ticks - start < max_ticks and not until():
+            self.step()
+        return self.ticks - start
+
+    def statistics(self) -> dict:
+        return {task.name: task.stats.summary() for task in self.tasks}

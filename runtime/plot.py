@@ -1,0 +1,81 @@
+"""``irl plot``: one panel per moving axis, position over time, the FSM's phases shaded
+and labelled, as the paper's Figure 6 shows. Needs matplotlib (the ``plot`` extra)."""
+from __future__ import annotations
+
+import csv
+from pathlib import Path
+
+
+class PlotError(Exception):
+    pass
+
+
+def read_report(path: str | Path):
+    """(times, states, {column: values}) from a report CSV (NumPy arrays)."""
+    import numpy as np
+
+    try:
+        with open(path, newline="", encoding="utf-8") as f:
+            rows = list(csv.reader(f))
+    except OSError as exc:
+        raise PlotError(f"cannot read {path}: {exc.strerror or exc}") from None
+    if len(rows) < 2 or rows[0][:2] != ["time", "state"]:
+        raise PlotError(f"{path} is not an irl report (expected a header starting with time,state)")
+    header, body = rows[0], rows[1:]
+    try:
+        times = np.array([float(r[0]) for r in body])
+        columns = {name: np.array([float(r[i]) for r in body]) for i, name in enumerate(header) if i >= 2}
+    except (ValueError, IndexError):
+        raise PlotError(f"{path}: malformed row (not a complete irl report)") from None
+    return times, [r[1] for r in body], columns
+
+
+def phases(times, states):
+    """[(start, end, name)] of consecutive rows in the same top-level state."""
+    out = []
+    for t, s in zip(times, states):
+        top = s.split("/")[0]
+        if out and out[-1][2] == top:
+            out[-1][1] = t
+        else:
+            out.append([t, t, top])
+    return [tuple(p) for p in out]
+
+
+def plot_report(report: str | Path, output: str | Path) -> None:
+    try:
+        import matplotlib
+
+        matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+    except ImportError:
+        raise PlotError("matplotlib is not installed: pip install 'irl[plot]'") from None
+    import numpy as np
+
+    times, states, cols = read_report(report)
+    axes_names = [c[len("sens_pos_"):] for c in cols if c.startswith("sens_pos_")]
+    moving = [a for a in axes_names if np.ptp(cols[f"sens_pos_{a}"]) > 1e-6] or axes_names[:1]
+    fig, panels = plt.subplots(len(moving), 1, sharex=True, figsize=(10, 1.9 * len(moving) + 1), squeeze=False)
+    colors = ["#dde8f5", "#f5e6d3", "#e1f0dc", "#f3dbe7", "#ececec"]
+    spans = phases(times, states)
+    for ax, name in zip(panels[:, 0], moving):
+        for k, (t0, t1, phase) in enumerate(spans):
+            ax.axvspan(t0, t1, color=colors[k % len(colors)], lw=0)
+        ax.plot(times, cols[f"desi_pos_{name}"], lw=0.8, ls="--", color="#888888", label="reference")
+        ax.plot(times, cols[f"sens_pos_{name}"], lw=1.2, color="#1f4e99", label="encoder")
+        ax.set_ylabel(f"{name} (deg)")
+        ax.grid(alpha=0.3)
+    top = panels[0, 0]
+    for t0, t1, phase in spans:
+        top.text((t0 + t1) / 2, 1.02, phase, transform=top.get_xaxis_transform(), ha="center", va="bottom",
+                 fontsize=8)
+    panels[0, 0].legend(loc="lower right", fontsize=7)
+    panels[-1, 0].set_xlabel("time (s)")
+    fig.suptitle(f"{Path(report).name}: positions read from the encoders, by FSM phase", y=0.995)
+    fig.tight_layout()
+    try:
+        fig.savefig(output, dpi=110)
+    except OSError as exc:
+        raise PlotError(f"cannot write {output}: {exc.strerror or exc}") from None
+    finally:
+        plt.close(fig)

@@ -1,0 +1,353 @@
+"""The simulated robot: drives, joints, hard stops, brakes, encoders, index pulses,
+homing sensors, digital I/O and injectable faults.
+
+It stands in for the hardware behind the paper's Robot Interface component: velocity
+commands go in (``out_vel``), incremental encoder counts, latched index (Z) counts and the
+inductive homing sensors come out (what ``sens_pos`` and the Initialization Sequence are
+made from). The model, per axis:
+
+* **Drive**: velocity-commanded, a first-order lag with time constant ``tau``
+  (``spec.simulation['drive_time_constant']``, default 0.005 s) and an unknown constant
+  velocity offset ``b`` (seeded, uniform in +-``max_drive_offset`` deg/s, default 0.5)::
+
+      dv/dt = (u - v) / tau,   u = clip(cmd) + b,   dx/dt = v
+
+  integrated *exactly* for a command held constant over the step (zero-order hold), so it
+  is stable and exact for any ``dt``::
+
+      a = exp(-dt / tau)
+      x' = x + u dt + (v - u) tau (1 - a)
+      v' = u + (v - u) a
+
+  The command is saturated at +-``drive_saturation`` x the axis' ``max_velocity``
+  (default 1.5; a real amplifier has a limit too); a NaN command counts as 0.
+* **Hard stops** at the axis ``min`` / ``max``: the axis stops there (its velocity
+  towards the stop becomes 0).
+* **Brakes** (all axes together): engaged at power-up. While engaged the axis does not
+  move and its velocity is 0. :meth:`SimRobot.release_brakes` / :meth:`apply_brakes` take
+  ``spec.simulation['brake_time']`` (default 0.05 s) of simulated time before they are
+  effective; :meth:`brakes_released` / :meth:`brakes_applied` say when they are.
+* **Power-up position**: ``home`` + seeded uniform in +-``park_spread`` (default 3 deg),
+  clipped into min..max.
+* **Incremental encoder**: ``counts = floor((x - x_power_up) * counts_per_unit)``: it counts
+  from zero wherever the axis parks, quantised to whole counts.
+* **Index (Z) pulse**: once per motor revolution, i.e. at the absolute axis positions
+  ``k * index_spacing``. It is active during a step in which the axis crossed one; the
+  encoder latches its count at that position (as encoder hardware does) and counts the
+  event, so a reader that samples every 5 ms misses no pulse: it compares the event
+  counter with the one it saw last.
+* **Homing sensor**: active while ``|x - sensor_position| <= sensor_window``.
+* **Faults** (:meth:`SimRobot.inject`): ``"sensor_dead"`` (the homing sensor never fires),
+  ``"encoder_frozen"`` (the encoder stops: counts and index events stop changing; counts
+  missed while frozen stay missed after :meth:`clear_faults`, as with a real incremental
+  encoder), ``"drive_dead"`` (the drive ignores commands and its offset: the velocity
+  decays to 0 with the drive's lag).
+
+Axes are numbered from 0 in this Python interface (the order of ``spec.axes``); digital
+inputs and outputs are numbered from 1, as in L-IRL (``IN[1]``..).
+
+Real-time rules: :meth:`step`, :meth:`read`, the brake operations, the digital I/O and the
+properties run in the real-time loop (plain floats and small tuples, no I/O, no NumPy);
+the constructor, :meth:`inject` and :meth:`clear_faults` are meant for set-up and tests.
+Everything is deterministic: the same spec, seed and sequence of calls give bit-identical
+results.
+"""
+from __future__ import annotations
+
+import math
+import random
+
+FAULTS = ("sensor_dead", "encoder_frozen", "drive_dead")
+
+DEFAULT_DRIVE_TIME_CONSTANT = 0.005  # s
+DEFAULT_MAX_DRIVE_OFFSET = 0.5  # unit/s
+DEFAULT_PARK_SPREAD = 3.0  # unit
+DEFAULT_BRAKE_TIME = 0.05  # s
+DEFAULT_DRIVE_SATURATION = 1.5  # x max_velocity
+
+_floor = math.floor
+
+
+def _sim_number(spec, key: str, default: float, positive: bool) -> float:
+    value = spec.simulation.get(key, default)
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) \
+            or value < 0 or (positive and value == 0):
+        need = "a positive number" if positive else "a number >= 0"
+        raise ValueError(f"{spec.file}: simulation.{key}: expected {need}, got {value!r}")
+    return float(value)
+
+
+class SimRobot:
+    """A simulated robot for ``spec``; ``seed`` fixes its drive offsets and park positions.
+
+    Not real-time (set-up): builds the per-axis state from the specification.
+    """
+
+    def __init__(self, spec, seed: int = 0):
+        self.spec = spec
+        self.seed = seed
+        axes = spec.axes
+        n = self.n_axes = len(axes)
+        self.tau = _sim_number(spec, "drive_time_constant", DEFAULT_DRIVE_TIME_CONSTANT, True)
+        max_offset = _sim_number(spec, "max_drive_offset", DEFAULT_MAX_DRIVE_OFFSET, False)
+        spread = _sim_number(spec, "park_spread", DEFAULT_PARK_SPREAD, False)
+        self.brake_time = _sim_number(spec, "brake_time", DEFAULT_BRAKE_TIME, False)
+        saturation = _sim_number(spec, "drive_saturation", DEFAULT_DRIVE_SATURATION, True)
+
+        rng = random.Random(seed)
+        offsets, parks = [], []
+        for axis in axes:  # the order of draws is part of the determinism contract
+            offsets.append(rng.uniform(-max_offset, max_offset))
+            parks.append(min(max(axis.home + rng.uniform(-spread, spread), axis.min), axis.max))
+
+        # constants per axis
+        self._offset = offsets
+        self._lo = [a.min for a in axes]
+        self._hi = [a.max for a in axes]
+        self._vmax = [saturation * a.max_velocity for a in axes]
+        self._cpu = [a.counts_per_unit for a in axes]
+        self._spacing = [a.index_spacing for a in axes]
+        self._sensor_at = [a.sensor_position for a in axes]
+        self._sensor_window = [a.sensor_window for a in axes]
+        self._power_up = tuple(parks)
+
+        # physical state
+        self._x = list(parks)
+        self._v = [0.0] * n
+        self._rev = [_floor(x / s) for x, s in zip(parks, self._spacing)]  # index interval
+        # encoder state: counts = base + floor((x - origin) * cpu)
+        self._origin = list(parks)
+        self._base = [0] * n
+        self._counts = [0] * n
+        self._index_events = [0] * n
+        self._latched = [0] * n
+        self._index_active = [False] * n
+        # faults
+        self._sensor_dead = [False] * n
+        self._encoder_frozen = [False] * n
+        self._drive_dead = [False] * n
+        # brakes: engaged at power-up
+        self._brakes_engaged = True
+        self._brake_target = True
+        self._brake_timer = 0.0
+        # digital I/O, numbered from 1 (element n - 1)
+        self._inputs = [False] * spec.inputs
+        self._outputs = [False] * spec.outputs
+        # the step's discretisation, cached for the last dt
+        self._dt = -1.0
+        self._decay = 0.0
+        self._lag_gain = 0.0
+        self.time = 0.0  # simulated seconds since power-up
+
+    # ---- the real-time interface -----------------------------------------------------
+
+    def step(self, dt: float, velocity_commands) -> None:
+        """Advance the physics by ``dt`` seconds with the drives commanded to
+        ``velocity_commands`` (unit/s, one per axis, held over the step).
+
+        Real-time: plain float arithmetic, no allocation beyond a few floats.
+        """
+        if dt != self._dt:
+            self._dt = dt
+            self._decay = math.exp(-dt / self.tau)
+            self._lag_gain = self.tau * (1.0 - self._decay)
+        a = self._decay
+        k = self._lag_gain
+        xs, vs = self._x, self._v
+        index_active = self._index_active
+        if self._brakes_engaged:
+            for i in range(self.n_axes):
+                vs[i] = 0.0
+                index_active[i] = False
+        else:
+            lo, hi, vmax, offset, dead = self._lo, self._hi, self._vmax, self._offset, self._drive_dead
+            spacing, rev, frozen = self._spacing, self._rev, self._encoder_frozen
+            counts, base, origin, cpu = self._counts, self._base, self._origin, self._cpu
+            for i in range(self.n_axes):
+                if dead[i]:
+                    u = 0.0
+                else:
+                    c = velocity_commands[i]
+                    limit = vmax[i]
+                    if c > limit:
+                        c = limit
+                    elif c < -limit:
+                        c = -limit
+                    elif c != c:  # NaN
+                        c = 0.0
+                    u = c + offset[i]
+                dv = vs[i] - u
+                x = xs[i] + u * dt + dv * k
+                v = u + dv * a
+                if x > hi[i]:
+                    x = hi[i]
+                    if v > 0.0:
+                        v = 0.0
+                elif x < lo[i]:
+                    x = lo[i]
+                    if v < 0.0:
+                        v = 0.0
+                xs[i] = x
+                vs[i] = v
+                r = _floor(x / spacing[i])
+                r_old = rev[i]
+                if r != r_old:
+                    rev[i] = r
+                    if frozen[i]:
+                        index_active[i] = False
+                    else:
+                        index_active[i] = True
+                        if r > r_old:  # moving up: the last crossed is r * spacing
+                            self._index_events[i] += r - r_old
+                            z = r * spacing[i]
+                        else:  # moving down: the last crossed is (r + 1) * spacing
+                            self._index_events[i] += r_old - r
+                            z = (r + 1) * spacing[i]
+                        self._latched[i] = base[i] + _floor((z - origin[i]) * cpu[i])
+                else:
+                    index_active[i] = False
+                if not frozen[i]:
+                    counts[i] = base[i] + _floor((x - origin[i]) * cpu[i])
+        if self._brake_timer > 0.0:
+            self._brake_timer -= dt
+            if self._brake_timer <= 1e-9:
+                self._brake_timer = 0.0
+                self._brakes_engaged = self._brake_target
+                if self._brakes_engaged:  # the brake holds the axis: it stops dead
+                    for i in range(self.n_axes):
+                        vs[i] = 0.0
+        self.time += dt
+
+    def read(self):
+        """The encoder side: ``(counts, index_event_counters, latched_index_counts,
+        sensor_active)``, each a tuple with one element per axis.
+
+        ``index_event_counters`` only grows: it counts every index pulse since power-up;
+        ``latched_index_counts`` is the encoder count at the last one. Real-time.
+        """
+        xs, at, window, dead = self._x, self._sensor_at, self._sensor_window, self._sensor_dead
+        sensors = tuple([not dead[i] and abs(xs[i] - at[i]) <= window[i] for i in range(self.n_axes)])
+        return tuple(self._counts), tuple(self._index_events), tuple(self._latched), sensors
+
+    def release_brakes(self) -> None:
+        """Start releasing the brakes; effective after ``brake_time``. Real-time."""
+        self._command_brakes(False)
+
+    def apply_brakes(self) -> None:
+        """Start applying the brakes; effective after ``brake_time``. Real-time."""
+        self._command_brakes(True)
+
+    def _command_brakes(self, engage: bool) -> None:
+        if engage == self._brakes_engaged:  # already so: cancel a change under way
+            self._brake_target = engage
+            self._brake_timer = 0.0
+        elif engage != self._brake_target or self._brake_timer == 0.0:
+            self._brake_target = engage
+            if self.brake_time > 0.0:
+                self._brake_timer = self.brake_time
+            else:
+                self._brakes_engaged = engage
+                if engage:
+                    for i in range(self.n_axes):
+                        self._v[i] = 0.0
+
+    def brakes_released(self) -> bool:
+        """True once the brakes are released and the axes can move. Real-time."""
+        return not self._brakes_engaged
+
+    def brakes_applied(self) -> bool:
+        """True once the brakes are engaged and hold the axes (and no release is under
+        way). Real-time."""
+        return self._brakes_engaged and self._brake_timer == 0.0
+
+    @property
+    def index_active(self) -> tuple[bool, ...]:
+        """Per axis: an index pulse happened during the last step. Real-time."""
+        return tuple(self._index_active)
+
+    # ---- digital I/O (numbered from 1, as in L-IRL) ------------------------------------
+
+    def set_input(self, n: int, value: bool) -> None:
+        """Set digital input ``n`` (1..spec.inputs): the world's side, for tests and
+        scenarios. Real-time."""
+        self._inputs[self._io_index(n, len(self._inputs), "input")] = bool(value)
+
+    def input(self, n: int) -> bool:
+        """Digital input ``n`` (1..spec.inputs). Real-time."""
+        return self._inputs[self._io_index(n, len(self._inputs), "input")]
+
+    def set_output(self, n: int, value: bool) -> None:
+        """Set digital output ``n`` (1..spec.outputs). Real-time."""
+        self._outputs[self._io_index(n, len(self._outputs), "output")] = bool(value)
+
+    def output(self, n: int) -> bool:
+        """Digital output ``n`` (1..spec.outputs). Real-time."""
+        return self._outputs[self._io_index(n, len(self._outputs), "output")]
+
+    @property
+    def inputs(self) -> tuple[bool, ...]:
+        """All digital inputs; input n is element n - 1."""
+        return tuple(self._inputs)
+
+    @property
+    def outputs(self) -> tuple[bool, ...]:
+        """All digital outputs; output n is element n - 1."""
+        return tuple(self._outputs)
+
+    def _io_index(self, n: int, count: int, what: str) -> int:
+        if not 1 <= n <= count:
+            raise IndexError(f"digital {what} {n} does not exist: {self.spec.name} has {what}s 1..{count}")
+        return n - 1
+
+    # ---- faults (set-up and tests) -------------------------------------------------------
+
+    def inject(self, fault: str, axis: int) -> None:
+        """Inject ``fault`` (one of :data:`FAULTS`) on axis ``axis`` (0-based)."""
+        table = self._fault_table(fault)
+        if not 0 <= axis < self.n_axes:
+            raise IndexError(f"axis {axis} does not exist: {self.spec.name} has axes 0..{self.n_axes - 1}")
+        table[axis] = True
+
+    def clear_faults(self) -> None:
+        """Remove every injected fault. The encoder of a frozen axis counts on from the
+        value it froze at (the counts it missed stay missed)."""
+        for i in range(self.n_axes):
+            if self._encoder_frozen[i]:
+                self._base[i] = self._counts[i]
+                self._origin[i] = self._x[i]
+            self._sensor_dead[i] = self._encoder_frozen[i] = self._drive_dead[i] = False
+
+    def faults(self) -> tuple[tuple[str, int], ...]:
+        """The faults in effect, as (fault, axis) pairs."""
+        return tuple((f, i) for f in FAULTS for i in range(self.n_axes) if self._fault_table(f)[i])
+
+    def _fault_table(self, fault: str) -> list[bool]:
+        if fault == "sensor_dead":
+            return self._sensor_dead
+        if fault == "encoder_frozen":
+            return self._encoder_frozen
+        if fault == "drive_dead":
+            return self._drive_dead
+        raise ValueError(f"unknown fault {fault!r}: expected one of {', '.join(FAULTS)}")
+
+    # ---- the truth (tests and the report's truth column only) ----------------------------
+
+    @property
+    def true_positions(self) -> tuple[float, ...]:
+        """The axes' actual positions (unit). Not for the controller: it sees encoders."""
+        return tuple(self._x)
+
+    @property
+    def true_velocities(self) -> tuple[float, ...]:
+        """The axes' actual velocities (unit/s)."""
+        return tuple(self._v)
+
+    @property
+    def power_up_positions(self) -> tuple[float, ...]:
+        """Where each axis parked at power-up (its encoder's zero)."""
+        return self._power_up
+
+    @property
+    def drive_offsets(self) -> tuple[float, ...]:
+        """Each drive's constant velocity offset (unit/s)."""
+        return tuple(self._offset)

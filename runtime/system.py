@@ -1,0 +1,127 @@
+"""One robot, assembled: the simulated arm (or hardware), the components, their ports,
+the supervisor and the executive; and a run of one program from power-up to Stop Robot.
+
+This is what ``irl run`` drives in-process (and what the network server will drive).
+"""
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from compiler.objcode import Program
+
+from .component import DataPort
+from .components.initialization import Initialization
+from .components.report import Report, write_states
+from .components.robot_interface import RobotInterface
+from .components.servo import ServoController
+from .components.trajectory import TrajectoryGenerator, unsupported_moves
+from .executive import Executive, MissPolicy, SimClock, WallClock
+from .motion.interpolator import Interpolator
+from .sim.estimator import AlphaBeta
+from .sim.robot import SimRobot
+from .supervisor import RobotMemory, StateFile, Supervisor
+
+TICK = 0.001
+
+
+@dataclass
+class RunOptions:
+    seed: int = 0
+    realtime: bool = False
+    report: str | Path | None = None
+    state_dir: str | Path | None = None
+    max_time: float = 3600.0  # simulated (or wall) seconds before the run is stopped
+    faults: list = field(default_factory=list)  # [(fault, axis)] injected into the simulated robot
+
+
+class RobotSystem:
+    def __init__(self, spec, options: RunOptions, backend=None, memory: RobotMemory | None = None):
+        self.spec = spec
+        self.options = options
+        self.clock = WallClock() if options.realtime else SimClock(TICK)
+        n = len(spec.axes)
+        self.ports = {name: DataPort(name) for name in ("sens_pos", "desi_pos", "init_pos", "out_vel")}
+        p = self.ports
+        self.backend = backend if backend is not None else SimRobot(spec, options.seed)
+        for fault, axis in options.faults:
+            self.backend.inject(fault, axis)
+        self.robot = RobotInterface(spec, self.backend, p["sens_pos"], p["out_vel"], AlphaBeta(n, TICK), TICK)
+        self.servo = ServoController(spec, p["sens_pos"], p["desi_pos"], p["init_pos"], p["out_vel"],
+                                     Interpolator, TICK)
+        self.init = Initialization(spec, self.robot, p["init_pos"], p["sens_pos"], self.clock)
+        self.init.on_encoder_reset = self.servo.rebase
+        self.trajectory = TrajectoryGenerator(spec, self.robot, p["desi_pos"], p["sens_pos"], self.clock)
+        self.report = Report(spec, p["sens_pos"], p["out_vel"], self.servo, lambda: self.supervisor.fsm.path())
+        self.executive = Executive(self.clock, TICK)
+        identity = f"{spec.name}:{spec.hash[:16]}:" + (f"sim-seed-{options.seed}" if backend is None else "hardware")
+        self.memory = memory or RobotMemory()
+        self.supervisor = Supervisor(self.clock, self.robot, self.servo, self.init, self.trajectory, self.report,
+                                     self.executive, self.memory, StateFile(options.state_dir, identity))
+        ex, robot = self.executive, self.robot
+        servo_policy = MissPolicy("firm", limit=10, window=1000)
+        ex.add("robot.read", robot.read, TICK, "sense", lambda: robot.running)
+        ex.add("supervisor", self.supervisor.step, TICK, "decide")
+        ex.add("initialization", self.init.update, 0.005, "plan", lambda: self.init.running)
+        ex.add("trajectory", self.trajectory.update, 0.005, "plan", lambda: self.trajectory.running)
+        ex.add("servo", self.servo.update, TICK, "control", lambda: self.servo.running, servo_policy)
+        ex.add("robot.write", robot.write, TICK, "act", lambda: robot.running)
+        ex.add("report", self.report.update, 0.01, "record", lambda: self.report.running)
+
+    def run(self, program: Program) -> dict:
+        """Power-up to Stop Robot with ``program``; returns the summary (see ``summary``)."""
+        problem = unsupported_moves(program)
+        if problem:
+            raise ValueError(problem)
+        wall0 = time.perf_counter()
+        self.trajectory.load(program)
+        self.report.open(self.options.report)
+        self.robot.configure()
+        self.robot.start()
+        self.supervisor.fsm.start()
+        max_ticks = int(self.options.max_time / TICK)
+        sup = self.supervisor
+        try:
+            self.executive.run(lambda: sup.done, max_ticks)
+            if not sup.done:
+                sup.fault = sup.fault or f"the run did not end within {self.options.max_time:g} s"
+        except KeyboardInterrupt:
+            sup.request_stop("interrupted by the operator")
+            self.executive.run(lambda: sup.done, int(3.0 / TICK))
+        finally:
+            error = self.report.close()
+            if self.options.report:
+                write_states(Path(str(self.options.report)) .with_suffix(".states.csv"), sup.fsm.history)
+        summary = self.summary(time.perf_counter() - wall0)
+        if error:
+            summary["fault"] = summary["fault"] or error
+        return summary
+
+    def summary(self, wall_time: float) -> dict:
+        sup = self.supervisor
+        history = sup.fsm.history
+        end = self.clock.now()
+        states = []
+        for i, (t, _source, name) in enumerate(history):
+            t_exit = history[i + 1][0] if i + 1 < len(history) else end
+            states.append({"name": name, "t_enter": round(t, 6), "t_exit": round(t_exit, 6)})
+        moves = [{"line": m.line, "planned_duration": m.planned_duration,
+                  "actual_duration": m.actual_duration, "target": list(m.target)}
+                 for m in self.trajectory.moves]
+        stats = self.executive.statistics()
+        return {
+            "program": self.trajectory.program.name if self.trajectory.program else None,
+            "robot": self.spec.name,
+            "states": states,
+            "moves": moves,
+            "final_position": list(self.robot.positions),
+            "max_following_error": self.servo.max_following_error,
+            "fault": sup.fault,
+            "log": [{"time": t, "line": line, "text": text} for t, line, text in self.trajectory.log_lines],
+            "sim_time": round(end, 6),
+            "wall_time": wall_time,
+            "ticks": self.executive.ticks,
+            "deadline_misses": sum(s["misses"] for s in stats.values()),
+            "deadlines": stats,
+        }

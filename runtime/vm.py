@@ -1,0 +1,714 @@
+"""The object-code interpreter: runs a verified :class:`compiler.objcode.Program` inside
+the Trajectory Generator's 5 ms update.
+
+Each :meth:`VM.step` executes at most ``budget`` instructions and returns; it never
+blocks and never does I/O itself. Everything the program needs from the world (the
+clock, moves, digital I/O, the operator log) goes through a :class:`MotionHost`, which
+the trajectory component implements. An instruction that has to wait for the world
+(a move, a dwell, a ``wait for``, ``pause``) ends the step with status ``WAITING``; the
+next step checks the wait again and carries on when it is over (the lecture's rule: no
+action waits in a loop for the world to change).
+
+What the operators and built-in functions compute comes from
+:mod:`compiler.semantics`, the definition the compiler's constant folding also uses.
+A run-time error never escapes :meth:`VM.step`: the VM stops with status ``ERROR`` and
+a :class:`VMError` naming the source line.
+
+Dispatch. The handlers (``op_<name>`` methods, one per instruction) are collected from
+the instruction table when this module is imported, and the import fails if any
+instruction has none. Two loops run them:
+
+* ``dispatch="inline"`` (the default): the most frequent instructions (loads, stores,
+  constants, ``+ - *``, comparisons, jumps) are executed inline by an if-chain ordered
+  by frequency, the others through the handler table;
+* ``dispatch="table"``: every instruction through the handler table. It is the
+  reference the inline loop is tested against, and the baseline of
+  ``benchmarks/vm_speed.py``.
+
+Measured with ``benchmarks/vm_speed.py`` (an arithmetic loop, Python 3.11): the inline
+loop takes about 170 ns per instruction, the table loop about 280 ns (1.6x slower).
+
+Real-time notes: ``step``, ``pause``, ``resume`` and ``abort`` run in the real-time
+loop. ``step`` allocates only what the program's own values need (arrays, strings,
+joint and pose values, call frames) and the few objects of a move hand-over.
+"""
+from __future__ import annotations
+
+import enum
+from dataclasses import dataclass
+from typing import Protocol
+
+from compiler.objcode import BUILTIN_NAMES, FIELDS, INSTRUCTIONS, OP, Program, clause_names
+from compiler.semantics import (INT_MAX, INT_MIN, EvalError, binary, call_builtin, check_index, get_axis,
+                                get_field, make_joint, make_pos, make_quat, make_rpy, set_axis, unary)
+from compiler.values import Pose, format_number, format_value
+
+#: Deepest nesting of procedure calls before the program is stopped with an error.
+MAX_CALL_DEPTH = 200
+
+#: What ``print`` puts between its values. The example programs and the language
+#: reference write their own spaces (``print "cycle ", n, ": ", kind;``), so the values
+#: are joined without a separator.
+PRINT_SEPARATOR = ""
+
+
+class VMStatus(enum.IntEnum):
+    READY = 0  # not started
+    RUNNING = 1  # the budget was used up: call step again
+    WAITING = 2  # waiting for motion, a dwell, a 'wait for' condition, or pause
+    DONE = 3  # END or HALT reached
+    ERROR = 4  # a run-time error, or aborted by the operator
+
+
+READY, RUNNING, WAITING, DONE, ERROR = (VMStatus.READY, VMStatus.RUNNING, VMStatus.WAITING,
+                                         VMStatus.DONE, VMStatus.ERROR)
+
+
+@dataclass(frozen=True)
+class VMError:
+    """A run-time error: what went wrong and where (source line and column, code offset)."""
+
+    message: str
+    line: int
+    column: int
+    offset: int
+
+    def __str__(self) -> str:
+        return f"line {self.line}: {self.message}"
+
+
+class MotionHost(Protocol):
+    """What the VM needs from the world; the trajectory component implements it.
+    Every method is called from the real-time loop and must not block."""
+
+    def now(self) -> float:
+        """Seconds, the executive's clock."""
+
+    def move(self, kind: str, targets: tuple, clauses: dict, line: int) -> str | None:
+        """Hand over a move: ``kind`` is "ptp", "lin" or "circ"; ``targets`` is
+        ``(target,)``, or ``(via, end)`` for circ; ``clauses`` holds only the clauses the
+        program gave ({name: value}). None when accepted, else an error message (which
+        stops the program with an error at ``line``)."""
+
+    def motion_done(self) -> bool:
+        """True when the robot has finished every move handed over."""
+
+    def read_input(self, n: int) -> bool:
+        """Digital input n (from 1). May raise EvalError for a number out of range."""
+
+    def write_output(self, n: int, value: bool) -> None:
+        """Set digital output n (from 1). May raise EvalError for a number out of range."""
+
+    def log(self, text: str, line: int) -> None:
+        """The operator log: ``print`` statements and VM notices."""
+
+
+# What a step is waiting for before it can execute the next instruction.
+_NO_WAIT, _W_MOTION, _W_DWELL = 0, 1, 2
+
+_CLAUSE_NAMES = tuple(tuple(clause_names(mask)) for mask in range(1 << 6))
+
+
+def copy_array(array: list) -> list:
+    """A deep copy of an array value (arrays hold arrays or immutable values)."""
+    if array and type(array[0]) is list:
+        return [copy_array(item) for item in array]
+    return array[:]
+
+
+def _describe(exc: Exception) -> str:
+    """The operator's message for an exception raised while executing an instruction."""
+    if isinstance(exc, EvalError):
+        return str(exc)
+    if isinstance(exc, ZeroDivisionError):
+        return "division by zero"
+    if isinstance(exc, OverflowError):
+        return f"numeric overflow ({exc})" if str(exc) else "numeric overflow"
+    return f"internal error ({type(exc).__name__}: {exc})"
+
+
+class VM:
+    """Runs one program; see the module docstring.
+
+    Attributes: ``status`` (:class:`VMStatus`), ``error`` (:class:`VMError` or None),
+    ``line`` (the line of the instruction executing or last executed),
+    ``moves_issued`` (moves the host accepted), ``paused`` (by the operator or a
+    ``pause`` statement).
+    """
+
+    def __init__(self, program: Program, host: MotionHost, budget: int = 200, *,
+                 dispatch: str = "inline", max_call_depth: int = MAX_CALL_DEPTH):
+        """Not real-time: decodes the code into flat lists once. ``program`` must have
+        been verified (:func:`compiler.objcode.verify`): the VM trusts its structure."""
+        if budget < 1:
+            raise ValueError(f"budget must be at least 1 instruction per step, not {budget}")
+        if dispatch not in ("inline", "table"):
+            raise ValueError(f"dispatch must be 'inline' or 'table', not {dispatch!r}")
+        self.program = program
+        self.host = host
+        self.budget = budget
+        self.max_call_depth = max_call_depth
+        self.status = READY
+        self.error: VMError | None = None
+        self.moves_issued = 0
+        self.instructions = 0  # instructions executed so far
+        self.paused = False
+        # the machine
+        self.pc = 0
+        self.stack: list = []
+        self.globals: list = [None] * len(program.globals)
+        self.locals: list = []  # the current procedure's slots (the main program has none)
+        self.frames: list[tuple[int, list]] = []  # (return offset, caller's locals)
+        # the code, flattened: opcode and operand (None, one int, or a tuple of ints)
+        self._ops = [instr[0] for instr in program.code]
+        self._args = [None if len(instr) == 1 else instr[1] if len(instr) == 2 else tuple(instr[1:])
+                      for instr in program.code]
+        self._consts = list(program.constants)
+        self._procs = [(p.entry, p.params, len(p.locals), p.name) for p in program.procedures]
+        self._handlers = [handler.__get__(self) for handler in HANDLERS]
+        self._run = self._run_inline if dispatch == "inline" else self._run_table
+        self._here = 0  # offset of the instruction executing or last executed
+        self._yield = False  # set by a handler: end this step after the instruction
+        self._wait = _NO_WAIT
+        self._dwell_seconds = 0.0
+        self._dwell_until: float | None = None
+        self._deadline: float | None = None  # of the current 'wait for', or None
+        self._timeout = 0.0
+
+    # -- the operator's side (real-time) ------------------------------------------------
+    @property
+    def line(self) -> int:
+        """The source line of the instruction executing or last executed (0 if none)."""
+        return self.program.line_at(self._here)[0]
+
+    @property
+    def offset(self) -> int:
+        """The code offset of the instruction executing or last executed."""
+        return self._here
+
+    def pause(self) -> None:
+        """Real-time. Hold the program before its next instruction until :meth:`resume`."""
+        if self.status < DONE:
+            self.paused = True
+
+    def resume(self) -> None:
+        """Real-time. Continue after :meth:`pause` or a ``pause`` statement."""
+        self.paused = False
+
+    def abort(self) -> None:
+        """Real-time. Stop the program for good: status ERROR, "aborted by the operator"."""
+        if self.status < DONE:
+            self._stop_with("aborted by the operator", self._here)
+            self.paused = False
+
+    # -- running (real-time) --------------------------------------------------------------
+    def step(self) -> VMStatus:
+        """Real-time. Execute at most ``budget`` instructions; stop early at a wait.
+
+        Returns the new status: RUNNING (budget used up), WAITING, DONE or ERROR.
+        Never raises.
+        """
+        status = self.status
+        if status >= DONE:
+            return status
+        if self.paused:
+            self.status = WAITING
+            return WAITING
+        if self._wait:
+            try:
+                if not self._wait_over():
+                    self.status = WAITING
+                    return WAITING
+            except Exception as exc:  # the host failed: stop, never raise
+                self._stop_with(_describe(exc), self._here)
+                return ERROR
+            self._wait = _NO_WAIT
+        self.status = RUNNING
+        self._run(self.budget)
+        return self.status
+
+    def _wait_over(self) -> bool:
+        """Is the wait started by the last instruction over? (Asks the host.)"""
+        wait = self._wait
+        host = self.host
+        if wait == _W_MOTION:
+            return host.motion_done()
+        if wait == _W_DWELL:
+            if self._dwell_until is None:
+                if not host.motion_done():
+                    return False
+                self._dwell_until = host.now() + self._dwell_seconds
+            return host.now() >= self._dwell_until
+        return True
+
+    def _await(self, wait: int) -> None:
+        """Start a wait; when it is not over at once, end the step with WAITING."""
+        self._wait = wait
+        if self._wait_over():
+            self._wait = _NO_WAIT
+        else:
+            self._block()
+
+    def _block(self) -> None:
+        self.status = WAITING
+        self._yield = True
+
+    def _stop_with(self, message: str, offset: int) -> None:
+        line, column = self.program.line_at(offset)
+        self.error = VMError(message, line, column, offset)
+        self.status = ERROR
+        self._here = offset
+        self._wait = _NO_WAIT
+
+    def _run_table(self, budget: int) -> None:
+        """Every instruction through the handler table."""
+        n = budget
+        ops, args, handlers = self._ops, self._args, self._handlers
+        pc = here = self.pc
+        try:
+            while n:
+                n -= 1
+                here = pc
+                pc = handlers[ops[pc]](args[pc], pc)
+                if self._yield:
+                    self._yield = False
+                    break
+        except Exception as exc:  # never raise out of step()
+            self.instructions += budget - n
+            self._stop_with(_describe(exc), here)
+            return
+        self.instructions += budget - n
+        self.pc = pc
+        self._here = here
+
+    def _run_inline(self, budget: int) -> None:
+        """The frequent instructions inline, ordered by frequency; the rest through the
+        handler table. Each inline case computes exactly what its handler computes."""
+        n = budget
+        ops, args, consts, handlers = self._ops, self._args, self._consts, self._handlers
+        globals_ = self.globals
+        locals_ = self.locals
+        stack = self.stack
+        push, pop = stack.append, stack.pop
+        LOAD_GLOBAL, CONST, LOAD_LOCAL, STORE_GLOBAL, STORE_LOCAL = (
+            OP.LOAD_GLOBAL, OP.CONST, OP.LOAD_LOCAL, OP.STORE_GLOBAL, OP.STORE_LOCAL)
+        JUMP_IF_FALSE, JUMP, ADD, SUB, MUL = OP.JUMP_IF_FALSE, OP.JUMP, OP.ADD, OP.SUB, OP.MUL
+        LT, LE, GT, GE, EQ, NE = OP.LT, OP.LE, OP.GT, OP.GE, OP.EQ, OP.NE
+        GET_ITEM = OP.GET_ITEM
+        lo, hi = INT_MIN, INT_MAX
+        pc = here = self.pc
+        try:
+            while n:
+                n -= 1
+                here = pc
+                op = ops[pc]
+                if op == LOAD_GLOBAL:
+                    push(globals_[args[pc]])
+                    pc += 1
+                elif op == CONST:
+                    push(consts[args[pc]])
+                    pc += 1
+                elif op == LOAD_LOCAL:
+                    push(locals_[args[pc]])
+                    pc += 1
+                elif op == STORE_GLOBAL:
+                    globals_[args[pc]] = pop()
+                    pc += 1
+                elif op == STORE_LOCAL:
+                    locals_[args[pc]] = pop()
+                    pc += 1
+                elif op == JUMP_IF_FALSE:
+                    pc = pc + 1 if pop() else args[pc]
+                elif op == ADD:
+                    b = pop()
+                    a = stack[-1]
+                    r = a + b
+                    # the common results here; anything else (strings, overflow,
+                    # non-finite reals) through semantics.binary
+                    if (lo <= r <= hi) if type(r) is int else (type(r) is float and r - r == 0.0):
+                        stack[-1] = r
+                    else:
+                        stack[-1] = binary("+", a, b)
+                    pc += 1
+                elif op == JUMP:
+                    pc = args[pc]
+                elif op == LE:
+                    b = pop()
+                    stack[-1] = stack[-1] <= b
+                    pc += 1
+                elif op == LT:
+                    b = pop()
+                    stack[-1] = stack[-1] < b
+                    pc += 1
+                elif op == GE:
+                    b = pop()
+                    stack[-1] = stack[-1] >= b
+                    pc += 1
+                elif op == GT:
+                    b = pop()
+                    stack[-1] = stack[-1] > b
+                    pc += 1
+                elif op == EQ:
+                    b = pop()
+                    stack[-1] = stack[-1] == b
+                    pc += 1
+                elif op == NE:
+                    b = pop()
+                    stack[-1] = stack[-1] != b
+                    pc += 1
+                elif op == SUB:
+                    b = pop()
+                    a = stack[-1]
+                    r = a - b
+                    if (lo <= r <= hi) if type(r) is int else (type(r) is float and r - r == 0.0):
+                        stack[-1] = r
+                    else:
+                        stack[-1] = binary("-", a, b)
+                    pc += 1
+                elif op == MUL:
+                    b = pop()
+                    a = stack[-1]
+                    r = a * b
+                    if (lo <= r <= hi) if type(r) is int else (type(r) is float and r - r == 0.0):
+                        stack[-1] = r
+                    else:
+                        stack[-1] = binary("*", a, b)
+                    pc += 1
+                elif op == GET_ITEM:
+                    index = pop()
+                    array = stack[-1]
+                    i = index - args[pc]
+                    if not 0 <= i < len(array):
+                        i = check_index(index, args[pc], len(array))  # raises
+                    stack[-1] = array[i]
+                    pc += 1
+                else:
+                    pc = handlers[op](args[pc], pc)
+                    locals_ = self.locals  # CALL and RET switch frames
+                    if self._yield:
+                        self._yield = False
+                        break
+        except Exception as exc:  # never raise out of step()
+            self.instructions += budget - n
+            self._stop_with(_describe(exc), here)
+            return
+        self.instructions += budget - n
+        self.pc = pc
+        self._here = here
+
+    # -- the handlers: op_<name>(operand, pc) -> the next pc --------------------------------
+    # ``operand`` is None for an instruction without operands, the operand for one with
+    # one, and a tuple for one with two. A handler that ends the step sets _yield (and
+    # the status).
+
+    def _pop_n(self, n: int) -> list:
+        stack = self.stack
+        if not n:
+            return []
+        values = stack[-n:]
+        del stack[-n:]
+        return values
+
+    def op_nop(self, _, pc):
+        return pc + 1
+
+    def op_const(self, k, pc):
+        self.stack.append(self._consts[k])
+        return pc + 1
+
+    def op_load_global(self, g, pc):
+        self.stack.append(self.globals[g])
+        return pc + 1
+
+    def op_store_global(self, g, pc):
+        self.globals[g] = self.stack.pop()
+        return pc + 1
+
+    def op_load_local(self, slot, pc):
+        self.stack.append(self.locals[slot])
+        return pc + 1
+
+    def op_store_local(self, slot, pc):
+        self.locals[slot] = self.stack.pop()
+        return pc + 1
+
+    def op_copy(self, _, pc):
+        stack = self.stack
+        if type(stack[-1]) is list:
+            stack[-1] = copy_array(stack[-1])
+        return pc + 1
+
+    def op_to_real(self, _, pc):
+        stack = self.stack
+        stack[-1] = float(stack[-1])
+        return pc + 1
+
+    def op_neg(self, _, pc):
+        stack = self.stack
+        stack[-1] = unary("-", stack[-1])
+        return pc + 1
+
+    def op_not(self, _, pc):
+        stack = self.stack
+        stack[-1] = unary("not", stack[-1])
+        return pc + 1
+
+    def _binary(self, op: str, pc: int) -> int:
+        stack = self.stack
+        b = stack.pop()
+        stack[-1] = binary(op, stack[-1], b)
+        return pc + 1
+
+    def op_add(self, _, pc):
+        return self._binary("+", pc)
+
+    def op_sub(self, _, pc):
+        return self._binary("-", pc)
+
+    def op_mul(self, _, pc):
+        return self._binary("*", pc)
+
+    def op_div(self, _, pc):
+        return self._binary("/", pc)
+
+    def op_idiv(self, _, pc):
+        return self._binary("div", pc)
+
+    def op_mod(self, _, pc):
+        return self._binary("mod", pc)
+
+    def op_eq(self, _, pc):
+        return self._binary("=", pc)
+
+    def op_ne(self, _, pc):
+        return self._binary("<>", pc)
+
+    def op_lt(self, _, pc):
+        return self._binary("<", pc)
+
+    def op_le(self, _, pc):
+        return self._binary("<=", pc)
+
+    def op_gt(self, _, pc):
+        return self._binary(">", pc)
+
+    def op_ge(self, _, pc):
+        return self._binary(">=", pc)
+
+    def op_and(self, _, pc):
+        return self._binary("and", pc)
+
+    def op_or(self, _, pc):
+        return self._binary("or", pc)
+
+    def op_call_builtin(self, operands, pc):
+        fn, argc = operands
+        self.stack.append(call_builtin(BUILTIN_NAMES[fn], self._pop_n(argc)))
+        return pc + 1
+
+    def op_make_joint(self, operands, pc):
+        main, add = operands
+        values = self._pop_n(main + add)
+        self.stack.append(make_joint(values[:main], values[main:]))
+        return pc + 1
+
+    def op_make_pos(self, _, pc):
+        self.stack.append(make_pos(*self._pop_n(3)))
+        return pc + 1
+
+    def op_make_rpy(self, _, pc):
+        self.stack.append(make_rpy(*self._pop_n(3)))
+        return pc + 1
+
+    def op_make_quat(self, _, pc):
+        self.stack.append(make_quat(*self._pop_n(4)))
+        return pc + 1
+
+    def op_make_pose(self, _, pc):
+        stack = self.stack
+        orientation = stack.pop()
+        stack[-1] = Pose(stack[-1], orientation)
+        return pc + 1
+
+    def op_make_array(self, n, pc):
+        stack = self.stack
+        element = stack[-1]
+        if type(element) is list:
+            stack[-1] = [copy_array(element) for _ in range(n)]
+        else:
+            stack[-1] = [element] * n
+        return pc + 1
+
+    def op_get_item(self, low, pc):
+        stack = self.stack
+        index = stack.pop()
+        array = stack[-1]
+        stack[-1] = array[check_index(index, low, len(array))]
+        return pc + 1
+
+    def op_set_item(self, low, pc):
+        stack = self.stack
+        value = stack.pop()
+        index = stack.pop()
+        array = stack.pop()
+        array[check_index(index, low, len(array))] = value
+        return pc + 1
+
+    def op_get_axis(self, _, pc):
+        stack = self.stack
+        axis = stack.pop()
+        stack[-1] = get_axis(stack[-1], axis)
+        return pc + 1
+
+    def op_set_axis(self, _, pc):
+        stack = self.stack
+        value = stack.pop()
+        axis = stack.pop()
+        stack[-1] = set_axis(stack[-1], axis, value)
+        return pc + 1
+
+    def op_get_field(self, f, pc):
+        stack = self.stack
+        stack[-1] = get_field(stack[-1], FIELDS[f])
+        return pc + 1
+
+    def op_jump(self, target, pc):
+        return target
+
+    def op_jump_if_false(self, target, pc):
+        return pc + 1 if self.stack.pop() else target
+
+    def op_call(self, p, pc):
+        entry, params, slots, name = self._procs[p]
+        if len(self.frames) >= self.max_call_depth:
+            raise EvalError(f"too many nested procedure calls (more than {self.max_call_depth}) "
+                            f"calling {name}: is the recursion endless?")
+        frame = [None] * slots
+        if params:
+            stack = self.stack
+            frame[:params] = stack[-params:]
+            del stack[-params:]
+        self.frames.append((pc + 1, self.locals))
+        self.locals = frame
+        return entry
+
+    def op_ret(self, _, pc):
+        back, self.locals = self.frames.pop()
+        return back
+
+    # The host may report an I/O number out of range as EvalError, IndexError or
+    # ValueError: each stops the program with the host's message.
+    def op_in_get(self, _, pc):
+        stack = self.stack
+        try:
+            stack[-1] = bool(self.host.read_input(stack[-1]))
+        except (IndexError, ValueError, KeyError) as exc:
+            raise EvalError(str(exc) or f"digital input {stack[-1]} does not exist") from None
+        return pc + 1
+
+    def op_out_set(self, _, pc):
+        stack = self.stack
+        value = stack.pop()
+        n = stack.pop()
+        try:
+            self.host.write_output(n, value)
+        except (IndexError, ValueError, KeyError) as exc:
+            raise EvalError(str(exc) or f"digital output {n} does not exist") from None
+        return pc + 1
+
+    def _move(self, kind: str, targets: int, mask: int, pc: int) -> int:
+        names = _CLAUSE_NAMES[mask]
+        clauses = dict(zip(names, self._pop_n(len(names)))) if names else {}
+        problem = self.host.move(kind, tuple(self._pop_n(targets)), clauses, self.program.line_at(pc)[0])
+        if problem is not None:
+            raise EvalError(str(problem))
+        self.moves_issued += 1
+        self._motion_barrier()
+        return pc + 1
+
+    def _motion_barrier(self) -> None:
+        """After a move: wait until the robot has finished it (no look-ahead yet). A
+        look-ahead would decide here whether to go on to the next instruction (and END
+        would then wait for the motion still queued)."""
+        self._await(_W_MOTION)
+
+    def op_move_ptp(self, mask, pc):
+        return self._move("ptp", 1, mask, pc)
+
+    def op_move_lin(self, mask, pc):
+        return self._move("lin", 1, mask, pc)
+
+    def op_move_circ(self, mask, pc):
+        return self._move("circ", 2, mask, pc)
+
+    def op_dwell(self, _, pc):
+        seconds = self.stack.pop()
+        if seconds < 0:
+            raise EvalError(f"wait {format_number(seconds)} sec: a wait cannot be negative")
+        self._dwell_seconds = float(seconds)
+        self._dwell_until = None
+        self._await(_W_DWELL)
+        return pc + 1
+
+    def op_wait_begin(self, timeout, pc):
+        if timeout:
+            seconds = self.stack.pop()
+            if seconds < 0:
+                raise EvalError(f"wait for ... timeout {format_number(seconds)} sec: "
+                                f"a time-out cannot be negative")
+            self._timeout = seconds
+            self._deadline = self.host.now() + seconds
+        else:
+            self._deadline = None
+        return pc + 1
+
+    def op_wait_test(self, target, pc):
+        if self.stack.pop():
+            self._deadline = None
+            return pc + 1
+        deadline = self._deadline
+        if deadline is not None and self.host.now() >= deadline:
+            self._deadline = None
+            self.host.log(f"wait for timed out after {format_number(self._timeout)} s",
+                          self.program.line_at(pc)[0])
+            return pc + 1
+        self._block()  # test again next cycle
+        return target
+
+    def op_print(self, n, pc):
+        text = PRINT_SEPARATOR.join(v if type(v) is str else format_value(v) for v in self._pop_n(n))
+        self.host.log(text, self.program.line_at(pc)[0])
+        return pc + 1
+
+    def op_pause(self, _, pc):
+        self.paused = True
+        self.host.log("paused by the program: resume to continue", self.program.line_at(pc)[0])
+        self._block()
+        return pc + 1
+
+    def _end(self, pc: int) -> int:
+        self.status = DONE
+        self._yield = True
+        return pc
+
+    def op_halt(self, _, pc):
+        return self._end(pc)
+
+    def op_end(self, _, pc):
+        return self._end(pc)
+
+
+def build_dispatch(cls: type = VM) -> tuple:
+    """The handler of every instruction, indexed by opcode, from the instruction table.
+    Raises ImportError naming each instruction that has no ``op_<name>`` method."""
+    if [d.code for d in INSTRUCTIONS] != list(range(len(INSTRUCTIONS))):
+        raise ImportError("runtime.vm: the instruction table's opcodes are not 0..n-1 in order")
+    handlers = [getattr(cls, "op_" + d.name.lower(), None) for d in INSTRUCTIONS]
+    missing = [d.name for d, h in zip(INSTRUCTIONS, handlers) if not callable(h)]
+    if missing:
+        raise ImportError(f"runtime.vm: no VM handler for instruction(s) {', '.join(missing)}")
+    return tuple(handlers)
+
+
+#: The handler of each opcode (unbound ``VM.op_*`` functions); checked at import.
+HANDLERS = build_dispatch()

@@ -14,6 +14,7 @@ from pathlib import Path
 from typing import TextIO
 
 EXIT_OK, EXIT_INVALID, EXIT_USAGE, EXIT_INTERNAL = 0, 1, 2, 70
+FAULTS = ("sensor_dead", "encoder_frozen", "drive_dead")  # what --inject can break in the simulated robot
 
 
 @dataclass
@@ -202,8 +203,16 @@ def cmd_run(args, env: Environment) -> int:
     program, spec = loaded
     from runtime.system import RobotSystem, RunOptions
 
+    faults = []
+    for item in args.inject or []:
+        fault, _, axis = item.partition(":")
+        names = [a.name.lower() for a in spec.axes]
+        if fault not in FAULTS or axis.lower() not in names:
+            raise UsageError(f"--inject {item}: expected FAULT:AXIS with FAULT one of {', '.join(FAULTS)} "
+                             f"and AXIS one of {', '.join(a.name for a in spec.axes)}")
+        faults.append((fault, names.index(axis.lower())))
     options = RunOptions(seed=args.seed, realtime=args.realtime, report=args.report, state_dir=args.state_dir,
-                         max_time=args.max_time)
+                         max_time=args.max_time, faults=faults)
     try:
         summary = RobotSystem(spec, options).run(program)
     except ValueError as exc:  # refused at load time (e.g. a move kind not supported yet)
@@ -281,6 +290,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--seed", type=int, default=0, help="the simulated robot's seed (power-up position, offsets)")
     p.add_argument("--state-dir", metavar="DIR", help="remember the calibration in DIR across runs")
     p.add_argument("--max-time", type=float, default=3600.0, metavar="S", help="stop the run after S seconds")
+    p.add_argument("--inject", action="append", metavar="FAULT:AXIS",
+                   help=f"break the simulated robot: {', '.join(FAULTS)} on an axis (e.g. sensor_dead:A3)")
     p.add_argument("--json", action="store_true", help="the summary as one JSON object")
     p.set_defaults(run=cmd_run)
 

@@ -91,11 +91,17 @@ class Supervisor:
 
     # ---- guards ----
     def faulted(self) -> bool:
-        """Any fault anywhere (checked first in every state: the fallbacks)."""
+        """Any fault anywhere (checked first in every state: the fallbacks). The fault is
+        named with where the robot was: the state, and the homing step if any."""
         if self.fault is None:
-            self.fault = (self.operator_stop or self.executive.fault or self.robot.error_message
-                          or self.servo.error_message or self.init.fault or self.trajectory.fault
-                          or self.trajectory.error_message or self.report.error_message)
+            found = (self.operator_stop or self.executive.fault or self.robot.error_message
+                     or self.servo.error_message or self.init.fault or self.trajectory.fault
+                     or self.trajectory.error_message or self.report.error_message)
+            if found is not None:
+                where = self.fsm.path() if hasattr(self, "fsm") else ""
+                if self.fsm.state == INITIALIZE and self.init.step_name:
+                    where += f" ({self.init.step_name})"
+                self.fault = f"{where}: {found}" if where else found
         return self.fault is not None
 
     def prepared(self) -> bool:

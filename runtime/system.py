@@ -52,6 +52,7 @@ class RobotSystem:
                                      Interpolator, TICK)
         self.init = Initialization(spec, self.robot, p["init_pos"], p["sens_pos"], self.clock)
         self.init.on_encoder_reset = self.servo.rebase
+        self.servo.measured_velocity = lambda: self.robot.velocities
         self.trajectory = TrajectoryGenerator(spec, self.robot, p["desi_pos"], p["sens_pos"], self.clock)
         self.report = Report(spec, p["sens_pos"], p["out_vel"], self.servo, lambda: self.supervisor.fsm.path())
         self.executive = Executive(self.clock, TICK)

@@ -621,6 +621,12 @@ def test_interpolator_holds_and_rejects():
     mid = interp.sample(0.0025)
     assert mid == pytest.approx((4.0, 5.0))
     assert interp.sample_velocity(1.0) == (0.0, 0.0)
+    # a servo's now - period lands a rounding error before t0: it still gets v0
+    interp.push(0.010, (5.0, 6.0), (2.0, -1.0))
+    interp.push(0.015, (5.1, 6.0), (3.0, 0.0))
+    assert 0.015 - 0.005 < 0.010
+    assert interp.sample_velocity(0.015 - 0.005) == pytest.approx((2.0, -1.0), rel=1e-12)
+    assert interp.sample(0.015 - 0.005) == (5.0, 6.0)
     interp.reset((9.0, 9.0))
     assert interp.sample(0.003) == (9.0, 9.0) and interp.setpoints == 0
 

@@ -14,7 +14,7 @@ from ..fsm import FSM, State, Transition
 from ..motion.planner import PtpInput, Result, plan_ptp
 
 HOME_SPEED = 0.2  # fraction of each axis's maximum velocity and acceleration for "Go To Start"
-FROZEN_AFTER = 0.5  # s of commanded motion without a single encoder count -> frozen encoder
+FROZEN_AFTER = 0.2  # s of commanded motion without a single encoder count -> frozen encoder
 
 
 class Initialization(Component):
@@ -116,6 +116,7 @@ class _Sequence:
         self.edge_counts = [0] * init.n
         self.index_seen = 0
         self.last_counts = 0
+        self.search_counts = 0
         self.still_since = 0.0
 
     def _fail(self, message: str) -> None:
@@ -135,8 +136,15 @@ class _Sequence:
         if counts != self.last_counts:
             self.last_counts, self.still_since = counts, now
         elif now - self.still_since > FROZEN_AFTER:
-            self._fail(f"initialization: encoder of {self._name()} frozen (no counts for "
-                       f"{FROZEN_AFTER:g} s while the axis was commanded to move)")
+            a = self.init.axes[self.axis]
+            moved = abs(counts - self.search_counts) / a.counts_per_unit
+            if moved > 1.0:  # it moved, then stopped: an end stop, before the sensor or pulse came
+                what = "homing sensor" if self.init.step_name.startswith("sensor") else "index pulse"
+                self._fail(f"{what} of {a.name} not found: the axis stopped after {moved:.1f} {a.unit} "
+                           "of search (at its end stop?)")
+            else:
+                self._fail(f"no encoder counts from {a.name} for {FROZEN_AFTER:g} s while it was commanded "
+                           "to move (encoder frozen or drive not responding)")
 
     def _travelled(self) -> float:
         return abs(self.init.positions[self.axis] - self.travel_start)
@@ -156,6 +164,7 @@ class _Sequence:
         self.init.ramp(self.axis, a.search_velocity if self.phase == "leave" else -a.search_velocity)
         self.travel_start = self.init.positions[self.axis]
         self.last_counts, self.still_since = self.robot.counts[self.axis], self.init.robot_now()
+        self.search_counts = self.last_counts
 
     def run_sensors(self) -> None:
         if self.all_axes_done() or self.init.fault:
@@ -170,7 +179,7 @@ class _Sequence:
                 self.init.ramp(self.axis, -a.search_velocity)
                 self.travel_start = self.init.positions[self.axis]
             elif self._travelled() > 2 * a.sensor_window + 1.0:
-                self._fail(f"initialization: homing sensor of {a.name} does not turn off")
+                self._fail(f"homing sensor of {a.name} does not turn off")
             return
         if active:
             self.edge_counts[self.axis] = self.robot.counts[self.axis]
@@ -178,7 +187,7 @@ class _Sequence:
             self.axis += 1
             self._start_axis_sensor()
         elif self._travelled() > a.max - a.min:
-            self._fail(f"initialization: homing sensor of {a.name} not found within the axis travel "
+            self._fail(f"homing sensor of {a.name} not found within the axis travel "
                        f"({a.max - a.min:g} {a.unit})")
 
     # -- Find Index --
@@ -195,6 +204,7 @@ class _Sequence:
         self.init.ramp(self.axis, -a.search_velocity)
         self.travel_start = self.init.positions[self.axis]
         self.last_counts, self.still_since = self.robot.counts[self.axis], self.init.robot_now()
+        self.search_counts = self.last_counts
 
     def run_index(self) -> None:
         if self.all_axes_done() or self.init.fault:
@@ -220,7 +230,7 @@ class _Sequence:
             self.axis += 1
             self._start_axis_index()
         elif self._travelled() > 2 * a.index_spacing + 2 * a.sensor_window:
-            self._fail(f"initialization: index pulse of {a.name} not found within "
+            self._fail(f"index pulse of {a.name} not found within "
                        f"{2 * a.index_spacing + 2 * a.sensor_window:g} {a.unit} after its sensor")
 
     # -- Go To Start --
@@ -228,7 +238,7 @@ class _Sequence:
         self.init.step_name = "start position"
         problem = self.init.go_to_start()
         if problem:
-            self._fail(f"initialization: cannot plan the move to the start position: {problem}")
+            self._fail(f"cannot plan the move to the start position: {problem}")
 
     def run_start(self) -> None:
         pass

@@ -35,6 +35,7 @@ class ServoController(Component):
         self.tick = tick
         self.setpoint_period = 0.005  # the Trajectory Generator's and Initialization's period
         self.interpolator_factory = interpolator_factory  # called with the start positions
+        self.measured_velocity = lambda: None  # the robot interface's velocity estimate, when wired
         self.interpolator = interpolator_factory((0.0,) * self.n)
         self.mode = "zero"  # "zero", "hold", "trajectory", "initialization"
         self.source: DataPort | None = None
@@ -119,5 +120,11 @@ class ServoController(Component):
             self.max_following_error = worst
         self.out_vel.write(tuple(out), now)
         if worst > self.following_error_limit:
-            self.error(f"following error on {self.names[worst_axis]}: {worst:.3f} deg exceeds the limit "
-                       f"{self.following_error_limit:g} deg")
+            i = worst_axis
+            why = ""
+            measured = self.measured_velocity()
+            if measured is not None and abs(measured[i]) < 0.05 and abs(out[i]) > 0.5:
+                why = (f"; {self.names[i]} does not move although commanded at {out[i]:.2f} deg/s "
+                       "(drive not responding, encoder frozen, or the axis is at an end stop)")
+            self.error(f"following error on {self.names[i]}: {worst:.3f} deg exceeds the limit "
+                       f"{self.following_error_limit:g} deg{why}")

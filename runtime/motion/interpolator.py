@@ -141,14 +141,16 @@ class Interpolator:
     def sample_velocity(self, t: float) -> tuple[float, ...]:
         """Velocity (unit/s) of the interpolated reference at ``t`` (s), for a servo's
         feed-forward: the derivative of :meth:`sample` for ``t0 <= t < t1`` (the first
-        setpoint's velocity at ``t0``), zero wherever :meth:`sample` holds a position.
-        Real-time safe.
+        setpoint's velocity at ``t0``). Zero before two setpoints exist and from ``t1`` on
+        (the stream of setpoints has ended: the reference holds still). A ``t`` before
+        ``t0`` counts as ``t0``: a servo that computes ``now - period`` lands a rounding
+        error before ``t0`` every fifth tick and must still get ``v0``. Real-time safe.
         """
         if self._count < 2 or not t < self._t1:
             return self._zeros
         s = t - self._t0
-        if not s >= 0.0:
-            return self._zeros
+        if not s > 0.0:
+            s = 0.0
         h = self._h
         u = s / h
         u2 = u * u

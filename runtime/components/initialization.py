@@ -68,8 +68,12 @@ class Initialization(Component):
         self.velocities[axis] = 0.0
 
     def shift(self, axis: int, delta: float) -> None:
-        """The encoder of ``axis`` was reset: move its setpoint into the new coordinates."""
+        """The encoder of ``axis`` was reset: move its setpoint into the new coordinates,
+        and republish it, so no reader sees the old coordinates again."""
         self.positions[axis] += delta
+        value = self.init_pos.read()
+        t = value[0] if value is not None else 0.0
+        self.init_pos.write((t, tuple(self.positions), tuple(self.velocities)), self.init_pos.stamp)
 
     def go_to_start(self) -> str | None:
         start = tuple(self.positions)

@@ -4,7 +4,8 @@ Each tick runs the due tasks in the fixed order sense -> decide -> plan -> contr
 act -> record. Two clocks stand behind one interface: the simulated clock (time moves
 by exactly one tick per tick, as fast as the CPU allows, bit-for-bit deterministic) and
 the wall clock (sleep, then spin to the tick's deadline). Per task the executive measures
-execution time and lateness and counts deadline misses; each task has a miss policy:
+execution time and lateness and counts deadline misses (with the simulated clock, execution times are sampled on one tick
+in eight, and nothing is late); each task has a miss policy:
 hard (one miss faults), firm (more than N misses in a window of W ticks faults), soft
 (counted only). Statistics live in preallocated arrays: a tick allocates nothing.
 """
@@ -15,7 +16,14 @@ from array import array
 from dataclasses import dataclass, field
 from typing import Callable
 
+from .component import Lifecycle
+
+_RUNNING = Lifecycle.RUNNING
+
 PHASES = ("sense", "decide", "plan", "control", "act", "record")
+
+#: With the simulated clock, execution times are measured on one tick in this many.
+SIM_SAMPLE_EVERY = 8
 
 #: Lateness histogram: 10 us bins up to 20 ms (the last bin holds everything later).
 _BIN = 10e-6
@@ -108,7 +116,8 @@ class Task:
     run: Callable[[float], None]
     period: int  # in ticks
     phase: str
-    enabled: Callable[[], bool] | None = None  # e.g. "is the component running?"
+    enabled: Callable[[], bool] | None = None  # another condition, checked each due tick
+    component: object = None  # runs only while this component is RUNNING
     policy: MissPolicy = field(default_factory=MissPolicy)
     stats: TaskStats = field(default_factory=TaskStats)
 
@@ -123,16 +132,19 @@ class Executive:
         self.tasks: list[Task] = []
         self.fault: str | None = None
         self.tick_late_max = 0.0
+        self._last_tick_late = 0.0  # how late the last tick started (wall clock)
 
     def add(self, name: str, run: Callable[[float], None], period: float, phase: str,
-            enabled: Callable[[], bool] | None = None, policy: MissPolicy | None = None) -> Task:
-        """Schedule ``run(now)`` every ``period`` seconds (a multiple of the tick)."""
+            enabled: Callable[[], bool] | None = None, policy: MissPolicy | None = None,
+            component=None) -> Task:
+        """Schedule ``run(now)`` every ``period`` seconds (a multiple of the tick), only
+        while ``component`` (if given) is running and ``enabled()`` (if given) holds."""
         if phase not in PHASES:
             raise ValueError(f"phase must be one of {PHASES}, not {phase!r}")
         ticks = round(period / self.tick)
         if ticks < 1 or abs(ticks * self.tick - period) > 1e-9:
             raise ValueError(f"{name}: period {period} s is not a multiple of the {self.tick} s tick")
-        task = Task(name, run, ticks, phase, enabled, policy or MissPolicy())
+        task = Task(name, run, ticks, phase, enabled, component, policy or MissPolicy())
         self.tasks.append(task)
         self.tasks.sort(key=lambda t: PHASES.index(t.phase))  # stable: insertion order within a phase
         return task
@@ -143,27 +155,47 @@ class Executive:
         scheduled = k * self.tick
         clock = self.clock
         clock.wait_until(scheduled)
+        if clock.simulated and k % SIM_SAMPLE_EVERY:
+            # Simulated time does not pass while code runs: no lateness, no misses. Execution
+            # times are sampled on every SIM_SAMPLE_EVERY-th tick; the others just run.
+            for task in self.tasks:
+                if k % task.period:
+                    continue
+                component = task.component
+                if component is not None and component.lifecycle is not _RUNNING:
+                    continue
+                if task.enabled is not None and not task.enabled():
+                    continue
+                task.run(scheduled)
+            self.ticks = k + 1
+            return
         simulated = clock.simulated
         perf = time.perf_counter
         if not simulated:
             start_late = clock.now() - scheduled
+            self._last_tick_late = start_late
             if start_late > self.tick_late_max:
                 self.tick_late_max = start_late
+        t1 = perf()
         for task in self.tasks:
             if k % task.period:
                 continue
+            component = task.component
+            if component is not None and component.lifecycle is not _RUNNING:
+                continue
             if task.enabled is not None and not task.enabled():
                 continue
-            t0 = perf()
+            t0 = t1
             task.run(scheduled)
-            spent = perf() - t0
+            t1 = perf()
+            spent = t1 - t0
             stats = task.stats
             stats.runs += 1
             stats.exec_total += spent
             if spent > stats.exec_max:
                 stats.exec_max = spent
             if simulated:
-                continue  # simulated time does not pass while code runs: no lateness
+                continue
             late = clock.now() - scheduled
             if late > stats.late_max:
                 stats.late_max = late

@@ -186,12 +186,14 @@ class Supervisor:
 
     # ---- Initialization Sequence ----
     def init_entry(self) -> None:
+        self.robot.homing = True
         self._start_servo_and_report()
         self.init.configure()
         self.init.start()
         self.servo.set_mode("initialization")
 
     def init_exit(self) -> None:
+        self.robot.homing = False
         self.init.stop()
         if self.init_machine.finished:
             self.memory.initialized = True

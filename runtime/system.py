@@ -62,13 +62,13 @@ class RobotSystem:
                                      self.executive, self.memory, StateFile(options.state_dir, identity))
         ex, robot = self.executive, self.robot
         servo_policy = MissPolicy("firm", limit=10, window=1000)
-        ex.add("robot.read", robot.read, TICK, "sense", lambda: robot.running)
+        ex.add("robot.read", robot.read, TICK, "sense", component=robot)
         ex.add("supervisor", self.supervisor.step, TICK, "decide")
-        ex.add("initialization", self.init.update, 0.005, "plan", lambda: self.init.running)
-        ex.add("trajectory", self.trajectory.update, 0.005, "plan", lambda: self.trajectory.running)
-        ex.add("servo", self.servo.update, TICK, "control", lambda: self.servo.running, servo_policy)
-        ex.add("robot.write", robot.write, TICK, "act", lambda: robot.running)
-        ex.add("report", self.report.update, 0.01, "record", lambda: self.report.running)
+        ex.add("initialization", self.init.update, 0.005, "plan", component=self.init)
+        ex.add("trajectory", self.trajectory.update, 0.005, "plan", component=self.trajectory)
+        ex.add("servo", self.servo.update, TICK, "control", policy=servo_policy, component=self.servo)
+        ex.add("robot.write", robot.write, TICK, "act", component=robot)
+        ex.add("report", self.report.update, 0.01, "record", component=self.report)
 
     def run(self, program: Program) -> dict:
         """Power-up to Stop Robot with ``program``; returns the summary (see ``summary``)."""

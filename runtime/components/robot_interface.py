@@ -38,6 +38,10 @@ class RobotInterface(Component):
         self.positions = (0.0,) * self.n
         self.velocities = (0.0,) * self.n
         self.last_command = (0.0,) * self.n
+        self.homing = True  # read sensors and index pulses (the initialization needs them)
+        self._zeros = (0.0,) * self.n
+        self._limit_scale = None
+        self._limit_cache = ()
 
     # -- lifecycle --
     def on_start(self) -> bool:
@@ -47,28 +51,43 @@ class RobotInterface(Component):
 
     # -- real-time --
     def read(self, now: float) -> None:
-        """Real-time (sense): encoders -> positions, velocity estimate -> ``sens_pos``."""
+        """Real-time (sense): encoders -> positions, velocity estimate -> ``sens_pos``.
+        Homing sensors and index pulses are taken only while ``homing`` is set (the
+        index counters only grow, so nothing is missed between reads)."""
         counts, events, latched, sensors = self.backend.read()
-        self.counts, self.index_events, self.latched, self.sensors = counts, events, latched, sensors
+        self.counts = counts
+        if self.homing:
+            self.index_events, self.latched, self.sensors = events, latched, sensors
         scale, offset = self.scale, self.offset
         positions = tuple([c * s + o for c, s, o in zip(counts, scale, offset)])
         self.positions = positions
-        _, self.velocities = self.estimator.update(positions)
+        self.velocities = self.estimator.update(positions)[1]
         self.sens_pos.write(positions, now)
 
     def write(self, now: float) -> None:
         """Real-time (act): ``out_vel`` + compensation, clamped, to the drives."""
-        command = self.out_vel.read()
+        command = self.out_vel.value
         if command is None:
-            command = (0.0,) * self.n
-        limit = self.velocity_limit_scale
-        out = []
-        for v, c, vmax in zip(command, self.compensation, self.max_velocity):
-            v += c
-            m = vmax * limit
-            out.append(m if v > m else -m if v < -m else v)
-        self.last_command = tuple(out)
-        self.backend.step(self.tick, self.last_command)
+            command = self._zeros
+        limits = self._limits
+        out = [v + c for v, c in zip(command, self.compensation)]
+        for i, m in enumerate(limits):
+            v = out[i]
+            if v > m:
+                out[i] = m
+            elif v < -m:
+                out[i] = -m
+        self.last_command = out = tuple(out)
+        self.backend.step(self.tick, out)
+
+    @property
+    def _limits(self) -> tuple:
+        return self._limit_cache if self._limit_scale == self.velocity_limit_scale else self._refresh_limits()
+
+    def _refresh_limits(self) -> tuple:
+        self._limit_scale = self.velocity_limit_scale
+        self._limit_cache = tuple(v * self._limit_scale for v in self.max_velocity)
+        return self._limit_cache
 
     # -- operations (called by the supervisor between ticks) --
     def release_brakes(self) -> None:

@@ -45,6 +45,7 @@ class ServoController(Component):
         self.reference = (0.0,) * self.n
         self.following_error = (0.0,) * self.n
         self.max_following_error = 0.0
+        self._zeros = (0.0,) * self.n
 
     def set_mode(self, mode: str) -> None:
         """Not real-time: choose where the reference comes from."""
@@ -80,11 +81,12 @@ class ServoController(Component):
     def update(self, now: float) -> None:
         """Real-time: one servo period."""
         position = self.sens_pos.read()
+        n = self.n
         if self.mode == "zero" or position is None:
-            self.out_vel.write((0.0,) * self.n, now)
+            self.out_vel.write(self._zeros, now)
             return
         if self.mode == "hold":
-            reference, velocity = self.hold_position, (0.0,) * self.n
+            reference, velocity = self.hold_position, self._zeros
         else:
             port = self.source
             if port.stamp != self.last_stamp and port.value is not None:
@@ -93,38 +95,39 @@ class ServoController(Component):
                 self.last_stamp = port.stamp
             # The reference runs one setpoint period behind, so that there are always two
             # setpoints to interpolate between (the interpolator's documented delay).
-            t = now - self.setpoint_period
-            interpolator = self.interpolator
-            reference, velocity = interpolator.sample(t), interpolator.sample_velocity(t)
+            reference, velocity = self.interpolator.sample_both(now - self.setpoint_period)
         self.reference = reference
         kp, ki, dt = self.kp, self.ki, self.tick
         integral = self.integral
-        out = []
-        errors = []
+        max_velocity = self.max_velocity
+        out = [0.0] * n
+        errors = [0.0] * n
         worst = 0.0
         worst_axis = 0
-        for i in range(self.n):
+        for i in range(n):
             e = reference[i] - position[i]
-            errors.append(e)
-            if abs(e) > worst:
-                worst, worst_axis = abs(e), i
-            vmax = self.max_velocity[i]
+            errors[i] = e
+            if e > worst or -e > worst:
+                worst, worst_axis = (e if e > 0.0 else -e), i
+            vmax = max_velocity[i]
             u = velocity[i] + kp * e + ki * integral[i]
             if -vmax < u < vmax:  # anti-windup: integrate only while the output is not saturated
                 integral[i] += e * dt
             else:
-                u = vmax if u > 0 else -vmax
-            out.append(u)
+                u = vmax if u > 0.0 else -vmax
+            out[i] = u
         self.following_error = tuple(errors)
         if worst > self.max_following_error:
             self.max_following_error = worst
         self.out_vel.write(tuple(out), now)
         if worst > self.following_error_limit:
-            i = worst_axis
-            why = ""
-            measured = self.measured_velocity()
-            if measured is not None and abs(measured[i]) < 0.05 and abs(out[i]) > 0.5:
-                why = (f"; {self.names[i]} does not move although commanded at {out[i]:.2f} deg/s "
-                       "(drive not responding, encoder frozen, or the axis is at an end stop)")
-            self.error(f"following error on {self.names[i]}: {worst:.3f} deg exceeds the limit "
-                       f"{self.following_error_limit:g} deg{why}")
+            self._following_error_fault(worst_axis, worst, out)
+
+    def _following_error_fault(self, i: int, worst: float, out) -> None:
+        why = ""
+        measured = self.measured_velocity()
+        if measured is not None and abs(measured[i]) < 0.05 and abs(out[i]) > 0.5:
+            why = (f"; {self.names[i]} does not move although commanded at {out[i]:.2f} deg/s "
+                   "(drive not responding, encoder frozen, or the axis is at an end stop)")
+        self.error(f"following error on {self.names[i]}: {worst:.3f} deg exceeds the limit "
+                   f"{self.following_error_limit:g} deg{why}")

@@ -138,6 +138,27 @@ class Interpolator:
         return tuple([p0 + h01 * dp + h10 * hv0 + h11 * hv1
                       for p0, dp, hv0, hv1 in self._coeffs])
 
+    def sample_both(self, t: float) -> tuple[tuple[float, ...], tuple[float, ...]]:
+        """``(sample(t), sample_velocity(t))`` in one pass (the servo's call). Real-time safe."""
+        if self._count < 2 or not t < self._t1:
+            return self._p1, self._zeros
+        s = t - self._t0
+        if not s > 0.0:
+            return self._p0, self.sample_velocity(t)
+        h = self._h
+        u = s / h
+        u2 = u * u
+        u3 = u2 * u
+        h01 = 3.0 * u2 - 2.0 * u3
+        h10 = u3 - 2.0 * u2 + u
+        h11 = u3 - u2
+        d01 = (6.0 * u - 6.0 * u2) / h
+        d10 = (3.0 * u2 - 4.0 * u + 1.0) / h
+        d11 = (3.0 * u2 - 2.0 * u) / h
+        coeffs = self._coeffs
+        return (tuple([p0 + h01 * dp + h10 * hv0 + h11 * hv1 for p0, dp, hv0, hv1 in coeffs]),
+                tuple([d01 * dp + d10 * hv0 + d11 * hv1 for _, dp, hv0, hv1 in coeffs]))
+
     def sample_velocity(self, t: float) -> tuple[float, ...]:
         """Velocity (unit/s) of the interpolated reference at ``t`` (s), for a servo's
         feed-forward: the derivative of :meth:`sample` for ``t0 <= t < t1`` (the first

@@ -11,6 +11,7 @@ Run: .venv/bin/python benchmarks/wall_clock.py [--seconds S] [--blocks N]
 from __future__ import annotations
 
 import argparse
+import gc
 import sys
 import time
 from pathlib import Path
@@ -53,6 +54,8 @@ def main() -> int:
         task.policy = MissPolicy("soft")
     per_block = int(args.seconds / args.blocks / TICK)
     bare_clock = WallClock()
+    gc.freeze()
+    gc.disable()  # as RobotSystem.run does for a run
     bare, ours = [], []
     for _ in range(args.blocks):
         paused_at = time.perf_counter()

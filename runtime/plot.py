@@ -74,6 +74,7 @@ def plot_report(report: str | Path, output: str | Path) -> None:
     fig.suptitle(f"{Path(report).name}: positions read from the encoders, by FSM phase", y=0.995)
     fig.tight_layout()
     try:
+        Path(output).parent.mkdir(parents=True, exist_ok=True)
         fig.savefig(output, dpi=110)
     except OSError as exc:
         raise PlotError(f"cannot write {output}: {exc.strerror or exc}") from None

@@ -5,6 +5,7 @@ This is what ``irl run`` drives in-process (and what the network server will dri
 """
 from __future__ import annotations
 
+import gc
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -83,6 +84,13 @@ class RobotSystem:
         self.supervisor.fsm.start()
         max_ticks = int(self.options.max_time / TICK)
         sup = self.supervisor
+        # The loop allocates small, cycle-free objects every tick; reference counting frees
+        # them. A cyclic collection would walk the whole heap at an arbitrary tick (worse as
+        # the report's rows grow), so it is paused for the run: freeze what setup built, then
+        # disable. It is re-enabled (and run) when the run ends.
+        gc_was_enabled = gc.isenabled()
+        gc.freeze()
+        gc.disable()
         try:
             self.executive.run(lambda: sup.done, max_ticks)
             if not sup.done:
@@ -91,6 +99,9 @@ class RobotSystem:
             sup.request_stop("interrupted by the operator")
             self.executive.run(lambda: sup.done, int(3.0 / TICK))
         finally:
+            if gc_was_enabled:
+                gc.enable()
+            gc.unfreeze()
             error = self.report.close()
             if self.options.report:
                 write_states(Path(str(self.options.report)) .with_suffix(".states.csv"), sup.fsm.history)

@@ -81,6 +81,10 @@ class Report(Component):
         """Not real-time: where to write (None: keep rows in memory only)."""
         self.path = Path(path) if path else None
         if self.path is not None:
+            try:
+                self.path.parent.mkdir(parents=True, exist_ok=True)
+            except OSError:
+                pass  # the writer reports the problem when it cannot open the file
             self.writer = ReportWriter(self.path, self.header())
             self.writer.start()
 

@@ -197,6 +197,8 @@ def _print_summary(env: Environment, s: dict) -> None:
 
 
 def cmd_run(args, env: Environment) -> int:
+    if args.plot and not args.report:
+        raise UsageError("--plot needs --report (the plot is drawn from the report)")
     loaded = _load_program(args.file, args.spec, env)
     if loaded is None:
         return EXIT_INVALID
@@ -225,8 +227,6 @@ def cmd_run(args, env: Environment) -> int:
     else:
         _print_summary(env, summary)
     if args.plot:
-        if not args.report:
-            raise UsageError("--plot needs --report (the plot is drawn from the report)")
         status = _plot(args.report, args.plot, env)
         if status:
             return status

@@ -80,10 +80,11 @@ class MissPolicy:
 class TaskStats:
     """Execution time and lateness of one task (preallocated; no allocation per tick)."""
 
-    __slots__ = ("runs", "exec_total", "exec_max", "late_max", "misses", "histogram", "recent")
+    __slots__ = ("runs", "timed", "exec_total", "exec_max", "late_max", "misses", "histogram", "recent")
 
     def __init__(self):
-        self.runs = 0
+        self.runs = 0  # every run
+        self.timed = 0  # runs whose execution time was measured
         self.exec_total = 0.0
         self.exec_max = 0.0
         self.late_max = 0.0
@@ -92,11 +93,12 @@ class TaskStats:
         self.recent: list[int] = []  # ticks of recent misses (firm policy only)
 
     def percentile(self, q: float) -> float:
-        """Lateness (s) at quantile q, from the histogram (bin resolution 10 us)."""
+        """Lateness (s) at quantile q, from the histogram: the upper edge of the bin that
+        holds it (bin resolution 10 us)."""
         total = sum(self.histogram)
         if not total:
             return 0.0
-        rank, seen = q * total, 0
+        rank, seen = max(q * total, 1), 0
         for i, n in enumerate(self.histogram):
             seen += n
             if seen >= rank:
@@ -105,7 +107,7 @@ class TaskStats:
 
     def summary(self) -> dict:
         return {"runs": self.runs, "misses": self.misses,
-                "exec_mean_us": 1e6 * self.exec_total / self.runs if self.runs else 0.0,
+                "exec_mean_us": 1e6 * self.exec_total / self.timed if self.timed else 0.0,
                 "exec_max_us": 1e6 * self.exec_max, "late_max_us": 1e6 * self.late_max,
                 "late_p99_us": 1e6 * self.percentile(0.99)}
 
@@ -167,6 +169,7 @@ class Executive:
                 if task.enabled is not None and not task.enabled():
                     continue
                 task.run(scheduled)
+                task.stats.runs += 1
             self.ticks = k + 1
             return
         simulated = clock.simulated
@@ -191,6 +194,7 @@ class Executive:
             spent = t1 - t0
             stats = task.stats
             stats.runs += 1
+            stats.timed += 1
             stats.exec_total += spent
             if spent > stats.exec_max:
                 stats.exec_max = spent
@@ -209,7 +213,8 @@ class Executive:
         stats.misses += 1
         policy = task.policy
         if policy.kind == "hard":
-            self.fault = self.fault or f"deadline: {task.name} missed its {task.period} ms deadline (hard)"
+            self.fault = self.fault or (f"deadline: {task.name} missed its {task.period * self.tick * 1000:g} ms "
+                                        "deadline (hard)")
         elif policy.kind == "firm":
             recent = stats.recent
             recent.append(k)

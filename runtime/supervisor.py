@@ -198,13 +198,16 @@ class Supervisor:
         if self.init_machine.finished:
             self.memory.initialized = True
             self.memory.encoder_offsets = list(self.robot.offset)
-        self.servo.set_mode("hold")
+            self.servo.hold_at(self.init.positions)  # exactly the start position
+        else:
+            self.servo.hold()
 
     # ---- Move Robot ----
     def move_entry(self) -> None:
         self._start_servo_and_report()
         if self.memory.initialized and self.memory.encoder_offsets:
             self.robot.offset[:] = self.memory.encoder_offsets
+        self.trajectory.start_position = self.servo.reference  # plan from where the robot is commanded to be
         if not self.trajectory.start():
             self.fault = self.fault or "Move Robot: the trajectory generator did not start (no program?)"
             return

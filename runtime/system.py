@@ -93,8 +93,9 @@ class RobotSystem:
         gc.disable()
         try:
             self.executive.run(lambda: sup.done, max_ticks)
-            if not sup.done:
-                sup.fault = sup.fault or f"the run did not end within {self.options.max_time:g} s"
+            if not sup.done:  # the time limit: stop through Stop Robot like any other fault
+                sup.request_stop(f"the run did not end within {self.options.max_time:g} s")
+                self.executive.run(lambda: sup.done, int(5.0 / TICK))
         except KeyboardInterrupt:
             sup.request_stop("interrupted by the operator")
             self.executive.run(lambda: sup.done, int(3.0 / TICK))

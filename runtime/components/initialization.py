@@ -14,6 +14,7 @@ from ..fsm import FSM, State, Transition
 from ..motion.planner import PtpInput, Result, plan_ptp
 
 HOME_SPEED = 0.2  # fraction of each axis's maximum velocity and acceleration for "Go To Start"
+SETTLE_TIMEOUT = 2.0  # s after the move to the start position for every axis to settle there
 FROZEN_AFTER = 0.2  # s of commanded motion without a single encoder count -> frozen encoder
 
 
@@ -88,7 +89,12 @@ class Initialization(Component):
         return None
 
     def at_start(self) -> bool:
-        return self.trajectory is not None and self.t_trajectory >= self.trajectory.duration
+        """The move to the start position is over and every axis has settled there
+        (within one encoder count), so the program starts exactly from the start position."""
+        if self.trajectory is None or self.t_trajectory < self.trajectory.duration:
+            return False
+        measured = self.robot.positions
+        return all(abs(m - a.home) * a.counts_per_unit <= 1.0 for m, a in zip(measured, self.axes))
 
     # ---- the sequence: a sub-machine for the supervisor ----
     def machine(self, clock) -> FSM:
@@ -245,7 +251,12 @@ class _Sequence:
             self._fail(f"cannot plan the move to the start position: {problem}")
 
     def run_start(self) -> None:
-        pass
+        trajectory = self.init.trajectory
+        if trajectory is not None and self.init.t_trajectory > trajectory.duration + SETTLE_TIMEOUT:
+            far = [f"{a.name} ({m - a.home:+.4f} {a.unit})" for m, a in zip(self.robot.positions, self.init.axes)
+                   if abs(m - a.home) * a.counts_per_unit > 1.0]
+            self._fail(f"the axes did not settle at the start position within {SETTLE_TIMEOUT:g} s: "
+                       + ", ".join(far))
 
     def finish(self) -> None:
         self.init.step_name = "done"

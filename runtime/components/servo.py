@@ -67,6 +67,11 @@ class ServoController(Component):
         """Hold the position the robot is at now."""
         self.set_mode("hold")
 
+    def hold_at(self, position) -> None:
+        """Hold a given position (the last setpoint of a sequence, exactly)."""
+        self.set_mode("hold")
+        self.hold_position = self.reference = tuple(position)
+
     def hold_reference(self) -> None:
         """Hold the last reference (where a finished move wants the robot to be)."""
         reference = self.reference

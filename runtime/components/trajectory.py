@@ -61,6 +61,7 @@ class TrajectoryGenerator(Component):
         self.moves: list[MoveRecord] = []
         self.log_lines: list[tuple[float, int, str]] = []
         self.fault: str | None = None
+        self.start_position: tuple | None = None  # the commanded position to plan from (else sens_pos)
 
     def load(self, program: Program) -> None:
         """Not real-time: the program to run at the next start."""
@@ -69,7 +70,7 @@ class TrajectoryGenerator(Component):
     def on_start(self) -> bool:
         if self.program is None:
             return False
-        position = self.sens_pos.read() or (0.0,) * self.n
+        position = self.start_position or self.sens_pos.read() or (0.0,) * self.n
         self.positions = tuple(position)
         self.velocities = (0.0,) * self.n
         self.trajectory = None

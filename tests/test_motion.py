@@ -26,6 +26,7 @@ from hypothesis import strategies as st
 
 from runtime.motion.interpolator import ACCELERATION_FACTOR, VELOCITY_OVERSHOOT, Interpolator
 from runtime.motion.planner import (
+    DISTANCE_EPSILON,
     MAX_DURATION,
     PtpInput,
     PtpTrajectory,
@@ -398,6 +399,7 @@ def check_planned(inp: PtpInput):
     assert result in (Result.WORKING, Result.FINISHED), message
     n = len(inp.current_position)
     distances = [t - s for s, t in zip(inp.current_position, inp.target_position)]
+    distances = [0.0 if abs(d) < DISTANCE_EPSILON else d for d in distances]  # no motion below it
     minima = [minimum_duration(distances[i], inp.max_velocity[i], inp.max_acceleration[i])
               for i in range(n)]
     # duration: the largest per-axis minimum, so the slowest axis is time-optimal
@@ -439,7 +441,7 @@ def check_samples(inp: PtpInput, traj: PtpTrajectory, times: np.ndarray, dense: 
     assert np.all(np.abs(vel) <= v_max * (1 + REL))
     assert np.all(np.abs(acc) <= a_max)
     # start together, stop together, exactly at the targets
-    assert np.array_equal(pos[0], start) and np.all(vel[0] == 0.0)
+    assert np.all(np.abs(pos[0] - start) < DISTANCE_EPSILON) and np.all(vel[0] == 0.0)
     end = traj.sample(traj.duration)
     assert end == (inp.target_position, (0.0,) * len(start))
     for p, goal in zip(traj.profiles, inp.target_position):
@@ -449,7 +451,7 @@ def check_samples(inp: PtpInput, traj: PtpTrajectory, times: np.ndarray, dense: 
     after = times >= traj.duration
     assert np.all(pos[after] == target) and np.all(vel[after] == 0.0)
     inside = (times > 0) & (times < traj.duration)
-    moving = start != target
+    moving = np.abs(target - start) >= DISTANCE_EPSILON  # below it an axis is already there
     assert np.all(np.abs(vel[np.ix_(inside, moving)]) > 0.0)
     assert np.all(vel[np.ix_(inside, ~moving)] == 0.0)
     # monotonic towards the target on every axis
@@ -643,3 +645,16 @@ def test_interpolator_is_c1_across_setpoints():
             _, v_set = traj.sample((k - 1) * SETPOINT_DT)
             left = interp.sample_velocity((k - 1) * SETPOINT_DT + e)
             assert left == pytest.approx(v_set, abs=40.0 * 2 * e * 10)
+
+
+def test_subnormal_distances_are_no_motion_and_end_exactly_at_the_target():
+    """Found by hypothesis: a distance of 5e-324 underflowed to a zero duration (sampled
+    at t = 0 it returned the start) and to a zero velocity on a 'moving' axis."""
+    start = (0.0, 0.0, 0.0, 5e-324, 0.0, 0.0)
+    limits = ((15.0,) * 6, (40.0,) * 6)
+    result, traj, _ = plan_ptp(PtpInput(start, (0.0,) * 6, *limits))
+    assert result >= 0 and traj.sample(traj.duration) == ((0.0,) * 6, (0.0,) * 6)
+    result, traj, _ = plan_ptp(PtpInput(start, (0.0, 0.0, 0.0, 0.0, 0.0, 25.0), *limits))
+    pos, vel = traj.sample(traj.duration / 2)
+    assert pos[3] == 0.0 and vel[3] == 0.0 and vel[5] > 0.0
+    assert traj.sample(traj.duration)[0] == (0.0, 0.0, 0.0, 0.0, 0.0, 25.0)

@@ -152,11 +152,11 @@ class PtpTrajectory:
         start positions, from ``duration`` on exactly at the target positions.
         Real-time safe: plain float arithmetic, two result tuples.
         """
+        duration = self.duration
+        if t >= duration:  # first: a zero-length move is at its target at once
+            return self.target_position, self._zeros
         if not t > 0.0:  # also catches NaN
             return self.start_position, self._zeros
-        duration = self.duration
-        if t >= duration:
-            return self.target_position, self._zeros
         positions = []
         velocities = []
         for start, end, v, a, t_acc, t_dec in self._params:
@@ -277,6 +277,10 @@ def _plainly_valid(inp: object) -> bool:
         return False
 
 
+#: Distances (deg or mm) below this are no motion: the axis counts as at its target.
+DISTANCE_EPSILON = 1e-12
+
+
 def plan_ptp(inp: PtpInput) -> tuple[Result, PtpTrajectory | None, str]:
     """Plan the synchronised time-optimal PTP move described by ``inp``.
 
@@ -305,6 +309,9 @@ def plan_ptp(inp: PtpInput) -> tuple[Result, PtpTrajectory | None, str]:
                 return (Result.ERROR_INVALID_INPUT, None,
                         f"axis {i + 1}: target_position - current_position overflows, got "
                         f"{_fmt(target[i])} - {_fmt(start[i])}")
+            if -DISTANCE_EPSILON < d < DISTANCE_EPSILON:  # already there: no motion at all
+                d = 0.0
+                start = start[:i] + (target[i],) + start[i + 1:]
             distances[i] = d
             minima[i] = _minimum_duration(d, v_max[i], a_max[i])
         duration = max(minima)

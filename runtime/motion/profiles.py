@@ -86,11 +86,11 @@ class TrapezoidalProfile:
         ``start``, after the end at ``start + distance`` (velocity and acceleration 0).
         Real-time safe.
         """
+        t_total = self.t_total
+        if t >= t_total:  # first: a zero-length profile is at its end at once
+            return (self._end, 0.0, 0.0)
         if not t > 0.0:  # also catches NaN
             return (self.start, 0.0, 0.0)
-        t_total = self.t_total
-        if t >= t_total:
-            return (self._end, 0.0, 0.0)
         t_acc = self.t_acc
         if t < t_acc:
             a = self.accel

@@ -29,6 +29,12 @@ tool = { x = 0.0, y = 0.0, z = 100.0, roll = 0.0, pitch = 0.0, yaw = 0.0 }
 kp = 40.0                     # 1/s, position loop gain
 ki = 2.0                      # 1/s^2
 following_error_limit = 2.0   # deg
+# Deadline policy of the 1 ms servo task (wall clock): "hard" (one miss faults), "firm"
+# (more than servo_miss_limit misses within servo_miss_window ticks fault) or "soft".
+# 50 in 1000 suits a general-purpose kernel; on a real-time kernel, tighten it.
+servo_miss_policy = "firm"
+servo_miss_limit = 50
+servo_miss_window = 1000
 
 [[axis]]
 name = "A1"

@@ -62,7 +62,10 @@ class RobotSystem:
         self.supervisor = Supervisor(self.clock, self.robot, self.servo, self.init, self.trajectory, self.report,
                                      self.executive, self.memory, StateFile(options.state_dir, identity))
         ex, robot = self.executive, self.robot
-        servo_policy = MissPolicy("firm", limit=10, window=1000)
+        controller = spec.controller
+        servo_policy = MissPolicy(str(controller.get("servo_miss_policy", "firm")),
+                                  limit=int(controller.get("servo_miss_limit", 50)),
+                                  window=int(controller.get("servo_miss_window", 1000)))
         ex.add("robot.read", robot.read, TICK, "sense", component=robot)
         ex.add("supervisor", self.supervisor.step, TICK, "decide")
         ex.add("initialization", self.init.update, 0.005, "plan", component=self.init)

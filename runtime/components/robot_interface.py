@@ -9,6 +9,8 @@ same methods.
 """
 from __future__ import annotations
 
+from operator import add
+
 from ..component import Component, DataPort
 
 
@@ -54,10 +56,11 @@ class RobotInterface(Component):
         """Real-time (sense): encoders -> positions, velocity estimate -> ``sens_pos``.
         Homing sensors and index pulses are taken only while ``homing`` is set (the
         index counters only grow, so nothing is missed between reads)."""
-        counts, events, latched, sensors = self.backend.read()
-        self.counts = counts
         if self.homing:
-            self.index_events, self.latched, self.sensors = events, latched, sensors
+            counts, self.index_events, self.latched, self.sensors = self.backend.read()
+        else:
+            counts = self.backend.read_counts()
+        self.counts = counts
         scale, offset = self.scale, self.offset
         positions = tuple([c * s + o for c, s, o in zip(counts, scale, offset)])
         self.positions = positions
@@ -69,15 +72,9 @@ class RobotInterface(Component):
         command = self.out_vel.value
         if command is None:
             command = self._zeros
-        limits = self._limits
-        out = [v + c for v, c in zip(command, self.compensation)]
-        for i, m in enumerate(limits):
-            v = out[i]
-            if v > m:
-                out[i] = m
-            elif v < -m:
-                out[i] = -m
-        self.last_command = out = tuple(out)
+        out = tuple([m if v > m else -m if v < -m else v
+                     for v, m in zip(map(add, command, self.compensation), self._limits)])
+        self.last_command = out
         self.backend.step(self.tick, out)
 
     @property

@@ -229,6 +229,10 @@ class SimRobot:
         sensors = tuple([not dead[i] and abs(xs[i] - at[i]) <= window[i] for i in range(self.n_axes)])
         return tuple(self._counts), tuple(self._index_events), tuple(self._latched), sensors
 
+    def read_counts(self) -> tuple[int, ...]:
+        """Only the encoder counts (the per-tick read once homing is done). Real-time."""
+        return tuple(self._counts)
+
     def release_brakes(self) -> None:
         """Start releasing the brakes; effective after ``brake_time``. Real-time."""
         self._command_brakes(False)

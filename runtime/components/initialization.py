@@ -171,7 +171,11 @@ class _Sequence:
         self.init.step_name = f"sensor {a.name}"
         # Inside the window already? Leave it upwards first, so the edge found is the upper one.
         self.phase = "leave" if self.robot.sensors[self.axis] else "search"
-        self.init.ramp(self.axis, a.search_velocity if self.phase == "leave" else -a.search_velocity)
+        self._search(a.search_velocity if self.phase == "leave" else -a.search_velocity)
+
+    def _search(self, velocity: float) -> None:
+        """Start moving the current axis at ``velocity``, watching its encoder."""
+        self.init.ramp(self.axis, velocity)
         self.travel_start = self.init.positions[self.axis]
         self.last_counts, self.still_since = self.robot.counts[self.axis], self.init.robot_now()
         self.search_counts = self.last_counts
@@ -211,10 +215,7 @@ class _Sequence:
         a = self.init.axes[self.axis]
         self.init.step_name = f"index {a.name}"
         self.index_seen = self.robot.index_events[self.axis]
-        self.init.ramp(self.axis, -a.search_velocity)
-        self.travel_start = self.init.positions[self.axis]
-        self.last_counts, self.still_since = self.robot.counts[self.axis], self.init.robot_now()
-        self.search_counts = self.last_counts
+        self._search(-a.search_velocity)
 
     def run_index(self) -> None:
         if self.all_axes_done() or self.init.fault:

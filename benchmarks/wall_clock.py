@@ -40,7 +40,7 @@ def bare_block(ticks: int, clock: WallClock, start: float) -> list[float]:
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--seconds", type=float, default=20.0, help="wall seconds per loop, in total")
-    ap.add_argument("--blocks", type=int, default=10)
+    ap.add_argument("--blocks", type=int, default=80)
     args = ap.parse_args()
     result = compile_file(ROOT / "programs" / "test.irl")
     system = RobotSystem(result.spec, RunOptions(realtime=True))

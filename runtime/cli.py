@@ -220,16 +220,15 @@ def cmd_run(args, env: Environment) -> int:
     except ValueError as exc:  # refused at load time (e.g. a move kind not supported yet)
         _err(env, f"{args.file}: {exc}")
         return EXIT_INVALID
+    plot_status = _plot(args.report, args.plot, env) if args.plot else EXIT_OK  # files first, then words
     if args.json:
         import json
 
-        _print(env, json.dumps({k: v for k, v in summary.items()}, indent=2))
+        _print(env, json.dumps(summary, indent=2))
     else:
         _print_summary(env, summary)
-    if args.plot:
-        status = _plot(args.report, args.plot, env)
-        if status:
-            return status
+    if plot_status:
+        return plot_status
     return EXIT_INVALID if summary["fault"] else EXIT_OK
 
 
@@ -319,7 +318,7 @@ def main(argv: list[str] | None = None, env: Environment | None = None) -> int:
     except KeyboardInterrupt:
         _err(env, "irl: interrupted")
         return 130
-    except BrokenPipeError:
+    except BrokenPipeError:  # the reader went away (e.g. `| head`): nothing more to say
         return EXIT_OK
     except Exception as exc:  # the last guard: a user never sees a traceback
         _err(env, f"irl: internal error: {type(exc).__name__}: {exc}\n"

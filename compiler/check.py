@@ -17,7 +17,7 @@ from .objcode import BUILTINS, CLAUSES, MAX_COUNT
 from .semantics import (INT_MAX, INT_MIN, EvalError, binary, call_builtin, make_joint, make_pos, make_quat,
                         make_rpy, unary)
 from .spec import Spec
-from .values import AddJoint, Joint, MainJoint, Pose, Position, Quat, Rpy
+from .values import AddJoint, Joint, MainJoint, Pose
 
 # ---- types ---------------------------------------------------------------------------------
 

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 from ..component import Component, DataPort
 from ..fsm import FSM, State, Transition
-from ..motion.planner import PtpInput, Result, plan_ptp
+from ..motion.planner import PtpInput, plan_ptp
 
 HOME_SPEED = 0.2  # fraction of each axis's maximum velocity and acceleration for "Go To Start"
 SETTLE_TIMEOUT = 2.0  # s after the move to the start position for every axis to settle there

@@ -98,7 +98,7 @@ class Supervisor:
                      or self.servo.error_message or self.init.fault or self.trajectory.fault
                      or self.trajectory.error_message or self.report.error_message)
             if found is not None:
-                where = self.fsm.path() if hasattr(self, "fsm") else ""
+                where = self.fsm.path()
                 if self.fsm.state == INITIALIZE and self.init.step_name:
                     where += f" ({self.init.step_name})"
                 self.fault = f"{where}: {found}" if where else found

@@ -108,7 +108,7 @@ class RobotSystem:
             gc.unfreeze()
             error = self.report.close()
             if self.options.report:
-                write_states(Path(str(self.options.report)) .with_suffix(".states.csv"), sup.fsm.history)
+                write_states(Path(self.options.report).with_suffix(".states.csv"), sup.fsm.history)
         summary = self.summary(time.perf_counter() - wall0)
         if error:
             summary["fault"] = summary["fault"] or error

@@ -68,7 +68,6 @@ class Report(Component):
         self.writer: ReportWriter | None = None
         self.batch: list = []
         self.rows: list = []  # every row, for the summary and plots (kept in memory)
-        self.keep_rows = True
         self.dropped = 0
 
     def header(self) -> list[str]:
@@ -95,8 +94,7 @@ class Report(Component):
         vel = self.out_vel.read() or (0.0,) * n
         servo = self.servo
         row = (now, self.state_of(), *pos, *servo.reference, *vel, *servo.following_error)
-        if self.keep_rows:
-            self.rows.append(row)
+        self.rows.append(row)
         self.batch.append(row)
         if len(self.batch) >= FLUSH_ROWS:
             self._hand_over()

@@ -11,6 +11,7 @@ hard (one miss faults), firm (more than N misses in a window of W ticks faults),
 """
 from __future__ import annotations
 
+import math
 import time
 from array import array
 from dataclasses import dataclass, field
@@ -24,6 +25,9 @@ PHASES = ("sense", "decide", "plan", "control", "act", "record")
 
 #: With the simulated clock, execution times are measured on one tick in this many.
 SIM_SAMPLE_EVERY = 8
+
+#: The largest schedule table (ticks of the periods' least common multiple) precomputed.
+MAX_HYPERPERIOD = 10_000
 
 #: Lateness histogram: 10 us bins up to 20 ms (the last bin holds everything later).
 _BIN = 10e-6
@@ -135,6 +139,8 @@ class Executive:
         self.fault: str | None = None
         self.tick_late_max = 0.0
         self._last_tick_late = 0.0  # how late the last tick started (wall clock)
+        self._hyper = 1  # ticks in the schedule table (0: no table)
+        self._due: list[tuple[Task, ...]] = [()]  # tasks due on each tick of the table
 
     def add(self, name: str, run: Callable[[float], None], period: float, phase: str,
             enabled: Callable[[], bool] | None = None, policy: MissPolicy | None = None,
@@ -149,7 +155,16 @@ class Executive:
         task = Task(name, run, ticks, phase, enabled, component, policy or MissPolicy())
         self.tasks.append(task)
         self.tasks.sort(key=lambda t: PHASES.index(t.phase))  # stable: insertion order within a phase
+        self._plan()
         return task
+
+    def _plan(self) -> None:
+        """The schedule: for each tick of the hyperperiod (the periods' least common
+        multiple), the tasks due on it, in phase order. Periods whose hyperperiod exceeds
+        MAX_HYPERPERIOD ticks get no table: each tick then picks its due tasks itself."""
+        hyper = math.lcm(*(t.period for t in self.tasks))
+        self._hyper = hyper if hyper <= MAX_HYPERPERIOD else 0
+        self._due = [tuple([t for t in self.tasks if k % t.period == 0]) for k in range(self._hyper)]
 
     def step(self) -> None:
         """One tick (real-time): wait for its start, then run every due task in phase order."""
@@ -168,9 +183,8 @@ class Executive:
             if start_late > self.tick_late_max:
                 self.tick_late_max = start_late
         t1 = perf() if timed else 0.0
-        for task in self.tasks:
-            if k % task.period:
-                continue
+        due = self._due[k % self._hyper] if self._hyper else [t for t in self.tasks if k % t.period == 0]
+        for task in due:
             component = task.component
             if component is not None and component.lifecycle is not _RUNNING:
                 continue

@@ -60,8 +60,8 @@ class FSMError(Exception):
 class _Compiled:
     state: State
     entry: Program
-    run: Program
-    handle: Program
+    run: Program | None
+    handle: Program | None
     exit: Program
     transitions: tuple = ()  # ((target, guard|None, program, event|None, compiled-target), ...)
 
@@ -96,8 +96,8 @@ class FSM:
         if self.mode not in (AUTOMATIC, REACTIVE):
             raise FSMError(f"{self.name}: mode must be {AUTOMATIC!r} or {REACTIVE!r}")
         for s in self.states:
-            self._by_name[s.name] = _Compiled(s, s.entry or _nothing, s.run or _nothing,
-                                              s.handle or _nothing, s.exit or _nothing)
+            # run and handle stay None when absent: the step skips them (it runs every cycle)
+            self._by_name[s.name] = _Compiled(s, s.entry or _nothing, s.run, s.handle, s.exit or _nothing)
         rows: dict[str, list] = {n: [] for n in names}
         for t in self.transitions:
             if t.source not in rows or t.target not in rows:
@@ -183,13 +183,8 @@ class FSM:
         sub = current.state.sub
         if sub is not None and sub.active and not sub.finished:
             sub.step()
-        current.run()
-        fired = self._try_transitions(current, pending)
-        if not fired:
-            current.handle()
-        return fired
-
-    def _try_transitions(self, current: _Compiled, events) -> bool:
+        if current.run is not None:
+            current.run()
         requested = self._requested
         self._requested = None
         automatic = self.mode == AUTOMATIC
@@ -198,7 +193,7 @@ class FSM:
                 if target != requested:
                     continue
             elif event is not None:
-                if event not in events:
+                if event not in pending:
                     continue
             elif not automatic:
                 continue
@@ -208,6 +203,8 @@ class FSM:
             self._leave(current)
             self._enter(compiled, current.state.name)
             return True
+        if current.handle is not None:
+            current.handle()
         return False
 
     def _leave(self, compiled: _Compiled) -> None:

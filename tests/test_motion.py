@@ -658,3 +658,29 @@ def test_subnormal_distances_are_no_motion_and_end_exactly_at_the_target():
     pos, vel = traj.sample(traj.duration / 2)
     assert pos[3] == 0.0 and vel[3] == 0.0 and vel[5] > 0.0
     assert traj.sample(traj.duration)[0] == (0.0, 0.0, 0.0, 0.0, 0.0, 25.0)
+
+
+def _hermite_eval(interp: Interpolator, t: float):
+    coeffs, h01, h10, h11, d01, d10, d11 = interp.hermite(t)
+    return (tuple(p0 + h01 * dp + h10 * hv0 + h11 * hv1 for p0, dp, hv0, hv1 in coeffs),
+            tuple(d01 * dp + d10 * hv0 + d11 * hv1 for _p0, dp, hv0, hv1 in coeffs))
+
+
+finite = st.floats(-1e3, 1e3, allow_nan=False)
+
+
+@settings(max_examples=200, deadline=None)
+@given(st.lists(st.tuples(st.floats(1e-3, 0.02), finite, finite, finite, finite), min_size=0, max_size=4),
+       st.lists(st.floats(-0.05, 0.1), min_size=1, max_size=8))
+def test_property_hermite_weights_reproduce_sample_bit_for_bit(setpoints, times):
+    """The servo evaluates the reference from hermite(); it must equal sample() and
+    sample_velocity() exactly: holding, before t0, between the setpoints, after them."""
+    interp = Interpolator((1.5, -2.0))
+    t = 0.0
+    for dt, p0, p1, v0, v1 in setpoints:
+        t += dt
+        interp.push(t, (p0, p1), (v0, v1))
+        for q in times:
+            position, velocity = _hermite_eval(interp, t + q)
+            assert position == interp.sample(t + q)
+            assert velocity == interp.sample_velocity(t + q)

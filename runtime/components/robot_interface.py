@@ -9,8 +9,6 @@ same methods.
 """
 from __future__ import annotations
 
-from operator import add
-
 from ..component import Component, DataPort
 
 
@@ -38,7 +36,6 @@ class RobotInterface(Component):
         self.latched = (0,) * self.n
         self.sensors = (False,) * self.n
         self.positions = (0.0,) * self.n
-        self.velocities = (0.0,) * self.n
         self.last_command = (0.0,) * self.n
         self.homing = True  # read sensors and index pulses (the initialization needs them)
         self._zeros = (0.0,) * self.n
@@ -61,25 +58,28 @@ class RobotInterface(Component):
         else:
             counts = self.backend.read_counts()
         self.counts = counts
-        scale, offset = self.scale, self.offset
-        positions = tuple([c * s + o for c, s, o in zip(counts, scale, offset)])
+        positions = self.estimator.update_counts(counts, self.scale, self.offset)
         self.positions = positions
-        self.velocities = self.estimator.update(positions)[1]
         self.sens_pos.write(positions, now)
+
+    @property
+    def velocities(self) -> tuple[float, ...]:
+        """Each axis's estimated velocity (the alpha-beta filter's, at the last read)."""
+        return self.estimator.velocities
 
     def write(self, now: float) -> None:
         """Real-time (act): ``out_vel`` + compensation, clamped, to the drives."""
         command = self.out_vel.value
         if command is None:
             command = self._zeros
-        out = tuple([m if v > m else -m if v < -m else v
-                     for v, m in zip(map(add, command, self.compensation), self._limits)])
+        limits = self._limit_cache if self._limit_scale == self.velocity_limit_scale else self._refresh_limits()
+        out = []
+        for v, c, m in zip(command, self.compensation, limits):
+            v += c
+            out.append(m if v > m else -m if v < -m else v)
+        out = tuple(out)
         self.last_command = out
         self.backend.step(self.tick, out)
-
-    @property
-    def _limits(self) -> tuple:
-        return self._limit_cache if self._limit_scale == self.velocity_limit_scale else self._refresh_limits()
 
     def _refresh_limits(self) -> tuple:
         self._limit_scale = self.velocity_limit_scale

@@ -41,22 +41,26 @@ class ServoController(Component):
         self.source: DataPort | None = None
         self.last_stamp = -1.0
         self.integral = [0.0] * self.n
-        self.hold_position = (0.0,) * self.n
-        self.reference = (0.0,) * self.n
-        self.following_error = (0.0,) * self.n
+        self.position = (0.0,) * self.n  # sens_pos at the last update
+        self._hold((0.0,) * self.n)
         self.max_following_error = 0.0
         self._zeros = (0.0,) * self.n
 
     def set_mode(self, mode: str) -> None:
         """Not real-time: choose where the reference comes from."""
-        position = self.sens_pos.read() or (0.0,) * self.n
+        position = tuple(self.sens_pos.read() or (0.0,) * self.n)
         self.mode = mode
         self.source = {"trajectory": self.desi_pos, "initialization": self.init_pos}.get(mode)
-        self.interpolator = self.interpolator_factory(tuple(position))
+        self.interpolator = self.interpolator_factory(position)
         self.last_stamp = -1.0
         self.integral = [0.0] * self.n
+        self._hold(position)
+        self.position = position
+
+    def _hold(self, position) -> None:
         self.hold_position = tuple(position)
-        self.reference = tuple(position)
+        self._held = (tuple([(p, 0.0, 0.0, 0.0) for p in self.hold_position]), 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
+        self._reference = self._held
 
     def rebase(self) -> None:
         """An encoder was reset: drop setpoints in the old coordinates (start afresh from
@@ -70,28 +74,39 @@ class ServoController(Component):
     def hold_at(self, position) -> None:
         """Hold a given position (the last setpoint of a sequence, exactly)."""
         self.set_mode("hold")
-        self.hold_position = self.reference = tuple(position)
+        self._hold(position)
 
     def hold_reference(self) -> None:
         """Hold the last reference (where a finished move wants the robot to be)."""
         reference = self.reference
         self.set_mode("hold")
-        self.hold_position = reference
-        self.reference = reference
+        self._hold(reference)
+
+    @property
+    def reference(self) -> tuple[float, ...]:
+        """The position reference of the last update (deg per axis)."""
+        coeffs, h01, h10, h11 = self._reference[:4]
+        return tuple([p0 + h01 * dp + h10 * hv0 + h11 * hv1 for p0, dp, hv0, hv1 in coeffs])
+
+    @property
+    def following_error(self) -> tuple[float, ...]:
+        """Reference - measured position of the last update (deg per axis)."""
+        return tuple([r - x for r, x in zip(self.reference, self.position)])
 
     def on_start(self) -> bool:
         self.set_mode(self.mode)
         return True
 
     def update(self, now: float) -> None:
-        """Real-time: one servo period."""
-        position = self.sens_pos.read()
-        n = self.n
-        if self.mode == "zero" or position is None:
+        """Real-time: one servo period. The reference and its velocity (feed-forward) are
+        evaluated inside the per-axis loop from the interpolator's Hermite weights."""
+        position = self.sens_pos.value
+        mode = self.mode
+        if mode == "zero" or position is None:
             self.out_vel.write(self._zeros, now)
             return
-        if self.mode == "hold":
-            reference, velocity = self.hold_position, self._zeros
+        if mode == "hold":
+            reference = self._held
         else:
             port = self.source
             if port.stamp != self.last_stamp and port.value is not None:
@@ -100,28 +115,26 @@ class ServoController(Component):
                 self.last_stamp = port.stamp
             # The reference runs one setpoint period behind, so that there are always two
             # setpoints to interpolate between (the interpolator's documented delay).
-            reference, velocity = self.interpolator.sample_both(now - self.setpoint_period)
-        self.reference = reference
+            reference = self.interpolator.hermite(now - self.setpoint_period)
+        self._reference = reference
+        self.position = position
+        coeffs, h01, h10, h11, d01, d10, d11 = reference
         kp, ki, dt = self.kp, self.ki, self.tick
         integral = self.integral
-        max_velocity = self.max_velocity
-        out = [0.0] * n
-        errors = [0.0] * n
+        out = [0.0] * self.n
         worst = 0.0
-        worst_axis = 0
-        for i in range(n):
-            e = reference[i] - position[i]
-            errors[i] = e
+        worst_axis = i = 0
+        for (p0, dp, hv0, hv1), x, vmax in zip(coeffs, position, self.max_velocity):
+            e = p0 + h01 * dp + h10 * hv0 + h11 * hv1 - x
             if e > worst or -e > worst:
                 worst, worst_axis = (e if e > 0.0 else -e), i
-            vmax = max_velocity[i]
-            u = velocity[i] + kp * e + ki * integral[i]
+            u = d01 * dp + d10 * hv0 + d11 * hv1 + kp * e + ki * integral[i]
             if -vmax < u < vmax:  # anti-windup: integrate only while the output is not saturated
                 integral[i] += e * dt
             else:
                 u = vmax if u > 0.0 else -vmax
             out[i] = u
-        self.following_error = tuple(errors)
+            i += 1
         if worst > self.max_following_error:
             self.max_following_error = worst
         self.out_vel.write(tuple(out), now)

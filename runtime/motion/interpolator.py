@@ -37,7 +37,7 @@ Elsewhere (inside an acceleration, cruise or deceleration phase) the reference e
 the profile. A caller that needs the 1 ms references strictly within a velocity limit
 ``v`` plans with ``v - VELOCITY_OVERSHOOT * a * h`` (the tests check this).
 
-Real time: :meth:`Interpolator.push` and :meth:`Interpolator.sample` run in the loop;
+Real time: :meth:`Interpolator.push` and :meth:`Interpolator.hermite` (or :meth:`sample`) run in the loop;
 plain floats and tuples, no NumPy, one small tuple per call.
 """
 from __future__ import annotations
@@ -64,7 +64,8 @@ class Interpolator:
     it returns that one's positions.
     """
 
-    __slots__ = ("_n", "_t0", "_t1", "_h", "_p0", "_p1", "_v1", "_zeros", "_coeffs", "_count")
+    __slots__ = ("_n", "_t0", "_t1", "_h", "_p0", "_p1", "_v1", "_zeros", "_coeffs", "_count",
+                 "_hold", "_hold_for")
 
     def __init__(self, initial_positions):
         self.reset(initial_positions)
@@ -78,6 +79,8 @@ class Interpolator:
         self._coeffs = ()  # per axis: (p0, p1 - p0, h v0, h v1) of the current interval
         self._t0 = self._t1 = self._h = 0.0
         self._count = 0
+        self._hold_for = None  # the positions self._hold was made for
+        self._hold = ()
 
     @property
     def setpoints(self) -> int:
@@ -138,26 +141,32 @@ class Interpolator:
         return tuple([p0 + h01 * dp + h10 * hv0 + h11 * hv1
                       for p0, dp, hv0, hv1 in self._coeffs])
 
-    def sample_both(self, t: float) -> tuple[tuple[float, ...], tuple[float, ...]]:
-        """``(sample(t), sample_velocity(t))`` in one pass (the servo's call). Real-time safe."""
-        if self._count < 2 or not t < self._t1:
-            return self._p1, self._zeros
-        s = t - self._t0
-        if not s > 0.0:
-            return self._p0, self.sample_velocity(t)
+    def hermite(self, t: float) -> tuple:
+        """The servo's call, for evaluating the reference inside its own per-axis loop:
+        ``(coefficients, h01, h10, h11, d01, d10, d11)``, where per axis
+        ``coefficients[i] = (p0, dp, hv0, hv1)`` and::
+
+            position = p0 + h01 dp + h10 hv0 + h11 hv1      (= sample(t)[i])
+            velocity = d01 dp + d10 hv0 + d11 hv1           (= sample_velocity(t)[i])
+
+        bit for bit, in every case (holding the last position, before the first of the
+        two setpoints, between them). Real-time safe: no allocation except when a new
+        last setpoint is first held.
+        """
+        if self._count < 2 or not t < self._t1:  # hold the last position, at rest
+            if self._hold_for is not self._p1:
+                self._hold_for = self._p1
+                self._hold = (tuple([(p, 0.0, 0.0, 0.0) for p in self._p1]), 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
+            return self._hold
         h = self._h
+        s = t - self._t0
+        if not s > 0.0:  # before t0: its position, its velocity
+            return self._coeffs, 0.0, 0.0, 0.0, 0.0, 1.0 / h, 0.0
         u = s / h
         u2 = u * u
         u3 = u2 * u
-        h01 = 3.0 * u2 - 2.0 * u3
-        h10 = u3 - 2.0 * u2 + u
-        h11 = u3 - u2
-        d01 = (6.0 * u - 6.0 * u2) / h
-        d10 = (3.0 * u2 - 4.0 * u + 1.0) / h
-        d11 = (3.0 * u2 - 2.0 * u) / h
-        coeffs = self._coeffs
-        return (tuple([p0 + h01 * dp + h10 * hv0 + h11 * hv1 for p0, dp, hv0, hv1 in coeffs]),
-                tuple([d01 * dp + d10 * hv0 + d11 * hv1 for _, dp, hv0, hv1 in coeffs]))
+        return (self._coeffs, 3.0 * u2 - 2.0 * u3, u3 - 2.0 * u2 + u, u3 - u2,
+                (6.0 * u - 6.0 * u2) / h, (3.0 * u2 - 4.0 * u + 1.0) / h, (3.0 * u2 - 2.0 * u) / h)
 
     def sample_velocity(self, t: float) -> tuple[float, ...]:
         """Velocity (unit/s) of the interpolated reference at ``t`` (s), for a servo's

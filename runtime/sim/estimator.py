@@ -93,6 +93,28 @@ class AlphaBeta:
             vs[i] = v + beta_dt * residual
         return tuple(xs), tuple(vs)
 
+    def update_counts(self, counts, scale, offset) -> tuple[float, ...]:
+        """:meth:`update` with the measurement made from encoder counts in the same loop:
+        ``z[i] = counts[i] * scale[i] + offset[i]``. Returns the measured positions ``z``
+        (the estimates are in :attr:`positions` and :attr:`velocities`). Real-time."""
+        xs, vs = self._x, self._v
+        if not self._started:
+            self.reset([c * k + o for c, k, o in zip(counts, scale, offset)])
+            return tuple(xs)
+        dt, alpha, beta_dt = self.dt, self.alpha, self._beta_dt
+        measured = [0.0] * self.n_axes
+        i = 0
+        for c, k, o in zip(counts, scale, offset):
+            z = c * k + o
+            measured[i] = z
+            v = vs[i]
+            predicted = xs[i] + v * dt
+            residual = z - predicted
+            xs[i] = predicted + alpha * residual
+            vs[i] = v + beta_dt * residual
+            i += 1
+        return tuple(measured)
+
     @property
     def positions(self) -> tuple[float, ...]:
         return tuple(self._x)

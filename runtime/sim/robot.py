@@ -122,10 +122,15 @@ class SimRobot:
         self._index_events = [0] * n
         self._latched = [0] * n
         self._index_active = [False] * n
+        self._edge_lo = [0.0] * n
+        self._edge_hi = [0.0] * n
+        for i in range(n):
+            self._set_edges(i)
         # faults
         self._sensor_dead = [False] * n
         self._encoder_frozen = [False] * n
         self._drive_dead = [False] * n
+        self._drive_or_encoder_fault = False  # any of the two above: step's slower path
         # brakes: engaged at power-up
         self._brakes_engaged = True
         self._brake_target = True
@@ -159,23 +164,22 @@ class SimRobot:
             for i in range(self.n_axes):
                 vs[i] = 0.0
                 index_active[i] = False
-        else:
-            lo, hi, vmax, offset, dead = self._lo, self._hi, self._vmax, self._offset, self._drive_dead
-            spacing, rev, frozen = self._spacing, self._rev, self._encoder_frozen
+        elif self._drive_or_encoder_fault:
+            self._step_with_faults(dt, velocity_commands)
+        else:  # the common case, kept lean: no fault tables to look at
+            lo, hi, vmax, offset = self._lo, self._hi, self._vmax, self._offset
+            edge_lo, edge_hi = self._edge_lo, self._edge_hi
             counts, base, origin, cpu = self._counts, self._base, self._origin, self._cpu
             for i in range(self.n_axes):
-                if dead[i]:
-                    u = 0.0
-                else:
-                    c = velocity_commands[i]
-                    limit = vmax[i]
-                    if c > limit:
-                        c = limit
-                    elif c < -limit:
-                        c = -limit
-                    elif c != c:  # NaN
-                        c = 0.0
-                    u = c + offset[i]
+                c = velocity_commands[i]
+                limit = vmax[i]
+                if c > limit:
+                    c = limit
+                elif c < -limit:
+                    c = -limit
+                elif c != c:  # NaN
+                    c = 0.0
+                u = c + offset[i]
                 dv = vs[i] - u
                 x = xs[i] + u * dt + dv * k
                 v = u + dv * a
@@ -189,25 +193,11 @@ class SimRobot:
                         v = 0.0
                 xs[i] = x
                 vs[i] = v
-                r = _floor(x / spacing[i])
-                r_old = rev[i]
-                if r != r_old:
-                    rev[i] = r
-                    if frozen[i]:
-                        index_active[i] = False
-                    else:
-                        index_active[i] = True
-                        if r > r_old:  # moving up: the last crossed is r * spacing
-                            self._index_events[i] += r - r_old
-                            z = r * spacing[i]
-                        else:  # moving down: the last crossed is (r + 1) * spacing
-                            self._index_events[i] += r_old - r
-                            z = (r + 1) * spacing[i]
-                        self._latched[i] = base[i] + _floor((z - origin[i]) * cpu[i])
-                else:
+                if edge_lo[i] < x < edge_hi[i]:  # well inside the index interval: no pulse
                     index_active[i] = False
-                if not frozen[i]:
-                    counts[i] = base[i] + _floor((x - origin[i]) * cpu[i])
+                else:
+                    self._index_check(i, x, False)
+                counts[i] = base[i] + _floor((x - origin[i]) * cpu[i])
         if self._brake_timer > 0.0:
             self._brake_timer -= dt
             if self._brake_timer <= 1e-9:
@@ -217,6 +207,73 @@ class SimRobot:
                     for i in range(self.n_axes):
                         vs[i] = 0.0
         self.time += dt
+
+    def _step_with_faults(self, dt: float, velocity_commands) -> None:
+        """:meth:`step`'s per-axis physics while a drive or an encoder fault is injected."""
+        a, k = self._decay, self._lag_gain
+        xs, vs = self._x, self._v
+        lo, hi, vmax, offset, dead = self._lo, self._hi, self._vmax, self._offset, self._drive_dead
+        frozen, counts, base, origin, cpu = self._encoder_frozen, self._counts, self._base, self._origin, self._cpu
+        for i in range(self.n_axes):
+            if dead[i]:
+                u = 0.0
+            else:
+                c = velocity_commands[i]
+                limit = vmax[i]
+                if c > limit:
+                    c = limit
+                elif c < -limit:
+                    c = -limit
+                elif c != c:  # NaN
+                    c = 0.0
+                u = c + offset[i]
+            dv = vs[i] - u
+            x = xs[i] + u * dt + dv * k
+            v = u + dv * a
+            if x > hi[i]:
+                x = hi[i]
+                if v > 0.0:
+                    v = 0.0
+            elif x < lo[i]:
+                x = lo[i]
+                if v < 0.0:
+                    v = 0.0
+            xs[i] = x
+            vs[i] = v
+            self._index_check(i, x, frozen[i])
+            if not frozen[i]:
+                counts[i] = base[i] + _floor((x - origin[i]) * cpu[i])
+
+    def _index_check(self, i: int, x: float, frozen: bool) -> None:
+        """Index pulses of axis ``i`` now at ``x``: detect a crossing of ``k * spacing``,
+        count it and latch the encoder there (unless the encoder is frozen)."""
+        spacing = self._spacing[i]
+        r = _floor(x / spacing)
+        r_old = self._rev[i]
+        if r == r_old:
+            self._index_active[i] = False
+            return
+        self._rev[i] = r
+        self._set_edges(i)
+        if frozen:
+            self._index_active[i] = False
+            return
+        self._index_active[i] = True
+        if r > r_old:  # moving up: the last crossed is r * spacing
+            self._index_events[i] += r - r_old
+            z = r * spacing
+        else:  # moving down: the last crossed is (r + 1) * spacing
+            self._index_events[i] += r_old - r
+            z = (r + 1) * spacing
+        self._latched[i] = self._base[i] + _floor((z - self._origin[i]) * self._cpu[i])
+
+    def _set_edges(self, i: int) -> None:
+        """The open interval strictly inside axis ``i``'s current index interval in which
+        no crossing is possible (a margin keeps the test exact at the interval's ends)."""
+        spacing, r = self._spacing[i], self._rev[i]
+        margin = 1e-9 * spacing * (1 + abs(r))
+        self._edge_lo[i] = r * spacing + margin
+        self._edge_hi[i] = (r + 1) * spacing - margin
 
     def read(self):
         """The encoder side: ``(counts, index_event_counters, latched_index_counts,
@@ -311,6 +368,7 @@ class SimRobot:
         if not 0 <= axis < self.n_axes:
             raise IndexError(f"axis {axis} does not exist: {self.spec.name} has axes 0..{self.n_axes - 1}")
         table[axis] = True
+        self._drive_or_encoder_fault = any(self._encoder_frozen) or any(self._drive_dead)
 
     def clear_faults(self) -> None:
         """Remove every injected fault. The encoder of a frozen axis counts on from the
@@ -320,6 +378,7 @@ class SimRobot:
                 self._base[i] = self._counts[i]
                 self._origin[i] = self._x[i]
             self._sensor_dead[i] = self._encoder_frozen[i] = self._drive_dead[i] = False
+        self._drive_or_encoder_fault = False
 
     def faults(self) -> tuple[tuple[str, int], ...]:
         """The faults in effect, as (fault, axis) pairs."""

@@ -23,6 +23,7 @@ class Environment:
 
     stdout: TextIO = field(default_factory=lambda: sys.stdout)
     stderr: TextIO = field(default_factory=lambda: sys.stderr)
+    stdin: TextIO = field(default_factory=lambda: sys.stdin)
 
 
 class UsageError(Exception):
@@ -302,6 +303,10 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("fsm", help="print the supervisor's state machine as a diagram")
     p.add_argument("--format", choices=("mermaid", "dot"), default="mermaid")
     p.set_defaults(run=cmd_fsm)
+
+    from runtime.netcli import add_commands  # light: ZeroMQ is imported when a command runs
+
+    add_commands(sub)
     return parser
 
 

@@ -230,6 +230,11 @@ class Executive:
                 self.fault = self.fault or (f"deadline: {task.name} missed {len(recent)} deadlines "
                                             f"within {policy.window} ticks (firm)")
 
+    def resync(self) -> None:
+        """Not real-time: after a pause in stepping (a server idle between programs), skip
+        to the next tick boundary of the clock instead of catching up tick by tick."""
+        self.ticks = max(self.ticks, math.ceil(self.clock.now() / self.tick))
+
     def run(self, until: Callable[[], bool], max_ticks: int) -> int:
         """Step until ``until()`` holds or ``max_ticks`` ticks have run; returns ticks run."""
         start = self.ticks

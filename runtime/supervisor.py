@@ -80,13 +80,21 @@ class Supervisor:
         self.n = robot.n
         self.fault: str | None = None
         self.operator_stop: str | None = None
+        self.settled_since: float | None = None
+        self.reset()
+
+    def reset(self) -> None:
+        """Not real-time: a fresh cycle (the machine before Start Robot); what the robot
+        remembers (``memory``) stays."""
+        self.fault = None
+        self.operator_stop = None
         self.t_state = 0.0
         self.calibration_sums = [0.0] * self.n
         self.calibration_samples = 0
         self.calibration_done = False
-        self.settled_since: float | None = None
+        self.settled_since = None
         self.done = False
-        self.init_machine = initialization.machine(clock)
+        self.init_machine = self.init.machine(self.clock)
         self.fsm = self._build()
 
     # ---- guards ----

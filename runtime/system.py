@@ -74,23 +74,52 @@ class RobotSystem:
         ex.add("robot.write", robot.write, TICK, "act", component=robot)
         ex.add("report", self.report.update, 0.01, "record", component=self.report)
 
-    def run(self, program: Program) -> dict:
-        """Power-up to Stop Robot with ``program``; returns the summary (see ``summary``)."""
+    def begin(self, program: Program, report: str | Path | None = None) -> None:
+        """Not real-time: start one cycle of the supervisor (power-up to Stop Robot) with
+        ``program``; the executive's ticks then carry it out (until ``supervisor.done``).
+        Calibration and initialization are remembered from earlier cycles. Raises
+        ValueError if the program cannot run here (checked before anything moves)."""
         problem = unsupported_moves(program)
         if problem:
             raise ValueError(problem)
-        wall0 = time.perf_counter()
+        self._wall0 = time.perf_counter()
+        self._report_path = report
+        self.supervisor.reset()
+        self.servo.max_following_error = 0.0
         self.trajectory.load(program)
-        self.report.open(self.options.report)
+        self.report.open(report)
         self.robot.configure()
         self.robot.start()
         self.supervisor.fsm.start()
+
+    def emergency_stop(self, reason: str = "emergency stop by the operator") -> None:
+        """Real-time safe: drives commanded to zero and the servo off now, brakes applied,
+        the supervisor to Stop Robot (which waits for the brakes, then stops the rest)."""
+        self.robot.apply_brakes()
+        self.servo.out_vel.write((0.0,) * len(self.spec.axes), self.clock.now())
+        self.servo.stop()
+        self.supervisor.request_stop(reason)
+
+    def finish(self) -> dict:
+        """Not real-time: after a cycle ended, flush the report, write the state
+        transitions beside it, and return the cycle's summary."""
+        error = self.report.close()
+        if self._report_path:
+            write_states(Path(self._report_path).with_suffix(".states.csv"), self.supervisor.fsm.history)
+        summary = self.summary(time.perf_counter() - self._wall0)
+        if error:
+            summary["fault"] = summary["fault"] or error
+        return summary
+
+    def run(self, program: Program) -> dict:
+        """Power-up to Stop Robot with ``program``; returns the summary (see ``summary``)."""
+        self.begin(program, self.options.report)
         max_ticks = int(self.options.max_time / TICK)
         sup = self.supervisor
         # The loop allocates small, cycle-free objects every tick; reference counting frees
-        # them. A cyclic collection would walk the whole heap at an arbitrary tick (worse as
-        # the report's rows grow), so it is paused for the run: freeze what setup built, then
-        # disable. It is re-enabled (and run) when the run ends.
+        # them. A cyclic collection would walk the whole heap at an arbitrary tick, so it is
+        # paused for the run: freeze what setup built, then disable. It is re-enabled (and
+        # run) when the run ends.
         gc_was_enabled = gc.isenabled()
         gc.freeze()
         gc.disable()
@@ -106,13 +135,7 @@ class RobotSystem:
             if gc_was_enabled:
                 gc.enable()
             gc.unfreeze()
-            error = self.report.close()
-            if self.options.report:
-                write_states(Path(self.options.report).with_suffix(".states.csv"), sup.fsm.history)
-        summary = self.summary(time.perf_counter() - wall0)
-        if error:
-            summary["fault"] = summary["fault"] or error
-        return summary
+        return self.finish()
 
     def summary(self, wall_time: float) -> dict:
         sup = self.supervisor

@@ -67,7 +67,6 @@ class Report(Component):
         self.path: Path | None = None
         self.writer: ReportWriter | None = None
         self.batch: list = []
-        self.rows: list = []  # every row, for the summary and plots (kept in memory)
         self.dropped = 0
 
     def header(self) -> list[str]:
@@ -77,8 +76,11 @@ class Report(Component):
         return cols
 
     def open(self, path: str | Path | None) -> None:
-        """Not real-time: where to write (None: keep rows in memory only)."""
+        """Not real-time: where to write (None: rows are made but not kept)."""
         self.path = Path(path) if path else None
+        self.writer = None
+        self.batch = []
+        self.dropped = 0
         if self.path is not None:
             try:
                 self.path.parent.mkdir(parents=True, exist_ok=True)
@@ -94,7 +96,6 @@ class Report(Component):
         vel = self.out_vel.read() or (0.0,) * n
         servo = self.servo
         row = (now, self.state_of(), *pos, *servo.reference, *vel, *servo.following_error)
-        self.rows.append(row)
         self.batch.append(row)
         if len(self.batch) >= FLUSH_ROWS:
             self._hand_over()
@@ -114,9 +115,10 @@ class Report(Component):
         """Not real-time: flush and close the file; returns an error message or None."""
         self._hand_over()
         if self.writer is not None:
-            self.writer.queue.put(None)
-            self.writer.join(timeout=10)
-            return self.writer.error
+            writer, self.writer = self.writer, None
+            writer.queue.put(None)
+            writer.join(timeout=10)
+            return writer.error
         return None
 
 

@@ -14,7 +14,7 @@ from compiler.objcode import OP, Program
 from compiler.values import Joint, Pose
 
 from ..component import Component, DataPort
-from ..motion.planner import PtpInput, plan_ptp, scaled_limits
+from ..motion.planner import PtpInput, StopRamp, plan_ptp, scaled_limits
 from ..vm import VM, VMStatus
 
 
@@ -42,7 +42,24 @@ def unsupported_moves(program: Program) -> str | None:
     return None
 
 
+@dataclass
+class _Interrupted:
+    """A move stopped on its path by the operator: what resuming it needs."""
+
+    target: tuple
+    speed: float  # the move's speed_ptp and acc_ptp (before the override)
+    acc: float
+    deceleration: float  # the fraction of each axis's acceleration limit it was planned with
+
+
 class TrajectoryGenerator(Component):
+    """Operator control (real-time safe, called between ticks): :meth:`pause` stops the
+    program before its next instruction and brings a move under way to rest on its path
+    (a :class:`StopRamp`); :meth:`resume` continues the program and re-plans the rest of
+    the interrupted move from where the robot stopped; :meth:`abort` stops on the path,
+    then ends the program with a fault; ``override`` (percent) scales the speed of the
+    moves planned from then on."""
+
     PROPERTIES = {"budget": (int, "object-code instructions per 5 ms update")}
 
     def __init__(self, spec, robot, desi_pos: DataPort, sens_pos: DataPort, clock, period: float = 0.005):
@@ -62,6 +79,10 @@ class TrajectoryGenerator(Component):
         self.log_lines: list[tuple[float, int, str]] = []
         self.fault: str | None = None
         self.start_position: tuple | None = None  # the commanded position to plan from (else sens_pos)
+        self.override = 100.0
+        self.interrupted: _Interrupted | None = None  # a move stopped on its path (pause/abort)
+        self.abort_reason: str | None = None  # set by abort(): end the program once at rest
+        self._current: _Interrupted | None = None  # the move under way
 
     def load(self, program: Program) -> None:
         """Not real-time: the program to run at the next start."""
@@ -75,7 +96,10 @@ class TrajectoryGenerator(Component):
         self.velocities = (0.0,) * self.n
         self.trajectory = None
         self.moves = []
+        self.log_lines = []
         self.fault = None
+        self.interrupted = self._current = None
+        self.abort_reason = None
         self.vm = VM(self.program, self, self.budget)
         self.desi_pos.write((self.clock.now(), self.positions, self.velocities), self.clock.now())
         return True
@@ -89,6 +113,13 @@ class TrajectoryGenerator(Component):
     def line(self) -> int:
         return self.vm.line if self.vm is not None else 0
 
+    @property
+    def paused(self) -> bool:
+        return self.vm is not None and self.vm.paused
+
+    def moves_done(self) -> int:
+        return sum(1 for m in self.moves if m.t_end is not None)
+
     def update(self, now: float) -> None:
         """Real-time: sample the current move, then let the VM run its budget."""
         trajectory = self.trajectory
@@ -98,7 +129,11 @@ class TrajectoryGenerator(Component):
             if self.t_move >= trajectory.duration - 1e-12:
                 self.trajectory = None
                 self.velocities = (0.0,) * self.n
-                self.moves[-1].t_end = now
+                if self.interrupted is None:
+                    self.moves[-1].t_end = now
+                    self._current = None
+                else:
+                    self._at_rest_after_stop()
         self.desi_pos.write((now, self.positions, self.velocities), now)
         vm = self.vm
         if vm is not None and vm.status not in (VMStatus.DONE, VMStatus.ERROR):
@@ -106,6 +141,77 @@ class TrajectoryGenerator(Component):
             if status == VMStatus.ERROR and self.fault is None:
                 e = vm.error
                 self.fault = f"program error at line {e.line}: {e.message}"
+
+    # ---- operator control (real-time safe) ----
+    def pause(self) -> bool:
+        """Hold the program; a move under way decelerates to rest on its path. False if
+        there is no program to pause."""
+        vm = self.vm
+        if vm is None or vm.status in (VMStatus.DONE, VMStatus.ERROR) or self.abort_reason is not None:
+            return False
+        vm.pause()
+        self._stop_on_path()
+        return True
+
+    def resume(self) -> bool:
+        """Continue after :meth:`pause`; the rest of an interrupted move is re-planned
+        from where the robot stopped (at once, or when its stop ramp ends)."""
+        vm = self.vm
+        if vm is None or not vm.paused or self.abort_reason is not None:
+            return False
+        vm.resume()
+        if self.interrupted is not None and self.trajectory is None:
+            self._resume_move()
+        return True
+
+    def abort(self, reason: str = "aborted by the operator") -> bool:
+        """Stop on the path, then end the program with ``reason`` as its fault."""
+        vm = self.vm
+        if vm is None or vm.status in (VMStatus.DONE, VMStatus.ERROR):
+            return False
+        if self.abort_reason is None:
+            self.abort_reason = reason
+            vm.pause()
+            self._stop_on_path()
+            if self.trajectory is None:
+                self._at_rest_after_stop()
+        return True
+
+    def _stop_on_path(self) -> None:
+        if self.trajectory is None or self.interrupted is not None or self._current is None:
+            return
+        self.interrupted = self._current
+        amax = tuple(a.max_acceleration * self.interrupted.deceleration for a in self.axes)
+        self.trajectory = StopRamp(self.positions, self.velocities, amax)
+        self.t_move = 0.0
+
+    def _at_rest_after_stop(self) -> None:
+        if self.abort_reason is not None:
+            self.interrupted = self._current = None
+            self.fault = self.fault or f"{self.abort_reason} at line {self.line}"
+            self.vm.abort()
+        elif not self.vm.paused:
+            self._resume_move()
+
+    def _resume_move(self) -> None:
+        move = self.interrupted
+        self.interrupted = None
+        problem = self._plan(move.target, move.speed, move.acc)
+        if problem is not None:
+            self.fault = self.fault or f"cannot resume the move at line {self.line}: {problem}"
+            self.vm.abort()
+
+    def _plan(self, values: tuple, speed: float, acc: float) -> str | None:
+        """Plan a PTP move from the current setpoint to ``values``, with the override."""
+        scale = min(max(self.override, 1.0), 100.0) / 100.0
+        vmax, amax = scaled_limits(tuple(a.max_velocity for a in self.axes),
+                                   tuple(a.max_acceleration for a in self.axes), speed * scale, acc * scale * scale)
+        result, trajectory, message = plan_ptp(PtpInput(self.positions, values, vmax, amax))
+        if result < 0:
+            return message
+        self.trajectory, self.t_move = trajectory, 0.0
+        self._current = _Interrupted(values, speed, acc, acc * scale * scale)
+        return None
 
     # ---- the VM's motion host ----
     def now(self) -> float:
@@ -132,17 +238,14 @@ class TrajectoryGenerator(Component):
         acc = clauses.get("acc_ptp", defaults.acc_ptp)
         if not (0 < speed <= 1 and 0 < acc <= 1):
             return f"speed_ptp and acc_ptp must be fractions in (0, 1], got {speed:g} and {acc:g}"
-        vmax, amax = scaled_limits(tuple(a.max_velocity for a in self.axes),
-                                   tuple(a.max_acceleration for a in self.axes), speed, acc)
-        result, trajectory, message = plan_ptp(PtpInput(self.positions, values, vmax, amax))
-        if result < 0:
-            return message
-        self.trajectory, self.t_move = trajectory, 0.0
-        self.moves.append(MoveRecord(line, kind, values, trajectory.duration, self.clock.now()))
+        problem = self._plan(values, speed, acc)
+        if problem is not None:
+            return problem
+        self.moves.append(MoveRecord(line, kind, values, self.trajectory.duration, self.clock.now()))
         return None
 
     def motion_done(self) -> bool:
-        return self.trajectory is None
+        return self.trajectory is None and self.interrupted is None
 
     def read_input(self, n: int) -> bool:
         if not 1 <= n <= self.spec.inputs:

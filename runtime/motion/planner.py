@@ -48,6 +48,7 @@ __all__ = [
     "PtpInput",
     "PtpTrajectory",
     "Result",
+    "StopRamp",
     "plan_ptp",
     "scaled_limits",
 ]
@@ -355,3 +356,37 @@ def scaled_limits(axes_max_velocity, axes_max_acceleration, speed_ptp: float,
         raise ValueError(f"axes_max_velocity has {len(velocities)} axes, "
                          f"axes_max_acceleration has {len(accelerations)}")
     return velocities, accelerations
+
+
+class StopRamp:
+    """A controlled stop on the path: from positions ``p0`` moving at ``v0``, every axis
+    decelerates uniformly to rest in the same time ``duration``, the shortest that keeps
+    each axis within its deceleration limit ``a_max``: ``T = max |v0_i| / a_max_i``.
+
+    Along a synchronised PTP move every axis's velocity is the same function of time up
+    to a per-axis factor, so decelerating all of them in one common time keeps the robot
+    on the move's path (it stops short of the target, on the straight joint-space line).
+    Same sampling interface as :class:`PtpTrajectory`. Real-time safe.
+    """
+
+    __slots__ = ("duration", "start_position", "target_position", "_v0", "_dec", "_zeros")
+
+    def __init__(self, p0: tuple[float, ...], v0: tuple[float, ...], a_max: tuple[float, ...]):
+        duration = 0.0
+        for v, a in zip(v0, a_max):
+            if a > 0.0 and abs(v) / a > duration:
+                duration = abs(v) / a
+        self.duration = duration
+        self.start_position = tuple(p0)
+        self._v0 = tuple(v0) if duration > 0.0 else (0.0,) * len(p0)
+        self._dec = tuple(v / duration for v in self._v0) if duration > 0.0 else self._v0
+        self.target_position = tuple(p + 0.5 * v * duration for p, v in zip(p0, self._v0))
+        self._zeros = (0.0,) * len(p0)
+
+    def sample(self, t: float) -> tuple[tuple[float, ...], tuple[float, ...]]:
+        if t >= self.duration:
+            return self.target_position, self._zeros
+        if not t > 0.0:
+            return self.start_position, self._v0
+        return (tuple([p + v * t - 0.5 * d * t * t for p, v, d in zip(self.start_position, self._v0, self._dec)]),
+                tuple([v - d * t for v, d in zip(self._v0, self._dec)]))

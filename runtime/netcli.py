@@ -1,0 +1,462 @@
+"""The ``irl`` commands that serve a robot or talk to one over the network: serve,
+submit, status, pause, resume, abort, estop, override, watch, call, console, reconfigure,
+keys. ZeroMQ is imported only when one of them runs (``irl check`` stays light)."""
+from __future__ import annotations
+
+import json
+import time
+from pathlib import Path
+
+DEFAULT_ENDPOINT = "tcp://127.0.0.1:5555"
+DEFAULT_TELEMETRY = "tcp://127.0.0.1:5556"
+TERMINAL = ("completed", "faulted", "aborted", "cancelled")
+
+
+def _cli():
+    from runtime import cli
+
+    return cli
+
+
+def _client(args):
+    from runtime.client import Client, ClientError
+
+    try:
+        return Client(args.endpoint, keys=args.keys, timeout=args.timeout)
+    except ClientError as exc:
+        raise _cli().UsageError(exc.message) from None
+
+
+def _call(client, op: str, args: dict | None = None, env=None):
+    """A request whose failure ends the command: unreachable -> exit 2, refused -> 1."""
+    from runtime.client import ClientError
+
+    try:
+        return client.request(op, args)
+    except ClientError as exc:
+        if exc.code == "unreachable":
+            raise _cli().UsageError(exc.message) from None
+        raise _Refused(f"{exc.message} ({exc.code})") from None
+
+
+class _Refused(Exception):
+    """The server answered with an error: exit 1."""
+
+
+def _guard(fn):
+    def run(args, env):
+        try:
+            return fn(args, env)
+        except _Refused as exc:
+            _cli()._err(env, f"irl {args.command}: {exc}")
+            return _cli().EXIT_INVALID
+    return run
+
+
+# ---- serve ----------------------------------------------------------------------------------
+def cmd_serve(args, env) -> int:
+    cli = _cli()
+    from compiler.spec import SpecError, load_spec
+    from runtime.server import ServeOptions, serve
+
+    try:
+        spec = load_spec(args.spec)
+    except SpecError as exc:
+        raise cli.UsageError(str(exc)) from None
+    configurations = None
+    if args.config:
+        from runtime.config import ConfigError, load_configurations
+
+        try:
+            configurations = load_configurations(args.config)
+        except ConfigError as exc:
+            raise cli.UsageError(str(exc)) from None
+    options = ServeOptions(endpoint=args.endpoint, telemetry=args.telemetry, state_dir=args.state_dir,
+                           sim_clock=args.sim_clock, seed=args.seed, keys=args.keys)
+    if args.keys:
+        from runtime.keys import KeyError_, check_server_keys
+
+        try:
+            check_server_keys(args.keys)
+        except KeyError_ as exc:
+            raise cli.UsageError(str(exc)) from None
+    return serve(spec, options, configurations, stderr=env.stderr)
+
+
+# ---- submit ---------------------------------------------------------------------------------
+def _object_code(args, env) -> tuple[bytes, str, tuple] | None:
+    """(bytes, name, robots) of FILE.irlo (as is: the server verifies) or FILE.irl (compiled)."""
+    cli = _cli()
+    from compiler.objcode import ObjectCodeError, decode, encode
+
+    if args.file.endswith(".irlo"):
+        data = cli._read_object(args.file)
+        try:
+            robots = decode(data).robots
+        except ObjectCodeError as exc:
+            cli._err(env, f"{args.file}: invalid object code: {exc}")
+            return None
+        return data, Path(args.file).name, robots
+    result = cli._compile(args.file, args.spec)
+    cli._report(env, result, False)
+    if not result.ok:
+        return None
+    return encode(result.program), Path(args.file).name, result.program.robots
+
+
+@_guard
+def cmd_submit(args, env) -> int:
+    cli = _cli()
+    if args.report and not args.wait:
+        raise cli.UsageError("--report needs --wait (the report is fetched when the program has ended)")
+    compiled = _object_code(args, env)
+    if compiled is None:
+        return cli.EXIT_INVALID
+    data, name, robots = compiled
+    if args.cell:
+        args.endpoint = _cell_endpoint(args.cell, robots)
+    client = _client(args)
+    try:
+        reply = _call(client, "submit", {"object": data, "name": name})
+        job = reply["program"]
+        cli._print(env, f"program {job} queued on {args.endpoint} ({name})")
+        if not args.wait:
+            return cli.EXIT_OK
+        final = _wait(client, job, env)
+        if args.report:
+            out = Path(args.report)
+            client.download(job, "report", out)
+            client.download(job, "states", out.with_suffix(".states.csv"))
+            cli._err(env, f"report written to {out}")
+        if final["state"] == "completed":
+            summary = final.get("summary") or {}
+            cli._print(env, f"program {job} completed: {len(summary.get('moves', []))} moves, final position "
+                            + ", ".join(f"{x:.3f}" for x in summary.get("final_position", [])))
+            return cli.EXIT_OK
+        cli._print(env, f"program {job} {final['state']}: {final.get('fault')}")
+        return cli.EXIT_INVALID
+    finally:
+        client.close()
+
+
+def _wait(client, job: int, env) -> dict:
+    """Poll the program's status, showing one progress line, until it has ended."""
+    cli = _cli()
+    tty = hasattr(env.stdout, "isatty") and env.stdout.isatty()
+    last = None
+    while True:
+        status = _call(client, "status", {"program": job})
+        if status["state"] in TERMINAL:
+            if tty and last:
+                env.stdout.write("\n")
+            return status
+        if status["state"] == "queued":
+            line = f"program {job}: queued"
+        else:
+            total = status.get("moves_total")
+            moves = f"{status.get('moves_done', 0)}/{total if total is not None else '?'}"
+            paused = " (paused)" if status.get("paused") else ""
+            line = f"program {job}: {status.get('fsm', '')}  line {status.get('line', 0)}  moves {moves}{paused}"
+        if line != last:
+            if tty:
+                env.stdout.write("\r\x1b[K" + line)
+                env.stdout.flush()
+            else:
+                cli._print(env, line)
+            last = line
+        time.sleep(0.1)
+
+
+def _cell_endpoint(path: str, robots: tuple) -> str:
+    """The endpoint of the robot the program moves, from a cell file."""
+    cli = _cli()
+    import tomllib
+
+    try:
+        cell = tomllib.loads(Path(path).read_text(encoding="utf-8"))
+    except OSError as exc:
+        raise cli.UsageError(f"cannot read {path}: {exc.strerror or exc}") from None
+    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
+        raise cli.UsageError(f"{path}: not a valid cell file: {exc}") from None
+    table = cell.get("robots")
+    if not isinstance(table, dict) or not table:
+        raise cli.UsageError(f"{path}: expected a [robots] table: robot name = endpoint, "
+                             'e.g. lola_15 = "tcp://127.0.0.1:5555"')
+    if not robots:
+        raise cli.UsageError("the program names no robot (act_rob): --cell cannot choose one; use --endpoint")
+    if len(robots) > 1:
+        raise cli.UsageError(f"the program moves {len(robots)} robots ({', '.join(robots)}); a program for "
+                             "several robots of a cell is not supported yet")
+    endpoint = table.get(robots[0])
+    if not isinstance(endpoint, str):
+        raise cli.UsageError(f"{path}: no endpoint for robot {robots[0]!r} (the cell has: {', '.join(table)})")
+    return endpoint
+
+
+# ---- status and control ---------------------------------------------------------------------------
+@_guard
+def cmd_status(args, env) -> int:
+    cli = _cli()
+    client = _client(args)
+    try:
+        status = _call(client, "status", {"program": args.program} if args.program is not None else {})
+    finally:
+        client.close()
+    if args.json:
+        cli._print(env, json.dumps(status, indent=2, default=str))
+        return cli.EXIT_OK
+    if args.program is not None:
+        cli._print(env, _job_line(status))
+        if status.get("fault"):
+            cli._print(env, f"  fault: {status['fault']}")
+        return cli.EXIT_OK
+    cli._print(env, f"robot: {status['state']}  (override {status['override']:g} %, "
+                    f"{'calibrated' if status['calibrated'] else 'not calibrated'}, "
+                    f"{'initialized' if status['initialized'] else 'not initialized'})")
+    if status["running"]:
+        cli._print(env, "running: " + _job_line(status["running"]))
+    cli._print(env, "queue: " + (", ".join(map(str, status["queue"])) or "empty"))
+    for job in status["programs"]:
+        cli._print(env, "  " + _job_line(job))
+    return cli.EXIT_OK
+
+
+def _job_line(job: dict) -> str:
+    text = f"program {job['id']} ({job['name']}): {job['state']}"
+    if job["state"] == "running":
+        total = job.get("moves_total")
+        text += (f", {job.get('fsm', '')}, line {job.get('line', 0)}, moves {job.get('moves_done', 0)}/"
+                 f"{total if total is not None else '?'}" + (" (paused)" if job.get("paused") else ""))
+    elif job.get("fault") and job["state"] != "running":
+        text += f": {job['fault']}"
+    return text
+
+
+def _simple(op: str, describe):
+    @_guard
+    def run(args, env) -> int:
+        cli = _cli()
+        client = _client(args)
+        try:
+            request = {}
+            if op == "override":
+                request = {"percent": args.percent}
+            elif op == "abort" and args.program is not None:
+                request = {"program": args.program}
+            elif op == "reconfigure":
+                request = {"name": args.name}
+            result = _call(client, op, request)
+        finally:
+            client.close()
+        cli._print(env, describe(result))
+        return cli.EXIT_OK
+    return run
+
+
+cmd_pause = _simple("pause", lambda r: f"program {r['program']} paused")
+cmd_resume = _simple("resume", lambda r: f"program {r['program']} resumed")
+cmd_abort = _simple("abort", lambda r: f"program {r['program']}: {r['state']}")
+cmd_estop = _simple("estop", lambda r: "emergency stop" + (f": program {r['program']} stopped" if r["program"] else "")
+                    + (f"; cancelled {', '.join(map(str, r['cancelled']))}" if r["cancelled"] else ""))
+cmd_override = _simple("override", lambda r: f"override {r['override']:g} %")
+cmd_reconfigure = _simple("reconfigure", lambda r: f"reconfiguration to {r['requested']!r} requested")
+
+
+# ---- watch ---------------------------------------------------------------------------------------
+def cmd_watch(args, env) -> int:
+    cli = _cli()
+    from runtime.client import Subscriber
+
+    sub = Subscriber(args.telemetry, keys=args.keys)
+    received = 0
+    deadline = time.monotonic() + args.timeout if args.timeout else None
+    try:
+        while args.count is None or received < args.count:
+            remaining = None if deadline is None else deadline - time.monotonic()
+            if remaining is not None and remaining <= 0:
+                break
+            message = sub.receive(min(remaining, 0.5) if remaining is not None else 0.5)
+            if message is None:
+                continue
+            received += 1
+            if args.json:
+                cli._print(env, json.dumps(message, default=_bytes_hex))
+            else:
+                cli._print(env, _telemetry_line(message))
+            env.stdout.flush()
+    finally:
+        sub.close()
+    if sub.missed:
+        cli._err(env, f"irl watch: {sub.missed} telemetry messages were missed (sequence gaps)")
+    return cli.EXIT_OK
+
+
+def _bytes_hex(value):
+    return value.hex() if isinstance(value, bytes) else str(value)
+
+
+def _telemetry_line(m: dict) -> str:
+    head = f"#{m.get('seq')} t={m.get('t', 0):.3f}"
+    if m.get("kind") == "event":
+        event = m.get("event")
+        if event == "state":
+            return f"{head} state {m.get('from') or '-'} -> {m.get('to')}"
+        if event == "program":
+            fault = f": {m['fault']}" if m.get("fault") else ""
+            return f"{head} program {m.get('program')} {m.get('state')}{fault}"
+        if event == "log":
+            return f"{head} line {m.get('line')}: {m.get('text')}"
+        return f"{head} {event} {m.get('reason') or ''}".rstrip()
+    position = " ".join(f"{x:8.3f}" for x in m.get("position", []))
+    text = f"{head} {m.get('state')}"
+    if m.get("program") is not None:
+        total = m.get("moves_total")
+        text += (f" program {m['program']} line {m.get('line')} moves {m.get('moves_done')}/"
+                 f"{total if total is not None else '?'}" + (" paused" if m.get("paused") else ""))
+    return f"{text} override {m.get('override', 100):g}% pos [{position}]"
+
+
+# ---- scripting ------------------------------------------------------------------------------------
+@_guard
+def cmd_call(args, env) -> int:
+    cli = _cli()
+    client = _client(args)
+    try:
+        result = _call(client, "call", {"text": args.text})
+    finally:
+        client.close()
+    cli._print(env, result["output"])
+    return cli.EXIT_OK
+
+
+def cmd_console(args, env) -> int:
+    """An interactive scripting session (reads lines from stdin until EOF or 'quit')."""
+    cli = _cli()
+    from runtime.client import ClientError
+
+    client = _client(args)
+    stdin = env.stdin
+    interactive = hasattr(stdin, "isatty") and stdin.isatty()
+    try:
+        hello = _call(client, "hello")
+        cli._print(env, f"connected to {hello['robot']} at {args.endpoint}; 'help' lists the commands, "
+                        "'quit' ends the session")
+        while True:
+            if interactive:
+                env.stdout.write("irl> ")
+                env.stdout.flush()
+            line = stdin.readline()
+            if not line:
+                break
+            text = line.strip()
+            if not text or text.startswith("#"):
+                continue
+            if text in ("quit", "exit"):
+                break
+            try:
+                cli._print(env, client.request("call", {"text": text})["output"])
+            except ClientError as exc:
+                if exc.code == "unreachable":
+                    raise cli.UsageError(exc.message) from None
+                cli._print(env, f"error: {exc.message}")
+    except _Refused as exc:
+        cli._err(env, f"irl console: {exc}")
+        return cli.EXIT_INVALID
+    finally:
+        client.close()
+    return cli.EXIT_OK
+
+
+# ---- keys -------------------------------------------------------------------------------------------
+def cmd_keys(args, env) -> int:
+    cli = _cli()
+    from runtime.keys import KeyError_, make_keys
+
+    try:
+        made = make_keys(args.directory, args.name)
+    except KeyError_ as exc:
+        raise cli.UsageError(str(exc)) from None
+    for path in made:
+        cli._print(env, f"wrote {path}")
+    return cli.EXIT_OK
+
+
+# ---- the parsers ----------------------------------------------------------------------------------
+def add_commands(sub) -> None:
+    def connection(p, telemetry: bool = False):
+        p.add_argument("--endpoint", default=DEFAULT_ENDPOINT, metavar="E",
+                       help=f"the server's request endpoint (default {DEFAULT_ENDPOINT})")
+        if telemetry:
+            p.add_argument("--telemetry", default=DEFAULT_TELEMETRY, metavar="E",
+                           help=f"the server's telemetry endpoint (default {DEFAULT_TELEMETRY})")
+        p.add_argument("--keys", metavar="DIR", help="CURVE keys (made by 'irl keys DIR')")
+        p.add_argument("--timeout", type=float, default=5.0, metavar="S", help="seconds to wait for a reply")
+
+    p = sub.add_parser("serve", help="serve a robot (the simulated one) on the network")
+    p.add_argument("--endpoint", default=DEFAULT_ENDPOINT, metavar="E", help="request endpoint to bind")
+    p.add_argument("--telemetry", default=DEFAULT_TELEMETRY, metavar="E", help="telemetry endpoint to bind")
+    p.add_argument("--spec", required=True, metavar="FILE.spc", help="the robot's specification")
+    p.add_argument("--config", metavar="FILE.toml", help="component configurations (see docs/runtime.md)")
+    p.add_argument("--state-dir", metavar="DIR", help="calibration and reports (default ~/.local/state/irl)")
+    p.add_argument("--sim-clock", action="store_true", help="simulated clock (default: wall clock)")
+    p.add_argument("--seed", type=int, default=0, help="the simulated robot's seed")
+    p.add_argument("--keys", metavar="DIR", help="require CURVE authentication with the keys in DIR")
+    p.set_defaults(run=cmd_serve)
+
+    p = sub.add_parser("submit", help="send a program to a server's queue")
+    p.add_argument("file", metavar="FILE.irl|FILE.irlo")
+    p.add_argument("--spec", metavar="FILE.spc", help="for FILE.irl: the system specification to use")
+    p.add_argument("--wait", action="store_true", help="show progress until the program ends; exit 1 unless "
+                                                       "it completed")
+    p.add_argument("--report", metavar="OUT.csv", help="with --wait: fetch the program's report")
+    p.add_argument("--cell", metavar="CELL.toml", help="send to the robot the program's act_rob names")
+    connection(p)
+    p.set_defaults(run=cmd_submit)
+
+    p = sub.add_parser("status", help="the robot, the queue and the programs (or one program)")
+    p.add_argument("program", nargs="?", type=int, metavar="ID")
+    p.add_argument("--json", action="store_true")
+    connection(p)
+    p.set_defaults(run=cmd_status)
+
+    for name, fn, text in (("pause", cmd_pause, "hold the running program (a move stops on its path)"),
+                           ("resume", cmd_resume, "continue the paused program"),
+                           ("estop", cmd_estop, "emergency stop: brakes on, drives off, queue cancelled")):
+        p = sub.add_parser(name, help=text)
+        connection(p)
+        p.set_defaults(run=fn)
+    p = sub.add_parser("abort", help="stop the running program on its path (or remove a queued one)")
+    p.add_argument("program", nargs="?", type=int, metavar="ID")
+    connection(p)
+    p.set_defaults(run=cmd_abort)
+    p = sub.add_parser("override", help="speed override (percent) for the moves planned from now on")
+    p.add_argument("percent", type=float, metavar="PCT")
+    connection(p)
+    p.set_defaults(run=cmd_override)
+    p = sub.add_parser("reconfigure", help="switch to another named configuration between programs")
+    p.add_argument("name", metavar="NAME")
+    connection(p)
+    p.set_defaults(run=cmd_reconfigure)
+
+    p = sub.add_parser("watch", help="print the server's telemetry")
+    p.add_argument("--json", action="store_true", help="one JSON object per line")
+    p.add_argument("--count", type=int, metavar="N", help="stop after N messages")
+    p.add_argument("--timeout", type=float, metavar="S", help="stop after S seconds")
+    p.add_argument("--telemetry", default=DEFAULT_TELEMETRY, metavar="E",
+                   help=f"the server's telemetry endpoint (default {DEFAULT_TELEMETRY})")
+    p.add_argument("--keys", metavar="DIR", help="CURVE keys (made by 'irl keys DIR')")
+    p.set_defaults(run=cmd_watch)
+
+    p = sub.add_parser("call", help="one scripting command, e.g. 'servo.kp' or 'servo.kp = 30'")
+    p.add_argument("text", metavar="TEXT")
+    connection(p)
+    p.set_defaults(run=cmd_call)
+    p = sub.add_parser("console", help="an interactive scripting session")
+    connection(p)
+    p.set_defaults(run=cmd_console)
+
+    p = sub.add_parser("keys", help="make CURVE key pairs for a server and its clients")
+    p.add_argument("directory", metavar="DIR")
+    p.add_argument("--name", default=None, metavar="NAME",
+                   help="make only a client key pair called NAME (default: the server's and a client's)")
+    p.set_defaults(run=cmd_keys)

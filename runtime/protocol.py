@@ -1,0 +1,172 @@
+"""The runtime's network protocol: msgpack messages over ZeroMQ (see docs/protocol.md).
+
+Requests go from a DEALER (or REQ) socket to the server's ROUTER socket, one msgpack map
+per message; every request gets exactly one reply, a result or an error with a code and a
+message. Telemetry goes out on a PUB socket as two frames: the topic ``b"telemetry"`` and
+a msgpack map with a sequence number, so a subscriber sees the gaps it missed.
+
+This module is the single definition of the messages: the operations and the shape of
+their arguments (:data:`OPS`), the error codes (:data:`ERRORS`), and the encoding. The
+server and the client both use it; docs/protocol.md is written from it.
+"""
+from __future__ import annotations
+
+import math
+
+import msgpack
+
+VERSION = 1
+
+#: Largest request the server takes (bytes); bigger ones get a ``too_large`` error.
+MAX_REQUEST_BYTES = 1 << 20
+#: Largest message the transport accepts at all (ZMQ_MAXMSGSIZE): beyond it the
+#: connection is dropped without a reply (protects the server's memory).
+TRANSPORT_MAX_BYTES = 8 << 20
+#: Largest chunk of a report file in one ``report`` reply.
+MAX_CHUNK_BYTES = 256 << 10
+
+TELEMETRY_TOPIC = b"telemetry"
+
+ERRORS = {
+    "bad_message": "the request is not a msgpack map (or is not valid msgpack)",
+    "bad_version": "the request's protocol version \"v\" is missing or not supported",
+    "bad_request": "the request's fields or arguments have the wrong shape or type",
+    "unknown_op": "no such operation",
+    "too_large": f"the request is larger than {MAX_REQUEST_BYTES} bytes",
+    "invalid_program": "the object code failed verification, or cannot run on this runtime",
+    "wrong_robot": "the program was compiled for another robot or another version of its specification",
+    "not_found": "no such program (or report)",
+    "refused": "the request is well-formed but cannot be done now (the reason says why)",
+    "script_error": "the scripting command is malformed or names no property or operation",
+    "internal": "the server failed to handle the request (a bug: the message says what)",
+}
+
+# Argument kinds: name -> (python types, description for the docs)
+_INT, _NUM, _STR, _BIN = (int,), (int, float), (str,), (bytes,)
+
+#: op -> {argument: (types, required, description)}, and the op's description.
+OPS: dict[str, tuple[dict[str, tuple[tuple, bool, str]], str]] = {
+    "hello": ({}, "who the server is: protocol version, robot, specification hash, clock, configurations"),
+    "status": ({"program": (_INT, False, "a program id: that program only")},
+               "the robot's state, the running program, the queue and recent programs"),
+    "submit": ({"object": (_BIN, True, "the object code (an .irlo file's bytes)"),
+                "name": (_STR, False, "a name to show for the program (e.g. its file name)")},
+               "verify the object code and queue it; returns its id"),
+    "pause": ({}, "hold the running program; a move under way stops on its path"),
+    "resume": ({}, "continue the paused program (the interrupted move is finished first)"),
+    "abort": ({"program": (_INT, False, "a queued program to remove instead of the running one")},
+              "stop the running program on its path and end it (or remove a queued one)"),
+    "estop": ({}, "emergency stop: brakes on and drives off now; the running program and the queue are ended"),
+    "override": ({"percent": (_NUM, True, "1 to 100")},
+                 "speed override for the moves planned from now on"),
+    "call": ({"text": (_STR, True, "a scripting command, e.g. servo.kp = 2.5 (see 'help')")},
+             "the scripting interface: read or set a property, call an operation"),
+    "reconfigure": ({"name": (_STR, True, "a configuration of the server's configuration file")},
+                    "switch configuration between programs (in the Robot Reconfiguration state)"),
+    "report": ({"program": (_INT, True, "a program id"),
+                "file": (_STR, False, "\"report\" (default) or \"states\""),
+                "offset": (_INT, False, "byte offset to read from (default 0)")},
+               f"a chunk (at most {MAX_CHUNK_BYTES} bytes) of a program's report CSV"),
+}
+
+
+class ProtocolError(Exception):
+    """A request that gets an error reply: ``code`` (one of :data:`ERRORS`) and message."""
+
+    def __init__(self, code: str, message: str, request_id=None):
+        super().__init__(message)
+        self.code = code
+        self.message = message
+        self.request_id = request_id
+
+
+def pack(obj) -> bytes:
+    return msgpack.packb(obj, use_bin_type=True)
+
+
+def _valid_id(value) -> bool:
+    return value is None or (isinstance(value, int) and not isinstance(value, bool)
+                             and -(1 << 63) <= value < (1 << 64)) or (isinstance(value, str) and len(value) <= 256)
+
+
+def decode_request(payload: bytes) -> tuple[object, str, dict]:
+    """``(request id, op, args)`` of a request, or ProtocolError with what is wrong."""
+    if len(payload) > MAX_REQUEST_BYTES:
+        raise ProtocolError("too_large", f"the request has {len(payload)} bytes; the limit is {MAX_REQUEST_BYTES}")
+    try:
+        message = msgpack.unpackb(payload, raw=False, strict_map_key=True, max_bin_len=MAX_REQUEST_BYTES,
+                                  max_str_len=MAX_REQUEST_BYTES, max_array_len=10_000, max_map_len=1_000)
+    except Exception as exc:  # msgpack raises several kinds (ValueError, ExtraData, FormatError...)
+        raise ProtocolError("bad_message", f"not valid msgpack ({type(exc).__name__})") from None
+    if not isinstance(message, dict):
+        raise ProtocolError("bad_message", f"expected a msgpack map, got {type(message).__name__}")
+    request_id = message.get("id")
+    if not _valid_id(request_id):
+        raise ProtocolError("bad_request", "\"id\" must be an integer or a string of at most 256 characters")
+    version = message.get("v")
+    if version != VERSION or isinstance(version, bool):
+        raise ProtocolError("bad_version", f"protocol version {version!r} is not supported; this server speaks "
+                                           f"version {VERSION}", request_id)
+    op = message.get("op")
+    if not isinstance(op, str):
+        raise ProtocolError("bad_request", "\"op\" must be a string", request_id)
+    if op not in OPS:
+        raise ProtocolError("unknown_op", f"unknown operation {op[:64]!r}; known: {', '.join(OPS)}", request_id)
+    args = message.get("args", {})
+    if not isinstance(args, dict):
+        raise ProtocolError("bad_request", f"\"args\" must be a map, got {type(args).__name__}", request_id)
+    spec, _doc = OPS[op]
+    for name in args:
+        if name not in spec:
+            known = ", ".join(spec) or "none"
+            raise ProtocolError("bad_request", f"{op}: unknown argument {str(name)[:64]!r} (arguments: {known})",
+                                request_id)
+    for name, (types, required, _d) in spec.items():
+        if name not in args:
+            if required:
+                raise ProtocolError("bad_request", f"{op}: missing argument {name!r}", request_id)
+            continue
+        value = args[name]
+        if isinstance(value, bool) or not isinstance(value, types) or \
+                (isinstance(value, float) and not math.isfinite(value)):
+            raise ProtocolError("bad_request", f"{op}: argument {name!r} must be {_kind(types)}, "
+                                               f"got {type(value).__name__}", request_id)
+    return request_id, op, args
+
+
+def _kind(types: tuple) -> str:
+    return {_INT: "an integer", _NUM: "a finite number", _STR: "a string", _BIN: "binary (msgpack bin)"}[types]
+
+
+def ok(request_id, result) -> bytes:
+    return pack({"v": VERSION, "id": request_id, "ok": True, "result": result})
+
+
+def error(request_id, code: str, message: str) -> bytes:
+    return pack({"v": VERSION, "id": request_id, "ok": False, "error": {"code": code, "message": message}})
+
+
+def request(op: str, args: dict | None = None, request_id=None) -> bytes:
+    message = {"v": VERSION, "op": op, "args": args or {}}
+    if request_id is not None:
+        message["id"] = request_id
+    return pack(message)
+
+
+def decode_reply(payload: bytes) -> dict:
+    """A reply as a dict (the client's side); ProtocolError if it is not one."""
+    try:
+        message = msgpack.unpackb(payload, raw=False)
+    except Exception as exc:
+        raise ProtocolError("bad_message", f"the server's reply is not valid msgpack ({type(exc).__name__})") from None
+    if not isinstance(message, dict) or "ok" not in message:
+        raise ProtocolError("bad_message", "the server's reply is not a reply map")
+    return message
+
+
+def decode_telemetry(payload: bytes) -> dict | None:
+    try:
+        message = msgpack.unpackb(payload, raw=False)
+    except Exception:
+        return None
+    return message if isinstance(message, dict) and isinstance(message.get("seq"), int) else None

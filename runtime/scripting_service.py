@@ -1,0 +1,154 @@
+"""The scripting interface on the server: parsed text commands (``runtime.scripting``)
+carried out against the robot's components, as the paper's task browser does.
+
+Only what a target declares is reachable: its ``PROPERTIES`` (read and write, with their
+types), ``READ_ONLY`` properties, and whitelisted ``OPERATIONS``. Reads are answered by
+the I/O thread at once; writes and operations run in the real-time loop between ticks.
+"""
+from __future__ import annotations
+
+from .protocol import ProtocolError
+from .scripting import (
+    HELP_TEXT, CallOperation, Components, GetProperty, Help, ScriptError, SetProperty, format_value, parse,
+)
+
+
+class FsmTarget:
+    """The supervisor's state machine as a scripting target (``fsm``)."""
+
+    name = "fsm"
+    PROPERTIES = {"mode": (str, "'automatic' (guards fire) or 'reactive' (only requests and events)")}
+    READ_ONLY = {"state": "the current state (with the sub-machine's)"}
+    OPERATIONS = ("request_state", "post")
+
+    def __init__(self, server):
+        self.server = server
+
+    @property
+    def _fsm(self):
+        return self.server.system.supervisor.fsm
+
+    @property
+    def state(self) -> str:
+        return self._fsm.path() if self.server.current is not None else "Idle"
+
+    @property
+    def mode(self) -> str:
+        return self._fsm.mode
+
+    @property
+    def lifecycle(self):
+        return None
+
+    def set_property(self, name: str, value) -> None:
+        if not isinstance(value, str):
+            raise TypeError(f"fsm.{name} must be str, not {type(value).__name__}")
+        self._fsm.set_mode(value)
+
+    def request_state(self, name: str) -> bool:
+        """Ask for a transition to ``name`` at the next step (if one leads there)."""
+        if self.server.current is None:
+            raise ValueError("no program is running: the supervisor is idle")
+        return self._fsm.request_state(name)
+
+    def post(self, event: str) -> None:
+        """Post an event for the next step."""
+        self._fsm.post(event)
+
+
+def targets(server) -> dict:
+    s = server.system
+    return {"robot": s.robot, "servo": s.servo, "initialization": s.init, "trajectory": s.trajectory,
+            "report": s.report, "fsm": FsmTarget(server)}
+
+
+def call(server, text: str):
+    """The result of a ``call`` request (a dict), or a callable for the loop to run."""
+    try:
+        command = parse(text)
+    except ScriptError as exc:
+        raise ProtocolError("script_error", f"{exc} in {text[:80]!r}") from None
+    table = targets(server)
+    if isinstance(command, Components):
+        lines = [f"{name:15s} {_lifecycle(t)}" for name, t in table.items()]
+        return {"output": "\n".join(lines), "value": list(table)}
+    if isinstance(command, Help):
+        if command.component is None:
+            return {"output": HELP_TEXT.rstrip() + "\ncomponents: " + ", ".join(table), "value": None}
+        return {"output": _describe(command.component, _target(table, command.component)), "value": None}
+    target = _target(table, command.component)
+    where = f"{command.component}.{command.name}"
+    if isinstance(command, GetProperty):
+        if command.name not in _properties(target):
+            raise ProtocolError("script_error", f"{command.component} has no property {command.name!r} "
+                                                f"({_names(target)})")
+        value = _plain(getattr(target, command.name))
+        return {"output": f"{where} = {format_value(value)}", "value": value}
+    if isinstance(command, SetProperty):
+        if command.name not in target.PROPERTIES:
+            read_only = command.name in getattr(target, "READ_ONLY", {})
+            raise ProtocolError("script_error", f"{where} is read-only" if read_only else
+                                f"{command.component} has no property {command.name!r} ({_names(target)})")
+
+        def set_property():
+            try:
+                target.set_property(command.name, command.value)
+            except (TypeError, ValueError) as exc:
+                raise ProtocolError("script_error", str(exc)) from None
+            value = _plain(getattr(target, command.name))
+            return {"output": f"{where} = {format_value(value)}", "value": value}
+        return set_property
+    assert isinstance(command, CallOperation)
+    if command.name not in target.OPERATIONS:
+        raise ProtocolError("script_error", f"{command.component} has no operation {command.name!r} "
+                                            f"(operations: {', '.join(target.OPERATIONS)})")
+
+    def operation():
+        try:
+            value = _plain(getattr(target, command.name)(*command.args))
+        except TypeError as exc:
+            raise ProtocolError("script_error", f"{where}: {exc}") from None
+        except (ValueError, KeyError, IndexError) as exc:
+            raise ProtocolError("refused", f"{where}: {exc}") from None
+        return {"output": f"{where}(...) -> {format_value(value)}" if value is not None else f"{where}: done",
+                "value": value}
+    return operation
+
+
+def _target(table: dict, name: str):
+    if name not in table:
+        raise ProtocolError("script_error", f"no component {name!r} (components: {', '.join(table)})")
+    return table[name]
+
+
+def _properties(target) -> dict:
+    return {**target.PROPERTIES, **getattr(target, "READ_ONLY", {})}
+
+
+def _names(target) -> str:
+    props = ", ".join(_properties(target)) or "none"
+    return f"properties: {props}; operations: {', '.join(target.OPERATIONS)}"
+
+
+def _lifecycle(target) -> str:
+    state = getattr(target, "lifecycle", None)
+    return state.value if state is not None else "-"
+
+
+def _describe(name: str, target) -> str:
+    lines = [f"{name} ({_lifecycle(target)})", "  properties:"]
+    for prop, (kind, doc) in target.PROPERTIES.items():
+        lines.append(f"    {prop} = {format_value(_plain(getattr(target, prop)))}  ({kind.__name__}) {doc}")
+    for prop, doc in getattr(target, "READ_ONLY", {}).items():
+        lines.append(f"    {prop} = {format_value(_plain(getattr(target, prop)))}  (read-only) {doc}")
+    lines.append("  operations: " + ", ".join(f"{op}()" for op in target.OPERATIONS))
+    return "\n".join(lines)
+
+
+def _plain(value):
+    """What msgpack can carry: tuples become lists, other objects their text."""
+    if isinstance(value, (bool, int, float, str)) or value is None:
+        return value
+    if isinstance(value, (tuple, list)):
+        return [_plain(v) for v in value]
+    return str(value)

@@ -158,6 +158,18 @@ class Executive:
         self._plan()
         return task
 
+    def set_period(self, name: str, period: float) -> None:
+        """Not real-time (between programs): run task ``name`` every ``period`` seconds."""
+        ticks = round(period / self.tick)
+        if ticks < 1 or abs(ticks * self.tick - period) > 1e-9:
+            raise ValueError(f"{name}: period {period} s is not a multiple of the {self.tick} s tick")
+        for task in self.tasks:
+            if task.name == name:
+                task.period = ticks
+                self._plan()
+                return
+        raise KeyError(f"no task {name!r}")
+
     def _plan(self) -> None:
         """The schedule: for each tick of the hyperperiod (the periods' least common
         multiple), the tasks due on it, in phase order. Periods whose hyperperiod exceeds

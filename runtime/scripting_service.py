@@ -56,10 +56,46 @@ class FsmTarget:
         self._fsm.post(event)
 
 
+class ServerTarget:
+    """The server itself (``server``): its configuration. Its operations run in the I/O
+    thread (they queue work; they never touch the robot directly)."""
+
+    name = "server"
+    PROPERTIES: dict = {}
+    READ_ONLY = {"configuration": "the configuration in force", "configurations": "those of the file",
+                 "override": "speed override (percent)"}
+    OPERATIONS = ("reconfigure",)
+    IMMEDIATE = True
+    lifecycle = None
+
+    def __init__(self, server):
+        self.server = server
+
+    @property
+    def configuration(self):
+        return self.server.configuration
+
+    @property
+    def configurations(self):
+        c = self.server.configurations
+        return c.names() if c is not None else []
+
+    @property
+    def override(self):
+        return self.server.override
+
+    def reconfigure(self, name: str) -> str:
+        """Queue a Robot Reconfiguration with the named configuration."""
+        if not isinstance(name, str):
+            raise TypeError("reconfigure() takes the configuration's name, a string")
+        result = self.server.op_reconfigure({"name": name})
+        return f"reconfiguration to {result['requested']!r} queued as {result['program']}"
+
+
 def targets(server) -> dict:
     s = server.system
     return {"robot": s.robot, "servo": s.servo, "initialization": s.init, "trajectory": s.trajectory,
-            "report": s.report, "fsm": FsmTarget(server)}
+            "report": s.report, "fsm": FsmTarget(server), "server": ServerTarget(server)}
 
 
 def call(server, text: str):
@@ -112,7 +148,7 @@ def call(server, text: str):
             raise ProtocolError("refused", f"{where}: {exc}") from None
         return {"output": f"{where}(...) -> {format_value(value)}" if value is not None else f"{where}: done",
                 "value": value}
-    return operation
+    return operation() if getattr(target, "IMMEDIATE", False) else operation
 
 
 def _target(table: dict, name: str):

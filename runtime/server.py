@@ -60,31 +60,36 @@ class ServeOptions:
 class Job:
     """One submitted program and what became of it."""
 
-    def __init__(self, job_id: int, name: str, program: Program, report: Path):
+    def __init__(self, job_id: int, name: str, program: Program | None, report: Path | None,
+                 settings: dict | None = None, configuration: str | None = None):
         self.id = job_id
         self.name = name
         self.program = program
         self.report = report
+        self.settings = settings  # a reconfiguration (no program): the settings to apply
+        self.configuration = configuration
         self.state = "queued"  # queued, running, completed, faulted, aborted, cancelled
         self.fault: str | None = None
         self.submitted = time.time()
         self.started: float | None = None
         self.ended: float | None = None
         self.summary: dict | None = None
-        self.moves_total = moves_total(program)
+        self.moves_total = moves_total(program) if program is not None else 0
         self.abort_reason: str | None = None
 
-    def as_dict(self, system: RobotSystem | None = None) -> dict:
+    def as_dict(self, system: RobotSystem | None = None, summary: bool = True) -> dict:
         d = {"id": self.id, "name": self.name, "state": self.state, "fault": self.fault,
              "submitted": self.submitted, "started": self.started, "ended": self.ended,
-             "report": str(self.report), "moves_total": self.moves_total}
+             "report": str(self.report) if self.report else None, "moves_total": self.moves_total,
+             "kind": "program" if self.settings is None else "reconfiguration"}
         if system is not None and self.state == "running":
             t = system.trajectory
             d.update(line=t.line, moves_done=t.moves_done(), paused=t.paused,
                      fsm=system.supervisor.fsm.path())
         elif self.summary is not None:
-            d.update(line=None, moves_done=sum(1 for m in self.summary["moves"] if m["actual_duration"] is not None),
-                     summary=self.summary)
+            d.update(line=None, moves_done=sum(1 for m in self.summary["moves"] if m["actual_duration"] is not None))
+            if summary:
+                d["summary"] = self.summary
         return d
 
 
@@ -112,7 +117,15 @@ class Server:
         self.system = RobotSystem(spec, RunOptions(seed=options.seed, realtime=not options.sim_clock,
                                                    state_dir=state_dir))
         self.configurations = configurations
-        self.configuration = configurations.default if configurations is not None else None
+        self.configuration = None
+        self.baseline = self.system.settings()  # what a configuration's missing keys fall back to
+        if configurations is not None:
+            from .config import validate_settings
+
+            self.configuration = configurations.default
+            self.system.apply_settings(validate_settings(
+                merge_settings(self.baseline, configurations[configurations.default].settings),
+                f"configuration {configurations.default!r} over the start-up settings"))
         self.jobs: dict[int, Job] = {}
         self.queue: collections.deque[Job] = collections.deque()
         self.finished: collections.deque[int] = collections.deque()
@@ -224,7 +237,10 @@ class Server:
             system.executive.resync()
         try:
             self.report_dir.mkdir(parents=True, exist_ok=True)
-            system.begin(job.program, job.report)
+            if job.settings is not None:
+                system.begin(None, None, settings=job.settings)
+            else:
+                system.begin(job.program, job.report)
         except (ValueError, OSError) as exc:
             job.state, job.fault, job.ended = "faulted", str(exc), time.time()
             self._retire(job)
@@ -246,6 +262,8 @@ class Server:
         job.fault = summary["fault"]
         if job.fault is None:
             job.state = "completed"
+            if job.configuration is not None:
+                self.configuration = job.configuration
         elif job.abort_reason is not None:
             job.state = "aborted"
         else:
@@ -413,7 +431,7 @@ class Server:
         return {"state": system.supervisor.fsm.path() if current else "Idle",
                 "running": current.as_dict(system) if current else None,
                 "queue": [job.id for job in list(self.queue)],
-                "programs": [job.as_dict(system if job is current else None) for job in list(self.jobs.values())
+                "programs": [job.as_dict(None, summary=False) for job in list(self.jobs.values())[-21:]
                              if job.state != "running"][-20:],
                 "override": self.override, "configuration": self.configuration,
                 "calibrated": system.memory.calibrated, "initialized": system.memory.initialized,
@@ -519,8 +537,33 @@ class Server:
 
         return call(self, args["text"])
 
-    def op_reconfigure(self, args: dict):
-        raise ProtocolError("refused", "this server has no configuration file (start it with --config FILE.toml)")
+    def op_reconfigure(self, args: dict) -> dict:
+        """Re-read the configuration file and queue a Robot Reconfiguration cycle with the
+        named configuration; an invalid file or name is refused and nothing changes."""
+        if self.configurations is None or self.configurations.path is None:
+            raise ProtocolError("refused", "this server has no configuration file (start it with --config FILE.toml)")
+        from .config import ConfigError, load_configurations, validate_settings
+
+        name = args["name"]
+        try:
+            configurations = load_configurations(self.configurations.path)
+            settings = validate_settings(merge_settings(self.baseline, configurations[name].settings),
+                                         f"{configurations.path.name}: configuration {name!r} over the start-up "
+                                         "settings")
+        except ConfigError as exc:
+            raise ProtocolError("refused", f"{exc} (the configuration in force, {self.configuration!r}, stays)") \
+                from None
+        if self.stop_reason is not None:
+            raise ProtocolError("refused", "the server is shutting down")
+        with self._submit_lock:
+            job = Job(self.next_id, f"reconfigure {name}", None, None,
+                      settings=settings, configuration=name)
+            self.next_id += 1
+            self.jobs[job.id] = job
+            self.queue.append(job)
+        self.configurations = configurations
+        self.work.set()
+        return {"requested": name, "program": job.id}
 
     def op_report(self, args: dict) -> dict:
         job = self.jobs.get(args["program"])
@@ -547,6 +590,14 @@ class Server:
                 "eof": final and offset + len(data) >= size}
 
 
+def merge_settings(base: dict, settings: dict) -> dict:
+    """``base`` (component -> key -> value) with ``settings`` laid over it."""
+    merged = {component: dict(values) for component, values in base.items()}
+    for component, values in settings.items():
+        merged.setdefault(component, {}).update(values)
+    return merged
+
+
 def default_state_dir() -> Path:
     base = os.environ.get("XDG_STATE_HOME") or os.path.join(os.path.expanduser("~"), ".local", "state")
     return Path(base) / "irl"
@@ -558,7 +609,14 @@ def serve(spec, options: ServeOptions, configurations=None, stderr=None) -> int:
     handler.setFormatter(logging.Formatter("irl serve: %(message)s"))
     log.addHandler(handler)
     log.setLevel(logging.INFO)
-    server = Server(spec, options, configurations)
+    from .config import ConfigError
+
+    try:
+        server = Server(spec, options, configurations)
+    except ConfigError as exc:
+        log.error("%s", exc)
+        log.removeHandler(handler)
+        return 2
     try:
         server.bind()
     except zmq.ZMQError as exc:

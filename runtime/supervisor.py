@@ -18,6 +18,7 @@ from .fsm import FSM, State, Transition
 
 START, CALIBRATE, INITIALIZE, MOVE, STOP = (
     "Start Robot", "Calibrate Offsets", "Initialization Sequence", "Move Robot", "Stop Robot")
+RECONFIGURE = "Robot Reconfiguration"
 
 BRAKE_TIMEOUT = 1.0  # s for the brakes to release or engage
 CALIBRATION_SETTLE = 0.05  # s before measuring (the drives' lag)
@@ -77,6 +78,7 @@ class Supervisor:
         self.robot, self.servo, self.init = robot, servo, initialization
         self.trajectory, self.report, self.executive = trajectory, report, executive
         self.memory, self.state_file = memory, state_file
+        self.reconfigure = lambda settings: None  # applies settings to the stopped components (set by the system)
         self.n = robot.n
         self.fault: str | None = None
         self.operator_stop: str | None = None
@@ -94,6 +96,7 @@ class Supervisor:
         self.calibration_done = False
         self.settled_since = None
         self.done = False
+        self.pending_settings: dict | None = None  # a reconfiguration cycle: the settings to apply
         self.init_machine = self.init.machine(self.clock)
         self.fsm = self._build()
 
@@ -111,6 +114,9 @@ class Supervisor:
                     where += f" ({self.init.step_name})"
                 self.fault = f"{where}: {found}" if where else found
         return self.fault is not None
+
+    def reconfiguring(self) -> bool:
+        return self.pending_settings is not None
 
     def prepared(self) -> bool:
         return self.robot.brakes_released()
@@ -154,7 +160,8 @@ class Supervisor:
             self.memory.calibrated, self.memory.compensation = True, saved
         if self.memory.calibrated:
             self.robot.compensation[:] = self.memory.compensation
-        self.robot.release_brakes()
+        if self.pending_settings is None:  # a reconfiguration keeps the brakes on
+            self.robot.release_brakes()
 
     def start_run(self) -> None:
         if not self.prepared() and self._elapsed() > BRAKE_TIMEOUT:
@@ -225,6 +232,20 @@ class Supervisor:
         self.trajectory.stop()
         self.report.stop()
 
+    # ---- Robot Reconfiguration ----
+    def reconfigure_entry(self) -> None:
+        """Stop the components, apply the settings, start the robot interface again."""
+        for component in (self.trajectory, self.init, self.report, self.servo):
+            component.stop()
+        self.robot.stop()
+        try:
+            self.reconfigure(self.pending_settings)
+        except (ValueError, KeyError) as exc:
+            self.fault = self.fault or f"Robot Reconfiguration: {exc}"
+        self.pending_settings = None
+        self.robot.configure()
+        self.robot.start()
+
     # ---- Stop Robot ----
     def stop_entry(self) -> None:
         self.t_state = self.clock.now()
@@ -277,6 +298,8 @@ class Supervisor:
                   doc="find sensors and index pulses, reset the encoders, go to the start position"),
             State(MOVE, entry=self.move_entry, exit=self.move_exit,
                   doc="run the program; stop the trajectory generator and the report on exit"),
+            State(RECONFIGURE, entry=self.reconfigure_entry,
+                  doc="between programs: stop the components, apply a configuration, restart them"),
             State(STOP, entry=self.stop_entry, run=self.stop_run,
                   doc="come to rest, apply the brakes, stop the components"),
         ]
@@ -284,9 +307,11 @@ class Supervisor:
         t = Transition
         transitions = [
             t(START, STOP, faulted, label="fault"),
+            t(START, RECONFIGURE, self.reconfiguring, label="reconfiguration requested"),
             t(START, CALIBRATE, self.need_calibration, label="prepared, not calibrated"),
             t(START, INITIALIZE, self.need_initialization, label="prepared, calibrated, not initialized"),
             t(START, MOVE, self.ready_to_move, label="prepared, calibrated, initialized"),
+            t(RECONFIGURE, STOP, None, label="reconfigured"),
             t(CALIBRATE, STOP, faulted, label="fault"),
             t(CALIBRATE, INITIALIZE, self.calibrated_need_init, label="calibrated, not initialized"),
             t(CALIBRATE, MOVE, self.calibrated_ready, label="calibrated, initialized"),

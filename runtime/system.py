@@ -61,6 +61,7 @@ class RobotSystem:
         self.memory = memory or RobotMemory()
         self.supervisor = Supervisor(self.clock, self.robot, self.servo, self.init, self.trajectory, self.report,
                                      self.executive, self.memory, StateFile(options.state_dir, identity))
+        self.supervisor.reconfigure = self.apply_settings
         ex, robot = self.executive, self.robot
         controller = spec.controller
         servo_policy = MissPolicy(str(controller.get("servo_miss_policy", "firm")),
@@ -74,23 +75,62 @@ class RobotSystem:
         ex.add("robot.write", robot.write, TICK, "act", component=robot)
         ex.add("report", self.report.update, 0.01, "record", component=self.report)
 
-    def begin(self, program: Program, report: str | Path | None = None) -> None:
+    def begin(self, program: Program | None, report: str | Path | None = None, settings: dict | None = None) -> None:
         """Not real-time: start one cycle of the supervisor (power-up to Stop Robot) with
         ``program``; the executive's ticks then carry it out (until ``supervisor.done``).
         Calibration and initialization are remembered from earlier cycles. Raises
-        ValueError if the program cannot run here (checked before anything moves)."""
-        problem = unsupported_moves(program)
+        ValueError if the program cannot run here (checked before anything moves).
+        With ``settings`` instead of a program, the cycle is a reconfiguration: Start
+        Robot -> Robot Reconfiguration -> Stop Robot, brakes kept on."""
+        problem = unsupported_moves(program) if program is not None else None
         if problem:
             raise ValueError(problem)
         self._wall0 = time.perf_counter()
         self._report_path = report
         self.supervisor.reset()
+        self.supervisor.pending_settings = settings
         self.servo.max_following_error = 0.0
-        self.trajectory.load(program)
+        if program is not None:
+            self.trajectory.load(program)
         self.report.open(report)
         self.robot.configure()
         self.robot.start()
         self.supervisor.fsm.start()
+
+    # ---- configuration (not real-time: between programs) ----
+    def settings(self) -> dict:
+        """The current value of every configurable setting (runtime.config.SCHEMA)."""
+        ex = {t.name: t.period * TICK for t in self.executive.tasks}
+        return {"servo": {"kp": self.servo.kp, "ki": self.servo.ki,
+                          "following_error_limit": self.servo.following_error_limit},
+                "robot": {"velocity_limit_scale": self.robot.velocity_limit_scale},
+                "trajectory": {"budget": self.trajectory.budget, "period": ex["trajectory"]},
+                "initialization": {"period": ex["initialization"]},
+                "report": {"period": ex["report"], "columns": list(self.report.columns)}}
+
+    def apply_settings(self, settings: dict) -> None:
+        """Set every setting given (validated ones: runtime.config.validate_settings),
+        with the components stopped. Periods go to the executive's schedule."""
+        servo, robot, trajectory, report = self.servo, self.robot, self.trajectory, self.report
+        for key, value in settings.get("servo", {}).items():
+            setattr(servo, key, value)
+        if "velocity_limit_scale" in settings.get("robot", {}):
+            robot.velocity_limit_scale = settings["robot"]["velocity_limit_scale"]
+        t = settings.get("trajectory", {})
+        if "budget" in t:
+            trajectory.budget = t["budget"]
+        for name, component in (("trajectory", trajectory), ("initialization", self.init)):
+            period = settings.get(name, {}).get("period")
+            if period is not None:
+                self.executive.set_period(name, period)
+                component.period = period
+        servo.setpoint_period = trajectory.period
+        r = settings.get("report", {})
+        if "period" in r:
+            self.executive.set_period("report", r["period"])
+            report.period = r["period"]
+        if "columns" in r:
+            report.columns = list(r["columns"])
 
     def emergency_stop(self, reason: str = "emergency stop by the operator") -> None:
         """Real-time safe: drives commanded to zero and the servo off now, brakes applied,

@@ -235,3 +235,19 @@ def test_language_md_covers_every_statement():
     for statement, snippets in STATEMENT_SYNTAX.items():
         for snippet in snippets:
             assert snippet in text, f"docs/language.md: the {statement} statement lacks {snippet!r}"
+
+
+def test_protocol_page_describes_every_operation_and_error_code():
+    """docs/protocol.md is what a client in another language is written from: every
+    operation and every error code of runtime/protocol.py must be on it."""
+    from runtime import protocol
+
+    text = (ROOT / "docs" / "protocol.md").read_text(encoding="utf-8")
+    headings = [line for line in text.splitlines() if line.startswith("### ")]
+    for op, (args, _doc) in protocol.OPS.items():
+        assert any(f"`{op}`" in h for h in headings), f"operation {op!r} has no section"
+        for name in args:
+            assert f"`{name}`" in text, f"argument {op}.{name} is not described"
+    for code in protocol.ERRORS:
+        assert f"| `{code}` |" in text, f"error code {code!r} is not in the table"
+    assert f"version {protocol.VERSION}" in text

@@ -1,7 +1,7 @@
 """Report: every 10 ms, one row of what the components exchanged.
 
 Columns: time, FSM state, and per axis ``sens_pos``, ``desi_pos`` (the servo's reference),
-``out_vel`` and the following error. The real-time side only appends a tuple of numbers;
+``out_vel`` and the following error (the ``columns`` setting chooses among these four). The real-time side only appends a tuple of numbers;
 every 100 ms (ten rows) it hands the batch to a writer thread through a bounded queue,
 and the thread formats, writes and flushes the CSV, so a crash loses at most the last
 100 ms and the loop never does I/O. State transitions go to ``<report>.states.csv``.
@@ -16,7 +16,8 @@ from pathlib import Path
 
 from ..component import Component, DataPort
 
-FLUSH_ROWS = 10  # rows per batch: 10 x 10 ms = 100 ms
+FLUSH_PERIOD = 0.1  # s of rows per batch handed to the writer (10 rows at the default 10 ms)
+COLUMNS = ["sens_pos", "desi_pos", "out_vel", "following_error"]  # the per-axis quantities, by default
 
 
 def _fmt(x: float) -> str:
@@ -68,10 +69,11 @@ class Report(Component):
         self.writer: ReportWriter | None = None
         self.batch: list = []
         self.dropped = 0
+        self.columns = list(COLUMNS)  # which per-axis quantities the rows hold, in this order
 
     def header(self) -> list[str]:
         cols = ["time", "state"]
-        for kind in ("sens_pos", "desi_pos", "out_vel", "following_error"):
+        for kind in self.columns:
             cols += [f"{kind}_{n}" for n in self.names]
         return cols
 
@@ -95,9 +97,15 @@ class Report(Component):
         pos = self.sens_pos.read() or (0.0,) * n
         vel = self.out_vel.read() or (0.0,) * n
         servo = self.servo
-        row = (now, self.state_of(), *pos, *servo.reference, *vel, *servo.following_error)
+        columns = self.columns
+        if columns == COLUMNS:
+            row = (now, self.state_of(), *pos, *servo.reference, *vel, *servo.following_error)
+        else:
+            values = {"sens_pos": pos, "desi_pos": servo.reference, "out_vel": vel,
+                      "following_error": servo.following_error}
+            row = (now, self.state_of(), *(x for kind in columns for x in values[kind]))
         self.batch.append(row)
-        if len(self.batch) >= FLUSH_ROWS:
+        if len(self.batch) * self.period >= FLUSH_PERIOD - 1e-9:
             self._hand_over()
 
     def _hand_over(self) -> None:

@@ -1,0 +1,206 @@
+"""Operator control inside one robot (in-process, simulated clock): cycles that remember
+calibration and initialization, pause that stops a PTP move on its path and resume that
+finishes it, abort, emergency stop, speed override, reconfiguration between programs,
+and the executive's schedule changes."""
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from compiler.driver import compile_file
+from runtime.executive import Executive, SimClock
+from runtime.motion.planner import StopRamp
+from runtime.supervisor import MOVE, RECONFIGURE, STOP
+from runtime.system import RobotSystem, RunOptions
+
+ROOT = Path(__file__).resolve().parent.parent
+PAPER = compile_file(ROOT / "programs" / "test.irl")
+SPEC = PAPER.spec
+COUNTS = [1.0 / a.counts_per_unit for a in SPEC.axes]
+
+
+def states(summary: dict) -> list[str]:
+    return [s["name"] for s in summary["states"]]
+
+
+@pytest.fixture()
+def system():
+    return RobotSystem(SPEC, RunOptions(seed=2))
+
+
+def to_move(system, extra_ticks: int = 0):
+    ex, sup = system.executive, system.supervisor
+    ex.run(lambda: sup.fsm.state == MOVE, 10**6)
+    ex.run(lambda: False, extra_ticks)
+
+
+def finish(system) -> dict:
+    system.executive.run(lambda: system.supervisor.done, 10**6)
+    return system.finish()
+
+
+def on_segment(point, start, end, tolerance) -> bool:
+    """Is ``point`` on the joint-space segment start -> end (within ``tolerance`` per axis)?"""
+    direction = [e - s for s, e in zip(start, end)]
+    length2 = sum(d * d for d in direction)
+    u = sum((p - s) * d for p, s, d in zip(point, start, direction)) / length2
+    return -1e-9 <= u <= 1 + 1e-9 and all(abs(s + u * d - p) <= tolerance
+                                          for p, s, d in zip(point, start, direction))
+
+
+def test_a_second_cycle_remembers_calibration_and_initialization(system):
+    system.begin(PAPER.program)
+    first = finish(system)
+    assert first["fault"] is None
+    assert states(first) == ["Start Robot", "Calibrate Offsets", "Initialization Sequence", MOVE, STOP]
+    system.begin(PAPER.program)
+    second = finish(system)
+    assert second["fault"] is None
+    assert states(second) == ["Start Robot", MOVE, STOP]
+    assert [m["line"] for m in second["moves"]] == [m["line"] for m in first["moves"]]
+    for x, target in zip(second["final_position"], (45, -45, 45, 0, 0, 0)):
+        assert abs(x - target) <= 2 * max(COUNTS)
+
+
+def test_pause_stops_on_the_path_and_resume_finishes_the_move(system):
+    system.begin(PAPER.program)
+    to_move(system, 700)  # mid first move: (0..) -> (45, 0, -45, 0, 0, 0)
+    tg = system.trajectory
+    start, target = tg.trajectory.start_position, tg.trajectory.target_position
+    assert any(abs(v) > 1.0 for v in tg.velocities)
+    line = tg.line
+    assert tg.pause()
+    assert tg.paused
+    ex = system.executive
+    ex.run(lambda: tg.trajectory is None, 10**5)
+    stopped = tg.positions
+    assert all(v == 0.0 for v in tg.velocities)
+    assert on_segment(stopped, start, target, 1e-9)  # the setpoints stop on the path
+    assert 0 < abs(stopped[0]) < 45
+    ex.run(lambda: False, 500)  # stays paused: no new setpoints, the robot holds
+    assert tg.positions == stopped and tg.line == line
+    assert all(abs(x - s) <= 10 * c for x, s, c in zip(system.robot.positions, stopped, COUNTS))
+    assert tg.resume() and not tg.paused
+    summary = finish(system)
+    assert summary["fault"] is None
+    assert len(summary["moves"]) == 3
+    for x, want in zip(summary["final_position"], (45, -45, 45, 0, 0, 0)):
+        assert abs(x - want) <= 2 * max(COUNTS)
+
+
+def test_the_stop_ramp_keeps_within_the_deceleration_limit():
+    ramp = StopRamp((1.0, 2.0, 3.0), (10.0, -5.0, 0.0), (40.0, 40.0, 40.0))
+    assert ramp.duration == pytest.approx(0.25)
+    assert ramp.sample(ramp.duration) == (ramp.target_position, (0.0, 0.0, 0.0))
+    assert ramp.target_position == pytest.approx((1.0 + 1.25, 2.0 - 0.625, 3.0))
+    p, v = ramp.sample(0.1)
+    assert v == pytest.approx((6.0, -3.0, 0.0))
+    resting = StopRamp((1.0, 2.0), (0.0, 0.0), (40.0, 40.0))
+    assert resting.duration == 0.0 and resting.sample(0.0) == ((1.0, 2.0), (0.0, 0.0))
+
+
+@settings(max_examples=100, deadline=None)
+@given(st.lists(st.tuples(st.floats(-200, 200), st.floats(0.5, 500)), min_size=1, max_size=6))
+def test_property_stop_ramp_respects_every_axis_limit_and_stays_proportional(axes):
+    v0 = tuple(v for v, _ in axes)
+    a_max = tuple(a for _, a in axes)
+    ramp = StopRamp((0.0,) * len(axes), v0, a_max)
+    for v, a in zip(v0, a_max):
+        assert abs(v) / ramp.duration <= a * (1 + 1e-12) if ramp.duration > 0 else v == 0
+    for k in range(11):
+        t = ramp.duration * k / 10
+        _, vel = ramp.sample(t)
+        for v, v_now in zip(v0, vel):  # every axis keeps the same fraction of its start velocity
+            assert math.isclose(v_now, v * (1 - k / 10), rel_tol=1e-9, abs_tol=1e-9)
+
+
+def test_abort_stops_on_the_path_then_ends_with_the_operator_named(system):
+    system.begin(PAPER.program)
+    to_move(system, 700)
+    tg = system.trajectory
+    start, target = tg.trajectory.start_position, tg.trajectory.target_position
+    assert tg.abort()
+    system.executive.run(lambda: tg.trajectory is None, 10**5)
+    assert on_segment(tg.positions, start, target, 1e-9)
+    summary = finish(system)
+    assert summary["fault"] == "Move Robot: aborted by the operator at line 4"
+    assert states(summary)[-1] == STOP
+    assert summary["max_following_error"] < SPEC.controller["following_error_limit"]
+
+
+def test_emergency_stop_applies_the_brakes_and_ends_the_cycle(system):
+    system.begin(PAPER.program)
+    to_move(system, 700)
+    system.emergency_stop()
+    summary = finish(system)
+    assert "emergency stop" in summary["fault"]
+    assert system.backend.brakes_applied()
+    assert not system.servo.running and not system.robot.running
+
+
+def test_override_slows_the_moves_planned_afterwards(system):
+    system.begin(PAPER.program)
+    full = finish(system)
+    system.begin(PAPER.program)
+    system.trajectory.override = 50.0
+    half = finish(system)
+    assert half["fault"] is None
+    # the same moves (the first starts where the last program ended, so it differs): v * p and
+    # a * p^2 take twice as long, up to the small velocity margin the planner keeps for the
+    # interpolator (it scales with the acceleration)
+    for a, b in zip(full["moves"][1:], half["moves"][1:]):
+        assert b["planned_duration"] == pytest.approx(2 * a["planned_duration"], rel=2e-3)
+
+
+def test_a_reconfiguration_cycle_applies_settings_with_the_brakes_on(system):
+    system.begin(PAPER.program)
+    finish(system)
+    settings_before = system.settings()
+    new = {"servo": {"kp": 25.0}, "report": {"period": 0.02, "columns": ["sens_pos", "out_vel"]},
+           "trajectory": {"period": 0.01}, "initialization": {"period": 0.01}}
+    system.begin(None, None, settings=new)
+    summary = finish(system)
+    assert summary["fault"] is None
+    assert states(summary) == ["Start Robot", RECONFIGURE, STOP]
+    assert system.backend.brakes_applied()
+    now = system.settings()
+    assert now["servo"]["kp"] == 25.0 and now["servo"]["ki"] == settings_before["servo"]["ki"]
+    assert now["report"] == {"period": 0.02, "columns": ["sens_pos", "out_vel"]}
+    assert system.servo.setpoint_period == 0.01
+    assert system.report.header() == ["time", "state"] + [f"{k}_{a.name}" for k in ("sens_pos", "out_vel")
+                                                           for a in SPEC.axes]
+    system.begin(PAPER.program)  # and a program still runs, at the new periods
+    after = finish(system)
+    assert after["fault"] is None
+    runs = {name: s["runs"] for name, s in after["deadlines"].items()}
+    assert runs["report"] > 0
+
+
+def test_executive_periods_can_change_and_the_schedule_follows():
+    ex = Executive(SimClock(0.001), 0.001)
+    calls = {"a": 0, "b": 0}
+    ex.add("a", lambda now: calls.__setitem__("a", calls["a"] + 1), 0.001, "sense")
+    ex.add("b", lambda now: calls.__setitem__("b", calls["b"] + 1), 0.005, "plan")
+    ex.run(lambda: False, 100)
+    assert calls == {"a": 100, "b": 20}
+    ex.set_period("b", 0.01)
+    ex.run(lambda: False, 100)
+    assert calls == {"a": 200, "b": 30}
+    with pytest.raises(ValueError):
+        ex.set_period("b", 0.0015)
+    with pytest.raises(KeyError):
+        ex.set_period("nope", 0.001)
+
+
+def test_resync_skips_to_the_clock_instead_of_catching_up():
+    clock = SimClock(0.001)
+    ex = Executive(clock, 0.001)
+    ex.add("a", lambda now: None, 0.001, "sense")
+    ex.run(lambda: False, 10)
+    clock.ticks = 500  # time passed while nothing was stepped
+    ex.resync()
+    assert ex.ticks == 500

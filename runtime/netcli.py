@@ -425,18 +425,17 @@ def add_commands(sub) -> None:
         p = sub.add_parser(name, help=text)
         connection(p)
         p.set_defaults(run=fn)
-    p = sub.add_parser("abort", help="stop the running program on its path (or remove a queued one)")
-    p.add_argument("program", nargs="?", type=int, metavar="ID")
-    connection(p)
-    p.set_defaults(run=cmd_abort)
-    p = sub.add_parser("override", help="speed override (percent) for the moves planned from now on")
-    p.add_argument("percent", type=float, metavar="PCT")
-    connection(p)
-    p.set_defaults(run=cmd_override)
-    p = sub.add_parser("reconfigure", help="switch to another named configuration between programs")
-    p.add_argument("name", metavar="NAME")
-    connection(p)
-    p.set_defaults(run=cmd_reconfigure)
+    for name, fn, text, arg, kind, metavar in (
+            ("abort", cmd_abort, "stop the running program on its path (or remove a queued one)", "program", int, "ID"),
+            ("override", cmd_override, "speed override (percent) for the moves planned from now on", "percent", float,
+             "PCT"),
+            ("reconfigure", cmd_reconfigure, "switch to another named configuration between programs", "name", str,
+             "NAME"),
+            ("call", cmd_call, "one scripting command, e.g. 'servo.kp' or 'servo.kp = 30'", "text", str, "TEXT")):
+        p = sub.add_parser(name, help=text)
+        p.add_argument(arg, type=kind, metavar=metavar, **({"nargs": "?"} if name == "abort" else {}))
+        connection(p)
+        p.set_defaults(run=fn)
 
     p = sub.add_parser("watch", help="print the server's telemetry")
     p.add_argument("--json", action="store_true", help="one JSON object per line")
@@ -447,10 +446,6 @@ def add_commands(sub) -> None:
     p.add_argument("--keys", metavar="DIR", help="CURVE keys (made by 'irl keys DIR')")
     p.set_defaults(run=cmd_watch)
 
-    p = sub.add_parser("call", help="one scripting command, e.g. 'servo.kp' or 'servo.kp = 30'")
-    p.add_argument("text", metavar="TEXT")
-    connection(p)
-    p.set_defaults(run=cmd_call)
     p = sub.add_parser("console", help="an interactive scripting session")
     connection(p)
     p.set_defaults(run=cmd_console)

@@ -164,9 +164,10 @@ class SimRobot:
             for i in range(self.n_axes):
                 vs[i] = 0.0
                 index_active[i] = False
-        elif self._drive_or_encoder_fault:
-            self._step_with_faults(dt, velocity_commands)
-        else:  # the common case, kept lean: no fault tables to look at
+        else:
+            saved = None
+            if self._drive_or_encoder_fault:  # rare: the loop below stays free of fault checks
+                velocity_commands, saved = self._fault_commands(velocity_commands)
             lo, hi, vmax, offset = self._lo, self._hi, self._vmax, self._offset
             edge_lo, edge_hi = self._edge_lo, self._edge_hi
             counts, base, origin, cpu = self._counts, self._base, self._origin, self._cpu
@@ -196,8 +197,10 @@ class SimRobot:
                 if edge_lo[i] < x < edge_hi[i]:  # well inside the index interval: no pulse
                     index_active[i] = False
                 else:
-                    self._index_check(i, x, False)
+                    self._index_check(i, x)
                 counts[i] = base[i] + _floor((x - origin[i]) * cpu[i])
+            if saved is not None:
+                self._restore_frozen(saved)
         if self._brake_timer > 0.0:
             self._brake_timer -= dt
             if self._brake_timer <= 1e-9:
@@ -208,45 +211,24 @@ class SimRobot:
                         vs[i] = 0.0
         self.time += dt
 
-    def _step_with_faults(self, dt: float, velocity_commands) -> None:
-        """:meth:`step`'s per-axis physics while a drive or an encoder fault is injected."""
-        a, k = self._decay, self._lag_gain
-        xs, vs = self._x, self._v
-        lo, hi, vmax, offset, dead = self._lo, self._hi, self._vmax, self._offset, self._drive_dead
-        frozen, counts, base, origin, cpu = self._encoder_frozen, self._counts, self._base, self._origin, self._cpu
-        for i in range(self.n_axes):
-            if dead[i]:
-                u = 0.0
-            else:
-                c = velocity_commands[i]
-                limit = vmax[i]
-                if c > limit:
-                    c = limit
-                elif c < -limit:
-                    c = -limit
-                elif c != c:  # NaN
-                    c = 0.0
-                u = c + offset[i]
-            dv = vs[i] - u
-            x = xs[i] + u * dt + dv * k
-            v = u + dv * a
-            if x > hi[i]:
-                x = hi[i]
-                if v > 0.0:
-                    v = 0.0
-            elif x < lo[i]:
-                x = lo[i]
-                if v < 0.0:
-                    v = 0.0
-            xs[i] = x
-            vs[i] = v
-            self._index_check(i, x, frozen[i])
-            if not frozen[i]:
-                counts[i] = base[i] + _floor((x - origin[i]) * cpu[i])
+    def _fault_commands(self, velocity_commands) -> tuple[list, list]:
+        """Before a step with drive or encoder faults: a dead drive gets the command that
+        cancels its offset (it then produces nothing: u = -b + b = 0 exactly), and what a
+        frozen encoder shows is saved, to be put back after the step."""
+        dead, offset = self._drive_dead, self._offset
+        commands = [-offset[i] if dead[i] else c for i, c in enumerate(velocity_commands)]
+        saved = [(i, self._counts[i], self._index_events[i], self._latched[i])
+                 for i, frozen in enumerate(self._encoder_frozen) if frozen]
+        return commands, saved
 
-    def _index_check(self, i: int, x: float, frozen: bool) -> None:
+    def _restore_frozen(self, saved: list) -> None:
+        for i, counts, events, latched in saved:
+            self._counts[i], self._index_events[i], self._latched[i] = counts, events, latched
+            self._index_active[i] = False
+
+    def _index_check(self, i: int, x: float) -> None:
         """Index pulses of axis ``i`` now at ``x``: detect a crossing of ``k * spacing``,
-        count it and latch the encoder there (unless the encoder is frozen)."""
+        count it and latch the encoder there."""
         spacing = self._spacing[i]
         r = _floor(x / spacing)
         r_old = self._rev[i]
@@ -255,9 +237,6 @@ class SimRobot:
             return
         self._rev[i] = r
         self._set_edges(i)
-        if frozen:
-            self._index_active[i] = False
-            return
         self._index_active[i] = True
         if r > r_old:  # moving up: the last crossed is r * spacing
             self._index_events[i] += r - r_old

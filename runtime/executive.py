@@ -20,6 +20,7 @@ from typing import Callable
 from .component import Lifecycle
 
 _RUNNING = Lifecycle.RUNNING
+_sleep = time.sleep
 
 PHASES = ("sense", "decide", "plan", "control", "act", "record")
 
@@ -66,12 +67,14 @@ class WallClock:
         return time.perf_counter() - self._t0
 
     def wait_until(self, t: float) -> None:
-        """Sleep, then spin to ``t`` (the only place the loop waits)."""
+        """Sleep, then spin to ``t`` (the only place the loop waits). The spin gives the
+        interpreter lock away on every turn, so other threads are not shut out for the
+        spin's whole length."""
         remaining = t - self.now()
         if remaining > self.spin:
             time.sleep(remaining - self.spin)
         while self.now() < t:
-            pass
+            _sleep(0)  # a zero sleep lets another thread (a server's I/O) take the interpreter
 
 
 @dataclass

@@ -419,14 +419,14 @@ def add_commands(sub) -> None:
     connection(p)
     p.set_defaults(run=cmd_status)
 
-    for name, fn, text in (("pause", cmd_pause, "hold the running program (a move stops on its path)"),
+    for name, fn, text in (("pause", cmd_pause, "hold the running program (a move under way comes to a controlled stop)"),
                            ("resume", cmd_resume, "continue the paused program"),
                            ("estop", cmd_estop, "emergency stop: brakes on, drives off, queue cancelled")):
         p = sub.add_parser(name, help=text)
         connection(p)
         p.set_defaults(run=fn)
     for name, fn, text, arg, kind, metavar in (
-            ("abort", cmd_abort, "stop the running program on its path (or remove a queued one)", "program", int, "ID"),
+            ("abort", cmd_abort, "stop the running program (controlled stop; or remove a queued one)", "program", int, "ID"),
             ("override", cmd_override, "speed override (percent) for the moves planned from now on", "percent", float,
              "PCT"),
             ("reconfigure", cmd_reconfigure, "switch to another named configuration between programs", "name", str,

@@ -281,7 +281,7 @@ class Server:
             self.jobs.pop(self.finished.popleft(), None)
 
     def _stop_current(self, reason: str) -> None:
-        """Bring the running program to an end: on its path while moving, else at once."""
+        """Bring the running program to an end: a controlled stop while moving, else at once."""
         job = self.current
         if job is None:
             return

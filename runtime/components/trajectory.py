@@ -44,7 +44,7 @@ def unsupported_moves(program: Program) -> str | None:
 
 @dataclass
 class _Interrupted:
-    """A move stopped on its path by the operator: what resuming it needs."""
+    """A move stopped by the operator: what resuming it needs."""
 
     target: tuple
     speed: float  # the move's speed_ptp and acc_ptp (before the override)
@@ -54,9 +54,9 @@ class _Interrupted:
 
 class TrajectoryGenerator(Component):
     """Operator control (real-time safe, called between ticks): :meth:`pause` stops the
-    program before its next instruction and brings a move under way to rest on its path
+    program before its next instruction and brings a move under way to a controlled stop
     (a :class:`StopRamp`); :meth:`resume` continues the program and re-plans the rest of
-    the interrupted move from where the robot stopped; :meth:`abort` stops on the path,
+    the interrupted move from where the robot stopped; :meth:`abort` stops the same way,
     then ends the program with a fault; ``override`` (percent) scales the speed of the
     moves planned from then on."""
 
@@ -80,7 +80,7 @@ class TrajectoryGenerator(Component):
         self.fault: str | None = None
         self.start_position: tuple | None = None  # the commanded position to plan from (else sens_pos)
         self.override = 100.0
-        self.interrupted: _Interrupted | None = None  # a move stopped on its path (pause/abort)
+        self.interrupted: _Interrupted | None = None  # a move stopped before its end (pause/abort)
         self.abort_reason: str | None = None  # set by abort(): end the program once at rest
         self._current: _Interrupted | None = None  # the move under way
 
@@ -144,7 +144,7 @@ class TrajectoryGenerator(Component):
 
     # ---- operator control (real-time safe) ----
     def pause(self) -> bool:
-        """Hold the program; a move under way decelerates to rest on its path. False if
+        """Hold the program; a move under way decelerates to rest (a controlled stop). False if
         there is no program to pause."""
         vm = self.vm
         if vm is None or vm.status in (VMStatus.DONE, VMStatus.ERROR) or self.abort_reason is not None:
@@ -165,7 +165,7 @@ class TrajectoryGenerator(Component):
         return True
 
     def abort(self, reason: str = "aborted by the operator") -> bool:
-        """Stop on the path, then end the program with ``reason`` as its fault."""
+        """A controlled stop, then end the program with ``reason`` as its fault."""
         vm = self.vm
         if vm is None or vm.status in (VMStatus.DONE, VMStatus.ERROR):
             return False

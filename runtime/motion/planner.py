@@ -359,14 +359,17 @@ def scaled_limits(axes_max_velocity, axes_max_acceleration, speed_ptp: float,
 
 
 class StopRamp:
-    """A controlled stop on the path: from positions ``p0`` moving at ``v0``, every axis
-    decelerates uniformly to rest in the same time ``duration``, the shortest that keeps
-    each axis within its deceleration limit ``a_max``: ``T = max |v0_i| / a_max_i``.
+    """A controlled stop: from positions ``p0`` moving at ``v0``, every axis decelerates
+    uniformly to rest in the same time ``duration``, the shortest that keeps each axis
+    within its deceleration limit ``a_max``: ``T = max |v0_i| / a_max_i``.
 
-    Along a synchronised PTP move every axis's velocity is the same function of time up
-    to a per-axis factor, so decelerating all of them in one common time keeps the robot
-    on the move's path (it stops short of the target, on the straight joint-space line).
-    Same sampling interface as :class:`PtpTrajectory`. Real-time safe.
+    The axes stop together, moving along the direction of motion at the moment of the
+    stop (the tangent of the path). That is exactly on the move's path when the move's
+    axes are proportional in time (every axis sharing one profile shape, as when they
+    have the same limits); the trapezoidal planner's non-leading axes accelerate at their
+    own limit, so in general the stop point is within a fraction of a degree of the path.
+    Not jerk-limited (the deceleration starts at once). Same sampling interface as
+    :class:`PtpTrajectory`. Real-time safe.
     """
 
     __slots__ = ("duration", "start_position", "target_position", "_v0", "_dec", "_zeros")

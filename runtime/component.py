@@ -99,6 +99,12 @@ class Component:
         self.lifecycle = Lifecycle.UNCONFIGURED
         return True
 
+    def recover(self) -> None:
+        """Not real-time: forget a failure (ERROR -> STOPPED), e.g. before a new cycle."""
+        if self.lifecycle is Lifecycle.ERROR:
+            self.lifecycle = Lifecycle.STOPPED
+        self.error_message = None
+
     def error(self, message: str) -> None:
         """Real-time safe: stop updating and remember why (the supervisor reads it)."""
         self.lifecycle = Lifecycle.ERROR

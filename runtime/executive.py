@@ -245,6 +245,14 @@ class Executive:
                 self.fault = self.fault or (f"deadline: {task.name} missed {len(recent)} deadlines "
                                             f"within {policy.window} ticks (firm)")
 
+    def reset_statistics(self) -> None:
+        """Not real-time: start counting afresh (a new cycle): forget a deadline fault,
+        the misses and the execution-time and lateness statistics."""
+        self.fault = None
+        self.tick_late_max = 0.0
+        for task in self.tasks:
+            task.stats = TaskStats()
+
     def resync(self) -> None:
         """Not real-time: after a pause in stepping (a server idle between programs), skip
         to the next tick boundary of the clock instead of catching up tick by tick."""

@@ -89,9 +89,12 @@ class RobotSystem:
         self._report_path = report
         self.supervisor.reset()
         self.supervisor.pending_settings = settings
+        self.executive.reset_statistics()  # the summary's deadlines are this cycle's
+        for component in (self.robot, self.servo, self.init, self.trajectory, self.report):
+            component.recover()  # a fault of the last cycle is not this one's
+        self.init.fault = None
         self.servo.max_following_error = 0.0
-        if program is not None:
-            self.trajectory.load(program)
+        self.trajectory.load(program)
         self.report.open(report)
         self.robot.configure()
         self.robot.start()

@@ -84,9 +84,15 @@ class TrajectoryGenerator(Component):
         self.abort_reason: str | None = None  # set by abort(): end the program once at rest
         self._current: _Interrupted | None = None  # the move under way
 
-    def load(self, program: Program) -> None:
-        """Not real-time: the program to run at the next start."""
+    def load(self, program: Program | None) -> None:
+        """Not real-time: the program to run at the next start; forgets the last one's
+        end (its fault, an abort, its interpreter)."""
         self.program = program
+        self.vm = None
+        self.trajectory = None
+        self.fault = None
+        self.abort_reason = None
+        self.interrupted = self._current = None
 
     def on_start(self) -> bool:
         if self.program is None:

@@ -1,0 +1,864 @@
+"""End-to-end tests of ``irl serve`` and its clients: real server processes on loopback.
+
+Every test starts its own ``irl serve`` (a subprocess of the console script) on free
+ports with a state directory under tmp_path, waits until it answers ``hello``, and stops
+it in a finalizer (SIGTERM, then SIGKILL after 10 s); the server's stderr is kept in a
+file and printed at teardown, so a failing test shows it. Servers run on the simulated
+clock (--sim-clock: as fast as the CPU allows, deterministic) except where the wall
+clock is the point (pausing a move, kill -9 mid-move, a deadline fault); the first two
+share one wall-clock server so that its calibration and initialization (about 9 s of
+real time) are paid once, and it runs a copy of the specification with a "soft" servo
+deadline policy so that a busy machine cannot fault their programs (see
+soft_deadline_spec). Telemetry is on TCP loopback too, except for the stalled-subscriber
+test (ipc: see there).
+
+Two tests pin that a fault of one program (an abort, a deadline fault) does not carry
+over to the next program on the same server.
+
+Programs: programs/test.irl (the paper's three moves) and small ones in
+tests/server_programs/ (short.irl one quick move, pause.irl two moves of a few seconds,
+medium.irl six slow moves, long.irl a slow loop that only ends when stopped).
+
+Time limits in these tests are only safety nets against hanging; no assertion depends
+on how fast anything runs.
+"""
+from __future__ import annotations
+
+import csv
+import io
+import json
+import random
+import signal
+import socket
+import subprocess
+import sys
+import threading
+import time
+from collections import Counter
+from pathlib import Path
+
+import msgpack
+import pytest
+import zmq
+
+from compiler.driver import compile_file
+from compiler.objcode import encode
+from runtime import protocol
+from runtime.client import Client, ClientError, Subscriber
+
+ROOT = Path(__file__).resolve().parents[1]
+PROGRAMS = Path(__file__).resolve().parent / "server_programs"
+SPEC = ROOT / "programs" / "lola15.spc"
+TEST_IRL = ROOT / "programs" / "test.irl"
+_SCRIPT = Path(sys.executable).with_name("irl")
+IRL = [str(_SCRIPT)] if _SCRIPT.exists() else [sys.executable, "-m", "runtime.cli"]
+
+START, CALIBRATE, INITIALIZE, MOVE, STOP = (
+    "Start Robot", "Calibrate Offsets", "Initialization Sequence", "Move Robot", "Stop Robot")
+ALL_PHASES = (START, CALIBRATE, INITIALIZE, MOVE, STOP)
+TERMINAL = ("completed", "faulted", "aborted", "cancelled")
+SAFETY = 120.0  # s: a wait that takes longer than this has hung (not a timing assertion)
+
+
+# ---- helpers ---------------------------------------------------------------------------------------
+def free_port() -> int:
+    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+_OBJECTS: dict[tuple, bytes] = {}
+
+
+def objcode(path: Path, spec: Path | None = None) -> bytes:
+    """The object code of a program, for ``spec`` if given (compiled once per session)."""
+    key = (path, spec)
+    if key not in _OBJECTS:
+        result = compile_file(path, spec)
+        assert result.ok, f"{path} does not compile: {result.diagnostics}"
+        _OBJECTS[key] = encode(result.program)
+    return _OBJECTS[key]
+
+
+def soft_deadline_spec(directory: Path) -> Path:
+    """A copy of the Lola 15 specification whose servo deadline policy is "soft".
+
+    A wall-clock server on a busy two-core machine (other test runs, the test process
+    itself) can miss more than the firm policy's 50 deadlines in a second, and the
+    program then faults: the tests that need the wall clock for something else (pausing
+    a move, kill -9 mid-move) use this copy so that their outcome does not depend on
+    the machine's load. Programs sent to such a server are compiled for this spec."""
+    text = SPEC.read_text(encoding="utf-8")
+    assert 'servo_miss_policy = "firm"' in text
+    path = directory / "lola15_soft.spc"
+    path.write_text(text.replace('servo_miss_policy = "firm"', 'servo_miss_policy = "soft"'), encoding="utf-8")
+    return path
+
+
+def run_irl(*args, timeout: float = 60.0, stdin: str | None = None) -> subprocess.CompletedProcess:
+    """Run an ``irl`` command to its end; the output is text."""
+    return subprocess.run([*IRL, *map(str, args)], cwd=ROOT, capture_output=True, text=True, timeout=timeout,
+                          input=stdin, stdin=None if stdin is not None else subprocess.DEVNULL)
+
+
+def no_traceback(proc: subprocess.CompletedProcess) -> None:
+    assert "Traceback" not in proc.stderr and "Traceback" not in proc.stdout, proc.stderr
+    assert "internal error" not in proc.stderr, proc.stderr
+
+
+class ServerProcess:
+    """One ``irl serve`` subprocess on free loopback ports."""
+
+    def __init__(self, directory: Path, state_dir: Path, sim_clock: bool = True, keys: Path | None = None,
+                 telemetry: str | None = None, spec: Path | None = None):
+        self.spec = spec  # None: programs/lola15.spc
+        self.directory = directory
+        self.state_dir = state_dir
+        self.sim_clock = sim_clock
+        self.keys = keys
+        self.endpoint = f"tcp://127.0.0.1:{free_port()}"
+        self.telemetry = telemetry or f"tcp://127.0.0.1:{free_port()}"
+        directory.mkdir(parents=True, exist_ok=True)
+        self.log_path = directory / f"serve-{self.endpoint.rsplit(':', 1)[1]}.log"
+        self.proc: subprocess.Popen | None = None
+        self.clients: list[Client] = []
+
+    def start(self) -> "ServerProcess":
+        cmd = [*IRL, "serve", "--spec", self.spec or SPEC, "--state-dir", self.state_dir,
+               "--endpoint", self.endpoint, "--telemetry", self.telemetry]
+        if self.sim_clock:
+            cmd.append("--sim-clock")
+        if self.keys is not None:
+            cmd += ["--keys", self.keys]
+        with open(self.log_path, "wb") as log:
+            self.proc = subprocess.Popen(list(map(str, cmd)), cwd=ROOT, stdin=subprocess.DEVNULL,
+                                         stdout=log, stderr=subprocess.STDOUT)
+        deadline = time.monotonic() + 10.0
+        probe = Client(self.endpoint, keys=self.keys, timeout=0.2)
+        try:
+            while True:
+                if self.proc.poll() is not None:
+                    pytest.fail(f"irl serve exited with {self.proc.returncode} at start:\n{self.log()}")
+                try:
+                    probe.request("hello")
+                    return self
+                except ClientError:
+                    if time.monotonic() > deadline:
+                        pytest.fail(f"irl serve did not answer hello within 10 s:\n{self.log()}")
+        finally:
+            probe.close()
+
+    def log(self) -> str:
+        try:
+            return self.log_path.read_text(errors="replace")
+        except OSError:
+            return "(no log)"
+
+    def client(self, timeout: float = 10.0, keys: Path | None = None) -> Client:
+        c = Client(self.endpoint, keys=keys if keys is not None else self.keys, timeout=timeout)
+        self.clients.append(c)
+        return c
+
+    def alive(self) -> bool:
+        return self.proc is not None and self.proc.poll() is None
+
+    def stop(self) -> int | None:
+        """SIGTERM, then SIGKILL after 10 s; returns the exit status."""
+        for c in self.clients:
+            c.close()
+        self.clients = []
+        if self.proc is None:
+            return None
+        if self.proc.poll() is None:
+            self.proc.send_signal(signal.SIGTERM)
+            try:
+                self.proc.wait(10)
+            except subprocess.TimeoutExpired:
+                self.proc.kill()
+                self.proc.wait()
+        return self.proc.returncode
+
+    def kill9(self) -> None:
+        self.proc.send_signal(signal.SIGKILL)
+        self.proc.wait()
+
+
+def _finish(servers: list[ServerProcess]) -> None:
+    for server in servers:
+        code = server.stop()
+        print(f"---- irl serve {server.endpoint} ({'sim' if server.sim_clock else 'wall'} clock), "
+              f"exit status {code} ----\n{server.log()}")
+
+
+@pytest.fixture
+def start_server(tmp_path):
+    """``start_server(sim_clock=True, keys=None, state_dir=None, telemetry=None, spec=None)``
+    -> a running server."""
+    servers: list[ServerProcess] = []
+
+    def start(sim_clock: bool = True, keys: Path | None = None, state_dir: Path | None = None,
+              telemetry: str | None = None, spec: Path | None = None) -> ServerProcess:
+        server = ServerProcess(tmp_path / f"server{len(servers)}", state_dir or tmp_path / f"state{len(servers)}",
+                               sim_clock, keys, telemetry, spec)
+        servers.append(server)
+        return server.start()
+
+    yield start
+    _finish(servers)
+
+
+@pytest.fixture
+def server(start_server) -> ServerProcess:
+    return start_server()
+
+
+@pytest.fixture(scope="module")
+def wall_server(tmp_path_factory):
+    """One wall-clock server shared by the tests that need real time (the last one kills
+    it), with the soft-deadline specification (see soft_deadline_spec)."""
+    base = tmp_path_factory.mktemp("wall")
+    server = ServerProcess(base / "server", base / "state", sim_clock=False, spec=soft_deadline_spec(base))
+    server.start()
+    yield server
+    _finish([server])
+
+
+def status(client: Client, program: int) -> dict:
+    return client.request("status", {"program": program})
+
+
+def wait_for(client: Client, program: int, predicate, what: str, server: ServerProcess | None = None,
+             poll: float = 0.02) -> dict:
+    """Poll a program's status until ``predicate(status)``; fails if it ends first."""
+    deadline = time.monotonic() + SAFETY
+    while True:
+        s = status(client, program)
+        if predicate(s):
+            return s
+        if s["state"] in TERMINAL:
+            pytest.fail(f"program {program} ended ({s['state']}: {s.get('fault')}) before {what}"
+                        + (f"\n{server.log()}" if server else ""))
+        if time.monotonic() > deadline:
+            pytest.fail(f"program {program} not {what} after {SAFETY} s: {s}"
+                        + (f"\n{server.log()}" if server else ""))
+        time.sleep(poll)
+
+
+def wait_end(client: Client, program: int, server: ServerProcess | None = None) -> dict:
+    deadline = time.monotonic() + SAFETY
+    while True:
+        s = status(client, program)
+        if s["state"] in TERMINAL:
+            return s
+        if time.monotonic() > deadline:
+            pytest.fail(f"program {program} did not end within {SAFETY} s: {s}"
+                        + (f"\n{server.log()}" if server else ""))
+        time.sleep(0.05)
+
+
+def moving(s: dict) -> bool:
+    return s["state"] == "running" and s.get("fsm") == MOVE
+
+
+def phases(final: dict) -> list[str]:
+    return [st["name"] for st in final["summary"]["states"]]
+
+
+def submit(client: Client, path: Path, server: ServerProcess | None = None) -> int:
+    """Queue a program (compiled for ``server``'s specification if it has its own)."""
+    data = objcode(path, server.spec if server is not None else None)
+    return client.request("submit", {"object": data, "name": path.name})["program"]
+
+
+# ---- 1. submit --wait through the CLI --------------------------------------------------------------
+def test_submit_wait_report_and_second_program_skips_calibration(server, tmp_path):
+    out = tmp_path / "first.csv"
+    proc = run_irl("submit", TEST_IRL, "--endpoint", server.endpoint, "--wait", "--report", out)
+    assert proc.returncode == 0, proc.stdout + proc.stderr + server.log()
+    no_traceback(proc)
+    assert "program 1 queued" in proc.stdout
+    assert "program 1 completed" in proc.stdout
+
+    with open(out, newline="") as f:
+        rows = list(csv.reader(f))
+    header = rows[0]
+    assert header[:2] == ["time", "state"] and "sens_pos_A1" in header
+    assert len(rows) - 1 > 1000
+    assert all(len(r) == len(header) for r in rows)
+    states = out.with_suffix(".states.csv").read_text()
+    assert states.startswith("time,from,to\n")
+    visited = [line.split(",")[2] for line in states.splitlines()[1:]]
+    assert visited == list(ALL_PHASES)
+
+    out2 = tmp_path / "second.csv"
+    proc = run_irl("submit", TEST_IRL, "--endpoint", server.endpoint, "--wait", "--report", out2)
+    assert proc.returncode == 0, proc.stdout + proc.stderr + server.log()
+    assert "program 2 queued" in proc.stdout and "program 2 completed" in proc.stdout
+    visited = [line.split(",")[2] for line in out2.with_suffix(".states.csv").read_text().splitlines()[1:]]
+    assert CALIBRATE not in visited and INITIALIZE not in visited
+    assert visited == [START, MOVE, STOP]
+
+
+# ---- 2. malformed requests -------------------------------------------------------------------------
+def _malformed_requests(rng: random.Random, count: int, good_object: bytes):
+    """``count`` malformed requests: (frames, expected reply id, expected error code or None
+    when several codes are right)."""
+    v = protocol.VERSION
+    pack = protocol.pack
+    big = protocol.MAX_REQUEST_BYTES
+    out = []
+    for i in range(count):
+        rid = f"m{i}" if i % 2 else i + 1_000_000  # string and integer ids, never reused
+        kind = rng.randrange(14)
+        if i % 500 == 499:  # 20 over-size messages (the id cannot be read from them)
+            oversize = b"\0" * (big + rng.randrange(1, 4096))
+            payload = pack({"v": v, "id": rid, "op": "submit", "args": {"object": oversize}})
+            out.append(([payload], None, "too_large"))
+            continue
+        if i % 250 == 7:  # a few that go to the real-time loop and are refused there
+            op, args, code = rng.choice([("pause", {}, "refused"), ("resume", {}, "refused"),
+                                         ("abort", {}, "refused"), ("abort", {"program": 10**9}, "not_found")])
+            out.append(([pack({"v": v, "id": rid, "op": op, "args": args})], rid, code))
+            continue
+        if kind == 0:  # random bytes
+            payload = bytes(rng.randrange(256) for _ in range(rng.randrange(0, 64)))
+            try:
+                decoded = msgpack.unpackb(payload, raw=False, strict_map_key=True)
+            except Exception:
+                decoded = None
+            if isinstance(decoded, dict):  # valid msgpack by chance: whatever its id says
+                candidate = decoded.get("id")
+                ok_id = candidate is None or (isinstance(candidate, (int, str))
+                                              and not isinstance(candidate, bool))
+                out.append(([payload], candidate if ok_id else None, None))
+            else:
+                out.append(([payload], None, "bad_message"))
+        elif kind == 1:  # valid msgpack, not a map
+            value = rng.choice([[1, 2, 3], [{"v": v, "op": "hello"}], 7, -1, "hello", None, 3.5, True, b"bin",
+                                [], list(range(rng.randrange(50)))])
+            out.append(([pack(value)], None, "bad_message"))
+        elif kind == 2:  # map without "v"
+            out.append(([pack({"id": rid, "op": "hello", "args": {}})], rid, "bad_version"))
+        elif kind == 3:  # map without "op"
+            out.append(([pack({"v": v, "id": rid, "args": {}})], rid, "bad_request"))
+        elif kind == 4:  # wrong version
+            bad_v = rng.choice([0, 2, -1, "1", True, None, [1], 2**40, "v1"])
+            out.append(([pack({"v": bad_v, "id": rid, "op": "hello"})], rid, "bad_version"))
+        elif kind == 5:  # unknown op, sometimes huge
+            op = rng.choice(["helo", "STATUS", "", "submit ", "op_hello", "__init__",
+                             "x" * rng.randrange(1000, 100_000)])
+            out.append(([pack({"v": v, "id": rid, "op": op})], rid, "unknown_op"))
+        elif kind == 6:  # op of the wrong type
+            out.append(([pack({"v": v, "id": rid, "op": rng.choice([1, None, True, ["hello"], b"hello"])})],
+                        rid, "bad_request"))
+        elif kind == 7:  # arguments of the wrong type (bool where int expected, etc.)
+            op, args = rng.choice([
+                ("status", {"program": True}), ("status", {"program": "1"}), ("status", {"program": 1.0}),
+                ("status", {"program": None}), ("status", {"program": [1]}),
+                ("report", {"program": False}), ("report", {"program": 1, "offset": True}),
+                ("report", {"program": 1, "offset": "0"}), ("report", {"program": 1, "file": 5}),
+                ("report", {}), ("submit", {}), ("submit", {"object": "text, not bin"}),
+                ("submit", {"object": 12}), ("submit", {"object": True}),
+                ("submit", {"object": good_object, "name": 5}),
+                ("override", {"percent": True}), ("override", {"percent": "50"}),
+                ("override", {"percent": float("nan")}), ("override", {"percent": float("inf")}),
+                ("override", {}), ("override", {"percent": 0}), ("override", {"percent": 100.5}),
+                ("call", {"text": 5}), ("call", {"text": b"servo.kp"}), ("call", {"text": None}),
+                ("reconfigure", {"name": 3}), ("hello", {"extra": 1}), ("pause", {"now": True}),
+                ("abort", {"program": "1"}), ("abort", {"program": True}),
+            ])
+            out.append(([pack({"v": v, "id": rid, "op": op, "args": args})], rid, "bad_request"))
+        elif kind == 8:  # "args" not a map
+            out.append(([pack({"v": v, "id": rid, "op": "status", "args": rng.choice([[1], 1, "x", True])})],
+                        rid, "bad_request"))
+        elif kind == 9:  # huge strings
+            n = rng.randrange(10_001, 120_000)
+            choice = rng.randrange(3)
+            if choice == 0:  # a huge id is not a valid id: no id in the reply
+                out.append(([pack({"v": v, "id": "i" * n, "op": "hello"})], None, "bad_request"))
+            elif choice == 1:
+                out.append(([pack({"v": v, "id": rid, "op": "call", "args": {"text": "servo." + "k" * n}})],
+                            rid, "script_error"))
+            else:
+                out.append(([pack({"v": v, "id": rid, "op": "submit",
+                                   "args": {"object": b"IRLO" + b"\x07" * n, "name": "n" * n}})],
+                            rid, "invalid_program"))
+        elif kind == 10:  # mutated object code
+            data = bytearray(good_object)
+            for _ in range(rng.randrange(1, 5)):
+                pos = rng.randrange(len(data))
+                data[pos] = (data[pos] + rng.randrange(1, 256)) % 256
+            out.append(([pack({"v": v, "id": rid, "op": "submit", "args": {"object": bytes(data)}})],
+                        rid, "invalid_program"))
+        elif kind == 11:  # truncated object code
+            data = good_object[:rng.randrange(len(good_object))]
+            out.append(([pack({"v": v, "id": rid, "op": "submit", "args": {"object": data}})],
+                        rid, "invalid_program"))
+        elif kind == 12:  # ids of the wrong type
+            bad_id = rng.choice([1.5, True, False, [1], {"a": 1}, b"id", "i" * 257])
+            out.append(([pack({"v": v, "id": bad_id, "op": "hello"})], None, "bad_request"))
+        else:  # extra frames (more than one frame after the envelope), or a valid map truncated
+            if rng.randrange(2):
+                frames = [b"x", b"y", pack({"v": v, "id": rid, "op": "hello"})]
+                out.append((frames, None, "bad_message"))
+            else:
+                payload = pack({"v": v, "id": rid, "op": "status", "args": {"program": 1}})
+                out.append(([payload[:rng.randrange(1, len(payload))]], None, None))
+    return out
+
+
+def test_ten_thousand_malformed_requests(server):
+    rng = random.Random(20240607)
+    requests = _malformed_requests(rng, 10_000, objcode(TEST_IRL))
+    expected_ids = Counter(rid for _frames, rid, _code in requests)
+    expected_code = {rid: code for _f, rid, code in requests if rid is not None}
+    ctx = zmq.Context.instance()
+    sock = ctx.socket(zmq.DEALER)
+    sock.setsockopt(zmq.LINGER, 0)
+    sock.setsockopt(zmq.RCVHWM, 0)
+    sock.setsockopt(zmq.SNDHWM, 0)
+    sock.connect(server.endpoint)
+    replies = []
+    try:
+        sent = 0
+        for start in range(0, len(requests), 200):
+            for frames, _rid, _code in requests[start:start + 200]:
+                sock.send_multipart(frames)
+                sent += 1
+            while len(replies) < sent:
+                if not sock.poll(30_000, zmq.POLLIN):
+                    pytest.fail(f"{sent - len(replies)} requests of {sent} got no reply\n{server.log()}")
+                replies.append(sock.recv_multipart()[-1])
+        assert not sock.poll(500, zmq.POLLIN), "more replies than requests"
+    finally:
+        sock.close(linger=0)
+
+    got_ids = Counter()
+    internal = []
+    for payload in replies:
+        reply = protocol.decode_reply(payload)
+        assert reply["ok"] is False, reply
+        assert reply["v"] == protocol.VERSION
+        code = reply["error"]["code"]
+        assert code in protocol.ERRORS, reply
+        assert isinstance(reply["error"]["message"], str) and reply["error"]["message"]
+        if code == "internal":
+            internal.append(reply["error"]["message"])
+        rid = reply["id"]
+        got_ids[rid] += 1
+        if rid is not None and expected_code.get(rid) is not None:
+            assert code == expected_code[rid], (rid, reply)
+    assert not internal, f"internal errors (server bugs): {internal[:5]}"
+    assert len(replies) == len(requests)
+    assert got_ids == expected_ids  # every request with an id got exactly one reply, by id
+    assert all(count == 1 for rid, count in got_ids.items() if rid is not None)
+
+    assert server.alive(), server.log()
+    client = server.client()
+    assert client.request("hello")["robot"] == "lola_15"
+    program = submit(client, PROGRAMS / "short.irl")
+    final = wait_end(client, program, server)
+    assert final["state"] == "completed", final
+    assert not client.request("status")["queue"]
+
+
+# ---- 3. clients that go away ----------------------------------------------------------------------
+def test_disconnecting_clients_do_not_stop_programs(server):
+    medium = PROGRAMS / "medium.irl"
+    first_client = Client(server.endpoint, timeout=10)
+    first = submit(first_client, medium)
+    first_client.close()  # gone right after the submit reply
+
+    proc = subprocess.Popen([*IRL, "submit", str(medium), "--endpoint", server.endpoint, "--wait"], cwd=ROOT,
+                            stdin=subprocess.DEVNULL, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        line = proc.stdout.readline()
+        assert " queued on " in line, line + proc.stderr.read()
+        second = int(line.split()[1])
+        observer = server.client()
+        # the CLI client is waiting on a program that is under way when it is killed
+        wait_for(observer, second, lambda s: s["state"] == "running", "running", server)
+        proc.kill()
+        proc.wait()
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+        proc.stdout.close()
+        proc.stderr.close()
+
+    fresh = server.client()
+    for program in (first, second):
+        final = wait_end(fresh, program, server)
+        assert final["state"] == "completed", final
+        assert final["summary"]["fault"] is None
+        assert len(final["summary"]["moves"]) == 6
+
+
+# ---- 6a. pause on the wall clock --------------------------------------------------------------------
+def test_pause_stops_the_robot_and_resume_completes(wall_server):
+    client = wall_server.client()
+    program = submit(client, PROGRAMS / "pause.irl", wall_server)
+    wait_for(client, program, moving, "moving", wall_server, poll=0.05)
+    time.sleep(0.5)  # into the first move (about 3 s long)
+    assert client.request("pause") == {"program": program, "paused": True}
+    s = status(client, program)
+    assert s["state"] == "running" and s["paused"] is True
+    running = client.request("status")["running"]
+    assert running["id"] == program and running["paused"] is True
+
+    def position():
+        return client.request("status")["position"]
+
+    def still(a, b) -> bool:  # within a few encoder counts (the readings jitter by one count)
+        return max(abs(x - y) for x, y in zip(a, b)) < 0.01
+
+    previous = position()
+    deadline = time.monotonic() + 10
+    while True:  # the stop ramp: wait until the robot has come to rest on its path
+        time.sleep(0.1)
+        current = position()
+        if still(previous, current):
+            break
+        assert time.monotonic() < deadline, "the robot did not come to rest after the pause"
+        previous = current
+    first = position()
+    time.sleep(0.3)
+    second = position()
+    assert still(first, second), (first, second)
+    s = status(client, program)
+    assert s["state"] == "running" and s["paused"] is True and s["moves_done"] < 2
+
+    assert client.request("resume") == {"program": program, "paused": False}
+    final = wait_end(client, program, wall_server)
+    assert final["state"] == "completed", final
+    assert [m["actual_duration"] is not None for m in final["summary"]["moves"]] == [True, True]
+    assert not still(second, final["summary"]["final_position"])
+
+
+# ---- 4. kill -9, and a deadline fault ------------------------------------------------------------------
+def test_kill9_leaves_complete_report_and_state_file(wall_server, start_server):
+    client = wall_server.client()
+    program = submit(client, PROGRAMS / "long.irl", wall_server)
+    s = wait_for(client, program, moving, "moving", wall_server, poll=0.05)
+    report = Path(s["report"])
+    deadline = time.monotonic() + SAFETY
+    while f",{MOVE}," not in report.read_text(encoding="utf-8"):  # rows of the move written
+        assert time.monotonic() < deadline, "no Move Robot rows in the report"
+        time.sleep(0.05)
+    s = status(client, program)
+    assert moving(s) and s["moves_done"] < 2, s
+    wall_server.kill9()
+    assert wall_server.proc.returncode == -signal.SIGKILL
+
+    text = report.read_text(encoding="utf-8")
+    assert text.endswith("\n"), "the report ends in a partial row"
+    lines = text.splitlines()
+    header = lines[0].split(",")
+    assert header[:2] == ["time", "state"]
+    assert len(lines) >= 2
+    for row in csv.reader(io.StringIO(text)):
+        assert len(row) == len(header), row
+    assert any(row.split(",")[1] == MOVE for row in lines[1:])
+    state_file = wall_server.state_dir / "calibration.json"
+    data = json.loads(state_file.read_text(encoding="utf-8"))
+    assert isinstance(data, dict) and data.get("compensation")
+
+    restarted = start_server(state_dir=wall_server.state_dir, spec=wall_server.spec)
+    fresh = restarted.client()
+    hello = fresh.request("hello")
+    assert hello["pid"] == restarted.proc.pid
+    final = wait_end(fresh, submit(fresh, PROGRAMS / "short.irl", restarted), restarted)
+    assert final["state"] == "completed", final
+    assert phases(final) == [START, INITIALIZE, MOVE, STOP]
+
+
+def test_program_after_a_deadline_fault_runs(start_server):
+    server = start_server(sim_clock=False)  # the firm deadline policy of programs/lola15.spc
+    client = server.client()
+    first = submit(client, PROGRAMS / "long.irl")
+    deadline = time.monotonic() + SAFETY
+    while True:
+        s = status(client, first)
+        if s["state"] in TERMINAL or (s["state"] == "running" and s.get("fsm", "").startswith(INITIALIZE)):
+            break
+        assert time.monotonic() < deadline, s
+        time.sleep(0.02)
+    if s["state"] == "running":  # stop the server's process for 0.3 s: 300 deadlines missed
+        server.proc.send_signal(signal.SIGSTOP)
+        time.sleep(0.3)
+        server.proc.send_signal(signal.SIGCONT)
+    final = wait_end(client, first, server)
+    assert final["state"] == "faulted" and "deadline" in final["fault"], final
+
+    second = submit(client, PROGRAMS / "short.irl")
+    deadline = time.monotonic() + SAFETY
+    while True:  # until it is under way past Start Robot, or has ended
+        s = status(client, second)
+        if s["state"] in TERMINAL or (s["state"] == "running" and s.get("fsm") not in (START, STOP)):
+            break
+        assert time.monotonic() < deadline, s
+        time.sleep(0.01)
+    # Start Robot lasts 50 ms: a deadline fault there can only be the previous program's
+    assert not (s["state"] == "faulted" and s["fault"].startswith(f"{START}: deadline")), s
+    if s["state"] == "running":
+        client.request("estop")
+
+
+# ---- 5. concurrent clients ----------------------------------------------------------------------------
+def test_ten_concurrent_clients(server):
+    n = 10
+    barrier = threading.Barrier(n)
+    results: list[dict | BaseException] = [None] * n
+    data = objcode(PROGRAMS / "short.irl")
+
+    def worker(k: int) -> None:
+        client = Client(server.endpoint, timeout=20)
+        try:
+            barrier.wait(timeout=30)
+            program = client.request("submit", {"object": data, "name": f"client-{k}"})["program"]
+            results[k] = wait_end(client, program)
+        except BaseException as exc:  # reported by the main thread
+            results[k] = exc
+        finally:
+            client.close()
+
+    threads = [threading.Thread(target=worker, args=(k,)) for k in range(n)]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join(SAFETY)
+    assert not any(t.is_alive() for t in threads)
+    errors = [r for r in results if isinstance(r, BaseException)]
+    assert not errors, errors
+    ids = [r["id"] for r in results]
+    assert sorted(ids) == list(range(1, n + 1))  # unique
+    assert sorted(r["name"] for r in results) == sorted(f"client-{k}" for k in range(n))
+    assert all(r["state"] == "completed" for r in results), results
+    ordered = sorted(results, key=lambda r: r["id"])
+    for before, after in zip(ordered, ordered[1:]):
+        assert after["started"] >= before["ended"], (before, after)
+    overview = server.client().request("status")
+    listed = Counter(p["id"] for p in overview["programs"])
+    assert listed == Counter(range(1, n + 1))  # each program ended once
+    assert overview["running"] is None and overview["queue"] == []
+
+
+# ---- 6. control -----------------------------------------------------------------------------------
+def test_abort_running_and_queued_programs(server):
+    client = server.client()
+    running = submit(client, PROGRAMS / "long.irl")
+    queued = submit(client, PROGRAMS / "long.irl")
+    wait_for(client, running, moving, "moving", server)
+    assert status(client, queued)["state"] == "queued"
+
+    assert client.request("abort", {"program": queued}) == {"program": queued, "state": "cancelled"}
+    assert status(client, queued)["state"] == "cancelled"
+    with pytest.raises(ClientError) as err:
+        client.request("abort", {"program": 10_000})
+    assert err.value.code == "not_found"
+
+    assert client.request("abort") == {"program": running, "state": "aborting"}
+    final = wait_end(client, running, server)
+    assert final["state"] == "aborted", final
+    assert "aborted by the operator" in final["fault"]
+    assert client.request("status")["queue"] == []
+
+
+def test_program_after_an_abort_completes(server):
+    client = server.client()
+    program = submit(client, PROGRAMS / "long.irl")
+    wait_for(client, program, moving, "moving", server)
+    client.request("abort")
+    assert wait_end(client, program, server)["state"] == "aborted"
+    final = wait_end(client, submit(client, PROGRAMS / "short.irl"), server)
+    assert final["state"] == "completed", final
+
+
+def test_estop_ends_the_program_and_cancels_the_queue(server):
+    client = server.client()
+    running = submit(client, PROGRAMS / "long.irl")
+    queued = [submit(client, PROGRAMS / "short.irl"), submit(client, PROGRAMS / "long.irl")]
+    wait_for(client, running, moving, "moving", server)
+    assert client.request("estop") == {"program": running, "cancelled": queued}
+    final = wait_end(client, running, server)
+    assert final["state"] != "completed" and final["state"] in TERMINAL, final
+    assert "emergency stop" in final["fault"]
+    for program in queued:
+        s = status(client, program)
+        assert s["state"] == "cancelled" and "emergency stop" in s["fault"], s
+    overview = client.request("status")
+    assert overview["running"] is None and overview["queue"] == []
+
+
+def test_override_and_refusals(server):
+    client = server.client()
+    assert client.request("override", {"percent": 50}) == {"override": 50.0}
+    assert client.request("status")["override"] == 50.0
+    for bad in (0, 150, -5, 100.01):
+        with pytest.raises(ClientError) as err:
+            client.request("override", {"percent": bad})
+        assert err.value.code == "bad_request", bad
+    assert client.request("status")["override"] == 50.0
+    for op in ("pause", "resume", "abort"):
+        with pytest.raises(ClientError) as err:
+            client.request(op)
+        assert err.value.code == "refused", op
+    proc = run_irl("pause", "--endpoint", server.endpoint)
+    assert proc.returncode == 1 and "refused" in proc.stderr, proc.stderr
+    no_traceback(proc)
+    proc = run_irl("override", "150", "--endpoint", server.endpoint)
+    assert proc.returncode == 1 and "bad_request" in proc.stderr, proc.stderr
+    proc = run_irl("override", "75", "--endpoint", server.endpoint)
+    assert proc.returncode == 0 and "override 75 %" in proc.stdout, proc.stdout + proc.stderr
+
+
+# ---- 7. scripting ---------------------------------------------------------------------------------
+def test_scripting_call_and_console(server):
+    e = ("--endpoint", server.endpoint)
+    proc = run_irl("call", "servo.kp", *e)
+    assert proc.returncode == 0 and proc.stdout.strip() == "servo.kp = 40.0", proc.stdout + proc.stderr
+    proc = run_irl("call", "servo.kp = 30", *e)
+    assert proc.returncode == 0 and proc.stdout.strip() == "servo.kp = 30.0", proc.stdout + proc.stderr
+    proc = run_irl("call", "servo.kp", *e)
+    assert proc.returncode == 0 and proc.stdout.strip() == "servo.kp = 30.0", proc.stdout + proc.stderr
+
+    proc = run_irl("call", "servo.nope", *e)
+    assert proc.returncode == 1
+    assert "servo has no property 'nope'" in proc.stderr and "kp" in proc.stderr, proc.stderr
+    no_traceback(proc)
+    proc = run_irl("call", "servo.kp = ", *e)
+    assert proc.returncode == 1
+    assert "column" in proc.stderr and "script_error" in proc.stderr, proc.stderr
+    no_traceback(proc)
+
+    proc = run_irl("console", *e, stdin="components\nhelp servo\nservo.ki\nquit\n")
+    assert proc.returncode == 0, proc.stdout + proc.stderr
+    no_traceback(proc)
+    out = proc.stdout
+    listed = [line.split()[0] for line in out.splitlines() if line and not line.startswith(("connected", " "))]
+    for name in ("robot", "servo", "initialization", "trajectory", "report", "fsm"):
+        assert name in listed, out
+    assert "kp = 30.0" in out and "ki = 2.0" in out  # help servo
+    assert "servo.ki = 2.0" in out.splitlines()
+
+
+# ---- 8. telemetry ---------------------------------------------------------------------------------
+def test_telemetry_watch(server):
+    client = server.client()
+    program = submit(client, PROGRAMS / "medium.irl")
+    wait_for(client, program, moving, "moving", server, poll=0.01)
+    proc = run_irl("watch", "--json", "--count", 20, "--timeout", 20, "--telemetry", server.telemetry)
+    assert proc.returncode == 0, proc.stderr
+    no_traceback(proc)
+    messages = [json.loads(line) for line in proc.stdout.splitlines()]
+    assert len(messages) == 20
+    seqs = [m["seq"] for m in messages]
+    assert all(b > a for a, b in zip(seqs, seqs[1:])), seqs
+    assert {m["kind"] for m in messages} <= {"sample", "event"}
+    assert all(m["v"] == protocol.VERSION and isinstance(m["t"], (int, float)) for m in messages)
+    samples = [m for m in messages if m["kind"] == "sample"]
+    assert samples and all(len(m["position"]) == 6 for m in samples)
+    assert any(m["program"] == program for m in samples), messages
+    assert wait_end(client, program, server)["state"] == "completed"
+
+
+def test_subscriber_that_never_reads_does_not_stop_a_program(start_server, tmp_path):
+    # Telemetry on an ipc endpoint: over TCP loopback the kernel's autotuned buffers
+    # (~3.4 MB here, ~14,000 messages) would swallow a whole program's telemetry, and the
+    # server's PUB queue would never fill; a Unix socket's buffers are small, so it does.
+    server = start_server(telemetry=f"ipc://{tmp_path}/telemetry")
+    ctx = zmq.Context.instance()
+    stalled = ctx.socket(zmq.SUB)
+    stalled.setsockopt(zmq.LINGER, 0)
+    stalled.setsockopt(zmq.RCVHWM, 1)
+    stalled.setsockopt(zmq.SUBSCRIBE, protocol.TELEMETRY_TOPIC)
+    stalled.connect(server.telemetry)
+    try:
+        # subscribed once a message waits (idle samples come every 0.5 s); then never read
+        assert stalled.poll(10_000, zmq.POLLIN), "no telemetry at all"
+        client = server.client()
+        program = submit(client, PROGRAMS / "medium.irl")
+        final = wait_end(client, program, server)
+        assert final["state"] == "completed", final
+        assert server.alive()
+
+        second = Subscriber(server.telemetry)
+        try:
+            got = [second.receive(5.0) for _ in range(2)]
+        finally:
+            second.close()
+        assert all(m is not None for m in got), got
+        last = got[-1]["seq"]
+
+        # the stalled subscriber's queue did fill: the server dropped messages for it
+        # (a gap in its sequence numbers) instead of waiting for it
+        seqs = []
+        while stalled.poll(200, zmq.POLLIN):  # what was queued for it
+            seqs.append(protocol.decode_telemetry(stalled.recv_multipart()[1])["seq"])
+        assert stalled.poll(5_000, zmq.POLLIN), "the drained subscriber gets no new telemetry"
+        seqs.append(protocol.decode_telemetry(stalled.recv_multipart()[1])["seq"])  # an idle sample, sent later
+        assert seqs == sorted(seqs)
+        assert any(b > a + 1 for a, b in zip(seqs, seqs[1:])), \
+            f"no messages were dropped: the subscriber did not stall ({len(seqs)} received, last seq {last})"
+        assert len(seqs) < last < seqs[-1]
+    finally:
+        stalled.close(linger=0)
+
+
+# ---- 9. CURVE -------------------------------------------------------------------------------------
+def test_curve_keys(start_server, tmp_path):
+    keys, other = tmp_path / "keys", tmp_path / "other"
+    for d in (keys, other):
+        proc = run_irl("keys", d)
+        assert proc.returncode == 0, proc.stderr
+        assert (d / "server.key_secret").is_file() and (d / "client.key_secret").is_file()
+        assert list((d / "authorized").glob("*.key"))
+    server = start_server(keys=keys)
+    good = server.client(keys=keys)
+    assert good.request("hello")["robot"] == "lola_15"
+
+    plain = Client(server.endpoint, timeout=1.0)
+    try:
+        with pytest.raises(ClientError) as err:
+            plain.request("hello")
+        assert err.value.code == "unreachable"
+    finally:
+        plain.close()
+    stranger = Client(server.endpoint, keys=other, timeout=1.0)
+    try:
+        with pytest.raises(ClientError) as err:
+            stranger.request("hello")
+        assert err.value.code == "unreachable"
+    finally:
+        stranger.close()
+
+    proc = run_irl("status", "--endpoint", server.endpoint, "--keys", keys, "--json")
+    assert proc.returncode == 0 and json.loads(proc.stdout)["state"] == "Idle", proc.stderr
+    assert good.request("hello")["robot"] == "lola_15"  # still serving the keyed client
+    assert server.alive()
+
+
+# ---- 10. bad input from the CLI ---------------------------------------------------------------------
+def test_cli_bad_inputs_without_tracebacks(tmp_path):
+    unused = f"tcp://127.0.0.1:{free_port()}"
+    proc = run_irl("submit", PROGRAMS / "syntax_error.irl", "--endpoint", unused, "--wait")
+    assert proc.returncode == 1, proc.stdout + proc.stderr
+    assert "syntax_error.irl:4:46: error: unexpected 'speed_ptp'" in proc.stderr, proc.stderr
+    no_traceback(proc)
+
+    proc = run_irl("status", "--endpoint", unused, "--timeout", "0.5")
+    assert proc.returncode == 2, proc.stdout + proc.stderr
+    assert "no reply" in proc.stderr
+    no_traceback(proc)
+
+    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as taken:
+        taken.bind(("127.0.0.1", 0))
+        taken.listen()
+        port = taken.getsockname()[1]
+        proc = run_irl("serve", "--spec", SPEC, "--sim-clock", "--state-dir", tmp_path / "state",
+                       "--endpoint", f"tcp://127.0.0.1:{port}", "--telemetry", f"tcp://127.0.0.1:{free_port()}",
+                       timeout=30)
+    assert proc.returncode == 2, proc.stdout + proc.stderr
+    assert "cannot bind" in proc.stderr
+    no_traceback(proc)

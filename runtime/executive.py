@@ -119,7 +119,7 @@ class TaskStats:
                 "late_p99_us": 1e6 * self.percentile(0.99)}
 
 
-@dataclass
+@dataclass(slots=True)
 class Task:
     name: str
     run: Callable[[float], None]

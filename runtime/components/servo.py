@@ -125,10 +125,14 @@ class ServoController(Component):
         worst = 0.0
         worst_axis = i = 0
         for (p0, dp, hv0, hv1), x, vmax in zip(coeffs, position, self.max_velocity):
-            e = p0 + h01 * dp + h10 * hv0 + h11 * hv1 - x
+            if dp or hv0 or hv1:
+                e = p0 + h01 * dp + h10 * hv0 + h11 * hv1 - x
+                u = d01 * dp + d10 * hv0 + d11 * hv1 + kp * e + ki * integral[i]
+            else:  # an axis whose reference stands still this interval: no interpolation
+                e = p0 - x
+                u = kp * e + ki * integral[i]
             if e > worst or -e > worst:
                 worst, worst_axis = (e if e > 0.0 else -e), i
-            u = d01 * dp + d10 * hv0 + d11 * hv1 + kp * e + ki * integral[i]
             if -vmax < u < vmax:  # anti-windup: integrate only while the output is not saturated
                 integral[i] += e * dt
             else:

@@ -15,7 +15,7 @@ from compiler.values import Joint, Pose
 
 from ..component import Component, DataPort
 from ..motion.planner import PtpInput, StopRamp, plan_ptp, scaled_limits
-from ..vm import VM, VMStatus
+from ..vm import DONE, ERROR, VM
 
 
 @dataclass
@@ -113,7 +113,7 @@ class TrajectoryGenerator(Component):
     @property
     def finished(self) -> bool:
         """The program ended (DONE) and its last move is complete."""
-        return self.vm is not None and self.vm.status == VMStatus.DONE and self.trajectory is None
+        return self.vm is not None and self.vm.status is DONE and self.trajectory is None
 
     @property
     def line(self) -> int:
@@ -142,9 +142,9 @@ class TrajectoryGenerator(Component):
                     self._at_rest_after_stop()
         self.desi_pos.write((now, self.positions, self.velocities), now)
         vm = self.vm
-        if vm is not None and vm.status not in (VMStatus.DONE, VMStatus.ERROR):
+        if vm is not None and vm.status < DONE:
             status = vm.step()
-            if status == VMStatus.ERROR and self.fault is None:
+            if status is ERROR and self.fault is None:
                 e = vm.error
                 self.fault = f"program error at line {e.line}: {e.message}"
 
@@ -153,7 +153,7 @@ class TrajectoryGenerator(Component):
         """Hold the program; a move under way decelerates to rest (a controlled stop). False if
         there is no program to pause."""
         vm = self.vm
-        if vm is None or vm.status in (VMStatus.DONE, VMStatus.ERROR) or self.abort_reason is not None:
+        if vm is None or vm.status >= DONE or self.abort_reason is not None:
             return False
         vm.pause()
         self._stop_on_path()
@@ -173,7 +173,7 @@ class TrajectoryGenerator(Component):
     def abort(self, reason: str = "aborted by the operator") -> bool:
         """A controlled stop, then end the program with ``reason`` as its fault."""
         vm = self.vm
-        if vm is None or vm.status in (VMStatus.DONE, VMStatus.ERROR):
+        if vm is None or vm.status >= DONE:
             return False
         if self.abort_reason is None:
             self.abort_reason = reason

@@ -35,6 +35,9 @@ following_error_limit = 2.0   # deg
 servo_miss_policy = "firm"
 servo_miss_limit = 50
 servo_miss_window = 1000
+# PTP velocity profile: "jerk" (seven-phase, jerk-limited by each axis's max_jerk; the
+# default) or "trapezoid" (velocity and acceleration limits only).
+# profile = "jerk"
 
 [[axis]]
 name = "A1"

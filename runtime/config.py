@@ -72,7 +72,7 @@ TICK = 0.001            # s, the executive's base tick; every period is a whole 
 TICK_TOLERANCE = 1e-9   # s, how far a period may be from a whole multiple of the tick
 PERIOD_MIN = 0.001      # s
 PERIOD_MAX = 1.0        # s
-COLUMNS = ("sens_pos", "desi_pos", "out_vel", "following_error")  # what the report component can log
+COLUMNS = ("sens_pos", "desi_pos", "out_vel", "following_error", "tcp")  # what the report component can log
 TOP_LEVEL_KEYS = ("default", "configurations")
 BASED_ON = "based_on"
 

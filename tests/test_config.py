@@ -43,7 +43,7 @@ STANDARD = {
     "robot": {"velocity_limit_scale": 1.0},
     "trajectory": {"budget": 200, "period": 0.005},
     "initialization": {"period": 0.005},
-    "report": {"period": 0.01, "columns": ["sens_pos", "desi_pos", "out_vel", "following_error"]},
+    "report": {"period": 0.01, "columns": ["sens_pos", "desi_pos", "out_vel", "following_error", "tcp"]},
 }
 
 
@@ -429,13 +429,13 @@ def test_period_out_of_range(component, period):
 
 @pytest.mark.parametrize("value, expected", [
     ("'sens_pos'", "expected a non-empty list of unique column names from sens_pos, desi_pos, out_vel, "
-                   "following_error, got 'sens_pos'"),
+                   "following_error, tcp, got 'sens_pos'"),
     ("[]", "expected a non-empty list of unique column names from sens_pos, desi_pos, out_vel, following_error, "
-           "got []"),
+           "tcp, got []"),
     ("['sens_pos', 3]", "expected column names (strings), got 3 at index 1"),
     ("['sens_pos', 'out_vell']", "unknown column 'out_vell' (did you mean 'out_vel'?); "
-                                 "known: sens_pos, desi_pos, out_vel, following_error"),
-    ("['torque']", "unknown column 'torque'; known: sens_pos, desi_pos, out_vel, following_error"),
+                                 "known: sens_pos, desi_pos, out_vel, following_error, tcp"),
+    ("['torque']", "unknown column 'torque'; known: sens_pos, desi_pos, out_vel, following_error, tcp"),
     ("['out_vel', 'sens_pos', 'out_vel']", "duplicate column 'out_vel'"),
 ])
 def test_bad_columns(value, expected):

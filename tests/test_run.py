@@ -87,9 +87,31 @@ def trapezoid_time(distance: float, v: float, a: float) -> float:
     return d / v + v / a
 
 
+def double_s_time(distance: float, v: float, a: float, j: float) -> float:
+    """The time-optimal rest-to-rest duration of one axis with a jerk limit (Biagiotti &
+    Melchiorri, sec. 3.4), written out here independently of runtime.motion.jerk."""
+    d = abs(distance)
+    if d == 0.0:
+        return 0.0
+    t_acc = v / a + a / j if v * j >= a * a else 2.0 * math.sqrt(v / j)
+    if d >= v * t_acc:  # the velocity limit is reached
+        return d / v + t_acc
+    if d >= 2.0 * a ** 3 / j ** 2:  # the acceleration limit is reached, no cruise
+        tj = a / j
+        ta = (math.sqrt(tj * tj + 4.0 * d / a) - 3.0 * tj) / 2.0
+        return 2.0 * (2.0 * tj + ta)
+    return 4.0 * (d / (2.0 * j)) ** (1.0 / 3.0)
+
+
+def test_the_issue_reference_durations_of_a_jerk_limited_move():
+    assert double_s_time(45, 100, 200, 2000) == pytest.approx(1.053939, abs=1e-6)
+    assert double_s_time(90, 100, 200, 2000) == pytest.approx(1.5, abs=1e-6)
+
+
 def ptp_time(start, target, speed=0.1, acc=0.1) -> float:
-    """The synchronised PTP duration: the slowest axis sets it."""
-    return max(trapezoid_time(t - s, ax.max_velocity * speed, ax.max_acceleration * acc)
+    """The synchronised PTP duration with the default (jerk-limited) profile: the slowest
+    axis sets it; the jerk limit scales with acc_ptp like the acceleration."""
+    return max(double_s_time(t - s, ax.max_velocity * speed, ax.max_acceleration * acc, ax.max_jerk * acc)
                for s, t, ax in zip(start, target, AXES))
 
 
@@ -160,7 +182,8 @@ def test_paper_program_moves_are_time_optimal_and_on_time(paper):
     # duration is exactly the analytic one, the slowest axis (A1, 90 deg) setting it.
     for prev, m in ((PAPER_TARGETS[0], moves[1]), (PAPER_TARGETS[1], moves[2])):
         assert m["planned_duration"] == pytest.approx(ptp_time(prev, m["target"]), abs=1e-9)
-    assert moves[1]["planned_duration"] == pytest.approx(90 / 15.6 + 15.6 / 40, abs=1e-9)
+    # A1: 90 deg at 15.6 deg/s, 40 deg/s^2, 400 deg/s^3: cruise, t_acc = v / a + a / j
+    assert moves[1]["planned_duration"] == pytest.approx(90 / 15.6 + 15.6 / 40 + 40 / 400, abs=1e-9)
     # Move 1 starts where the initialization left the robot, near the start (home) position.
     home = [a.home for a in AXES]
     assert moves[0]["planned_duration"] == pytest.approx(ptp_time(home, PAPER_TARGETS[0]), abs=0.005)
@@ -208,6 +231,7 @@ def test_report_csv_header_and_rows_every_10_ms(paper):
     expected = ["time", "state"]
     for kind in ("sens_pos", "desi_pos", "out_vel", "following_error"):
         expected += [f"{kind}_{n}" for n in NAMES]
+    expected += ["tcp_x", "tcp_y", "tcp_z", "tcp_roll", "tcp_pitch", "tcp_yaw"]
     assert header == expected
     assert len(rows) > 1000
     assert all(len(r) == len(header) for r in rows)
@@ -222,6 +246,15 @@ def test_report_csv_header_and_rows_every_10_ms(paper):
     # the last row is at the end of the program: the encoders read the last target
     last = [float(x) for x in rows[-1][2:2 + len(NAMES)]]
     assert within_counts(last, PAPER_TARGETS[-1], counts=40), last
+    # the TCP columns are the forward kinematics of the row's measured joints
+    from runtime.motion.kinematics import Kinematics
+
+    forward = Kinematics(SPEC).forward
+    for r in rows[::250]:
+        joints = [float(x) for x in r[2:2 + len(NAMES)]]
+        tcp = [float(x) for x in r[-6:]]
+        want = forward(joints)
+        assert tcp[:3] == pytest.approx(want[:3], abs=1e-4)  # the CSV rounds the joints to 1e-6 deg
 
 
 def test_report_state_column_passes_through_the_phases_in_order(paper):
@@ -587,3 +620,64 @@ def test_untimed_input_wait_detection():
     assert not untimed_input_wait("seq\n  wait for in[3] timeout 2 sec;\nendseq")
     assert not untimed_input_wait("{ wait for in[1]; } seq\n  wait 0.5 sec;\nendseq")
     assert not untimed_input_wait("seq\n  -- wait for in[1];\nendseq")
+
+
+def test_the_trapezoidal_profile_stays_available(tmp_path):
+    """[controller] profile = "trapezoid": the moves take the trapezoid's optimal times."""
+    text = SPEC_PATH.read_text(encoding="utf-8").replace("[controller]\n", '[controller]\nprofile = "trapezoid"\n', 1)
+    (tmp_path / "lola15.spc").write_text(text, encoding="utf-8")
+    shutil.copy(TEST_IRL, tmp_path / "test.irl")
+    result = compile_file(tmp_path / "test.irl")
+    assert result.ok and result.spec.controller["profile"] == "trapezoid"
+    summary = RobotSystem(result.spec, RunOptions()).run(result.program)
+    assert summary["fault"] is None
+    moves = summary["moves"]
+    for prev, m in ((PAPER_TARGETS[0], moves[1]), (PAPER_TARGETS[1], moves[2])):
+        want = max(trapezoid_time(t - s, ax.max_velocity * 0.1, ax.max_acceleration * 0.1)
+                   for s, t, ax in zip(prev, m["target"], AXES))
+        assert m["planned_duration"] == pytest.approx(want, abs=1e-9)
+    assert moves[1]["planned_duration"] == pytest.approx(90 / 15.6 + 15.6 / 40, abs=1e-9)
+
+
+def test_an_unknown_profile_is_refused(tmp_path):
+    text = SPEC_PATH.read_text(encoding="utf-8").replace("[controller]\n", '[controller]\nprofile = "sine"\n', 1)
+    (tmp_path / "lola15.spc").write_text(text, encoding="utf-8")
+    shutil.copy(TEST_IRL, tmp_path / "test.irl")
+    code, out, err = run("run", tmp_path / "test.irl")
+    no_crash(code, out, err)
+    assert code != 0 and 'controller.profile: expected "jerk" or "trapezoid"' in err
+
+
+def test_move_ptp_to_a_pose_uses_the_inverse_kinematics(work):
+    """The pose is FK(10, -20, 30, 0, 40, 0) rounded to 1e-6 mm / deg: the nearest
+    configuration to the start position is those joints, and the report's end position
+    puts the tool there."""
+    from runtime.motion.kinematics import Kinematics
+
+    program = HEAD.format(name="to_pose") + (
+        "seq\n"
+        "  move ptp pose(pos(818.891793, 144.392717, 1067.415419), rpy(-180, -40, 10)) speed_ptp := 0.5;\n"
+        "endseq\nendprogram;\n")
+    (work / "to_pose.irl").write_text(program, encoding="utf-8")
+    code, summary, err = run_json(work / "to_pose.irl")
+    assert code == 0, err
+    (move,) = summary["moves"]
+    assert move["target"] == pytest.approx([10, -20, 30, 0, 40, 0], abs=1e-5)
+    for x, want in zip(summary["final_position"], (10, -20, 30, 0, 40, 0)):
+        assert abs(x - want) <= 2 * max(COUNT)
+    tcp = Kinematics(SPEC).forward(summary["final_position"])
+    assert tcp[:3] == pytest.approx((818.891793, 144.392717, 1067.415419), abs=0.05)
+
+
+def test_a_pose_outside_the_axis_limits_is_a_run_time_error_naming_the_line(work):
+    """Within the arm's reach (the compiler's check passes) but every configuration needs
+    A1 beyond its limits: the run stops at that line with the kinematics' reason."""
+    program = HEAD.format(name="behind") + (
+        "seq\n"
+        "  move ptp pose(pos(-900, 0, -300), rpy(180, 0, 180));\n"
+        "endseq\nendprogram;\n")
+    (work / "behind.irl").write_text(program, encoding="utf-8")
+    code, summary, err = run_json(work / "behind.irl")
+    assert code == 1, err
+    assert "line 4" in summary["fault"] and "no solution within the axis limits" in summary["fault"]
+    assert summary["moves"] == []

@@ -17,7 +17,9 @@ from pathlib import Path
 from ..component import Component, DataPort
 
 FLUSH_PERIOD = 0.1  # s of rows per batch handed to the writer (10 rows at the default 10 ms)
-COLUMNS = ["sens_pos", "desi_pos", "out_vel", "following_error"]  # the per-axis quantities, by default
+COLUMNS = ["sens_pos", "desi_pos", "out_vel", "following_error"]  # the per-axis quantities
+TCP = "tcp"  # the tool centre point: x, y, z (mm), roll, pitch, yaw (deg), from the measured joints
+TCP_FIELDS = ("x", "y", "z", "roll", "pitch", "yaw")
 
 
 def _fmt(x: float) -> str:
@@ -27,11 +29,12 @@ def _fmt(x: float) -> str:
 class ReportWriter(threading.Thread):
     """Formats and writes batches of rows; not real-time (its own thread)."""
 
-    def __init__(self, path: Path, header: list[str]):
+    def __init__(self, path: Path, header: list[str], tcp=None):
         super().__init__(name="report-writer", daemon=True)
         self.path = path
         self.queue: queue.Queue = queue.Queue(maxsize=1000)
         self.header = header
+        self.tcp = tcp  # (start, count, forward): row[start:start + count] are joints -> the TCP
         self.error: str | None = None
         self.rows_written = 0
 
@@ -44,11 +47,19 @@ class ReportWriter(threading.Thread):
                     batch = self.queue.get()
                     if batch is None:
                         break
+                    if self.tcp is not None:
+                        batch = [self._with_tcp(r) for r in batch]
                     f.write("".join(_row(r) for r in batch))
                     f.flush()
                     self.rows_written += len(batch)
         except OSError as exc:
             self.error = f"cannot write the report {self.path}: {exc.strerror or exc}"
+
+    def _with_tcp(self, row: tuple) -> tuple:
+        """The row with its joint segment replaced by the tool centre point (forward
+        kinematics here, in the writer's thread, not in the real-time loop)."""
+        start, count, forward = self.tcp
+        return (*row[:start], *forward(row[start:start + count]), *row[start + count:])
 
 
 def _row(r) -> str:
@@ -69,12 +80,15 @@ class Report(Component):
         self.writer: ReportWriter | None = None
         self.batch: list = []
         self.dropped = 0
-        self.columns = list(COLUMNS)  # which per-axis quantities the rows hold, in this order
+        self.main = len(spec.main_axes)
+        self.forward = _forward_kinematics(spec)  # None when the spec's kinematics are not usable
+        # which quantities the rows hold, in this order (the TCP when the kinematics allow)
+        self.columns = list(COLUMNS) + ([TCP] if self.forward is not None else [])
 
     def header(self) -> list[str]:
         cols = ["time", "state"]
         for kind in self.columns:
-            cols += [f"{kind}_{n}" for n in self.names]
+            cols += [f"tcp_{f}" for f in TCP_FIELDS] if kind == TCP else [f"{kind}_{n}" for n in self.names]
         return cols
 
     def open(self, path: str | Path | None) -> None:
@@ -88,7 +102,11 @@ class Report(Component):
                 self.path.parent.mkdir(parents=True, exist_ok=True)
             except OSError:
                 pass  # the writer reports the problem when it cannot open the file
-            self.writer = ReportWriter(self.path, self.header())
+            tcp = None
+            if TCP in self.columns:
+                start = 2 + sum(len(self.names) for kind in self.columns[:self.columns.index(TCP)])
+                tcp = (start, self.main, self.forward)
+            self.writer = ReportWriter(self.path, self.header(), tcp)
             self.writer.start()
 
     def update(self, now: float) -> None:
@@ -97,13 +115,11 @@ class Report(Component):
         pos = self.sens_pos.read() or (0.0,) * n
         vel = self.out_vel.read() or (0.0,) * n
         servo = self.servo
-        columns = self.columns
-        if columns == COLUMNS:
-            row = (now, self.state_of(), *pos, *servo.reference, *vel, *servo.following_error)
-        else:
-            values = {"sens_pos": pos, "desi_pos": servo.reference, "out_vel": vel,
-                      "following_error": servo.following_error}
-            row = (now, self.state_of(), *(x for kind in columns for x in values[kind]))
+        reference = servo.reference
+        error = tuple([r - x for r, x in zip(reference, servo.position)])
+        values = {"sens_pos": pos, "desi_pos": reference, "out_vel": vel, "following_error": error,
+                  TCP: pos[:self.main]}  # the writer turns these joints into the TCP
+        row = (now, self.state_of(), *(x for kind in self.columns for x in values[kind]))
         self.batch.append(row)
         if len(self.batch) * self.period >= FLUSH_PERIOD - 1e-9:
             self._hand_over()
@@ -127,6 +143,15 @@ class Report(Component):
             writer.queue.put(None)
             writer.join(timeout=10)
             return writer.error
+        return None
+
+
+def _forward_kinematics(spec):
+    from ..motion.kinematics import Kinematics
+
+    try:
+        return Kinematics(spec).forward
+    except ValueError:
         return None
 
 

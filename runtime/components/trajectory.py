@@ -14,7 +14,19 @@ from compiler.objcode import OP, Program
 from compiler.values import Joint, Pose
 
 from ..component import Component, DataPort
+from ..motion.jerk import plan_ptp_jerk
 from ..motion.planner import PtpInput, StopRamp, plan_ptp, scaled_limits
+
+PROFILES = ("jerk", "trapezoid")
+
+
+def motion_profile(spec) -> str:
+    """The PTP velocity profile the specification asks for (``[controller] profile``):
+    "jerk" (seven-phase, jerk-limited; the default) or "trapezoid". ValueError otherwise."""
+    profile = spec.controller.get("profile", "jerk")
+    if profile not in PROFILES:
+        raise ValueError(f"{spec.file}: controller.profile: expected \"jerk\" or \"trapezoid\", got {profile!r}")
+    return profile
 from ..vm import DONE, ERROR, VM
 
 
@@ -33,12 +45,12 @@ class MoveRecord:
 
 
 def unsupported_moves(program: Program) -> str | None:
-    """Why the program cannot run here yet (lin/circ need the motion issue), or None."""
+    """Why the program cannot run here yet (lin/circ are not executed yet), or None."""
     for offset, instr in enumerate(program.code):
         if instr[0] in (OP.MOVE_LIN, OP.MOVE_CIRC):
             line, _ = program.line_at(offset)
             kind = "lin" if instr[0] == OP.MOVE_LIN else "circ"
-            return f"line {line}: move {kind} is not supported yet (this runtime executes ptp moves to joint targets)"
+            return f"line {line}: move {kind} is not supported yet (this runtime executes ptp moves, to joint values or poses)"
     return None
 
 
@@ -80,6 +92,8 @@ class TrajectoryGenerator(Component):
         self.fault: str | None = None
         self.start_position: tuple | None = None  # the commanded position to plan from (else sens_pos)
         self.override = 100.0
+        self.profile = motion_profile(spec)
+        self._kinematics = None  # built when a program first moves to a pose
         self.interrupted: _Interrupted | None = None  # a move stopped before its end (pause/abort)
         self.abort_reason: str | None = None  # set by abort(): end the program once at rest
         self._current: _Interrupted | None = None  # the move under way
@@ -212,7 +226,12 @@ class TrajectoryGenerator(Component):
         scale = min(max(self.override, 1.0), 100.0) / 100.0
         vmax, amax = scaled_limits(tuple(a.max_velocity for a in self.axes),
                                    tuple(a.max_acceleration for a in self.axes), speed * scale, acc * scale * scale)
-        result, trajectory, message = plan_ptp(PtpInput(self.positions, values, vmax, amax))
+        if self.profile == "jerk":  # the jerk limit scales with acc_ptp (and the override's cube)
+            jmax = tuple(a.max_jerk * acc * scale ** 3 for a in self.axes)
+            result, trajectory, message = plan_ptp_jerk(self.positions, values, vmax, amax, jmax,
+                                                        synchronization="time")
+        else:
+            result, trajectory, message = plan_ptp(PtpInput(self.positions, values, vmax, amax))
         if result < 0:
             return message
         self.trajectory, self.t_move = trajectory, 0.0
@@ -228,7 +247,9 @@ class TrajectoryGenerator(Component):
             return f"move {kind} is not supported yet"
         target = targets[0]
         if isinstance(target, Pose):
-            return "move ptp to a pose needs inverse kinematics, which is not supported yet"
+            target, problem = self._joint_target(target)
+            if problem is not None:
+                return problem
         if not isinstance(target, Joint) or len(target.axes) != self.n:
             return f"the target must be a joint value with {self.n} axes"
         robot = clauses.get("act_rob")
@@ -249,6 +270,23 @@ class TrajectoryGenerator(Component):
             return problem
         self.moves.append(MoveRecord(line, kind, values, self.trajectory.duration, self.clock.now()))
         return None
+
+    def _joint_target(self, pose: Pose) -> tuple[Joint | None, str | None]:
+        """The joint values that put the tool at ``pose``: the inverse kinematics'
+        configuration nearest the joints the move starts from."""
+        from ..motion.kinematics import Kinematics, KinematicsError
+
+        if self._kinematics is None:
+            try:
+                self._kinematics = Kinematics(self.spec)
+            except ValueError as exc:
+                return None, f"this robot's kinematics are not usable for poses: {exc}"
+        main = len(self.spec.main_axes)
+        try:
+            joints = self._kinematics.inverse(pose, near=self.positions[:main])
+        except KinematicsError as exc:
+            return None, f"the target pose cannot be reached: {exc}"
+        return Joint(tuple(joints), tuple(self.positions[main:])), None
 
     def motion_done(self) -> bool:
         return self.trajectory is None and self.interrupted is None

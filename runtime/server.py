@@ -33,7 +33,6 @@ import zmq
 from compiler.objcode import OP, ObjectCodeError, Program, load
 
 from . import protocol
-from .components.trajectory import unsupported_moves
 from .protocol import ProtocolError
 from .supervisor import MOVE
 from .system import TICK, RobotSystem, RunOptions
@@ -452,9 +451,6 @@ class Server:
         if others:
             raise ProtocolError("wrong_robot", f"the program moves robot {others[0]!r}, but this runtime drives "
                                                f"{self.spec.name!r}")
-        problem = unsupported_moves(program)
-        if problem:
-            raise ProtocolError("invalid_program", problem)
         if self.stop_reason is not None:
             raise ProtocolError("refused", "the server is shutting down")
         name = str(args.get("name") or program.name or "program")[:200]

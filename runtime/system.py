@@ -17,7 +17,7 @@ from .components.initialization import Initialization
 from .components.report import Report, write_states
 from .components.robot_interface import RobotInterface
 from .components.servo import ServoController
-from .components.trajectory import TrajectoryGenerator, unsupported_moves
+from .components.trajectory import TrajectoryGenerator
 from .executive import Executive, MissPolicy, SimClock, WallClock
 from .motion.interpolator import Interpolator
 from .sim.estimator import AlphaBeta
@@ -82,9 +82,6 @@ class RobotSystem:
         ValueError if the program cannot run here (checked before anything moves).
         With ``settings`` instead of a program, the cycle is a reconfiguration: Start
         Robot -> Robot Reconfiguration -> Stop Robot, brakes kept on."""
-        problem = unsupported_moves(program) if program is not None else None
-        if problem:
-            raise ValueError(problem)
         self._wall0 = time.perf_counter()
         self._report_path = report
         self.supervisor.reset()

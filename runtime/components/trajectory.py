@@ -10,7 +10,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from compiler.objcode import OP, Program
+from compiler.objcode import Program
 from compiler.values import Joint, Pose
 
 from ..component import Component, DataPort
@@ -44,16 +44,6 @@ class MoveRecord:
         return None if self.t_end is None else self.t_end - self.t_start
 
 
-def unsupported_moves(program: Program) -> str | None:
-    """Why the program cannot run here yet (lin/circ are not executed yet), or None."""
-    for offset, instr in enumerate(program.code):
-        if instr[0] in (OP.MOVE_LIN, OP.MOVE_CIRC):
-            line, _ = program.line_at(offset)
-            kind = "lin" if instr[0] == OP.MOVE_LIN else "circ"
-            return f"line {line}: move {kind} is not supported yet (this runtime executes ptp moves, to joint values or poses)"
-    return None
-
-
 @dataclass
 class _Interrupted:
     """A move stopped by the operator: what resuming it needs."""
@@ -62,6 +52,7 @@ class _Interrupted:
     speed: float  # the move's speed_ptp and acc_ptp (before the override)
     acc: float
     deceleration: float  # the fraction of each axis's acceleration limit it was planned with
+    kind: str = "ptp"  # "lin" and "circ" moves are not interrupted by a pause (see pause())
 
 
 class TrajectoryGenerator(Component):
@@ -164,8 +155,9 @@ class TrajectoryGenerator(Component):
 
     # ---- operator control (real-time safe) ----
     def pause(self) -> bool:
-        """Hold the program; a move under way decelerates to rest (a controlled stop). False if
-        there is no program to pause."""
+        """Hold the program; a PTP move under way decelerates to rest (a controlled stop),
+        a lin or circ move finishes first (it would leave its path). False if there is no
+        program to pause."""
         vm = self.vm
         if vm is None or vm.status >= DONE or self.abort_reason is not None:
             return False
@@ -200,6 +192,8 @@ class TrajectoryGenerator(Component):
     def _stop_on_path(self) -> None:
         if self.trajectory is None or self.interrupted is not None or self._current is None:
             return
+        if self._current.kind != "ptp" and self.abort_reason is None:
+            return  # a pause lets a Cartesian move end on its path; the program then holds
         self.interrupted = self._current
         amax = tuple(a.max_acceleration * self.interrupted.deceleration for a in self.axes)
         self.trajectory = StopRamp(self.positions, self.velocities, amax)
@@ -243,8 +237,11 @@ class TrajectoryGenerator(Component):
         return self.clock.now()
 
     def move(self, kind: str, targets: tuple, clauses: dict, line: int) -> str | None:
+        robot = clauses.get("act_rob")
+        if robot is not None and robot != self.spec.name:
+            return f"act_rob names robot {robot!r}, but this runtime drives {self.spec.name!r}"
         if kind != "ptp":
-            return f"move {kind} is not supported yet"
+            return self._move_cartesian(kind, targets, clauses, line)
         target = targets[0]
         if isinstance(target, Pose):
             target, problem = self._joint_target(target)
@@ -252,9 +249,6 @@ class TrajectoryGenerator(Component):
                 return problem
         if not isinstance(target, Joint) or len(target.axes) != self.n:
             return f"the target must be a joint value with {self.n} axes"
-        robot = clauses.get("act_rob")
-        if robot is not None and robot != self.spec.name:
-            return f"act_rob names robot {robot!r}, but this runtime drives {self.spec.name!r}"
         values = target.axes
         for axis, v in zip(self.axes, values):
             if not axis.min <= v <= axis.max:
@@ -271,19 +265,67 @@ class TrajectoryGenerator(Component):
         self.moves.append(MoveRecord(line, kind, values, self.trajectory.duration, self.clock.now()))
         return None
 
-    def _joint_target(self, pose: Pose) -> tuple[Joint | None, str | None]:
-        """The joint values that put the tool at ``pose``: the inverse kinematics'
-        configuration nearest the joints the move starts from."""
-        from ..motion.kinematics import Kinematics, KinematicsError
+    def _kinematics_or_problem(self):
+        from ..motion.kinematics import Kinematics
 
         if self._kinematics is None:
             try:
                 self._kinematics = Kinematics(self.spec)
             except ValueError as exc:
                 return None, f"this robot's kinematics are not usable for poses: {exc}"
+        return self._kinematics, None
+
+    def _move_cartesian(self, kind: str, targets: tuple, clauses: dict, line: int) -> str | None:
+        """``move lin TARGET`` / ``move circ VIA, TARGET``: the path is checked whole
+        against the kinematics, the axis limits and velocities before it starts (a refused
+        move leaves the robot where it is, and the program stops at its line with the
+        reason and where along the path it fails)."""
+        from ..motion.cartesian import plan_circ, plan_lin
+
+        kinematics, problem = self._kinematics_or_problem()
+        if problem is not None:
+            return problem
+        main = len(self.spec.main_axes)
+        poses = []
+        for target in targets:
+            if isinstance(target, Joint):
+                poses.append(kinematics.forward(target.axes[:main]))
+            elif isinstance(target, Pose):
+                poses.append(target)
+            else:
+                return f"a {kind} target must be a pose or a joint value"
+        defaults = self.spec.defaults
+        speed = float(clauses.get("speed", defaults.speed))
+        acc = float(clauses.get("acc", defaults.acc))
+        if not (0 < speed <= self.spec.max_speed and 0 < acc <= self.spec.max_acceleration):
+            return (f"speed {speed:g} mm/s and acc {acc:g} mm/s^2 must be positive and within the robot's "
+                    f"max_speed {self.spec.max_speed:g} mm/s and max_acceleration {self.spec.max_acceleration:g} mm/s^2")
+        scale = min(max(self.override, 1.0), 100.0) / 100.0
+        if kind == "lin":
+            stream, message = plan_lin(kinematics, self.positions, poses[0], speed * scale, acc * scale * scale,
+                                       axis_limits=self.spec, period=self.period)
+        else:
+            stream, message = plan_circ(kinematics, self.positions, poses[0], poses[1], speed * scale,
+                                        acc * scale * scale, axis_limits=self.spec, period=self.period)
+        if stream is None:
+            return f"move {kind} refused: {message}"
+        self.trajectory, self.t_move = stream, 0.0
+        end = stream.sample(stream.duration)[0]
+        self._current = _Interrupted(end, speed, acc, 1.0, kind)
+        self.moves.append(MoveRecord(line, kind, end, stream.duration, self.clock.now()))
+        return None
+
+    def _joint_target(self, pose: Pose) -> tuple[Joint | None, str | None]:
+        """The joint values that put the tool at ``pose``: the inverse kinematics'
+        configuration nearest the joints the move starts from."""
+        from ..motion.kinematics import KinematicsError
+
+        kinematics, problem = self._kinematics_or_problem()
+        if problem is not None:
+            return None, problem
         main = len(self.spec.main_axes)
         try:
-            joints = self._kinematics.inverse(pose, near=self.positions[:main])
+            joints = kinematics.inverse(pose, near=self.positions[:main])
         except KinematicsError as exc:
             return None, f"the target pose cannot be reached: {exc}"
         return Joint(tuple(joints), tuple(self.positions[main:])), None

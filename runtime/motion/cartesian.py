@@ -116,6 +116,7 @@ from .kinematics import (
     KinematicsError,
     configuration_name,
     matrix_to_rpy,
+    rotation_to_rpy,
 )
 
 __all__ = [
@@ -239,14 +240,9 @@ def _rpy_of_quat(w: float, x: float, y: float, z: float) -> tuple[float, float, 
     r11 = 1.0 - 2.0 * (x * x + z * z)
     r12 = 2.0 * (y * z - w * x)
     r20 = 2.0 * (x * z - w * y)
-    if abs(r00) + abs(r10) < 1e-12:
-        cy, sy, yaw = 1.0, 0.0, 0.0
-    else:
-        yaw = atan2(r10, r00)
-        cy, sy = cos(yaw), sin(yaw)
-    roll = atan2(sy * r02 - cy * r12, cy * r11 - sy * r01)
-    pitch = atan2(-r20, cy * r00 + sy * r10)
-    return roll * _R2D, pitch * _R2D, yaw * _R2D
+    r21 = 2.0 * (y * z + w * x)
+    r22 = 1.0 - 2.0 * (x * x + y * y)
+    return rotation_to_rpy(r00, r01, r02, r10, r11, r12, r20, r21, r22)
 
 
 def quat_to_rpy(q) -> tuple[float, float, float]:

@@ -161,7 +161,7 @@ def rpy_to_matrix(roll: float, pitch: float, yaw: float) -> tuple:
             (-sp, cp * sr, cp * cr))
 
 
-def _rpy(r00, r01, r02, r10, r11, r12, r20, r21, r22) -> tuple[float, float, float]:
+def rotation_to_rpy(r00, r01, r02, r10, r11, r12, r20, r21, r22) -> tuple[float, float, float]:
     """(roll, pitch, yaw) in degrees of a rotation matrix. Yaw first, then roll and pitch
     from ``Rz(-yaw) R``: exact to rounding even next to gimbal lock."""
     if abs(r00) + abs(r10) < 1e-12:  # gimbal lock: pitch = +-90, yaw taken as 0
@@ -177,7 +177,7 @@ def _rpy(r00, r01, r02, r10, r11, r12, r20, r21, r22) -> tuple[float, float, flo
 def matrix_to_rpy(matrix) -> tuple[float, float, float]:
     """(roll, pitch, yaw) in degrees of a 3x3 (or the rotation of a 4x4) matrix."""
     (r00, r01, r02), (r10, r11, r12), (r20, r21, r22) = (tuple(row[:3]) for row in matrix[:3])
-    return _rpy(r00, r01, r02, r10, r11, r12, r20, r21, r22)
+    return rotation_to_rpy(r00, r01, r02, r10, r11, r12, r20, r21, r22)
 
 
 def _quat_matrix(w, x, y, z) -> tuple:
@@ -363,7 +363,7 @@ class Kinematics:
     def forward(self, joints: Sequence[float]) -> tuple[float, float, float, float, float, float]:
         """The TCP pose ``(x, y, z, roll, pitch, yaw)`` (mm, deg) of joint values (deg)."""
         r00, r01, r02, px, r10, r11, r12, py, r20, r21, r22, pz = self._chain(joints)
-        return (px, py, pz) + _rpy(r00, r01, r02, r10, r11, r12, r20, r21, r22)
+        return (px, py, pz) + rotation_to_rpy(r00, r01, r02, r10, r11, r12, r20, r21, r22)
 
     def forward_pose(self, joints: Sequence[float]) -> Pose:
         """The TCP as an L-IRL ``pose(pos(...), rpy(...))`` value."""

@@ -214,8 +214,10 @@ def cmd_run(args, env: Environment) -> int:
             raise UsageError(f"--inject {item}: expected FAULT:AXIS with FAULT one of {', '.join(FAULTS)} "
                              f"and AXIS one of {', '.join(a.name for a in spec.axes)}")
         faults.append((fault, names.index(axis.lower())))
+    if not 1.0 <= args.override <= 100.0:
+        raise UsageError(f"--override {args.override:g}: expected a percentage from 1 to 100")
     options = RunOptions(seed=args.seed, realtime=args.realtime, report=args.report, state_dir=args.state_dir,
-                         max_time=args.max_time, faults=faults)
+                         max_time=args.max_time, faults=faults, override=args.override)
     try:
         summary = RobotSystem(spec, options).run(program)
     except ValueError as exc:  # refused at load time (e.g. a move kind not supported yet)
@@ -290,6 +292,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--seed", type=int, default=0, help="the simulated robot's seed (power-up position, offsets)")
     p.add_argument("--state-dir", metavar="DIR", help="remember the calibration in DIR across runs")
     p.add_argument("--max-time", type=float, default=3600.0, metavar="S", help="stop the run after S seconds")
+    p.add_argument("--override", type=float, default=100.0, metavar="PCT",
+                   help="speed override, percent (1-100): velocities x p, accelerations x p^2")
     p.add_argument("--inject", action="append", metavar="FAULT:AXIS",
                    help=f"break the simulated robot: {', '.join(FAULTS)} on an axis (e.g. sensor_dead:A3)")
     p.add_argument("--json", action="store_true", help="the summary as one JSON object")

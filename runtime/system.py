@@ -35,6 +35,7 @@ class RunOptions:
     state_dir: str | Path | None = None
     max_time: float = 3600.0  # simulated (or wall) seconds before the run is stopped
     faults: list = field(default_factory=list)  # [(fault, axis)] injected into the simulated robot
+    override: float = 100.0  # speed override (percent, 1-100) of every move
 
 
 class RobotSystem:
@@ -92,6 +93,7 @@ class RobotSystem:
         self.init.fault = None
         self.servo.max_following_error = 0.0
         self.trajectory.load(program)
+        self.trajectory.override = self.options.override
         self.report.open(report)
         self.robot.configure()
         self.robot.start()

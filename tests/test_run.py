@@ -704,3 +704,15 @@ def test_a_pose_outside_the_axis_limits_is_a_run_time_error_naming_the_line(work
     assert code == 1, err
     assert "line 4" in summary["fault"] and "no solution within the axis limits" in summary["fault"]
     assert summary["moves"] == []
+
+
+def test_run_override_slows_every_move_by_exact_time_scaling(paper):
+    """--override p: v x p, a x p^2, j x p^3 is a pure time scaling of the jerk-limited
+    profile, so each move (from the same start) takes exactly 1/p as long."""
+    code, half, err = run_json(TEST_IRL, "--override", "50")
+    assert code == 0, err
+    full = paper["summary"]["moves"]
+    for a, b in zip(full[1:], half["moves"][1:]):
+        assert b["planned_duration"] == pytest.approx(2 * a["planned_duration"], rel=1e-9)
+    code, out, err = run("run", TEST_IRL, "--override", "0")
+    assert code == 2 and "--override 0" in err

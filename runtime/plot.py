@@ -1,5 +1,8 @@
 """``irl plot``: one panel per moving axis, position over time, the FSM's phases shaded
-and labelled, as the paper's Figure 6 shows. Needs matplotlib (the ``plot`` extra)."""
+and labelled, as the paper's Figure 6 shows; when the report has the tool centre point
+(the ``tcp`` columns), a path view beside them: the TCP during Move Robot seen from above
+(x-y) and from the side (x-z), so Cartesian programs show their lines and arcs. Needs
+matplotlib (the ``plot`` extra)."""
 from __future__ import annotations
 
 import csv
@@ -42,6 +45,29 @@ def phases(times, states):
     return [tuple(p) for p in out]
 
 
+def _tcp_views(fig, grid, rows: int, times, states, cols) -> None:
+    """The TCP path during Move Robot: from above and from the side (mm, equal scales)."""
+    import numpy as np
+
+    moving = np.array([s.split("/")[0] == "Move Robot" for s in states])
+    if not moving.any():
+        moving = np.ones(len(times), dtype=bool)
+    x, y, z = (cols[f"tcp_{c}"][moving] for c in ("x", "y", "z"))
+    half = max(rows // 2, 1)
+    for k, (v, name) in enumerate(((y, "y"), (z, "z"))):
+        ax = fig.add_subplot(grid[k * half:(k + 1) * half if k == 0 else rows, 2])
+        ax.plot(x, v, lw=1.0, color="#1f4e99")
+        ax.plot(x[:1], v[:1], "o", ms=4, color="#2e7d32", label="start")
+        ax.plot(x[-1:], v[-1:], "s", ms=4, color="#c62828", label="end")
+        ax.set_xlabel("x (mm)")
+        ax.set_ylabel(f"{name} (mm)")
+        ax.set_aspect("equal", adjustable="datalim")
+        ax.grid(alpha=0.3)
+        ax.set_title("TCP from above" if name == "y" else "TCP from the side", fontsize=9)
+        if k == 0:
+            ax.legend(loc="best", fontsize=7)
+
+
 def plot_report(report: str | Path, output: str | Path) -> None:
     try:
         import matplotlib
@@ -55,7 +81,15 @@ def plot_report(report: str | Path, output: str | Path) -> None:
     times, states, cols = read_report(report)
     axes_names = [c[len("sens_pos_"):] for c in cols if c.startswith("sens_pos_")]
     moving = [a for a in axes_names if np.ptp(cols[f"sens_pos_{a}"]) > 1e-6] or axes_names[:1]
-    fig, panels = plt.subplots(len(moving), 1, sharex=True, figsize=(10, 1.9 * len(moving) + 1), squeeze=False)
+    has_tcp = all(f"tcp_{c}" in cols for c in ("x", "y", "z"))
+    rows = max(len(moving), 2 if has_tcp else 1)
+    fig = plt.figure(figsize=(15 if has_tcp else 10, 1.9 * rows + 1))
+    grid = fig.add_gridspec(rows, 3 if has_tcp else 1)
+    first = fig.add_subplot(grid[0, :2] if has_tcp else grid[0, 0])
+    panels = np.array([[first]] + [[fig.add_subplot(grid[i, :2] if has_tcp else grid[i, 0], sharex=first)]
+                                   for i in range(1, len(moving))])
+    if has_tcp:
+        _tcp_views(fig, grid, rows, times, states, cols)
     colors = ["#dde8f5", "#f5e6d3", "#e1f0dc", "#f3dbe7", "#ececec"]
     spans = phases(times, states)
     for ax, name in zip(panels[:, 0], moving):
@@ -70,6 +104,8 @@ def plot_report(report: str | Path, output: str | Path) -> None:
         top.text((t0 + t1) / 2, 1.02, phase, transform=top.get_xaxis_transform(), ha="center", va="bottom",
                  fontsize=8)
     panels[0, 0].legend(loc="lower right", fontsize=7)
+    for ax in panels[:-1, 0]:
+        ax.tick_params(labelbottom=False)
     panels[-1, 0].set_xlabel("time (s)")
     fig.suptitle(f"{Path(report).name}: positions read from the encoders, by FSM phase", y=0.995)
     fig.tight_layout()

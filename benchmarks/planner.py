@@ -55,6 +55,7 @@ except ImportError:  # pragma: no cover - depends on the environment
     ruckig = None
 
 TICK = 0.005  # s, trajectory generator period
+MODES = ("line", "time", "auto")  # "auto": the runtime's default (line when it is free)
 GOAL_PLAN_P99_US = 50.0
 GOAL_SAMPLE_P50_US = 2.0
 
@@ -124,11 +125,11 @@ def main() -> int:
         r_inp.max_jerk = list(j)
 
     # 1. planning, the moves one after the other (each call timed on its own)
-    plan = {"line": [], "time": [], "ruckig": []}
-    durations = {"line": [], "time": [], "ruckig": []}
+    plan = {"line": [], "time": [], "auto": [], "ruckig": []}
+    durations = {"line": [], "time": [], "auto": [], "ruckig": []}
     errors = 0
     for m, move in enumerate(moves):
-        for mode in ("line", "time"):
+        for mode in MODES:
             t0 = pc()
             result, traj, message = plan_ptp_jerk(*move, mode)
             plan[mode].append(pc() - t0)
@@ -148,11 +149,11 @@ def main() -> int:
 
     # 2. sampling every 5 ms tick of each move; each move planned again just before its
     # ticks ("in the tick loop": caches cold from the previous move's sampling)
-    sample = {"line": [], "time": [], "ruckig": []}
-    plan_cold = {"line": [], "time": [], "ruckig": []}
+    sample = {"line": [], "time": [], "auto": [], "ruckig": []}
+    plan_cold = {"line": [], "time": [], "auto": [], "ruckig": []}
     total = 0.0
     for move in moves:
-        for mode in ("line", "time"):
+        for mode in MODES:
             t0 = pc()
             result, traj, message = plan_ptp_jerk(*move, mode)
             plan_cold[mode].append(pc() - t0)
@@ -185,6 +186,7 @@ def main() -> int:
         for dl, move in zip(durations["line"], moves))
     diff_time = [x - y for x, y in zip(durations["time"], durations["ruckig"])]
     diff_line = [x - y for x, y in zip(durations["line"], durations["ruckig"])]
+    diff_auto = [x - y for x, y in zip(durations["auto"], durations["ruckig"])]
 
     o50, o99 = percentiles(overhead)
     limits = "per-axis" if args.independent else "per-move"
@@ -208,6 +210,9 @@ def main() -> int:
               f"(smallest {min(diff_line):+.3e} s); within one tick: {within} of "
               f"{len(diff_line)} moves "
               f"({'every move' if within == len(diff_line) else 'not every move'})")
+        worst_auto = max(diff_auto, key=abs)
+        print(f"  'auto' - ruckig:   largest |difference| {abs(worst_auto):.3e} s; every move within one tick: "
+              f"{'yes' if all(abs(x) <= TICK for x in diff_auto) else 'NO'} (the runtime's default)")
     s = line_extra
     print(f"  'line' - max_i T_min,i (straight line's extra time): median {s[len(s) // 2]:.3e} s,"
           f" largest {s[-1]:.3e} s, moves above 1 us: {sum(1 for x in s if x > 1e-6)}")
@@ -220,15 +225,15 @@ def main() -> int:
         p50, p99 = percentiles(ns)
         print(f"{label:34s} {p50:8.2f} {p99:8.2f} {len(ns):9d}  {goal}")
 
-    for mode in ("line", "time"):
+    for mode in MODES:
         p99 = percentiles(plan[mode])[1]
         row(f"plan_ptp_jerk '{mode}'", plan[mode],
             f"p99 <= {GOAL_PLAN_P99_US:g}: {'met' if p99 <= GOAL_PLAN_P99_US else 'MISSED'}")
     row("ruckig Ruckig.calculate", plan["ruckig"])
-    for mode in ("line", "time"):
+    for mode in MODES:
         row(f"  in the tick loop: '{mode}'", plan_cold[mode])
     row("  in the tick loop: ruckig", plan_cold["ruckig"])
-    for mode in ("line", "time"):
+    for mode in MODES:
         p50 = percentiles(sample[mode])[0]
         row(f"trajectory.sample '{mode}' (tick)", sample[mode],
             f"p50 <= {GOAL_SAMPLE_P50_US:g}: {'met' if p50 <= GOAL_SAMPLE_P50_US else 'MISSED'}")

@@ -526,7 +526,7 @@ def test_invalid_input_is_an_error_result_never_an_exception(fields, message, sy
 
 def test_invalid_synchronization_and_junk():
     assert plan_ptp_jerk(*GOOD.values(), "phase") == (
-        Result.ERROR_INVALID_INPUT, None, "synchronization must be 'line' or 'time', got 'phase'")
+        Result.ERROR_INVALID_INPUT, None, "synchronization must be 'line', 'time' or 'auto', got 'phase'")
     for junk in (None, 42, "move", object()):
         result, traj, message = plan_ptp_jerk(junk, junk, junk, junk, junk)
         assert result == Result.ERROR_INVALID_INPUT and traj is None and message
@@ -800,3 +800,21 @@ def test_property_extreme_input_never_raises_nor_samples_non_finite(args, sync):
             assert all(math.isfinite(y) for y in pos + vel)
             assert all(math.isfinite(y) for y in traj.sample_accelerations(traj.duration * x))
         assert traj.sample(traj.duration)[0] == tuple(args[1])
+
+
+@settings(max_examples=200, deadline=None, derandomize=True)
+@given(st.lists(st.tuples(st.floats(-180, 180), st.floats(5, 300), st.floats(20, 2000), st.floats(200, 20000)),
+                min_size=6, max_size=6))
+def test_property_auto_is_time_optimal_and_a_straight_line_when_that_is_free(axes):
+    start = (0.0,) * 6
+    target = tuple(d for d, _v, _a, _j in axes)
+    limits = [tuple(x[k] for x in axes) for k in (1, 2, 3)]
+    r_auto, auto, _ = plan_ptp_jerk(start, target, *limits, synchronization="auto")
+    r_time, timed, _ = plan_ptp_jerk(start, target, *limits, synchronization="time")
+    r_line, line, _ = plan_ptp_jerk(start, target, *limits, synchronization="line")
+    assert r_auto == r_time == r_line
+    if auto is None:
+        return
+    assert auto.duration == pytest.approx(timed.duration, rel=1e-12, abs=1e-12)  # never slower
+    if line.duration <= timed.duration * (1 + 1e-12):  # the line is free: auto takes it
+        assert auto.synchronization == "line"

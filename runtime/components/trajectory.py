@@ -223,7 +223,7 @@ class TrajectoryGenerator(Component):
         if self.profile == "jerk":  # the jerk limit scales with acc_ptp (and the override's cube)
             jmax = tuple(a.max_jerk * acc * scale ** 3 for a in self.axes)
             result, trajectory, message = plan_ptp_jerk(self.positions, values, vmax, amax, jmax,
-                                                        synchronization="time")
+                                                        synchronization="auto")
         else:
             result, trajectory, message = plan_ptp(PtpInput(self.positions, values, vmax, amax))
         if result < 0:

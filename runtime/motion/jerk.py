@@ -592,8 +592,10 @@ def plan_ptp_jerk(start, target, v_max, a_max, j_max, synchronization: str = "li
     ``start``, ``target`` (positions), ``v_max``, ``a_max``, ``j_max`` (per-axis limits,
     > 0, already scaled by the move's fractions): one number per axis; the axes are at
     rest at the start. ``synchronization``: ``"line"`` (default; a straight line in joint
-    space, the fastest such move) or ``"time"`` (every axis stretched to the slowest
-    axis's minimal duration; Ruckig's default) -- see the module docstring.
+    space, the fastest such move), ``"time"`` (every axis stretched to the slowest
+    axis's minimal duration; Ruckig's default) -- see the module docstring -- or
+    ``"auto"``: the straight line when it is as fast as ``"time"`` (axes whose limits
+    bind alike, the common case), else ``"time"``: always the time-optimal duration.
 
     Returns ``(result, trajectory, message)`` like
     :func:`runtime.motion.planner.plan_ptp`, with the same results and messages: on
@@ -605,13 +607,14 @@ def plan_ptp_jerk(start, target, v_max, a_max, j_max, synchronization: str = "li
     ``"axis 3: max_jerk must be positive, got 0"``. Never raises. Runs once per move.
     """
     try:
-        if synchronization == "line":
+        auto = synchronization == "auto"
+        if synchronization == "line" or auto:
             line = True
         elif synchronization == "time":
             line = False
         else:
             return (Result.ERROR_INVALID_INPUT, None,
-                    f"synchronization must be 'line' or 'time', got {synchronization!r}")
+                    f"synchronization must be 'line', 'time' or 'auto', got {synchronization!r}")
         if _plainly_valid(start, target, v_max, a_max, j_max):
             start, target = tuple(start), tuple(target)
             v_max, a_max, j_max = tuple(v_max), tuple(a_max), tuple(j_max)
@@ -665,10 +668,14 @@ def plan_ptp_jerk(start, target, v_max, a_max, j_max, synchronization: str = "li
                 if moving and not all(t > 0.0 for d, t in zip(distances, minima) if d != 0.0):
                     return _too_short(distances, minima, *limits)
                 return _too_long(duration, minima.index(max(minima)), distances, *limits)
-            trajectory = JerkPtpTrajectory(
-                duration, start, target, tuple(distances), limits,
-                shape=(tj, t_acc, big_j, a_p, v_p) if duration > 0.0 else None)
-        else:
+            if auto and duration > 0.0:  # the straight line only when it costs no time
+                optimum = max(_minimum_duration(d, v, a, j) for d, v, a, j in zip(distances, v_max, a_max, j_max))
+                line = duration <= optimum * (1.0 + 1e-12)
+            if line:
+                trajectory = JerkPtpTrajectory(
+                    duration, start, target, tuple(distances), limits,
+                    shape=(tj, t_acc, big_j, a_p, v_p) if duration > 0.0 else None)
+        if not line:
             phases = [_phases(d if d > 0.0 else -d, v, a, j) if d != 0.0 else None
                       for d, v, a, j in zip(distances, v_max, a_max, j_max)]
             minima = [p[2] if p is not None else 0.0 for p in phases]

@@ -677,12 +677,10 @@ def test_move_ptp_to_a_pose_uses_the_inverse_kinematics(work):
     puts the tool there."""
     from runtime.motion.kinematics import Kinematics
 
-    program = HEAD.format(name="to_pose") + (
-        "seq\n"
-        "  move ptp pose(pos(818.891793, 144.392717, 1067.415419), rpy(-180, -40, 10)) speed_ptp := 0.5;\n"
-        "endseq\nendprogram;\n")
-    (work / "to_pose.irl").write_text(program, encoding="utf-8")
-    code, summary, err = run_json(work / "to_pose.irl")
+    path = write(work, "to_pose", "seq\n"
+                 "  move ptp pose(pos(818.891793, 144.392717, 1067.415419), rpy(-180, -40, 10)) speed_ptp := 0.5;\n"
+                 "endseq\nendprogram;\n")
+    code, summary, err = run_json(path)
     assert code == 0, err
     (move,) = summary["moves"]
     assert move["target"] == pytest.approx([10, -20, 30, 0, 40, 0], abs=1e-5)
@@ -695,12 +693,10 @@ def test_move_ptp_to_a_pose_uses_the_inverse_kinematics(work):
 def test_a_pose_outside_the_axis_limits_is_a_run_time_error_naming_the_line(work):
     """Within the arm's reach (the compiler's check passes) but every configuration needs
     A1 beyond its limits: the run stops at that line with the kinematics' reason."""
-    program = HEAD.format(name="behind") + (
-        "seq\n"
-        "  move ptp pose(pos(-900, 0, -300), rpy(180, 0, 180));\n"
-        "endseq\nendprogram;\n")
-    (work / "behind.irl").write_text(program, encoding="utf-8")
-    code, summary, err = run_json(work / "behind.irl")
+    path = write(work, "behind", "seq\n"
+                                 "  move ptp pose(pos(-900, 0, -300), rpy(180, 0, 180));\n"
+                                 "endseq\nendprogram;\n")
+    code, summary, err = run_json(path)
     assert code == 1, err
     assert "line 4" in summary["fault"] and "no solution within the axis limits" in summary["fault"]
     assert summary["moves"] == []

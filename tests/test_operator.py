@@ -213,3 +213,48 @@ def test_resync_skips_to_the_clock_instead_of_catching_up():
     clock.ticks = 500  # time passed while nothing was stepped
     ex.resync()
     assert ex.ticks == 500
+
+
+class _WallLike:
+    """The simulated clock, presented as a wall clock (``simulated`` False): the
+    trajectory generator then plans Cartesian moves on a thread of their own."""
+
+    simulated = False
+
+    def __init__(self, clock):
+        self._clock = clock
+
+    def now(self) -> float:
+        return self._clock.now()
+
+
+def test_on_the_wall_clock_cartesian_moves_are_planned_off_the_loop(system):
+    from runtime.components import trajectory as tg_module
+
+    source = ('program linbg;\nsystem_specification "lola15.spc";\nseq\n'
+              "  move ptp joint(mainjoint(0, -30, 30, 0, 45, 0));\n"
+              "  move lin pose(pos(900, 150, 900), rpy(180, 30, 180)) speed := 200;\n"
+              "  move lin pose(pos(0, 0, 1800), rpy(180, 0, 180));\n"  # through a singularity: refused
+              "endseq\nendprogram;\n")
+    from compiler.driver import compile_source
+
+    result = compile_source(source, "linbg.irl", ROOT / "programs" / "lola15.spc")
+    assert result.ok, result.diagnostics
+    system.trajectory.clock = _WallLike(system.clock)
+    started = []
+    real_job = tg_module._PlanningJob
+
+    class CountingJob(real_job):
+        def __init__(self, plan, move):
+            started.append(move)
+            super().__init__(plan, move)
+
+    tg_module._PlanningJob = CountingJob
+    try:
+        system.begin(result.program)
+        summary = finish(system)
+    finally:
+        tg_module._PlanningJob = real_job
+    assert [m[0] for m in started] == ["lin", "lin"]  # both checks ran on a planning thread
+    assert [m["line"] for m in summary["moves"]] == [4, 5]
+    assert "line 6" in summary["fault"] and "move lin refused" in summary["fault"]

@@ -8,6 +8,7 @@ duration (from its first setpoint to its last) are recorded for the run's summar
 """
 from __future__ import annotations
 
+import threading
 from dataclasses import dataclass
 
 from compiler.objcode import Program
@@ -42,6 +43,24 @@ class MoveRecord:
     @property
     def actual_duration(self) -> float | None:
         return None if self.t_end is None else self.t_end - self.t_start
+
+
+class _PlanningJob:
+    """A plan computed on a thread of its own (not real-time); ``done`` once ``result``
+    is there. The thread only computes: the loop takes the result when it is done."""
+
+    def __init__(self, plan, move: tuple):
+        self.move = move
+        self.result = (None, "not planned")
+        self.done = False
+        threading.Thread(target=self._run, args=(plan,), name="irl-plan", daemon=True).start()
+
+    def _run(self, plan) -> None:
+        try:
+            self.result = plan()
+        except Exception as exc:  # plan_lin/plan_circ never raise; a bug must not hang the move
+            self.result = (None, f"internal error while planning ({type(exc).__name__}: {exc})")
+        self.done = True
 
 
 @dataclass
@@ -86,6 +105,7 @@ class TrajectoryGenerator(Component):
         self.profile = motion_profile(spec)
         self._kinematics = None  # built when a program first moves to a pose
         self.interrupted: _Interrupted | None = None  # a move stopped before its end (pause/abort)
+        self._planning: _PlanningJob | None = None  # a Cartesian move being checked (wall clock)
         self.abort_reason: str | None = None  # set by abort(): end the program once at rest
         self._current: _Interrupted | None = None  # the move under way
 
@@ -98,6 +118,7 @@ class TrajectoryGenerator(Component):
         self.fault = None
         self.abort_reason = None
         self.interrupted = self._current = None
+        self._planning = None
 
     def on_start(self) -> bool:
         if self.program is None:
@@ -110,6 +131,7 @@ class TrajectoryGenerator(Component):
         self.log_lines = []
         self.fault = None
         self.interrupted = self._current = None
+        self._planning = None
         self.abort_reason = None
         self.vm = VM(self.program, self, self.budget)
         self.desi_pos.write((self.clock.now(), self.positions, self.velocities), self.clock.now())
@@ -133,6 +155,8 @@ class TrajectoryGenerator(Component):
 
     def update(self, now: float) -> None:
         """Real-time: sample the current move, then let the VM run its budget."""
+        if self._planning is not None and self._planning.done:
+            self._planned()
         trajectory = self.trajectory
         if trajectory is not None:
             self.t_move += self.period
@@ -301,12 +325,25 @@ class TrajectoryGenerator(Component):
             return (f"speed {speed:g} mm/s and acc {acc:g} mm/s^2 must be positive and within the robot's "
                     f"max_speed {self.spec.max_speed:g} mm/s and max_acceleration {self.spec.max_acceleration:g} mm/s^2")
         scale = min(max(self.override, 1.0), 100.0) / 100.0
+        start = self.positions
         if kind == "lin":
-            stream, message = plan_lin(kinematics, self.positions, poses[0], speed * scale, acc * scale * scale,
-                                       axis_limits=self.spec, period=self.period)
+            def plan():
+                return plan_lin(kinematics, start, poses[0], speed * scale, acc * scale * scale,
+                                axis_limits=self.spec, period=self.period)
         else:
-            stream, message = plan_circ(kinematics, self.positions, poses[0], poses[1], speed * scale,
-                                        acc * scale * scale, axis_limits=self.spec, period=self.period)
+            def plan():
+                return plan_circ(kinematics, start, poses[0], poses[1], speed * scale, acc * scale * scale,
+                                 axis_limits=self.spec, period=self.period)
+        if self.clock.simulated:  # deterministic: plan at once (simulated time does not pass)
+            stream, message = plan()
+            return self._start_cartesian(stream, message, kind, speed, acc, line)
+        # On the wall clock the check (tens of ms for a long path) must not hold up the
+        # loop: a planning thread does it; the move starts at the first update after.
+        self._planning = _PlanningJob(plan, (kind, speed, acc, line))
+        return None
+
+    def _start_cartesian(self, stream, message: str, kind: str, speed: float, acc: float,
+                         line: int) -> str | None:
         if stream is None:
             return f"move {kind} refused: {message}"
         self.trajectory, self.t_move = stream, 0.0
@@ -314,6 +351,18 @@ class TrajectoryGenerator(Component):
         self._current = _Interrupted(end, speed, acc, 1.0, kind)
         self.moves.append(MoveRecord(line, kind, end, stream.duration, self.clock.now()))
         return None
+
+    def _planned(self) -> None:
+        """Real-time: take a finished background plan (start the move, or fault)."""
+        job, self._planning = self._planning, None
+        if self.abort_reason is not None or self.vm is None:
+            return
+        kind, speed, acc, line = job.move
+        stream, message = job.result
+        problem = self._start_cartesian(stream, message, kind, speed, acc, line)
+        if problem is not None:
+            self.fault = self.fault or f"program error at line {line}: {problem}"
+            self.vm.abort()
 
     def _joint_target(self, pose: Pose) -> tuple[Joint | None, str | None]:
         """The joint values that put the tool at ``pose``: the inverse kinematics'
@@ -331,7 +380,7 @@ class TrajectoryGenerator(Component):
         return Joint(tuple(joints), tuple(self.positions[main:])), None
 
     def motion_done(self) -> bool:
-        return self.trajectory is None and self.interrupted is None
+        return self.trajectory is None and self.interrupted is None and self._planning is None
 
     def read_input(self, n: int) -> bool:
         if not 1 <= n <= self.spec.inputs:

@@ -258,3 +258,54 @@ def test_on_the_wall_clock_cartesian_moves_are_planned_off_the_loop(system):
     assert [m[0] for m in started] == ["lin", "lin"]  # both checks ran on a planning thread
     assert [m["line"] for m in summary["moves"]] == [4, 5]
     assert "line 6" in summary["fault"] and "move lin refused" in summary["fault"]
+
+
+LIN_PROGRAM = ('program linpause;\nsystem_specification "lola15.spc";\nseq\n'
+               "  move ptp joint(mainjoint(0, -30, 30, 0, 45, 0));\n"
+               "  move lin pose(pos(900, 150, 900), rpy(180, 30, 180)) speed := 100;\n"
+               "endseq\nendprogram;\n")
+
+
+def _distance_from_segment(p, a, b) -> float:
+    d = [y - x for x, y in zip(a, b)]
+    u = sum((pi - ai) * di for pi, ai, di in zip(p, a, d)) / sum(di * di for di in d)
+    u = min(max(u, 0.0), 1.0)
+    return math.dist(p, [ai + u * di for ai, di in zip(a, d)])
+
+
+def test_pause_of_a_lin_move_stops_on_the_line_and_resume_finishes_it(system):
+    from compiler.driver import compile_source
+    from runtime.motion.kinematics import Kinematics
+
+    result = compile_source(LIN_PROGRAM, "linpause.irl", ROOT / "programs" / "lola15.spc")
+    assert result.ok, result.diagnostics
+    kin = Kinematics(SPEC)
+    system.begin(result.program)
+    to_move(system)
+    tg, ex = system.trajectory, system.executive
+    ex.run(lambda: tg.line == 5 and tg.trajectory is not None, 10**5)
+    start = kin.forward(tg.trajectory.checked.start_joints)[:3]
+    end = (900.0, 150.0, 900.0)
+    ex.run(lambda: False, 1500)  # well into the line
+    assert tg.pause()
+    seen = []
+    while tg.trajectory is not None:
+        ex.run(lambda: False, 5)
+        seen.append(kin.forward(tg.positions)[:3])
+    for p in seen:  # every setpoint of the stop is on the line
+        assert _distance_from_segment(p, start, end) < 1e-6, p
+    stopped = seen[-1]
+    assert 10.0 < math.dist(stopped, start) and math.dist(stopped, end) > 10.0
+    ex.run(lambda: False, 300)
+    assert kin.forward(tg.positions)[:3] == pytest.approx(stopped, abs=1e-9)  # held
+    assert tg.resume()
+    rest = []
+    while not tg.motion_done():
+        ex.run(lambda: False, 5)
+        rest.append(kin.forward(tg.positions)[:3])
+    for p in rest:
+        assert _distance_from_segment(p, start, end) < 1e-6, p
+    summary = finish(system)
+    assert summary["fault"] is None
+    assert len(summary["moves"]) == 2
+    assert math.dist(kin.forward(summary["final_position"])[:3], end) < 0.5

@@ -71,7 +71,8 @@ class _Interrupted:
     speed: float  # the move's speed_ptp and acc_ptp (before the override)
     acc: float
     deceleration: float  # the fraction of each axis's acceleration limit it was planned with
-    kind: str = "ptp"  # "lin" and "circ" moves are not interrupted by a pause (see pause())
+    kind: str = "ptp"  # or "lin", "circ"
+    stop: object = None  # the PathStop of a Cartesian move (what resuming needs)
 
 
 class TrajectoryGenerator(Component):
@@ -179,9 +180,9 @@ class TrajectoryGenerator(Component):
 
     # ---- operator control (real-time safe) ----
     def pause(self) -> bool:
-        """Hold the program; a PTP move under way decelerates to rest (a controlled stop),
-        a lin or circ move finishes first (it would leave its path). False if there is no
-        program to pause."""
+        """Hold the program; a move under way decelerates to rest: a PTP move in a
+        controlled stop, a lin or circ move along its own line or arc. False if there is
+        no program to pause."""
         vm = self.vm
         if vm is None or vm.status >= DONE or self.abort_reason is not None:
             return False
@@ -216,11 +217,14 @@ class TrajectoryGenerator(Component):
     def _stop_on_path(self) -> None:
         if self.trajectory is None or self.interrupted is not None or self._current is None:
             return
-        if self._current.kind != "ptp" and self.abort_reason is None:
-            return  # a pause lets a Cartesian move end on its path; the program then holds
         self.interrupted = self._current
-        amax = tuple(a.max_acceleration * self.interrupted.deceleration for a in self.axes)
-        self.trajectory = StopRamp(self.positions, self.velocities, amax)
+        if self._current.kind != "ptp":  # decelerate along the line or arc itself
+            from ..motion.cartesian import PathStop
+
+            self.trajectory = self.interrupted.stop = PathStop(self.trajectory, self.t_move, self.positions)
+        else:
+            amax = tuple(a.max_acceleration * self.interrupted.deceleration for a in self.axes)
+            self.trajectory = StopRamp(self.positions, self.velocities, amax)
         self.t_move = 0.0
 
     def _at_rest_after_stop(self) -> None:
@@ -234,7 +238,11 @@ class TrajectoryGenerator(Component):
     def _resume_move(self) -> None:
         move = self.interrupted
         self.interrupted = None
-        problem = self._plan(move.target, move.speed, move.acc)
+        if move.kind != "ptp":  # the rest of the line or arc, from where it stopped
+            kind, poses = move.stop.rest()
+            problem = self._plan_cartesian(kind, poses, move.speed, move.acc, self.line, record=False)
+        else:
+            problem = self._plan(move.target, move.speed, move.acc)
         if problem is not None:
             self.fault = self.fault or f"cannot resume the move at line {self.line}: {problem}"
             self.vm.abort()
@@ -304,8 +312,6 @@ class TrajectoryGenerator(Component):
         against the kinematics, the axis limits and velocities before it starts (a refused
         move leaves the robot where it is, and the program stops at its line with the
         reason and where along the path it fails)."""
-        from ..motion.cartesian import plan_circ, plan_lin
-
         kinematics, problem = self._kinematics_or_problem()
         if problem is not None:
             return problem
@@ -324,6 +330,13 @@ class TrajectoryGenerator(Component):
         if not (0 < speed <= self.spec.max_speed and 0 < acc <= self.spec.max_acceleration):
             return (f"speed {speed:g} mm/s and acc {acc:g} mm/s^2 must be positive and within the robot's "
                     f"max_speed {self.spec.max_speed:g} mm/s and max_acceleration {self.spec.max_acceleration:g} mm/s^2")
+        return self._plan_cartesian(kind, poses, speed, acc, line)
+
+    def _plan_cartesian(self, kind: str, poses: list, speed: float, acc: float, line: int,
+                        record: bool = True) -> str | None:
+        from ..motion.cartesian import plan_circ, plan_lin
+
+        kinematics = self._kinematics
         scale = min(max(self.override, 1.0), 100.0) / 100.0
         start = self.positions
         if kind == "lin":
@@ -336,20 +349,21 @@ class TrajectoryGenerator(Component):
                                  axis_limits=self.spec, period=self.period)
         if self.clock.simulated:  # deterministic: plan at once (simulated time does not pass)
             stream, message = plan()
-            return self._start_cartesian(stream, message, kind, speed, acc, line)
+            return self._start_cartesian(stream, message, kind, speed, acc, line, record)
         # On the wall clock the check (tens of ms for a long path) must not hold up the
         # loop: a planning thread does it; the move starts at the first update after.
-        self._planning = _PlanningJob(plan, (kind, speed, acc, line))
+        self._planning = _PlanningJob(plan, (kind, speed, acc, line, record))
         return None
 
     def _start_cartesian(self, stream, message: str, kind: str, speed: float, acc: float,
-                         line: int) -> str | None:
+                         line: int, record: bool = True) -> str | None:
         if stream is None:
             return f"move {kind} refused: {message}"
         self.trajectory, self.t_move = stream, 0.0
         end = stream.sample(stream.duration)[0]
         self._current = _Interrupted(end, speed, acc, 1.0, kind)
-        self.moves.append(MoveRecord(line, kind, end, stream.duration, self.clock.now()))
+        if record:
+            self.moves.append(MoveRecord(line, kind, end, stream.duration, self.clock.now()))
         return None
 
     def _planned(self) -> None:
@@ -357,9 +371,9 @@ class TrajectoryGenerator(Component):
         job, self._planning = self._planning, None
         if self.abort_reason is not None or self.vm is None:
             return
-        kind, speed, acc, line = job.move
+        kind, speed, acc, line, record = job.move
         stream, message = job.result
-        problem = self._start_cartesian(stream, message, kind, speed, acc, line)
+        problem = self._start_cartesian(stream, message, kind, speed, acc, line, record)
         if problem is not None:
             self.fault = self.fault or f"program error at line {line}: {problem}"
             self.vm.abort()

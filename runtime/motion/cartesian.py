@@ -125,6 +125,7 @@ __all__ = [
     "CircPath",
     "DEFAULT_JERK_FACTOR",
     "JointStream",
+    "PathStop",
     "LinPath",
     "MAX_JOINT_STEP",
     "ORIENTATION_RADIUS",
@@ -1111,3 +1112,63 @@ def plan_circ(kinematics: Kinematics, start_joints, via, target, speed: float, a
     ``target``. Returns ``(stream, "")`` or ``(None, message)``. Never raises."""
     return _plan(kinematics, start_joints, lambda start: CircPath(start, via, target), speed,
                  acc, jerk, axis_limits, period, **check)
+
+
+class PathStop:
+    """A controlled stop **on** a Cartesian path (pause, abort): from the path parameter
+    ``s0`` and path speed ``v0`` of ``stream`` at its time ``t``, the path speed falls at
+    the move's ``acc`` to rest: ``s(t) = s0 + v0 t - acc t^2 / 2`` for
+    ``t <= duration = v0 / acc``; every sample is one inverse kinematics of the path's pose
+    at ``s(t)`` near the last joints, so the tool stays on the line or arc. Velocities are
+    the backward differences of the samples (0 at rest). Same interface as
+    :class:`JointStream`; ``s_end`` is where it stops (resume plans the rest from there).
+    Never raises: should an inverse kinematics fail, ``fault`` says why and the joints hold.
+    """
+
+    __slots__ = ("path", "kinematics", "duration", "s_end", "fault", "_s0", "_v0", "_dec", "_last", "_last_t",
+                 "_add", "_zeros", "_end")
+
+    def __init__(self, stream: "JointStream", t: float, joints: Sequence[float], deceleration: float | None = None):
+        move = stream.checked.move
+        s0, v0, _a0 = move.profile.sample(t)
+        dec = move.acc if deceleration is None else deceleration
+        self.path, self.kinematics = move.path, stream.checked.kinematics
+        self._s0, self._v0, self._dec = s0, max(v0, 0.0), dec
+        self.duration = self._v0 / dec if self._v0 > 0.0 else 0.0
+        self.s_end = min(s0 + 0.5 * self._v0 * self.duration, move.path.length)
+        self.fault: str | None = None
+        self._add = tuple(joints[6:])
+        self._last = tuple(joints[:6])
+        self._last_t = 0.0
+        self._zeros = (0.0,) * len(joints)
+        self._end = None
+
+    def sample(self, t: float) -> tuple[tuple[float, ...], tuple[float, ...]]:
+        if t >= self.duration:
+            if self._end is None:
+                self._end = self._solve(self.s_end)
+            return self._end + self._add, self._zeros
+        if not t > 0.0:
+            return self._last + self._add, self._zeros
+        q = self._solve(min(self._s0 + self._v0 * t - 0.5 * self._dec * t * t, self.s_end))
+        h = t - self._last_t
+        velocities = tuple([(b - a) / h for a, b in zip(self._last, q)]) if h > 0.0 else self._zeros[:6]
+        self._last, self._last_t = q, t
+        return q + self._add, velocities + self._zeros[6:]
+
+    def _solve(self, s: float) -> tuple[float, ...]:
+        try:
+            return tuple(self.kinematics.inverse(self.path.pose_at(s), near=self._last))
+        except KinematicsError as exc:
+            self.fault = self.fault or f"the stop left the arm's reach ({exc})"
+            return self._last
+
+    def rest(self) -> tuple[str, tuple]:
+        """What is left of the path after the stop: ``("lin", (end,))`` or
+        ``("circ", (via, end))`` -- the arguments of :func:`plan_lin` / :func:`plan_circ`
+        from the stop on (the via point halfway along the rest of the arc)."""
+        path = self.path
+        end = path.pose_at(path.length)
+        if isinstance(path, CircPath):
+            return "circ", (path.pose_at(0.5 * (self.s_end + path.length)), end)
+        return "lin", (end,)

@@ -427,7 +427,7 @@ def add_commands(sub) -> None:
         p.set_defaults(run=fn)
     for name, fn, text, arg, kind, metavar in (
             ("abort", cmd_abort, "stop the running program (controlled stop; or remove a queued one)", "program", int, "ID"),
-            ("override", cmd_override, "speed override (percent) for the moves planned from now on", "percent", float,
+            ("override", cmd_override, "speed override (percent), also of the move under way", "percent", float,
              "PCT"),
             ("reconfigure", cmd_reconfigure, "switch to another named configuration between programs", "name", str,
              "NAME"),

@@ -58,7 +58,7 @@ OPS: dict[str, tuple[dict[str, tuple[tuple, bool, str]], str]] = {
               "bring the running program to a controlled stop and end it (or remove a queued one)"),
     "estop": ({}, "emergency stop: brakes on and drives off now; the running program and the queue are ended"),
     "override": ({"percent": (_NUM, True, "1 to 100")},
-                 "speed override for the moves planned from now on"),
+                 "speed override: the move under way changes smoothly, the next ones follow"),
     "call": ({"text": (_STR, True, "a scripting command, e.g. servo.kp = 2.5 (see 'help')")},
              "the scripting interface: read or set a property, call an operation"),
     "reconfigure": ({"name": (_STR, True, "a configuration of the server's configuration file")},

@@ -309,3 +309,30 @@ def test_pause_of_a_lin_move_stops_on_the_line_and_resume_finishes_it(system):
     assert summary["fault"] is None
     assert len(summary["moves"]) == 2
     assert math.dist(kin.forward(summary["final_position"])[:3], end) < 0.5
+
+
+def test_override_changed_during_a_move_is_a_smooth_monotonic_transition(system):
+    system.begin(PAPER.program)
+    to_move(system, 0)
+    tg, ex = system.trajectory, system.executive
+    ex.run(lambda: tg.line == 5 and tg.trajectory is not None, 10**5)  # the 90 deg move
+    ex.run(lambda: False, 2500)  # into its cruise
+    v_cruise = abs(tg.velocities[0])
+    assert v_cruise > 10.0
+    tg.override = 50.0
+    assert tg.override == 50.0 and tg.rate == 1.0  # the transition starts, no jump
+    speeds = []
+    while tg.rate != 0.5:
+        ex.run(lambda: False, 5)
+        speeds.append(abs(tg.velocities[0]))
+    ex.run(lambda: False, 50)
+    speeds.append(abs(tg.velocities[0]))
+    assert all(b <= a + 1e-9 for a, b in zip(speeds, speeds[1:]))  # monotonic: no overshoot
+    assert speeds[-1] == pytest.approx(0.5 * v_cruise, rel=1e-9)
+    a_max = SPEC.axes[0].max_acceleration * 0.1  # the move's acc_ptp
+    steps = [abs(b - a) / 0.005 for a, b in zip(speeds, speeds[1:])]
+    assert max(steps) <= a_max * 1.01  # the change of speed stays within the move's deceleration
+    summary = finish(system)
+    assert summary["fault"] is None
+    for x, want in zip(summary["final_position"], (45, -45, 45, 0, 0, 0)):
+        assert abs(x - want) <= 2 * max(COUNTS)

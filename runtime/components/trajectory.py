@@ -80,8 +80,8 @@ class TrajectoryGenerator(Component):
     program before its next instruction and brings a move under way to a controlled stop
     (a :class:`StopRamp`); :meth:`resume` continues the program and re-plans the rest of
     the interrupted move from where the robot stopped; :meth:`abort` stops the same way,
-    then ends the program with a fault; ``override`` (percent) scales the speed of the
-    moves planned from then on."""
+    then ends the program with a fault; ``override`` (percent) scales the time of the
+    moves, the one under way too (a smooth, monotonic change of rate)."""
 
     PROPERTIES = {"budget": (int, "object-code instructions per 5 ms update")}
 
@@ -102,7 +102,10 @@ class TrajectoryGenerator(Component):
         self.log_lines: list[tuple[float, int, str]] = []
         self.fault: str | None = None
         self.start_position: tuple | None = None  # the commanded position to plan from (else sens_pos)
-        self.override = 100.0
+        self.rate = 1.0  # trajectory seconds per real second: the override, now
+        self._rate_from = self._rate_to = 1.0
+        self._rate_t = self._rate_T = 0.0  # progress and length (s) of a change of rate
+        self._real_time = False  # the trajectory is a stop, planned in real time (no rate)
         self.profile = motion_profile(spec)
         self._kinematics = None  # built when a program first moves to a pose
         self.interrupted: _Interrupted | None = None  # a move stopped before its end (pause/abort)
@@ -138,6 +141,40 @@ class TrajectoryGenerator(Component):
         self.desi_pos.write((self.clock.now(), self.positions, self.velocities), self.clock.now())
         return True
 
+    # ---- the speed override: a rate of trajectory time (real-time safe) ----
+    @property
+    def override(self) -> float:
+        """The speed override in percent (1-100): the moves run at this fraction of their
+        planned speed. Every move is planned at 100 % and its time is scaled, which is
+        exactly the move planned with velocity x p, acceleration x p^2 and jerk x p^3: the
+        same path. A change while a move runs is a smooth transition of the rate (a
+        quintic smoothstep: continuous in rate, its derivative and second derivative),
+        monotonic, so the speed never overshoots the new value."""
+        return self._rate_to * 100.0
+
+    @override.setter
+    def override(self, percent: float) -> None:
+        rate = min(max(float(percent), 1.0), 100.0) / 100.0
+        if self.trajectory is None or self._real_time:
+            self.rate = self._rate_from = self._rate_to = rate
+            self._rate_t = self._rate_T = 0.0
+            return
+        self._rate_from, self._rate_to, self._rate_t = self.rate, rate, 0.0
+        # long enough that v * dr/dt stays within the acceleration limits (dr/dt peaks at
+        # 1.875 |dr| / T for the quintic), and at least 0.2 s
+        ratio = max((a.max_velocity / a.max_acceleration for a in self.axes), default=0.0)
+        self._rate_T = max(0.2, 1.875 * abs(rate - self.rate) * ratio)
+
+    def _step_rate(self, dt: float) -> float:
+        self._rate_t += dt
+        u = self._rate_t / self._rate_T
+        if u >= 1.0:
+            self.rate = self._rate_from = self._rate_to
+            self._rate_T = 0.0
+        else:
+            self.rate = self._rate_from + (self._rate_to - self._rate_from) * u * u * u * (10.0 + u * (6.0 * u - 15.0))
+        return self.rate
+
     @property
     def finished(self) -> bool:
         """The program ended (DONE) and its last move is complete."""
@@ -160,11 +197,21 @@ class TrajectoryGenerator(Component):
             self._planned()
         trajectory = self.trajectory
         if trajectory is not None:
-            self.t_move += self.period
-            self.positions, self.velocities = trajectory.sample(self.t_move)
+            if self._real_time:  # a stop ramp: real seconds
+                self.t_move += self.period
+                self.positions, self.velocities = trajectory.sample(self.t_move)
+            else:
+                rate = self._step_rate(self.period) if self._rate_T else self.rate
+                self.t_move += self.period * rate
+                positions, velocities = trajectory.sample(self.t_move)
+                self.positions = positions
+                self.velocities = velocities if rate == 1.0 else tuple([v * rate for v in velocities])
             if self.t_move >= trajectory.duration - 1e-12:
                 self.trajectory = None
                 self.velocities = (0.0,) * self.n
+                self._real_time = False
+                if self._rate_T:  # a change of override under way: the next move has it
+                    self.override = self._rate_to * 100.0
                 if self.interrupted is None:
                     self.moves[-1].t_end = now
                     self._current = None
@@ -221,11 +268,13 @@ class TrajectoryGenerator(Component):
         if self._current.kind != "ptp":  # decelerate along the line or arc itself
             from ..motion.cartesian import PathStop
 
-            self.trajectory = self.interrupted.stop = PathStop(self.trajectory, self.t_move, self.positions)
+            self.trajectory = self.interrupted.stop = PathStop(self.trajectory, self.t_move, self.positions,
+                                                               rate=self.rate)
         else:
             amax = tuple(a.max_acceleration * self.interrupted.deceleration for a in self.axes)
             self.trajectory = StopRamp(self.positions, self.velocities, amax)
         self.t_move = 0.0
+        self._real_time = True
 
     def _at_rest_after_stop(self) -> None:
         if self.abort_reason is not None:
@@ -248,12 +297,12 @@ class TrajectoryGenerator(Component):
             self.vm.abort()
 
     def _plan(self, values: tuple, speed: float, acc: float) -> str | None:
-        """Plan a PTP move from the current setpoint to ``values``, with the override."""
-        scale = min(max(self.override, 1.0), 100.0) / 100.0
+        """Plan a PTP move from the current setpoint to ``values`` (at 100 %: the override
+        scales its time)."""
         vmax, amax = scaled_limits(tuple(a.max_velocity for a in self.axes),
-                                   tuple(a.max_acceleration for a in self.axes), speed * scale, acc * scale * scale)
-        if self.profile == "jerk":  # the jerk limit scales with acc_ptp (and the override's cube)
-            jmax = tuple(a.max_jerk * acc * scale ** 3 for a in self.axes)
+                                   tuple(a.max_acceleration for a in self.axes), speed, acc)
+        if self.profile == "jerk":  # the jerk limit scales with acc_ptp
+            jmax = tuple(a.max_jerk * acc for a in self.axes)
             result, trajectory, message = plan_ptp_jerk(self.positions, values, vmax, amax, jmax,
                                                         synchronization="auto")
         else:
@@ -261,7 +310,7 @@ class TrajectoryGenerator(Component):
         if result < 0:
             return message
         self.trajectory, self.t_move = trajectory, 0.0
-        self._current = _Interrupted(values, speed, acc, acc * scale * scale)
+        self._current = _Interrupted(values, speed, acc, acc * self.rate * self.rate)
         return None
 
     # ---- the VM's motion host ----
@@ -294,7 +343,7 @@ class TrajectoryGenerator(Component):
         problem = self._plan(values, speed, acc)
         if problem is not None:
             return problem
-        self.moves.append(MoveRecord(line, kind, values, self.trajectory.duration, self.clock.now()))
+        self.moves.append(MoveRecord(line, kind, values, self.trajectory.duration / self.rate, self.clock.now()))
         return None
 
     def _kinematics_or_problem(self):
@@ -337,15 +386,14 @@ class TrajectoryGenerator(Component):
         from ..motion.cartesian import plan_circ, plan_lin
 
         kinematics = self._kinematics
-        scale = min(max(self.override, 1.0), 100.0) / 100.0
         start = self.positions
         if kind == "lin":
             def plan():
-                return plan_lin(kinematics, start, poses[0], speed * scale, acc * scale * scale,
+                return plan_lin(kinematics, start, poses[0], speed, acc,
                                 axis_limits=self.spec, period=self.period)
         else:
             def plan():
-                return plan_circ(kinematics, start, poses[0], poses[1], speed * scale, acc * scale * scale,
+                return plan_circ(kinematics, start, poses[0], poses[1], speed, acc,
                                  axis_limits=self.spec, period=self.period)
         if self.clock.simulated:  # deterministic: plan at once (simulated time does not pass)
             stream, message = plan()
@@ -363,7 +411,7 @@ class TrajectoryGenerator(Component):
         end = stream.sample(stream.duration)[0]
         self._current = _Interrupted(end, speed, acc, 1.0, kind)
         if record:
-            self.moves.append(MoveRecord(line, kind, end, stream.duration, self.clock.now()))
+            self.moves.append(MoveRecord(line, kind, end, stream.duration / self.rate, self.clock.now()))
         return None
 
     def _planned(self) -> None:

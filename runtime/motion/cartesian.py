@@ -1128,10 +1128,15 @@ class PathStop:
     __slots__ = ("path", "kinematics", "duration", "s_end", "fault", "_s0", "_v0", "_dec", "_last", "_last_t",
                  "_add", "_zeros", "_end")
 
-    def __init__(self, stream: "JointStream", t: float, joints: Sequence[float], deceleration: float | None = None):
+    def __init__(self, stream: "JointStream", t: float, joints: Sequence[float], deceleration: float | None = None,
+                 rate: float = 1.0):
+        """``rate``: the stream was sampled at ``rate`` seconds of its time per real second
+        (a speed override): the real path speed is the profile's times ``rate``; the stop
+        itself is in real time, decelerating at the move's ``acc`` times ``rate^2``."""
         move = stream.checked.move
         s0, v0, _a0 = move.profile.sample(t)
-        dec = move.acc if deceleration is None else deceleration
+        v0 *= rate
+        dec = (move.acc if deceleration is None else deceleration) * rate * rate
         self.path, self.kinematics = move.path, stream.checked.kinematics
         self._s0, self._v0, self._dec = s0, max(v0, 0.0), dec
         self.duration = self._v0 / dec if self._v0 > 0.0 else 0.0

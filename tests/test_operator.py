@@ -336,3 +336,72 @@ def test_override_changed_during_a_move_is_a_smooth_monotonic_transition(system)
     assert summary["fault"] is None
     for x, want in zip(summary["final_position"], (45, -45, 45, 0, 0, 0)):
         assert abs(x - want) <= 2 * max(COUNTS)
+
+
+# ---- every 5 ms setpoint of random PTP programs within the axis limits -----------------------
+
+_LIMITS_SYSTEM: list = []
+
+
+def _limits_system():
+    if not _LIMITS_SYSTEM:
+        _LIMITS_SYSTEM.append(RobotSystem(SPEC, RunOptions(seed=5)))
+    return _LIMITS_SYSTEM[0]
+
+
+def _program(targets, fractions) -> bytes:
+    lines = "".join(f"  move ptp joint(mainjoint({', '.join(f'{v:.3f}' for v in t)})) "
+                    f"speed_ptp := {s:.3f} acc_ptp := {a:.3f};\n" for t, (s, a) in zip(targets, fractions))
+    return f'program limits;\nsystem_specification "lola15.spc";\nseq\n{lines}endseq\nendprogram;\n'
+
+
+_joint = st.tuples(*[st.floats(max(a.min, -120.0), min(a.max, 120.0)) for a in SPEC.axes])
+_fraction = st.tuples(st.floats(0.05, 1.0), st.floats(0.05, 1.0))
+
+
+@settings(max_examples=12, deadline=None, derandomize=True)
+@given(st.lists(st.tuples(_joint, _fraction), min_size=1, max_size=3))
+def test_property_every_setpoint_of_random_ptp_programs_keeps_the_limits(moves):
+    """The 5 ms setpoint stream (what the servo interpolates), differentiated: velocity,
+    acceleration and jerk within each axis's limits scaled by the move's fractions (the
+    differences of exact samples of a limited profile are bounded by the limits)."""
+    from compiler.driver import compile_source
+
+    result = compile_source(_program([m[0] for m in moves], [m[1] for m in moves]), "limits.irl",
+                            ROOT / "programs" / "lola15.spc")
+    assert result.ok, result.diagnostics
+    system = _limits_system()
+    tg = system.trajectory
+    samples = []
+    (task,) = [t for t in system.executive.tasks if t.name == "trajectory"]
+    real_update = task.run
+
+    def recording(now):
+        real_update(now)
+        samples.append((tg.line, tg.positions))
+
+    task.run = recording
+    try:
+        system.begin(result.program)
+        summary = finish(system)
+    finally:
+        task.run = real_update
+    assert summary["fault"] is None, summary["fault"]
+    checked = 0
+    h = 0.005
+    fractions = {4 + i: (round(sp, 3), round(ac, 3)) for i, (_t, (sp, ac)) in enumerate(moves)}  # as written
+    for k in range(3, len(samples)):
+        line = samples[k][0]
+        if line not in fractions or any(samples[k - j][0] != line for j in range(1, 4)):
+            continue  # only within one move (its limits)
+        speed, acc = fractions[line]
+        p0, p1, p2, p3 = (samples[k - j][1] for j in (3, 2, 1, 0))
+        for i, axis in enumerate(SPEC.axes):
+            v = (p3[i] - p2[i]) / h
+            a = (p3[i] - 2 * p2[i] + p1[i]) / h ** 2
+            j = (p3[i] - 3 * p2[i] + 3 * p1[i] - p0[i]) / h ** 3
+            assert abs(v) <= axis.max_velocity * speed * (1 + 1e-6) + 1e-6, (line, i, v)
+            assert abs(a) <= axis.max_acceleration * acc * (1 + 1e-6) + 1e-3, (line, i, a)
+            assert abs(j) <= axis.max_jerk * acc * (1 + 1e-6) + 1.0, (line, i, j)
+        checked += 1
+    assert checked >= 20 * len(moves) or all(m["planned_duration"] < 0.2 for m in summary["moves"]), checked

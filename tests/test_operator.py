@@ -228,7 +228,7 @@ class _WallLike:
         return self._clock.now()
 
 
-def test_on_the_wall_clock_cartesian_moves_are_planned_off_the_loop(system):
+def test_on_the_wall_clock_cartesian_moves_are_planned_off_the_loop(system, monkeypatch):
     from runtime.components import trajectory as tg_module
 
     source = ('program linbg;\nsystem_specification "lola15.spc";\nseq\n'
@@ -249,12 +249,9 @@ def test_on_the_wall_clock_cartesian_moves_are_planned_off_the_loop(system):
             started.append(move)
             super().__init__(plan, move)
 
-    tg_module._PlanningJob = CountingJob
-    try:
-        system.begin(result.program)
-        summary = finish(system)
-    finally:
-        tg_module._PlanningJob = real_job
+    monkeypatch.setattr(tg_module, "_PlanningJob", CountingJob)
+    system.begin(result.program)
+    summary = finish(system)
     assert [m[0] for m in started] == ["lin", "lin"]  # both checks ran on a planning thread
     assert [m["line"] for m in summary["moves"]] == [4, 5]
     assert "line 6" in summary["fault"] and "move lin refused" in summary["fault"]

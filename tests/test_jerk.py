@@ -818,3 +818,27 @@ def test_property_auto_is_time_optimal_and_a_straight_line_when_that_is_free(axe
     assert auto.duration == pytest.approx(timed.duration, rel=1e-12, abs=1e-12)  # never slower
     if line.duration <= timed.duration * (1 + 1e-12):  # the line is free: auto takes it
         assert auto.synchronization == "line"
+
+
+@settings(max_examples=300, deadline=None, derandomize=True)
+@given(st.floats(0.0, 500.0), st.floats(-300.0, 300.0), st.floats(1.0, 400.0), st.floats(10.0, 5000.0))
+def test_property_jerk_stop_comes_to_rest_within_the_limits(v0, a0, a_max, j_max):
+    """The stop from (v0, a0): never backwards, ends at rest at `distance`, |a| within
+    max(a_max, |a0|), and the jerk within j_max (by differences of the acceleration)."""
+    from runtime.motion.jerk import JerkStop
+
+    a0 = max(min(a0, a_max), -a_max)
+    stop = JerkStop(v0, a0, a_max, j_max)
+    assert stop.sample(stop.duration + 1.0) == (stop.distance, 0.0, 0.0)
+    if stop.duration == 0.0:
+        return
+    ts = np.linspace(0.0, stop.duration, 4001)
+    s, v, a = np.array([stop.sample(float(t)) for t in ts]).T
+    assert v.min() >= -1e-9 * max(1.0, v0)
+    assert np.all(np.diff(s) >= -1e-9 * max(1.0, stop.distance))
+    assert np.abs(a).max() <= a_max * (1 + 1e-9) + 1e-9
+    degenerate = a0 < 0 and v0 < a0 * a0 / (2 * j_max)  # ends when v = 0, before a = 0
+    if not degenerate:
+        assert s[-1] == pytest.approx(stop.distance, rel=1e-9, abs=1e-12)
+        jerk = np.abs(np.diff(a)) / (ts[1] - ts[0])
+        assert jerk.max() <= j_max * (1 + 1e-3)  # the last grid step meets the exact end (rounding)

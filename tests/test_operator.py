@@ -402,3 +402,25 @@ def test_property_every_setpoint_of_random_ptp_programs_keeps_the_limits(moves):
             assert abs(j) <= axis.max_jerk * acc * (1 + 1e-6) + 1.0, (line, i, j)
         checked += 1
     assert checked >= 20 * len(moves) or all(m["planned_duration"] < 0.2 for m in summary["moves"]), checked
+
+
+def test_a_ptp_pause_is_a_jerk_limited_stop_on_the_line(system):
+    system.begin(PAPER.program)
+    to_move(system, 700)
+    tg, ex = system.trajectory, system.executive
+    assert tg.trajectory.synchronization == "line"
+    start, target = tg.trajectory.start_position, tg.trajectory.target_position
+    samples = [tg.positions]
+    tg.pause()
+    while tg.trajectory is not None:
+        ex.run(lambda: False, 5)
+        samples.append(tg.positions)
+    ex.run(lambda: False, 20)
+    samples.append(tg.positions)
+    h = 0.005
+    for p in samples:
+        assert on_segment(p, start, target, 1e-9)
+    for k in range(3, len(samples)):
+        for i, axis in enumerate(SPEC.axes):
+            jerk = (samples[k][i] - 3 * samples[k - 1][i] + 3 * samples[k - 2][i] - samples[k - 3][i]) / h ** 3
+            assert abs(jerk) <= axis.max_jerk * 0.1 * (1 + 1e-6) + 1e-3, (k, i, jerk)  # acc_ptp 0.1

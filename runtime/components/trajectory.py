@@ -15,7 +15,7 @@ from compiler.objcode import Program
 from compiler.values import Joint, Pose
 
 from ..component import Component, DataPort
-from ..motion.jerk import plan_ptp_jerk
+from ..motion.jerk import LineStop, plan_ptp_jerk
 from ..motion.planner import PtpInput, StopRamp, plan_ptp, scaled_limits
 
 PROFILES = ("jerk", "trapezoid")
@@ -270,6 +270,8 @@ class TrajectoryGenerator(Component):
 
             self.trajectory = self.interrupted.stop = PathStop(self.trajectory, self.t_move, self.positions,
                                                                rate=self.rate)
+        elif getattr(self.trajectory, "synchronization", None) == "line":  # jerk-limited, on the line
+            self.trajectory = LineStop(self.trajectory, self.t_move, rate=self.rate)
         else:
             amax = tuple(a.max_acceleration * self.interrupted.deceleration for a in self.axes)
             self.trajectory = StopRamp(self.positions, self.velocities, amax)

@@ -107,7 +107,7 @@ from math import atan2, ceil, cos, floor, inf, isfinite, log10, pi, sin, sqrt
 from typing import Sequence
 
 from compiler.values import Joint, Pose, Quat
-from .jerk import time_optimal_profile
+from .jerk import JerkStop, time_optimal_profile
 from .kinematics import (
     ELBOW_DOWN,
     SHOULDER_BACK,
@@ -1115,17 +1115,17 @@ def plan_circ(kinematics: Kinematics, start_joints, via, target, speed: float, a
 
 
 class PathStop:
-    """A controlled stop **on** a Cartesian path (pause, abort): from the path parameter
-    ``s0`` and path speed ``v0`` of ``stream`` at its time ``t``, the path speed falls at
-    the move's ``acc`` to rest: ``s(t) = s0 + v0 t - acc t^2 / 2`` for
-    ``t <= duration = v0 / acc``; every sample is one inverse kinematics of the path's pose
+    """A controlled stop **on** a Cartesian path (pause, abort): from the path parameter,
+    speed and acceleration of ``stream`` at its time ``t``, the path speed falls to rest
+    jerk-limited (:class:`runtime.motion.jerk.JerkStop` within the move's ``acc`` and
+    jerk); every sample is one inverse kinematics of the path's pose
     at ``s(t)`` near the last joints, so the tool stays on the line or arc. Velocities are
     the backward differences of the samples (0 at rest). Same interface as
     :class:`JointStream`; ``s_end`` is where it stops (resume plans the rest from there).
     Never raises: should an inverse kinematics fail, ``fault`` says why and the joints hold.
     """
 
-    __slots__ = ("path", "kinematics", "duration", "s_end", "fault", "_s0", "_v0", "_dec", "_last", "_last_t",
+    __slots__ = ("path", "kinematics", "duration", "s_end", "fault", "_s0", "_stop", "_last", "_last_t",
                  "_add", "_zeros", "_end")
 
     def __init__(self, stream: "JointStream", t: float, joints: Sequence[float], deceleration: float | None = None,
@@ -1134,13 +1134,13 @@ class PathStop:
         (a speed override): the real path speed is the profile's times ``rate``; the stop
         itself is in real time, decelerating at the move's ``acc`` times ``rate^2``."""
         move = stream.checked.move
-        s0, v0, _a0 = move.profile.sample(t)
-        v0 *= rate
-        dec = (move.acc if deceleration is None else deceleration) * rate * rate
+        s0, v0, a0 = move.profile.sample(t)
+        dec = move.acc if deceleration is None else deceleration
         self.path, self.kinematics = move.path, stream.checked.kinematics
-        self._s0, self._v0, self._dec = s0, max(v0, 0.0), dec
-        self.duration = self._v0 / dec if self._v0 > 0.0 else 0.0
-        self.s_end = min(s0 + 0.5 * self._v0 * self.duration, move.path.length)
+        self._stop = JerkStop(v0 * rate, a0 * rate * rate, dec, move.jerk)
+        self._s0 = s0
+        self.duration = self._stop.duration
+        self.s_end = min(s0 + self._stop.distance, move.path.length)
         self.fault: str | None = None
         self._add = tuple(joints[6:])
         self._last = tuple(joints[:6])
@@ -1155,7 +1155,7 @@ class PathStop:
             return self._end + self._add, self._zeros
         if not t > 0.0:
             return self._last + self._add, self._zeros
-        q = self._solve(min(self._s0 + self._v0 * t - 0.5 * self._dec * t * t, self.s_end))
+        q = self._solve(min(self._s0 + self._stop.sample(t)[0], self.s_end))
         h = t - self._last_t
         velocities = tuple([(b - a) / h for a, b in zip(self._last, q)]) if h > 0.0 else self._zeros[:6]
         self._last, self._last_t = q, t

@@ -693,3 +693,104 @@ def plan_ptp_jerk(start, target, v_max, a_max, j_max, synchronization: str = "li
     except Exception as exc:  # noqa: BLE001 - the contract is: never raise
         return (Result.ERROR, None,
                 f"internal error in plan_ptp_jerk: {type(exc).__name__}: {exc}")
+
+
+# ----------------------------------------------------------------------------- stopping
+
+
+class JerkStop:
+    """A jerk-limited stop of one coordinate (a path parameter): from velocity ``v0 >= 0``
+    and acceleration ``a0`` to rest, within ``|a| <= a_max`` and ``|jerk| <= j_max``.
+
+    The acceleration ramps at ``-j_max`` from ``a0`` to ``-a_p``, holds ``-a_p``, and
+    ramps back to 0 at ``+j_max``; ``a_p = a_max`` when there is room, else the value
+    that ends exactly at rest (``a_p = sqrt(V j_max)`` with ``V = v0 + a0^2 / (2 j_max)``).
+    When the coordinate is already braking harder than that (``a0 < -a_p``), the
+    acceleration only ramps up to 0; should the velocity reach 0 first, the stop ends
+    there (the last step of acceleration is then at most ``|a0|``). ``sample(t)`` gives the
+    displacement from the start, the velocity and the acceleration; ``distance`` is where
+    it stops. Real-time safe (plain floats; a handful of segments)."""
+
+    __slots__ = ("duration", "distance", "_segments")
+
+    def __init__(self, v0: float, a0: float, a_max: float, j_max: float):
+        v0 = max(v0, 0.0)
+        big_v = v0 + a0 * a0 / (2.0 * j_max)
+        a_p = a_max
+        hold = (big_v - a_p * a_p / j_max) / a_p
+        if hold < 0.0:
+            hold = 0.0
+            a_p = sqrt(max(big_v * j_max, 0.0))
+        if a0 < -a_p:  # already braking harder: only ramp the acceleration up to 0
+            plan = [(-a0 / j_max, j_max)]
+        else:
+            plan = [((a0 + a_p) / j_max, -j_max), (hold, 0.0), (a_p / j_max, j_max)]
+        segments = []  # (t_start, duration, s, v, a, jerk)
+        t = s = 0.0
+        v, a = v0, a0
+        for length, jerk in plan:
+            if length <= 0.0:
+                continue
+            if jerk > 0.0 and a < 0.0:  # the velocity may reach 0 before the acceleration does
+                disc = a * a - 2.0 * jerk * v
+                if disc >= 0.0:
+                    root = (-a - sqrt(disc)) / jerk
+                    if 0.0 <= root < length:
+                        length = root
+            segments.append((t, length, s, v, a, jerk))
+            s += v * length + 0.5 * a * length * length + jerk * length ** 3 / 6.0
+            v += a * length + 0.5 * jerk * length * length
+            a += jerk * length
+            t += length
+        self._segments = tuple(segments)
+        self.duration = t
+        self.distance = s
+
+    def sample(self, t: float) -> tuple[float, float, float]:
+        if not t > 0.0 or not self._segments:
+            if self._segments:
+                _t, _l, s, v, a, _j = self._segments[0]
+                return s, v, a
+            return 0.0, 0.0, 0.0
+        if t >= self.duration:
+            return self.distance, 0.0, 0.0
+        for t0, length, s, v, a, jerk in self._segments:
+            if t < t0 + length:
+                u = t - t0
+                return (s + v * u + 0.5 * a * u * u + jerk * u * u * u / 6.0,
+                        v + a * u + 0.5 * jerk * u * u, a + jerk * u)
+        return self.distance, 0.0, 0.0
+
+
+class LineStop:
+    """A jerk-limited stop **on** the straight joint-space line of a ``"line"``
+    :class:`JerkPtpTrajectory` at its time ``t``: the shared path parameter stops
+    (:class:`JerkStop` within the shape's own acceleration and jerk limits, so every axis
+    keeps its limits) and every axis follows ``start + d * s``. Same sampling interface
+    as the trajectory; ``target_position`` is where it stops. Real-time safe."""
+
+    __slots__ = ("duration", "start_position", "target_position", "_stop", "_base", "_d", "_s0", "_zeros")
+
+    def __init__(self, trajectory: JerkPtpTrajectory, t: float, rate: float = 1.0):
+        d = trajectory._distances
+        k = max(range(len(d)), key=lambda i: abs(d[i]))
+        p, v = trajectory.sample(t)
+        a = trajectory.sample_accelerations(t)
+        s0 = (p[k] - trajectory.start_position[k]) / d[k] if d[k] else 1.0
+        v_s, a_s = (v[k] / d[k] * rate, a[k] / d[k] * rate * rate) if d[k] else (0.0, 0.0)
+        moving = [(abs(di), vi) for di, vi in zip(d, zip(*trajectory._limits)) if di]
+        big_a = min((lim[1] / di for di, lim in moving), default=1.0)
+        big_j = min((lim[2] / di for di, lim in moving), default=1.0)
+        self._stop = JerkStop(v_s, a_s, big_a, big_j)
+        self._base, self._d, self._s0 = trajectory.start_position, d, s0
+        self.duration = self._stop.duration
+        self.start_position = p
+        self.target_position = tuple([b + di * (s0 + self._stop.distance) for b, di in zip(self._base, d)])
+        self._zeros = (0.0,) * len(d)
+
+    def sample(self, t: float) -> tuple[tuple[float, ...], tuple[float, ...]]:
+        if t >= self.duration:
+            return self.target_position, self._zeros
+        ds, v, _a = self._stop.sample(t)
+        s = self._s0 + ds
+        return (tuple([b + di * s for b, di in zip(self._base, self._d)]), tuple([di * v for di in self._d]))

@@ -669,15 +669,17 @@ def plan_ptp_jerk(start, target, v_max, a_max, j_max, synchronization: str = "li
                     return _too_short(distances, minima, *limits)
                 return _too_long(duration, minima.index(max(minima)), distances, *limits)
             if auto and duration > 0.0:  # the straight line only when it costs no time
-                optimum = max(_minimum_duration(d, v, a, j) for d, v, a, j in zip(distances, v_max, a_max, j_max))
-                line = duration <= optimum * (1.0 + 1e-12)
+                phases = [_phases(d if d > 0.0 else -d, v, a, j) if d != 0.0 else None
+                          for d, v, a, j in zip(distances, v_max, a_max, j_max)]
+                line = duration <= max(p[2] for p in phases if p is not None) * (1.0 + 1e-12)
             if line:
                 trajectory = JerkPtpTrajectory(
                     duration, start, target, tuple(distances), limits,
                     shape=(tj, t_acc, big_j, a_p, v_p) if duration > 0.0 else None)
         if not line:
-            phases = [_phases(d if d > 0.0 else -d, v, a, j) if d != 0.0 else None
-                      for d, v, a, j in zip(distances, v_max, a_max, j_max)]
+            if not auto:  # ("auto" has them already)
+                phases = [_phases(d if d > 0.0 else -d, v, a, j) if d != 0.0 else None
+                          for d, v, a, j in zip(distances, v_max, a_max, j_max)]
             minima = [p[2] if p is not None else 0.0 for p in phases]
             duration = max(minima)
             slowest = minima.index(duration)

@@ -42,6 +42,7 @@ import numpy as np  # noqa: E402
 
 from compiler.spec import load_spec  # noqa: E402
 from runtime.motion.kinematics import Kinematics, configuration_name  # noqa: E402
+from _stats import percentiles  # noqa: E402
 
 GOAL_POS = 1e-9  # m
 GOAL_ROT = 1e-9  # rad
@@ -56,11 +57,6 @@ def matmul4(a, b):
                   r[0] * b0[2] + r[1] * b1[2] + r[2] * b2[2] + r[3] * b3[2],
                   r[0] * b0[3] + r[1] * b1[3] + r[2] * b2[3] + r[3] * b3[3]) for r in a)
 
-
-def percentiles(ns: list[int]) -> tuple[float, float]:
-    """(p50, p99) in microseconds."""
-    s = sorted(ns)
-    return s[len(s) // 2] / 1000.0, s[min(len(s) - 1, int(0.99 * len(s)))] / 1000.0
 
 
 def errors(m, t) -> tuple[float, float]:

@@ -48,6 +48,7 @@ sys.path.insert(0, str(ROOT))
 from compiler.spec import load_spec  # noqa: E402
 from runtime.motion.jerk import _minimum_duration, plan_ptp_jerk  # noqa: E402
 from runtime.motion.planner import Result  # noqa: E402
+from _stats import percentiles  # noqa: E402
 
 try:
     import ruckig
@@ -59,11 +60,6 @@ MODES = ("line", "time", "auto")  # "auto": the runtime's default (line when it 
 GOAL_PLAN_P99_US = 50.0
 GOAL_SAMPLE_P50_US = 2.0
 
-
-def percentiles(ns: list[int]) -> tuple[float, float]:
-    """(p50, p99) in microseconds."""
-    s = sorted(ns)
-    return s[len(s) // 2] / 1000.0, s[min(len(s) - 1, int(0.99 * len(s)))] / 1000.0
 
 
 def main() -> int:

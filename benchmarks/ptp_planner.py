@@ -35,6 +35,7 @@ sys.path.insert(0, str(ROOT))
 from compiler.spec import load_spec  # noqa: E402
 from runtime.motion.interpolator import Interpolator  # noqa: E402
 from runtime.motion.planner import PtpInput, Result, plan_ptp, scaled_limits  # noqa: E402
+from _stats import percentiles  # noqa: E402
 
 TICK = 0.005  # s, trajectory generator period
 SERVO = 0.001  # s
@@ -55,11 +56,6 @@ def bare_multiplications(n: int, x: float, y: float) -> float:
         x = x * y
     return x
 
-
-def percentiles(ns: list[int]) -> tuple[float, float]:
-    """(p50, p99) in microseconds."""
-    s = sorted(ns)
-    return s[len(s) // 2] / 1000.0, s[min(len(s) - 1, int(0.99 * len(s)))] / 1000.0
 
 
 def analytic_optimum(start, target, v, a) -> float:

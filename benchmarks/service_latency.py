@@ -12,7 +12,6 @@ Run: .venv/bin/python benchmarks/service_latency.py [--blocks N] [--per-block N]
 from __future__ import annotations
 
 import argparse
-import socket
 import statistics
 import subprocess
 import sys
@@ -28,6 +27,7 @@ sys.path.insert(0, str(ROOT))
 from compiler.driver import compile_file  # noqa: E402
 from compiler.objcode import encode  # noqa: E402
 from runtime import protocol  # noqa: E402
+from _stats import free_port, percentile  # noqa: E402
 
 ECHO = """
 import sys, zmq
@@ -39,15 +39,6 @@ while True:
 """
 
 
-def free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
-
-
-def percentile(values: list[float], q: float) -> float:
-    values = sorted(values)
-    return values[min(len(values) - 1, int(q * len(values)))]
 
 
 def round_trips(sock, payload: bytes, n: int) -> list[float]:

@@ -25,6 +25,7 @@ sys.path.insert(0, str(ROOT))
 
 from compiler.spec import load_spec  # noqa: E402
 from runtime.sim import AlphaBeta, SimRobot  # noqa: E402
+from _stats import percentile  # noqa: E402
 
 DT = 0.001
 
@@ -85,10 +86,6 @@ def timed_ticks(robot, estimator, commands, inverse_cpu, ticks: int) -> tuple[li
         empty[k] = t2 - t1
     return work, empty
 
-
-def percentile(values: list[int], q: float) -> float:
-    ordered = sorted(values)
-    return ordered[min(len(ordered) - 1, int(q * len(ordered)))]
 
 
 def main() -> int:

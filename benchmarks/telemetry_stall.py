@@ -10,7 +10,6 @@ Run: .venv/bin/python benchmarks/telemetry_stall.py [--pairs N]
 from __future__ import annotations
 
 import argparse
-import socket
 import statistics
 import subprocess
 import sys
@@ -25,12 +24,8 @@ sys.path.insert(0, str(ROOT))
 from compiler.driver import compile_file  # noqa: E402
 from compiler.objcode import encode  # noqa: E402
 from runtime.client import Client  # noqa: E402
+from _stats import free_port  # noqa: E402
 
-
-def free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
 
 
 def run_once(client: Client, data: bytes) -> dict:

@@ -35,7 +35,7 @@ from compiler.objcode import OP, ObjectCodeError, Program, load
 from . import protocol
 from .protocol import ProtocolError
 from .supervisor import MOVE
-from .system import TICK, RobotSystem, RunOptions
+from .system import RobotSystem, RunOptions
 
 log = logging.getLogger("irl.serve")
 

@@ -15,7 +15,6 @@ import json
 import math
 import re
 import shutil
-import warnings
 from pathlib import Path
 
 import pytest

@@ -232,20 +232,15 @@ def _job_line(job: dict) -> str:
     return text
 
 
-def _simple(op: str, describe):
+def _simple(op: str, describe, arguments=lambda args: {}):
+    """A control command: one request built by ``arguments`` from the command line, one
+    line of output made by ``describe`` from the result."""
     @_guard
     def run(args, env) -> int:
         cli = _cli()
         client = _client(args)
         try:
-            request = {}
-            if op == "override":
-                request = {"percent": args.percent}
-            elif op == "abort" and args.program is not None:
-                request = {"program": args.program}
-            elif op == "reconfigure":
-                request = {"name": args.name}
-            result = _call(client, op, request)
+            result = _call(client, op, arguments(args))
         finally:
             client.close()
         cli._print(env, describe(result))
@@ -255,11 +250,13 @@ def _simple(op: str, describe):
 
 cmd_pause = _simple("pause", lambda r: f"program {r['program']} paused")
 cmd_resume = _simple("resume", lambda r: f"program {r['program']} resumed")
-cmd_abort = _simple("abort", lambda r: f"program {r['program']}: {r['state']}")
+cmd_abort = _simple("abort", lambda r: f"program {r['program']}: {r['state']}",
+                    lambda a: {"program": a.program} if a.program is not None else {})
 cmd_estop = _simple("estop", lambda r: "emergency stop" + (f": program {r['program']} stopped" if r["program"] else "")
                     + (f"; cancelled {', '.join(map(str, r['cancelled']))}" if r["cancelled"] else ""))
-cmd_override = _simple("override", lambda r: f"override {r['override']:g} %")
-cmd_reconfigure = _simple("reconfigure", lambda r: f"reconfiguration to {r['requested']!r} requested")
+cmd_override = _simple("override", lambda r: f"override {r['override']:g} %", lambda a: {"percent": a.percent})
+cmd_reconfigure = _simple("reconfigure", lambda r: f"reconfiguration to {r['requested']!r} requested",
+                          lambda a: {"name": a.name})
 
 
 # ---- watch ---------------------------------------------------------------------------------------

@@ -68,6 +68,7 @@ class AlphaBeta:
         self._beta_dt = beta / dt
         self._x = [0.0] * n_axes
         self._v = [0.0] * n_axes
+        self._ones, self._nulls = (1.0,) * n_axes, (0.0,) * n_axes  # update(): z = x * 1 + 0
         self._started = False
 
     def reset(self, positions, velocities=None) -> None:
@@ -80,18 +81,8 @@ class AlphaBeta:
     def update(self, measured_positions):
         """Take one sample per axis; returns ``(positions, velocities)``, two tuples.
         Real-time."""
-        if not self._started:
-            self.reset(measured_positions)
-            return tuple(self._x), tuple(self._v)
-        xs, vs = self._x, self._v
-        dt, alpha, beta_dt = self.dt, self.alpha, self._beta_dt
-        for i in range(self.n_axes):
-            v = vs[i]
-            predicted = xs[i] + v * dt
-            residual = measured_positions[i] - predicted
-            xs[i] = predicted + alpha * residual
-            vs[i] = v + beta_dt * residual
-        return tuple(xs), tuple(vs)
+        self.update_counts(measured_positions, self._ones, self._nulls)
+        return tuple(self._x), tuple(self._v)
 
     def update_counts(self, counts, scale, offset) -> tuple[float, ...]:
         """:meth:`update` with the measurement made from encoder counts in the same loop:

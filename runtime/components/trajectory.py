@@ -99,6 +99,7 @@ class TrajectoryGenerator(Component):
         self.positions: tuple = (0.0,) * self.n
         self.velocities: tuple = (0.0,) * self.n
         self.moves: list[MoveRecord] = []
+        self.completed = 0
         self.log_lines: list[tuple[float, int, str]] = []
         self.fault: str | None = None
         self.start_position: tuple | None = None  # the commanded position to plan from (else sens_pos)
@@ -114,29 +115,30 @@ class TrajectoryGenerator(Component):
         self._current: _Interrupted | None = None  # the move under way
 
     def load(self, program: Program | None) -> None:
-        """Not real-time: the program to run at the next start; forgets the last one's
-        end (its fault, an abort, its interpreter)."""
+        """Not real-time: the program to run at the next start; forgets the last one
+        (its moves and log, its fault, an abort)."""
         self.program = program
+        self._forget()
+
+    def _forget(self) -> None:
         self.vm = None
         self.trajectory = None
+        self.moves = []
+        self.completed = 0  # moves that reached their end (telemetry reads it every 10 ms)
+        self.log_lines = []
         self.fault = None
         self.abort_reason = None
         self.interrupted = self._current = None
         self._planning = None
 
     def on_start(self) -> bool:
+        """Run the loaded program from its beginning."""
         if self.program is None:
             return False
+        self._forget()
         position = self.start_position or self.sens_pos.read() or (0.0,) * self.n
         self.positions = tuple(position)
         self.velocities = (0.0,) * self.n
-        self.trajectory = None
-        self.moves = []
-        self.log_lines = []
-        self.fault = None
-        self.interrupted = self._current = None
-        self._planning = None
-        self.abort_reason = None
         self.vm = VM(self.program, self, self.budget)
         self.desi_pos.write((self.clock.now(), self.positions, self.velocities), self.clock.now())
         return True
@@ -188,9 +190,6 @@ class TrajectoryGenerator(Component):
     def paused(self) -> bool:
         return self.vm is not None and self.vm.paused
 
-    def moves_done(self) -> int:
-        return sum(1 for m in self.moves if m.t_end is not None)
-
     def update(self, now: float) -> None:
         """Real-time: sample the current move, then let the VM run its budget."""
         if self._planning is not None and self._planning.done:
@@ -214,6 +213,7 @@ class TrajectoryGenerator(Component):
                     self.override = self._rate_to * 100.0
                 if self.interrupted is None:
                     self.moves[-1].t_end = now
+                    self.completed += 1
                     self._current = None
                 else:
                     self._at_rest_after_stop()

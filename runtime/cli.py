@@ -186,7 +186,8 @@ def _print_summary(env: Environment, s: dict) -> None:
         _print(env, "  move  line   planned    actual")
         for i, m in enumerate(s["moves"], 1):
             actual = f"{m['actual_duration']:8.3f} s" if m["actual_duration"] is not None else "     (unfinished)"
-            _print(env, f"  {i:4d}  {m['line']:4d}  {m['planned_duration']:7.3f} s {actual}")
+            blended = "  blended into the next" if m.get("blended") else ""
+            _print(env, f"  {i:4d}  {m['line']:4d}  {m['planned_duration']:7.3f} s {actual}{blended}")
     for entry in s["log"]:
         _print(env, f"  [{entry['time']:8.3f} s] line {entry['line']}: {entry['text']}")
     _print(env, "")

@@ -195,7 +195,7 @@ class RobotSystem:
             t_exit = history[i + 1][0] if i + 1 < len(history) else end
             states.append({"name": name, "t_enter": round(t, 6), "t_exit": round(t_exit, 6)})
         moves = [{"line": m.line, "planned_duration": m.planned_duration,
-                  "actual_duration": m.actual_duration, "target": list(m.target)}
+                  "actual_duration": m.actual_duration, "target": list(m.target), "blended": m.blended}
                  for m in self.trajectory.moves]
         stats = self.executive.statistics()
         return {

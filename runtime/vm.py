@@ -93,6 +93,10 @@ class MotionHost(Protocol):
     def motion_done(self) -> bool:
         """True when the robot has finished every move handed over."""
 
+    def queue_ready(self) -> bool:
+        """True when the program may hand over another move (look-ahead room). Optional:
+        a host without it gets one move at a time (``motion_done``)."""
+
     def read_input(self, n: int) -> bool:
         """Digital input n (from 1). May raise EvalError for a number out of range."""
 
@@ -104,7 +108,7 @@ class MotionHost(Protocol):
 
 
 # What a step is waiting for before it can execute the next instruction.
-_NO_WAIT, _W_MOTION, _W_DWELL = 0, 1, 2
+_NO_WAIT, _W_MOTION, _W_DWELL, _W_QUEUE = 0, 1, 2, 3
 
 _CLAUSE_NAMES = tuple(tuple(clause_names(mask)) for mask in range(1 << 6))
 
@@ -153,6 +157,7 @@ class VM:
         self.moves_issued = 0
         self.instructions = 0  # instructions executed so far
         self.paused = False
+        self._queue_ready = getattr(host, "queue_ready", host.motion_done)
         # the machine
         self.pc = 0
         self.stack: list = []
@@ -201,6 +206,16 @@ class VM:
             self._stop_with("aborted by the operator", self._here)
             self.paused = False
 
+    def fail(self, message: str, line: int) -> None:
+        """Real-time. Stop the program with an error found by the host after the VM ran on
+        (a move that could not be planned): status ERROR, the error at source ``line``,
+        even if the program has reached its end meanwhile (look-ahead)."""
+        if self.status is not ERROR:
+            self.error = VMError(message, line, 0, self._here)
+            self.status = ERROR
+            self._wait = _NO_WAIT
+            self.paused = False
+
     # -- running (real-time) --------------------------------------------------------------
     def step(self) -> VMStatus:
         """Real-time. Execute at most ``budget`` instructions; stop early at a wait.
@@ -231,6 +246,8 @@ class VM:
         """Is the wait started by the last instruction over? (Asks the host.)"""
         wait = self._wait
         host = self.host
+        if wait == _W_QUEUE:
+            return self._queue_ready()
         if wait == _W_MOTION:
             return host.motion_done()
         if wait == _W_DWELL:
@@ -252,6 +269,17 @@ class VM:
     def _block(self) -> None:
         self.status = WAITING
         self._yield = True
+
+    def _at_robot(self) -> bool:
+        """For an instruction that must happen where the robot really is (I/O, print,
+        ``wait for``, ``pause``): True when every move handed over has ended; else the
+        step ends waiting for the motion, and the instruction runs again after it (its
+        handler returns its own offset and has not touched the stack)."""
+        if self.host.motion_done():
+            return True
+        self._wait = _W_MOTION
+        self._block()
+        return False
 
     def _stop_with(self, message: str, offset: int) -> None:
         line, column = self.program.line_at(offset)
@@ -599,6 +627,8 @@ class VM:
     # The host may report an I/O number out of range as EvalError, IndexError or
     # ValueError: each stops the program with the host's message.
     def op_in_get(self, _, pc):
+        if not self._at_robot():
+            return pc
         stack = self.stack
         try:
             stack[-1] = bool(self.host.read_input(stack[-1]))
@@ -607,6 +637,8 @@ class VM:
         return pc + 1
 
     def op_out_set(self, _, pc):
+        if not self._at_robot():
+            return pc
         stack = self.stack
         value = stack.pop()
         n = stack.pop()
@@ -627,10 +659,10 @@ class VM:
         return pc + 1
 
     def _motion_barrier(self) -> None:
-        """After a move: wait until the robot has finished it (no look-ahead yet). A
-        look-ahead would decide here whether to go on to the next instruction (and END
-        would then wait for the motion still queued)."""
-        self._await(_W_MOTION)
+        """After a move: run on (look-ahead) while the host has room for another move;
+        else wait until it has. END and HALT need no wait: the program is finished when
+        its motion is (the host's business)."""
+        self._await(_W_QUEUE)
 
     def op_move_ptp(self, mask, pc):
         return self._move("ptp", 1, mask, pc)
@@ -651,6 +683,8 @@ class VM:
         return pc + 1
 
     def op_wait_begin(self, timeout, pc):
+        if not self._at_robot():
+            return pc
         if timeout:
             seconds = self.stack.pop()
             if seconds < 0:
@@ -676,11 +710,15 @@ class VM:
         return target
 
     def op_print(self, n, pc):
+        if not self._at_robot():
+            return pc
         text = PRINT_SEPARATOR.join(v if type(v) is str else format_value(v) for v in self._pop_n(n))
         self.host.log(text, self.program.line_at(pc)[0])
         return pc + 1
 
     def op_pause(self, _, pc):
+        if not self._at_robot():
+            return pc
         self.paused = True
         self.host.log("paused by the program: resume to continue", self.program.line_at(pc)[0])
         self._block()

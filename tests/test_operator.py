@@ -252,7 +252,8 @@ def test_on_the_wall_clock_cartesian_moves_are_planned_off_the_loop(system, monk
     monkeypatch.setattr(tg_module, "_PlanningJob", CountingJob)
     system.begin(result.program)
     summary = finish(system)
-    assert [m[0] for m in started] == ["lin", "lin"]  # both checks ran on a planning thread
+    # every move (and its blend check) is planned on a planning thread, in program order
+    assert [request.kind for request in started] == ["ptp", "lin", "lin"]
     assert [m["line"] for m in summary["moves"]] == [4, 5]
     assert "line 6" in summary["fault"] and "move lin refused" in summary["fault"]
 

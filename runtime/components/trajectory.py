@@ -1,24 +1,46 @@
 """Trajectory Generator: interpreter, path planner and interpolator, every 5 ms.
 
 It runs the program's object code (``runtime.vm``, a bounded number of instructions per
-update), and is the VM's motion host: a move instruction hands a segment to the planner;
-the trajectory is sampled every 5 ms into ``desi_pos`` (time, positions, velocities),
+update), and is the VM's motion host. A move instruction hands a request to the
+planner and the program runs on (**look-ahead**): up to ``lookahead`` moves (the
+specification's ``[controller] lookahead``, default 4) may wait planned ahead of the
+robot; the VM stops running ahead at instructions that must happen where the robot
+really is (waits, digital I/O, ``print``, ``pause``; see ``runtime.vm``). The planned
+moves (segments) run one after the other on one **timeline** (trajectory seconds; the
+speed override is its rate): a move without ``approx`` stops exactly at its target and
+the next starts at the following tick; a move with ``approx`` blends into the next (the
+two are superposed in joint space for a checked overlap, :mod:`runtime.motion.blend`).
+The timeline is sampled every 5 ms into ``desi_pos`` (time, positions, velocities),
 which the servo interpolates to 1 ms. Each move's line, planned duration and actual
 duration (from its first setpoint to its last) are recorded for the run's summary.
+
+Planning is synchronous on the simulated clock (deterministic: simulated time does not
+pass); on the wall clock it runs on a planning thread, one move at a time in program
+order, so a Cartesian path check or a blend check never holds up the loop.
+
+A move that cannot be planned (a refused path, an unreachable pose) stops the program
+at its line: the moves before it are completed first, then the program ends with the
+error, as if there were no look-ahead.
 """
 from __future__ import annotations
 
 import threading
+from collections import deque
 from dataclasses import dataclass
 
 from compiler.objcode import Program
 from compiler.values import Joint, Pose
 
 from ..component import Component, DataPort
+from ..motion.blend import Limits, blend_offset
 from ..motion.jerk import LineStop, plan_ptp_jerk
 from ..motion.planner import PtpInput, StopRamp, plan_ptp, scaled_limits
+from ..vm import DONE, ERROR, VM
 
 PROFILES = ("jerk", "trapezoid")
+#: Moves planned ahead of the robot by default (``[controller] lookahead``).
+LOOKAHEAD = 4
+MAX_LOOKAHEAD = 16
 
 
 def motion_profile(spec) -> str:
@@ -28,7 +50,16 @@ def motion_profile(spec) -> str:
     if profile not in PROFILES:
         raise ValueError(f"{spec.file}: controller.profile: expected \"jerk\" or \"trapezoid\", got {profile!r}")
     return profile
-from ..vm import DONE, ERROR, VM
+
+
+def lookahead_depth(spec) -> int:
+    """How many moves may be planned ahead of the robot (``[controller] lookahead``,
+    0..16, default 4; 0: the program waits for each move to end). ValueError otherwise."""
+    depth = spec.controller.get("lookahead", LOOKAHEAD)
+    if isinstance(depth, bool) or not isinstance(depth, int) or not 0 <= depth <= MAX_LOOKAHEAD:
+        raise ValueError(f"{spec.file}: controller.lookahead: expected a whole number 0..{MAX_LOOKAHEAD}, "
+                         f"got {depth!r}")
+    return depth
 
 
 @dataclass
@@ -39,18 +70,56 @@ class MoveRecord:
     planned_duration: float
     t_start: float
     t_end: float | None = None
+    blended: bool = False  # the move blended into the next one (it did not stop at its target)
 
     @property
     def actual_duration(self) -> float | None:
         return None if self.t_end is None else self.t_end - self.t_start
 
 
+class _Request:
+    """A move the program handed over, not planned yet."""
+
+    __slots__ = ("kind", "targets", "speed", "acc", "approx", "line", "rest_of")
+
+    def __init__(self, kind, targets, speed, acc, approx, line, rest_of=None):
+        self.kind, self.targets, self.speed, self.acc, self.approx, self.line = kind, targets, speed, acc, approx, line
+        self.rest_of = rest_of  # the interrupted segment whose rest this is (planned from where it stopped)
+
+
+class _Segment:
+    """A planned move on the timeline: ``trajectory`` from the previous move's end to
+    ``end``; ``offset``: when it starts after the previous segment's start if it is
+    blended into it (None: after the previous one has stopped); ``start``: its start on
+    the timeline once scheduled."""
+
+    __slots__ = ("request", "trajectory", "duration", "end", "limits", "offset", "start", "record",
+                 "blendable", "previous", "stop")
+
+    def __init__(self, request, trajectory, end, limits, previous=None):
+        self.request = request
+        self.trajectory = trajectory
+        self.duration = trajectory.duration
+        self.end = tuple(end)
+        self.limits = limits
+        self.offset: float | None = None
+        self.start: float | None = None
+        self.record: MoveRecord | None = None
+        self.blendable = True  # cleared when the move is interrupted (its blend is off)
+        self.previous = previous  # the segment it was planned after (its blend partner)
+        self.stop = None  # the controlled stop that interrupted it
+
+    @property
+    def kind(self) -> str:
+        return self.request.kind
+
+
 class _PlanningJob:
     """A plan computed on a thread of its own (not real-time); ``done`` once ``result``
     is there. The thread only computes: the loop takes the result when it is done."""
 
-    def __init__(self, plan, move: tuple):
-        self.move = move
+    def __init__(self, plan, what):
+        self.what = what
         self.result = (None, "not planned")
         self.done = False
         threading.Thread(target=self._run, args=(plan,), name="irl-plan", daemon=True).start()
@@ -58,30 +127,19 @@ class _PlanningJob:
     def _run(self, plan) -> None:
         try:
             self.result = plan()
-        except Exception as exc:  # plan_lin/plan_circ never raise; a bug must not hang the move
+        except Exception as exc:  # the planners never raise; a bug must not hang the move
             self.result = (None, f"internal error while planning ({type(exc).__name__}: {exc})")
         self.done = True
 
 
-@dataclass
-class _Interrupted:
-    """A move stopped by the operator: what resuming it needs."""
-
-    target: tuple
-    speed: float  # the move's speed_ptp and acc_ptp (before the override)
-    acc: float
-    deceleration: float  # the fraction of each axis's acceleration limit it was planned with
-    kind: str = "ptp"  # or "lin", "circ"
-    stop: object = None  # the PathStop of a Cartesian move (what resuming needs)
-
-
 class TrajectoryGenerator(Component):
     """Operator control (real-time safe, called between ticks): :meth:`pause` stops the
-    program before its next instruction and brings a move under way to a controlled stop
-    (a :class:`StopRamp`); :meth:`resume` continues the program and re-plans the rest of
-    the interrupted move from where the robot stopped; :meth:`abort` stops the same way,
-    then ends the program with a fault; ``override`` (percent) scales the time of the
-    moves, the one under way too (a smooth, monotonic change of rate)."""
+    program before its next instruction and brings the motion to a controlled stop on
+    its path; :meth:`resume` continues (the rest of an interrupted move is re-planned
+    from where the robot stopped; a stop inside a blend continues on the blend itself);
+    :meth:`abort` stops the same way, then ends the program with a fault; ``override``
+    (percent) scales the time of the moves, the one under way too (a smooth, monotonic
+    change of rate)."""
 
     PROPERTIES = {"budget": (int, "object-code instructions per 5 ms update")}
 
@@ -92,10 +150,10 @@ class TrajectoryGenerator(Component):
         self.n = len(spec.axes)
         self.axes = spec.axes
         self.budget = 200
+        self.lookahead = lookahead_depth(spec)
         self.program: Program | None = None
         self.vm: VM | None = None
-        self.trajectory = None
-        self.t_move = 0.0
+        self.t_move = 0.0  # the timeline (trajectory seconds)
         self.positions: tuple = (0.0,) * self.n
         self.velocities: tuple = (0.0,) * self.n
         self.moves: list[MoveRecord] = []
@@ -104,15 +162,13 @@ class TrajectoryGenerator(Component):
         self.fault: str | None = None
         self.start_position: tuple | None = None  # the commanded position to plan from (else sens_pos)
         self.rate = 1.0  # trajectory seconds per real second: the override, now
+        self._override = 1.0  # the override's rate (what the rate goes to)
         self._rate_from = self._rate_to = 1.0
         self._rate_t = self._rate_T = 0.0  # progress and length (s) of a change of rate
-        self._real_time = False  # the trajectory is a stop, planned in real time (no rate)
         self.profile = motion_profile(spec)
         self._kinematics = None  # built when a program first moves to a pose
-        self.interrupted: _Interrupted | None = None  # a move stopped before its end (pause/abort)
-        self._planning: _PlanningJob | None = None  # a Cartesian move being checked (wall clock)
         self.abort_reason: str | None = None  # set by abort(): end the program once at rest
-        self._current: _Interrupted | None = None  # the move under way
+        self._forget()
 
     def load(self, program: Program | None) -> None:
         """Not real-time: the program to run at the next start; forgets the last one
@@ -122,14 +178,23 @@ class TrajectoryGenerator(Component):
 
     def _forget(self) -> None:
         self.vm = None
-        self.trajectory = None
         self.moves = []
         self.completed = 0  # moves that reached their end (telemetry reads it every 10 ms)
         self.log_lines = []
         self.fault = None
         self.abort_reason = None
-        self.interrupted = self._current = None
-        self._planning = None
+        self._clear_motion()
+
+    def _clear_motion(self) -> None:
+        self._segments: deque[_Segment] = deque()  # planned, in order; the first one or two run
+        self._requests: deque[_Request] = deque()  # handed over, not planned yet (wall clock)
+        self._planning: _PlanningJob | None = None
+        self._last: _Segment | None = None  # the last segment planned (the next plans from its end)
+        self._stop = None  # a controlled stop under way (real seconds)
+        self.t_stop = 0.0
+        self.interrupted: _Segment | None = None  # a move stopped before its end (pause/abort)
+        self._hold = False  # stopping (or stopped) by bringing the timeline's rate to 0
+        self._paused = False  # by the operator (the program may have handed over all its moves)
 
     def on_start(self) -> bool:
         """Run the loaded program from its beginning."""
@@ -139,9 +204,28 @@ class TrajectoryGenerator(Component):
         position = self.start_position or self.sens_pos.read() or (0.0,) * self.n
         self.positions = tuple(position)
         self.velocities = (0.0,) * self.n
+        self.t_move = 0.0
         self.vm = VM(self.program, self, self.budget)
         self.desi_pos.write((self.clock.now(), self.positions, self.velocities), self.clock.now())
         return True
+
+    # ---- what is moving ----
+    @property
+    def trajectory(self):
+        """What is being sampled now: a controlled stop, or the first running move's
+        trajectory; None when the robot is not moving."""
+        if self._stop is not None:
+            return self._stop
+        segs = self._segments
+        if segs and segs[0].start is not None:
+            return segs[0].trajectory
+        return None
+
+    @property
+    def queued(self) -> int:
+        """Moves handed over that have not started yet."""
+        return (sum(1 for s in self._segments if s.start is None) + len(self._requests)
+                + (self._planning is not None))
 
     # ---- the speed override: a rate of trajectory time (real-time safe) ----
     @property
@@ -152,15 +236,21 @@ class TrajectoryGenerator(Component):
         same path. A change while a move runs is a smooth transition of the rate (a
         quintic smoothstep: continuous in rate, its derivative and second derivative),
         monotonic, so the speed never overshoots the new value."""
-        return self._rate_to * 100.0
+        return self._override * 100.0
 
     @override.setter
     def override(self, percent: float) -> None:
         rate = min(max(float(percent), 1.0), 100.0) / 100.0
-        if self.trajectory is None or self._real_time:
+        self._override = rate
+        if self._hold:  # stopping or stopped on the timeline: resume goes to the new rate
+            return
+        if self.trajectory is None or self._stop is not None:
             self.rate = self._rate_from = self._rate_to = rate
             self._rate_t = self._rate_T = 0.0
             return
+        self._change_rate(rate)
+
+    def _change_rate(self, rate: float) -> None:
         self._rate_from, self._rate_to, self._rate_t = self.rate, rate, 0.0
         # long enough that v * dr/dt stays within the acceleration limits (dr/dt peaks at
         # 1.875 |dr| / T for the quintic), and at least 0.2 s
@@ -179,141 +269,377 @@ class TrajectoryGenerator(Component):
 
     @property
     def finished(self) -> bool:
-        """The program ended (DONE) and its last move is complete."""
-        return self.vm is not None and self.vm.status is DONE and self.trajectory is None
+        """The program ended (DONE) and all its motion is complete."""
+        return self.vm is not None and self.vm.status is DONE and self.fault is None and self.motion_done()
 
     @property
     def line(self) -> int:
+        """The source line of the move the robot is executing (stopping on, or waiting to
+        resume); else of the instruction the program is at."""
+        if self.interrupted is not None:
+            return self.interrupted.request.line
+        segs = self._segments
+        if segs and segs[0].start is not None:
+            return segs[0].request.line
         return self.vm.line if self.vm is not None else 0
 
     @property
     def paused(self) -> bool:
-        return self.vm is not None and self.vm.paused
+        """Held by the operator or by the program's ``pause``."""
+        return self.vm is not None and (self._paused or self.vm.paused)
 
+    def _busy(self) -> bool:
+        """The program has something left to do: instructions, or motion it handed over."""
+        vm = self.vm
+        return vm is not None and (vm.status < DONE or not self.motion_done())
+
+    def _holding(self) -> bool:
+        """No new move may start: paused, aborting, stopping, or a move to resume first."""
+        vm = self.vm
+        return (vm is None or self._paused or vm.paused or self.abort_reason is not None or self._stop is not None
+                or self.interrupted is not None or self._hold)
+
+    # ---- the 5 ms update (real-time) ----
     def update(self, now: float) -> None:
-        """Real-time: sample the current move, then let the VM run its budget."""
+        """Real-time: take finished plans, sample the motion, then let the VM run its budget."""
         if self._planning is not None and self._planning.done:
             self._planned()
-        trajectory = self.trajectory
-        if trajectory is not None:
-            if self._real_time:  # a stop ramp: real seconds
-                self.t_move += self.period
-                self.positions, self.velocities = trajectory.sample(self.t_move)
-            else:
-                rate = self._step_rate(self.period) if self._rate_T else self.rate
-                self.t_move += self.period * rate
-                positions, velocities = trajectory.sample(self.t_move)
-                self.positions = positions
-                self.velocities = velocities if rate == 1.0 else tuple([v * rate for v in velocities])
-            if self.t_move >= trajectory.duration - 1e-12:
-                self.trajectory = None
-                self.velocities = (0.0,) * self.n
-                self._real_time = False
-                if self._rate_T:  # a change of override under way: the next move has it
-                    self.override = self._rate_to * 100.0
-                if self.interrupted is None:
-                    self.moves[-1].t_end = now
-                    self.completed += 1
-                    self._current = None
-                else:
-                    self._at_rest_after_stop()
+        if self._stop is not None:
+            self._sample_stop()
+        elif self._segments:
+            self._sample_timeline(now)
         self.desi_pos.write((now, self.positions, self.velocities), now)
         vm = self.vm
         if vm is not None and vm.status < DONE:
-            status = vm.step()
-            if status is ERROR and self.fault is None:
-                e = vm.error
-                self.fault = f"program error at line {e.line}: {e.message}"
+            vm.step()
+        if self._requests and self._planning is None:
+            request = self._requests[0]
+            problem = self._plan_next()
+            if problem is not None:
+                vm.fail(problem, request.line)
+        if self.fault is None and vm is not None and vm.status is ERROR and self.motion_done():
+            e = vm.error  # an error ends the program once the moves before it are done
+            self.fault = f"program error at line {e.line}: {e.message}"
+
+    def _sample_stop(self) -> None:
+        stop = self._stop
+        self.t_stop += self.period
+        self.positions, self.velocities = stop.sample(self.t_stop)
+        if self.t_stop >= stop.duration - 1e-12:
+            self._stop = None
+            self.velocities = (0.0,) * self.n
+            self._at_rest_after_stop()
+
+    def _sample_timeline(self, now: float) -> None:
+        segs = self._segments
+        first = segs[0]
+        if first.start is None:
+            if self._holding():
+                return
+            first.start = self.t_move  # starts now: its first sample one period on
+            self._schedule()
+        held = False
+        if self._rate_T:
+            rate = self._step_rate(self.period)
+            held = self._hold and not self._rate_T  # the rate reached 0: at rest on the path
+        else:
+            rate = self.rate
+        tm = self.t_move = self.t_move + self.period * rate
+        if first.record is None:
+            self._started(first, now)
+        t = tm - first.start
+        positions, velocities = first.trajectory.sample(t)
+        second = segs[1] if len(segs) > 1 else None
+        if second is not None and second.start is not None and tm > second.start:
+            if second.record is None:
+                self._started(second, now)
+            p2, v2 = second.trajectory.sample(tm - second.start)
+            corner = first.end
+            positions = tuple([a + b - c for a, b, c in zip(positions, p2, corner)])
+            velocities = tuple([a + b for a, b in zip(velocities, v2)])
+        self.positions = positions
+        self.velocities = velocities if rate == 1.0 else tuple([v * rate for v in velocities])
+        if held:
+            self._held()
+            return
+        if t >= first.duration - 1e-12:
+            segs.popleft()
+            first.record.t_end = now
+            self.completed += 1
+            if self._last is first:
+                self._last = None
+            if segs:
+                self._schedule()
+            if not segs or segs[0].start is None:  # nothing moving on: at rest
+                self.velocities = (0.0,) * self.n
+                if self._rate_T and not self._hold:  # a change of override under way: the next move has it
+                    self.rate = self._rate_from = self._rate_to
+                    self._rate_T = 0.0
+                if self._hold:
+                    self._held()
+
+    def _started(self, segment: _Segment, now: float) -> None:
+        request = segment.request
+        segment.record = MoveRecord(request.line, request.kind, segment.end, segment.duration / max(self.rate, 1e-9),
+                                    now)
+        if segment.previous is not None and segment.offset is not None and segment.previous.record is not None:
+            segment.previous.record.blended = True
+        self.moves.append(segment.record)
+
+    def _schedule(self) -> None:
+        """Put the next segment on the timeline if it is blended into the running one
+        and its start is still ahead (else it starts after the running one has stopped)."""
+        segs = self._segments
+        if len(segs) < 2:
+            return
+        first, second = segs[0], segs[1]
+        if second.start is not None or second.offset is None or first.start is None:
+            return
+        start = first.start + second.offset
+        if first.blendable and second.previous is first and start >= self.t_move and not self._holding():
+            second.start = start
+        else:
+            second.offset = None  # too late (or interrupted): the corner is a stop
 
     # ---- operator control (real-time safe) ----
     def pause(self) -> bool:
-        """Hold the program; a move under way decelerates to rest: a PTP move in a
-        controlled stop, a lin or circ move along its own line or arc. False if there is
-        no program to pause."""
-        vm = self.vm
-        if vm is None or vm.status >= DONE or self.abort_reason is not None:
+        """Hold the program; the motion decelerates to rest on its path: a PTP move in a
+        controlled stop, a lin or circ move along its own line or arc, a blend along the
+        blend. False if there is no program to pause."""
+        if not self._busy() or self.abort_reason is not None:
             return False
-        vm.pause()
+        self._paused = True
+        self.vm.pause()
         self._stop_on_path()
         return True
 
     def resume(self) -> bool:
         """Continue after :meth:`pause`; the rest of an interrupted move is re-planned
-        from where the robot stopped (at once, or when its stop ramp ends)."""
+        from where the robot stopped (at once, or when its stop ends); a blend stopped
+        on the timeline speeds up again on it."""
         vm = self.vm
-        if vm is None or not vm.paused or self.abort_reason is not None:
+        if not self.paused or self.abort_reason is not None:
             return False
+        self._paused = False
         vm.resume()
-        if self.interrupted is not None and self.trajectory is None:
+        if self._hold:
+            self._hold = False
+            self._change_rate(self._override)
+        elif self.interrupted is not None and self._stop is None:
             self._resume_move()
         return True
 
     def abort(self, reason: str = "aborted by the operator") -> bool:
         """A controlled stop, then end the program with ``reason`` as its fault."""
-        vm = self.vm
-        if vm is None or vm.status >= DONE:
+        if not self._busy():
             return False
         if self.abort_reason is None:
             self.abort_reason = reason
-            vm.pause()
+            self.vm.pause()
             self._stop_on_path()
-            if self.trajectory is None:
+            if self._at_rest():
                 self._at_rest_after_stop()
         return True
 
+    def _at_rest(self) -> bool:
+        return self.trajectory is None or (self._hold and self.rate == 0.0 and not self._rate_T)
+
     def _stop_on_path(self) -> None:
-        if self.trajectory is None or self.interrupted is not None or self._current is None:
+        if self._stop is not None or self.interrupted is not None or self._hold:
             return
-        self.interrupted = self._current
-        if self._current.kind != "ptp":  # decelerate along the line or arc itself
+        segs = self._segments
+        if not segs or segs[0].start is None:
+            return  # at rest: the moves still queued wait (no new move starts while held)
+        first = segs[0]
+        second = segs[1] if len(segs) > 1 else None
+        if second is not None and second.start is not None:
+            # in (or scheduled into) a blend: stop on the timeline itself, so the robot stays
+            # on the blended path and resume speeds up again on it
+            self._hold = True
+            self._change_rate(0.0)
+            return
+        t = self.t_move - first.start
+        request = first.request
+        if request.kind != "ptp":  # decelerate along the line or arc itself
             from ..motion.cartesian import PathStop
 
-            self.trajectory = self.interrupted.stop = PathStop(self.trajectory, self.t_move, self.positions,
-                                                               rate=self.rate)
-        elif getattr(self.trajectory, "synchronization", None) == "line":  # jerk-limited, on the line
-            self.trajectory = LineStop(self.trajectory, self.t_move, rate=self.rate)
+            stop = PathStop(first.trajectory, t, self.positions, rate=self.rate)
+        elif getattr(first.trajectory, "synchronization", None) == "line":  # jerk-limited, on the line
+            stop = LineStop(first.trajectory, t, rate=self.rate)
         else:
-            amax = tuple(a.max_acceleration * self.interrupted.deceleration for a in self.axes)
-            self.trajectory = StopRamp(self.positions, self.velocities, amax)
-        self.t_move = 0.0
-        self._real_time = True
+            amax = tuple(a.max_acceleration * request.acc * self.rate * self.rate for a in self.axes)
+            stop = StopRamp(self.positions, self.velocities, amax)
+        segs.popleft()
+        first.blendable = False
+        if second is not None:
+            second.offset = None
+        first.stop = stop
+        self.interrupted = first
+        self._stop, self.t_stop = stop, 0.0
+
+    def _held(self) -> None:
+        """The timeline's rate reached 0 (a stop inside a blend): at rest."""
+        self.velocities = (0.0,) * self.n
+        if self.abort_reason is not None:
+            self._at_rest_after_stop()
 
     def _at_rest_after_stop(self) -> None:
         if self.abort_reason is not None:
-            self.interrupted = self._current = None
-            self.fault = self.fault or f"{self.abort_reason} at line {self.line}"
+            line = self.line
+            self._clear_motion()
+            self.rate = self._override
+            self._rate_T = 0.0
+            self.fault = self.fault or f"{self.abort_reason} at line {line}"
             self.vm.abort()
-        elif not self.vm.paused:
+        elif not self.paused:
             self._resume_move()
 
     def _resume_move(self) -> None:
+        """Plan the rest of the interrupted move from where the robot stopped (a PTP move
+        at once; the rest of a line or arc like any Cartesian move: at once on the
+        simulated clock, else first in the planning queue)."""
         move = self.interrupted
-        self.interrupted = None
-        if move.kind != "ptp":  # the rest of the line or arc, from where it stopped
-            kind, poses = move.stop.rest()
-            problem = self._plan_cartesian(kind, poses, move.speed, move.acc, self.line, record=False)
-        else:
-            problem = self._plan(move.target, move.speed, move.acc)
-        if problem is not None:
-            self.fault = self.fault or f"cannot resume the move at line {self.line}: {problem}"
-            self.vm.abort()
+        request = move.request
+        if request.kind == "ptp":
+            main = len(self.spec.main_axes)
+            rest = _Request("ptp", (Joint(move.end[:main], move.end[main:]),), request.speed, request.acc, 0.0,
+                            request.line, rest_of=move)
+            self._take_plan(rest, *self._plan_segment(rest, self.positions, None))
+            return
+        kind, poses = move.stop.rest()
+        self._requests.appendleft(_Request(kind, tuple(poses), request.speed, request.acc, 0.0, request.line,
+                                           rest_of=move))
+        if self.clock.simulated:
+            self._plan_next()
 
-    def _plan(self, values: tuple, speed: float, acc: float) -> str | None:
-        """Plan a PTP move from the current setpoint to ``values`` (at 100 %: the override
-        scales its time)."""
+    # ---- planning ----
+    def _plan_next(self) -> str | None:
+        """Plan the oldest request (from the end of the last planned move): at once on
+        the simulated clock (returns the problem of a move that cannot be planned), else
+        on a planning thread."""
+        request = self._requests[0]
+        if request.rest_of is not None:  # from where the robot stopped, no blend before it
+            previous, start = None, self.positions
+        else:
+            previous = self._last
+            start = previous.end if previous is not None else self._chain_start()
+
+        def plan():
+            return self._plan_segment(request, start, previous)
+
+        if self.clock.simulated:
+            self._requests.popleft()
+            return self._take_plan(request, *plan())
+        self._planning = _PlanningJob(plan, request)
+        return None
+
+    def _chain_start(self) -> tuple:
+        if self.interrupted is not None:
+            return self.interrupted.end
+        return self.positions
+
+    def _planned(self) -> None:
+        """Real-time: take a finished background plan."""
+        job, self._planning = self._planning, None
+        if self.vm is None or self.abort_reason is not None:
+            return
+        request = job.what
+        if request in self._requests:
+            self._requests.remove(request)
+            problem = self._take_plan(request, *job.result)
+            if problem is not None:
+                self.vm.fail(problem, request.line)
+
+    def _take_plan(self, request: _Request, segment, problem) -> str | None:
+        """Put a planned move on the timeline; the problem of a move that cannot be
+        planned (the program stops at it, after the moves before it)."""
+        move = request.rest_of
+        if move is not None:  # the rest of an interrupted move: it goes first
+            self.interrupted = None
+            if segment is None:
+                self.fault = self.fault or f"cannot resume the move at line {request.line}: {problem}"
+                self._clear_motion()
+                self.vm.abort()
+                return
+            segment.record = move.record  # the same move, continued
+            self._segments.appendleft(segment)
+            if self._last is move:
+                self._last = segment
+            return None
+        if segment is None:
+            self._requests.clear()
+            return problem
+        if segment.previous is not None and segment.previous is not self._last:
+            segment.offset = None  # the move it was to blend with was interrupted meanwhile
+        self._segments.append(segment)
+        self._last = segment
+        self._schedule()
+        return None
+
+    def _plan_segment(self, request: _Request, start: tuple, previous: _Segment | None):
+        """Plan ``request`` from the joints ``start``; ``(segment, None)`` or ``(None,
+        problem)``. Pure (reads the specification and the previous segment's plan), so it
+        may run on the planning thread."""
+        if request.kind == "ptp":
+            segment, problem = self._plan_ptp(request, start)
+        else:
+            segment, problem = self._plan_cartesian(request, start)
+        if segment is None:
+            return None, problem
+        if previous is not None and previous.request.approx > 0.0 and previous.blendable:
+            overlap_before = (previous.previous.duration - previous.offset
+                              if previous.offset is not None and previous.previous is not None else 0.0)
+            cap = previous.duration - overlap_before
+            offset, _why = blend_offset(previous.kind, previous.trajectory, previous.request.approx,
+                                        request.kind, segment.trajectory, previous.end,
+                                        previous.limits.union(segment.limits), self.period, cap)
+            segment.previous = previous
+            segment.offset = offset
+        return segment, None
+
+    def _plan_ptp(self, request: _Request, start: tuple):
+        target = request.targets[0]
+        if isinstance(target, Pose):
+            target, problem = self._joint_target(target, start)
+            if problem is not None:
+                return None, problem
+        values = target.axes
+        for axis, v in zip(self.axes, values):
+            if not axis.min <= v <= axis.max:
+                return None, (f"axis {axis.name} target {v:g} {axis.unit} is outside its limits "
+                              f"{axis.min:g}..{axis.max:g} {axis.unit}")
+        speed, acc = request.speed, request.acc
         vmax, amax = scaled_limits(tuple(a.max_velocity for a in self.axes),
                                    tuple(a.max_acceleration for a in self.axes), speed, acc)
         if self.profile == "jerk":  # the jerk limit scales with acc_ptp
             jmax = tuple(a.max_jerk * acc for a in self.axes)
-            result, trajectory, message = plan_ptp_jerk(self.positions, values, vmax, amax, jmax,
-                                                        synchronization="auto")
+            result, trajectory, message = plan_ptp_jerk(start, values, vmax, amax, jmax, synchronization="auto")
         else:
-            result, trajectory, message = plan_ptp(PtpInput(self.positions, values, vmax, amax))
+            result, trajectory, message = plan_ptp(PtpInput(start, values, vmax, amax))
         if result < 0:
-            return message
-        self.trajectory, self.t_move = trajectory, 0.0
-        self._current = _Interrupted(values, speed, acc, acc * self.rate * self.rate)
-        return None
+            return None, message
+        return _Segment(request, trajectory, values, self._axis_limits(jerk=self.profile == "jerk")), None
+
+    def _axis_limits(self, jerk: bool = True) -> Limits:
+        """What a blend must keep: every axis's velocity, acceleration and jerk limit (the
+        jerk only for jerk-limited moves: a trapezoid has none)."""
+        return Limits((a.max_velocity for a in self.axes), (a.max_acceleration for a in self.axes),
+                      (a.max_jerk if jerk else float("inf") for a in self.axes))
+
+    def _plan_cartesian(self, request: _Request, start: tuple):
+        from ..motion.cartesian import plan_circ, plan_lin
+
+        kinematics = self._kinematics
+        poses = request.targets
+        if request.kind == "lin":
+            stream, message = plan_lin(kinematics, start, poses[0], request.speed, request.acc,
+                                       axis_limits=self.spec, period=self.period)
+        else:
+            stream, message = plan_circ(kinematics, start, poses[0], poses[1], request.speed, request.acc,
+                                        axis_limits=self.spec, period=self.period)
+        if stream is None:
+            return None, f"move {request.kind} refused: {message}"
+        return _Segment(request, stream, stream.end, self._axis_limits()), None
 
     # ---- the VM's motion host ----
     def now(self) -> float:
@@ -323,30 +649,38 @@ class TrajectoryGenerator(Component):
         robot = clauses.get("act_rob")
         if robot is not None and robot != self.spec.name:
             return f"act_rob names robot {robot!r}, but this runtime drives {self.spec.name!r}"
-        if kind != "ptp":
-            return self._move_cartesian(kind, targets, clauses, line)
-        target = targets[0]
-        if isinstance(target, Pose):
-            target, problem = self._joint_target(target)
+        defaults = self.spec.defaults
+        approx = float(clauses.get("approx", defaults.approx))
+        if kind == "ptp":
+            target = targets[0]
+            if isinstance(target, Pose):
+                _, problem = self._kinematics_or_problem()
+                if problem is not None:
+                    return problem
+            elif not isinstance(target, Joint) or len(target.axes) != self.n:
+                return f"the target must be a joint value with {self.n} axes"
+            speed = clauses.get("speed_ptp", defaults.speed_ptp)
+            acc = clauses.get("acc_ptp", defaults.acc_ptp)
+            if not (0 < speed <= 1 and 0 < acc <= 1):
+                return f"speed_ptp and acc_ptp must be fractions in (0, 1], got {speed:g} and {acc:g}"
+            if not 0.0 <= approx <= 1.0:
+                return f"approx for a ptp move must be a fraction in [0, 1], got {approx:g}"
+            request = _Request(kind, (target,), speed, acc, approx, line)
+        else:
+            request, problem = self._cartesian_request(kind, targets, clauses, line, approx)
             if problem is not None:
                 return problem
-        if not isinstance(target, Joint) or len(target.axes) != self.n:
-            return f"the target must be a joint value with {self.n} axes"
-        values = target.axes
-        for axis, v in zip(self.axes, values):
-            if not axis.min <= v <= axis.max:
-                return (f"axis {axis.name} target {v:g} {axis.unit} is outside its limits "
-                        f"{axis.min:g}..{axis.max:g} {axis.unit}")
-        defaults = self.spec.defaults
-        speed = clauses.get("speed_ptp", defaults.speed_ptp)
-        acc = clauses.get("acc_ptp", defaults.acc_ptp)
-        if not (0 < speed <= 1 and 0 < acc <= 1):
-            return f"speed_ptp and acc_ptp must be fractions in (0, 1], got {speed:g} and {acc:g}"
-        problem = self._plan(values, speed, acc)
-        if problem is not None:
-            return problem
-        self.moves.append(MoveRecord(line, kind, values, self.trajectory.duration / self.rate, self.clock.now()))
+        self._requests.append(request)
+        if self.clock.simulated:  # deterministic: plan at once (simulated time does not pass)
+            return self._plan_next()
         return None
+
+    def queue_ready(self) -> bool:
+        """May the program hand over another move (is there room in the look-ahead)?
+        With ``lookahead = 0``: only when the last move has ended."""
+        if self.lookahead == 0:
+            return self.motion_done()
+        return self.queued < self.lookahead
 
     def _kinematics_or_problem(self):
         from ..motion.kinematics import Kinematics
@@ -358,14 +692,14 @@ class TrajectoryGenerator(Component):
                 return None, f"this robot's kinematics are not usable for poses: {exc}"
         return self._kinematics, None
 
-    def _move_cartesian(self, kind: str, targets: tuple, clauses: dict, line: int) -> str | None:
+    def _cartesian_request(self, kind: str, targets: tuple, clauses: dict, line: int, approx: float):
         """``move lin TARGET`` / ``move circ VIA, TARGET``: the path is checked whole
         against the kinematics, the axis limits and velocities before it starts (a refused
         move leaves the robot where it is, and the program stops at its line with the
         reason and where along the path it fails)."""
         kinematics, problem = self._kinematics_or_problem()
         if problem is not None:
-            return problem
+            return None, problem
         main = len(self.spec.main_axes)
         poses = []
         for target in targets:
@@ -374,77 +708,35 @@ class TrajectoryGenerator(Component):
             elif isinstance(target, Pose):
                 poses.append(target)
             else:
-                return f"a {kind} target must be a pose or a joint value"
+                return None, f"a {kind} target must be a pose or a joint value"
         defaults = self.spec.defaults
         speed = float(clauses.get("speed", defaults.speed))
         acc = float(clauses.get("acc", defaults.acc))
         if not (0 < speed <= self.spec.max_speed and 0 < acc <= self.spec.max_acceleration):
-            return (f"speed {speed:g} mm/s and acc {acc:g} mm/s^2 must be positive and within the robot's "
-                    f"max_speed {self.spec.max_speed:g} mm/s and max_acceleration {self.spec.max_acceleration:g} mm/s^2")
-        return self._plan_cartesian(kind, poses, speed, acc, line)
+            return None, (f"speed {speed:g} mm/s and acc {acc:g} mm/s^2 must be positive and within the robot's "
+                          f"max_speed {self.spec.max_speed:g} mm/s and max_acceleration "
+                          f"{self.spec.max_acceleration:g} mm/s^2")
+        if approx < 0.0:
+            return None, f"approx must be a distance >= 0 mm, got {approx:g}"
+        return _Request(kind, tuple(poses), speed, acc, approx, line), None
 
-    def _plan_cartesian(self, kind: str, poses: list, speed: float, acc: float, line: int,
-                        record: bool = True) -> str | None:
-        from ..motion.cartesian import plan_circ, plan_lin
-
-        kinematics = self._kinematics
-        start = self.positions
-        if kind == "lin":
-            def plan():
-                return plan_lin(kinematics, start, poses[0], speed, acc,
-                                axis_limits=self.spec, period=self.period)
-        else:
-            def plan():
-                return plan_circ(kinematics, start, poses[0], poses[1], speed, acc,
-                                 axis_limits=self.spec, period=self.period)
-        if self.clock.simulated:  # deterministic: plan at once (simulated time does not pass)
-            stream, message = plan()
-            return self._start_cartesian(stream, message, kind, speed, acc, line, record)
-        # On the wall clock the check (tens of ms for a long path) must not hold up the
-        # loop: a planning thread does it; the move starts at the first update after.
-        self._planning = _PlanningJob(plan, (kind, speed, acc, line, record))
-        return None
-
-    def _start_cartesian(self, stream, message: str, kind: str, speed: float, acc: float,
-                         line: int, record: bool = True) -> str | None:
-        if stream is None:
-            return f"move {kind} refused: {message}"
-        self.trajectory, self.t_move = stream, 0.0
-        end = stream.sample(stream.duration)[0]
-        self._current = _Interrupted(end, speed, acc, 1.0, kind)
-        if record:
-            self.moves.append(MoveRecord(line, kind, end, stream.duration / self.rate, self.clock.now()))
-        return None
-
-    def _planned(self) -> None:
-        """Real-time: take a finished background plan (start the move, or fault)."""
-        job, self._planning = self._planning, None
-        if self.abort_reason is not None or self.vm is None:
-            return
-        kind, speed, acc, line, record = job.move
-        stream, message = job.result
-        problem = self._start_cartesian(stream, message, kind, speed, acc, line, record)
-        if problem is not None:
-            self.fault = self.fault or f"program error at line {line}: {problem}"
-            self.vm.abort()
-
-    def _joint_target(self, pose: Pose) -> tuple[Joint | None, str | None]:
+    def _joint_target(self, pose: Pose, near: tuple) -> tuple[Joint | None, str | None]:
         """The joint values that put the tool at ``pose``: the inverse kinematics'
         configuration nearest the joints the move starts from."""
         from ..motion.kinematics import KinematicsError
 
-        kinematics, problem = self._kinematics_or_problem()
-        if problem is not None:
-            return None, problem
+        kinematics = self._kinematics
         main = len(self.spec.main_axes)
         try:
-            joints = kinematics.inverse(pose, near=self.positions[:main])
+            joints = kinematics.inverse(pose, near=near[:main])
         except KinematicsError as exc:
             return None, f"the target pose cannot be reached: {exc}"
-        return Joint(tuple(joints), tuple(self.positions[main:])), None
+        return Joint(tuple(joints), tuple(near[main:])), None
 
     def motion_done(self) -> bool:
-        return self.trajectory is None and self.interrupted is None and self._planning is None
+        """Every move handed over has ended (and no stop is under way)."""
+        return (not self._segments and not self._requests and self._planning is None
+                and self._stop is None and self.interrupted is None)
 
     def read_input(self, n: int) -> bool:
         if not 1 <= n <= self.spec.inputs:

@@ -1034,6 +1034,21 @@ class JointStream:
         ``KinematicsError``."""
         return self.checked.joints_at(t, near)
 
+    def position_at(self, t: float) -> tuple[float, ...]:
+        """All axes at ``t`` (one inverse kinematics from the check's nearest sample),
+        touching none of the state :meth:`sample` keeps: safe from another thread (the
+        blend check). May raise ``KinematicsError``."""
+        if t >= self.duration:
+            return self._end
+        if not t > 0.0:
+            return self._start
+        return self.checked.joints_at(t) + self._additional
+
+    @property
+    def end(self) -> tuple[float, ...]:
+        """All axes at the end of the move."""
+        return self._end
+
     def sample(self, t: float) -> tuple[tuple[float, ...], tuple[float, ...]]:
         duration = self.duration
         if t >= duration:

@@ -1,0 +1,181 @@
+"""Blending a corner (``approx``): the next move starts before the last one has stopped.
+
+The blend is a **superposition in joint space**: while both moves run, the commanded
+joints are ``q1(t) + q2(t - T) - corner``, where ``q1`` is the move that ends at the
+corner, ``q2`` the one that starts there and ``T`` the time (after the first move's start)
+at which the second starts. Every move is planned rest to rest, so outside the overlap
+each is exactly its own trajectory; inside, the robot leaves the first path shortly
+before the corner and joins the second shortly after it without stopping. This works
+the same for every pair of kinds (ptp-ptp, lin-lin, lin-circ, ptp-lin, ...), because
+the trajectory generator sees every move as joint values over time.
+
+How long the overlap may be (:func:`overlap_wanted`):
+
+* after a **ptp** move, ``approx`` is a fraction ``0..1``: the overlap is that fraction of
+  the shorter of the first move's deceleration and the second move's acceleration (1: the
+  whole slowdown of the one overlaps the whole speed-up of the other);
+* after a **lin** or **circ** move, ``approx`` is a distance (mm): the overlap is at most
+  the time the first move takes for its last ``approx`` mm of path and the time the next
+  (Cartesian) move takes for its first ``approx`` mm -- the tool leaves the first path
+  within ``approx`` of the corner -- and never longer than the first move's deceleration
+  and the next move's acceleration, so the two speeds hand over instead of adding up.
+
+The overlap is then rounded **down** to whole trajectory-generator periods (the next
+move starts on a tick) and **checked** (:func:`check_blend`): the superposed joint
+trajectory is sampled every millisecond from three samples before the overlap to three
+after it, and its first, second and third differences (velocity, acceleration and jerk)
+must stay within the larger of the two moves' limits on every axis. A divided
+difference of a smooth function equals its derivative somewhere in the window, so the
+1 ms differences are the continuous derivatives' values averaged over at most 3 ms; the
+5 ms setpoint stream's differences are weighted averages of these (positive weights), so
+they are within the limits whenever these are. An overlap that fails is halved (up to
+:data:`TRIES` times); one that never passes means the corner is not blended: the first
+move stops exactly at it, which is always within the limits.
+"""
+from __future__ import annotations
+
+from math import ceil
+
+import numpy as np
+
+#: The verification grid (s).
+STEP = 0.001
+#: Halvings of an overlap that breaks a limit before the corner is not blended.
+TRIES = 4
+#: Relative slack for rounding in the limit comparison.
+_SLACK = 1e-9
+
+
+class Limits:
+    """Per-axis velocity, acceleration and jerk limits (tuples), what a move was planned
+    within (for ptp: the axis limits times speed_ptp, acc_ptp; for lin/circ: the axis
+    limits themselves)."""
+
+    __slots__ = ("velocity", "acceleration", "jerk")
+
+    def __init__(self, velocity, acceleration, jerk):
+        self.velocity, self.acceleration, self.jerk = tuple(velocity), tuple(acceleration), tuple(jerk)
+
+    def union(self, other: "Limits") -> "Limits":
+        return Limits(map(max, self.velocity, other.velocity), map(max, self.acceleration, other.acceleration),
+                      map(max, self.jerk, other.jerk))
+
+
+def ramp_time(trajectory) -> float:
+    """How long a planned move accelerates (= decelerates): the longest acceleration
+    phase of any moving axis (ptp), or of the path parameter (lin/circ)."""
+    checked = getattr(trajectory, "checked", None)
+    if checked is not None:
+        return checked.move.profile.t_acc
+    profiles = getattr(trajectory, "profiles", ())
+    return max((p.t_acc for p in profiles if p.distance != 0.0), default=0.0)
+
+
+def path_time(trajectory, distance: float, at_end: bool) -> float:
+    """For a lin/circ move: the time it takes for its first (``at_end`` False) or last
+    ``distance`` mm of tool path (the whole move when it is shorter)."""
+    move = trajectory.checked.move
+    profile, length = move.profile, move.path.length
+    tcp = move.path.position_length / length if length > 0.0 else 0.0
+    s_goal = distance / tcp if tcp > 0.0 else length
+    if s_goal >= length:
+        return move.duration
+    if at_end:
+        s_goal = length - s_goal
+    lo, hi = 0.0, move.duration  # s(t) is non-decreasing: bisection
+    for _ in range(50):
+        mid = 0.5 * (lo + hi)
+        if profile.sample(mid)[0] < s_goal:
+            lo = mid
+        else:
+            hi = mid
+    return move.duration - hi if at_end else hi
+
+
+def overlap_wanted(first_kind: str, first, approx: float, second_kind: str, second) -> float:
+    """The overlap (s) that ``approx`` on the move ``first`` asks for with the move
+    ``second`` (module docstring); 0 when the corner is not to be blended."""
+    if not approx > 0.0 or first.duration <= 0.0 or second.duration <= 0.0:
+        return 0.0
+    ramp1, ramp2 = ramp_time(first), ramp_time(second)
+    if first_kind == "ptp":
+        f = min(approx, 1.0)
+        return f * min(ramp1, ramp2)
+    wanted = min(ramp1, ramp2, path_time(first, approx, at_end=True))
+    if second_kind != "ptp":
+        wanted = min(wanted, path_time(second, approx, at_end=False))
+    return wanted
+
+
+def positions_at(trajectory, t: float) -> tuple:
+    """The joint positions of a planned move at its time ``t``, without touching any state
+    the real-time loop uses (safe from a planning thread)."""
+    at = getattr(trajectory, "position_at", None)
+    return at(t) if at is not None else trajectory.sample(t)[0]
+
+
+def composite(first, second, offset: float, corner, times) -> np.ndarray:
+    """Positions of the superposition at ``times`` (first move's time): an (n, axes) array."""
+    rows = []
+    for t in times:
+        p1 = positions_at(first, t)
+        if t > offset:
+            p2 = positions_at(second, t - offset)
+            rows.append([a + b - c for a, b, c in zip(p1, p2, corner)])
+        else:
+            rows.append(p1)
+    return np.asarray(rows, dtype=float)
+
+
+def limit_ratios(positions: np.ndarray, step: float, limits: Limits) -> tuple[float, float, float]:
+    """The largest ratio to its limit of any velocity, acceleration and jerk sample
+    (first, second, third differences of ``positions`` every ``step`` s), over all axes."""
+    out = []
+    d = positions
+    for order, limit in enumerate((limits.velocity, limits.acceleration, limits.jerk), start=1):
+        d = np.diff(d, axis=0)
+        if len(d) == 0:
+            out.append(0.0)
+            continue
+        lim = np.asarray(limit, dtype=float)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            ratio = np.abs(d) / (step ** order) / lim
+        ratio = np.where(np.isfinite(lim), ratio, 0.0)
+        out.append(float(np.max(ratio)) if ratio.size else 0.0)
+    return out[0], out[1], out[2]
+
+
+def check_blend(first, second, offset: float, corner, limits: Limits, step: float = STEP) -> tuple[float, float, float]:
+    """The limit ratios (velocity, acceleration, jerk) of the superposition of ``first``
+    and ``second`` started ``offset`` s after ``first``, over the overlap and three steps
+    either side of it. All three <= 1 means the blend keeps every limit."""
+    k0 = int(round(offset / step)) - 3
+    k1 = int(ceil(first.duration / step)) + 3
+    times = [k * step for k in range(k0, k1 + 1)]
+    return limit_ratios(composite(first, second, offset, corner, times), step, limits)
+
+
+def blend_offset(first_kind: str, first, approx: float, second_kind: str, second, corner,
+                 limits: Limits, period: float, max_overlap: float | None = None) -> tuple[float | None, str]:
+    """When (s after the start of ``first``, a whole number of ``period``\\ s) ``second``
+    may start so that the corner is blended within every limit; ``(None, why)`` when it
+    is not blended. ``max_overlap`` caps the overlap (the part of ``first`` not already
+    overlapping the move before it)."""
+    wanted = overlap_wanted(first_kind, first, approx, second_kind, second)
+    if max_overlap is not None:
+        wanted = min(wanted, max_overlap)
+    duration = first.duration
+    for _ in range(TRIES + 1):
+        if wanted < period:
+            break
+        k = ceil((duration - wanted) / period - 1e-9)
+        offset = k * period
+        if offset >= duration:
+            break
+        ratios = check_blend(first, second, offset, corner, limits)
+        if max(ratios) <= 1.0 + _SLACK:
+            return offset, ""
+        wanted *= 0.5
+    if not approx > 0.0:
+        return None, "no approx"
+    return None, "the corner cannot be blended within the limits (the move stops at it)"

@@ -294,6 +294,7 @@ def parse_spec(text: str, file: str = "<spec>") -> Spec:
             if isinstance(value, bool) or not isinstance(value, (int, float, str)):
                 raise SpecError(file, f"{section}.{key}", f"expected a number or a string, got {value!r}")
         tables[section] = dict(table)
+    _check_controller(file, tables["controller"])
     top.finish()
     return Spec(name, file, axes, defaults, max_speed, max_acc, inputs, outputs, tool, tables["controller"],
                 _canonical_hash(data), description, tables["simulation"])
@@ -309,3 +310,19 @@ def load_spec(path: str | Path) -> Spec:
     except UnicodeDecodeError:
         raise SpecError(str(path), None, "not a text file (expected UTF-8 TOML)") from None
     return parse_spec(text, str(path))
+
+
+#: ``[controller]`` keys the runtime reads, with what they allow (the others are free).
+CONTROLLER_PROFILES = ("jerk", "trapezoid")
+MAX_LOOKAHEAD = 16
+
+
+def _check_controller(file, controller: dict) -> None:
+    """The ``[controller]`` keys the runtime reads must hold values it can use: ``profile``
+    "jerk" or "trapezoid"; ``lookahead`` a whole number 0..16."""
+    profile = controller.get("profile", "jerk")
+    if profile not in CONTROLLER_PROFILES:
+        raise SpecError(file, "controller.profile", f'expected "jerk" or "trapezoid", got {profile!r}')
+    depth = controller.get("lookahead", 4)
+    if isinstance(depth, bool) or not isinstance(depth, int) or not 0 <= depth <= MAX_LOOKAHEAD:
+        raise SpecError(file, "controller.lookahead", f"expected a whole number 0..{MAX_LOOKAHEAD}, got {depth!r}")

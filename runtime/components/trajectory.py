@@ -29,6 +29,7 @@ from collections import deque
 from dataclasses import dataclass
 
 from compiler.objcode import Program
+from compiler.spec import CONTROLLER_PROFILES as PROFILES, MAX_LOOKAHEAD
 from compiler.values import Joint, Pose
 
 from ..component import Component, DataPort
@@ -37,10 +38,10 @@ from ..motion.jerk import LineStop, plan_ptp_jerk
 from ..motion.planner import PtpInput, StopRamp, plan_ptp, scaled_limits
 from ..vm import DONE, ERROR, VM
 
-PROFILES = ("jerk", "trapezoid")
 #: Moves planned ahead of the robot by default (``[controller] lookahead``).
 LOOKAHEAD = 4
-MAX_LOOKAHEAD = 16
+#: Timeline times closer than this are the same instant (the timeline is a running sum).
+_SAME_TIME = 1e-9
 
 
 def motion_profile(spec) -> str:
@@ -350,7 +351,7 @@ class TrajectoryGenerator(Component):
         t = tm - first.start
         positions, velocities = first.trajectory.sample(t)
         second = segs[1] if len(segs) > 1 else None
-        if second is not None and second.start is not None and tm > second.start:
+        if second is not None and second.start is not None and tm > second.start + _SAME_TIME:
             if second.record is None:
                 self._started(second, now)
             p2, v2 = second.trajectory.sample(tm - second.start)
@@ -380,8 +381,10 @@ class TrajectoryGenerator(Component):
 
     def _started(self, segment: _Segment, now: float) -> None:
         request = segment.request
-        segment.record = MoveRecord(request.line, request.kind, segment.end, segment.duration / max(self.rate, 1e-9),
-                                    now)
+        rate = max(self.rate, 1e-9)
+        # it began (its time 0) between the last tick and this one: its first setpoint
+        t_start = now - (self.t_move - segment.start) / rate
+        segment.record = MoveRecord(request.line, request.kind, segment.end, segment.duration / rate, t_start)
         if segment.previous is not None and segment.offset is not None and segment.previous.record is not None:
             segment.previous.record.blended = True
         self.moves.append(segment.record)
@@ -396,7 +399,7 @@ class TrajectoryGenerator(Component):
         if second.start is not None or second.offset is None or first.start is None:
             return
         start = first.start + second.offset
-        if first.blendable and second.previous is first and start >= self.t_move and not self._holding():
+        if first.blendable and second.previous is first and start >= self.t_move - _SAME_TIME and not self._holding():
             second.start = start
         else:
             second.offset = None  # too late (or interrupted): the corner is a stop

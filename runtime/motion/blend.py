@@ -47,9 +47,11 @@ _SLACK = 1e-9
 
 
 class Limits:
-    """Per-axis velocity, acceleration and jerk limits (tuples), what a move was planned
-    within (for ptp: the axis limits times speed_ptp, acc_ptp; for lin/circ: the axis
-    limits themselves)."""
+    """Per-axis velocity, acceleration and jerk limits (tuples) a blend must keep: the
+    trajectory generator gives every move the axis limits themselves (``max_velocity``,
+    ``max_acceleration``, ``max_jerk``; no jerk limit for a trapezoidal move), so inside a
+    blend a ptp move may exceed its own ``speed_ptp`` and ``acc_ptp`` fractions, never the
+    axis's limits."""
 
     __slots__ = ("velocity", "acceleration", "jerk")
 

@@ -47,6 +47,11 @@ class SimClock:
     def now(self) -> float:
         return self.ticks * self.tick
 
+    @property
+    def tick_time(self) -> float:
+        """The time the current tick is scheduled for (here: ``now``)."""
+        return self.ticks * self.tick
+
     def wait_until(self, t: float) -> None:
         """Real-time: jump to ``t`` (never backwards)."""
         target = round(t / self.tick)
@@ -62,6 +67,7 @@ class WallClock:
     def __init__(self, spin: float = 0.0008):
         self.spin = spin  # how long before the deadline sleeping stops and spinning starts
         self._t0 = time.perf_counter()
+        self.tick_time = 0.0  # the time the current tick is scheduled for (the last wait_until)
 
     def now(self) -> float:
         return time.perf_counter() - self._t0
@@ -70,6 +76,7 @@ class WallClock:
         """Sleep, then spin to ``t`` (the only place the loop waits). The spin gives the
         interpreter lock away on every turn, so other threads are not shut out for the
         spin's whole length."""
+        self.tick_time = t
         remaining = t - self.now()
         if remaining > self.spin:
             time.sleep(remaining - self.spin)

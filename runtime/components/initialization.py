@@ -23,7 +23,10 @@ class Initialization(Component):
 
     def __init__(self, spec, robot, init_pos: DataPort, sens_pos: DataPort, clock, period: float = 0.005):
         super().__init__("initialization", period)
-        self.robot_now = clock.now
+        # the encoder watch counts in tick time: after a stall of the host the catch-up
+        # ticks are 1 ms apart, as the robot's samples are (the deadline policy reports
+        # the stall itself; wall time would blame the encoder)
+        self.robot_now = lambda: clock.tick_time
         self.spec, self.robot, self.init_pos, self.sens_pos = spec, robot, init_pos, sens_pos
         self.axes = spec.axes
         self.n = len(spec.axes)

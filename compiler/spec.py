@@ -314,15 +314,30 @@ def load_spec(path: str | Path) -> Spec:
 
 #: ``[controller]`` keys the runtime reads, with what they allow (the others are free).
 CONTROLLER_PROFILES = ("jerk", "trapezoid")
+DEFAULT_PROFILE = "jerk"
+DEFAULT_LOOKAHEAD = 4
 MAX_LOOKAHEAD = 16
 
 
-def _check_controller(file, controller: dict) -> None:
-    """The ``[controller]`` keys the runtime reads must hold values it can use: ``profile``
-    "jerk" or "trapezoid"; ``lookahead`` a whole number 0..16."""
-    profile = controller.get("profile", "jerk")
+def controller_profile(file, controller: dict) -> str:
+    """``[controller] profile``: the PTP velocity profile, "jerk" (the default) or
+    "trapezoid"; SpecError otherwise."""
+    profile = controller.get("profile", DEFAULT_PROFILE)
     if profile not in CONTROLLER_PROFILES:
         raise SpecError(file, "controller.profile", f'expected "jerk" or "trapezoid", got {profile!r}')
-    depth = controller.get("lookahead", 4)
+    return profile
+
+
+def controller_lookahead(file, controller: dict) -> int:
+    """``[controller] lookahead``: how many moves may be planned ahead of the robot, a
+    whole number 0..16 (default 4); SpecError otherwise."""
+    depth = controller.get("lookahead", DEFAULT_LOOKAHEAD)
     if isinstance(depth, bool) or not isinstance(depth, int) or not 0 <= depth <= MAX_LOOKAHEAD:
         raise SpecError(file, "controller.lookahead", f"expected a whole number 0..{MAX_LOOKAHEAD}, got {depth!r}")
+    return depth
+
+
+def _check_controller(file, controller: dict) -> None:
+    """The ``[controller]`` keys the runtime reads must hold values it can use."""
+    controller_profile(file, controller)
+    controller_lookahead(file, controller)

@@ -29,7 +29,7 @@ from collections import deque
 from dataclasses import dataclass
 
 from compiler.objcode import Program
-from compiler.spec import CONTROLLER_PROFILES as PROFILES, MAX_LOOKAHEAD
+from compiler.spec import DEFAULT_LOOKAHEAD, controller_lookahead, controller_profile
 from compiler.values import Joint, Pose
 
 from ..component import Component, DataPort
@@ -39,28 +39,21 @@ from ..motion.planner import PtpInput, StopRamp, plan_ptp, scaled_limits
 from ..vm import DONE, ERROR, VM
 
 #: Moves planned ahead of the robot by default (``[controller] lookahead``).
-LOOKAHEAD = 4
+LOOKAHEAD = DEFAULT_LOOKAHEAD
 #: Timeline times closer than this are the same instant (the timeline is a running sum).
 _SAME_TIME = 1e-9
 
 
 def motion_profile(spec) -> str:
-    """The PTP velocity profile the specification asks for (``[controller] profile``):
-    "jerk" (seven-phase, jerk-limited; the default) or "trapezoid". ValueError otherwise."""
-    profile = spec.controller.get("profile", "jerk")
-    if profile not in PROFILES:
-        raise ValueError(f"{spec.file}: controller.profile: expected \"jerk\" or \"trapezoid\", got {profile!r}")
-    return profile
+    """The PTP velocity profile the specification asks for (``[controller] profile``,
+    checked when the specification was loaded: SpecError otherwise)."""
+    return controller_profile(spec.file, spec.controller)
 
 
 def lookahead_depth(spec) -> int:
     """How many moves may be planned ahead of the robot (``[controller] lookahead``,
-    0..16, default 4; 0: the program waits for each move to end). ValueError otherwise."""
-    depth = spec.controller.get("lookahead", LOOKAHEAD)
-    if isinstance(depth, bool) or not isinstance(depth, int) or not 0 <= depth <= MAX_LOOKAHEAD:
-        raise ValueError(f"{spec.file}: controller.lookahead: expected a whole number 0..{MAX_LOOKAHEAD}, "
-                         f"got {depth!r}")
-    return depth
+    0..16, default 4; 0: the program waits for each move to end)."""
+    return controller_lookahead(spec.file, spec.controller)
 
 
 @dataclass
@@ -593,7 +586,7 @@ class TrajectoryGenerator(Component):
             overlap_before = (previous.previous.duration - previous.offset
                               if previous.offset is not None and previous.previous is not None else 0.0)
             cap = previous.duration - overlap_before
-            offset, _why = blend_offset(previous.kind, previous.trajectory, previous.request.approx,
+            offset = blend_offset(previous.kind, previous.trajectory, previous.request.approx,
                                         request.kind, segment.trajectory, previous.end,
                                         previous.limits.union(segment.limits), self.period, cap)
             segment.previous = previous

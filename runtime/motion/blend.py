@@ -158,10 +158,11 @@ def check_blend(first, second, offset: float, corner, limits: Limits, step: floa
 
 
 def blend_offset(first_kind: str, first, approx: float, second_kind: str, second, corner,
-                 limits: Limits, period: float, max_overlap: float | None = None) -> tuple[float | None, str]:
+                 limits: Limits, period: float, max_overlap: float | None = None) -> float | None:
     """When (s after the start of ``first``, a whole number of ``period``\\ s) ``second``
-    may start so that the corner is blended within every limit; ``(None, why)`` when it
-    is not blended. ``max_overlap`` caps the overlap (the part of ``first`` not already
+    may start so that the corner is blended within every limit; None when it is not
+    blended (no approx, or no overlap keeps the limits: the first move stops at the
+    corner). ``max_overlap`` caps the overlap (the part of ``first`` not already
     overlapping the move before it)."""
     wanted = overlap_wanted(first_kind, first, approx, second_kind, second)
     if max_overlap is not None:
@@ -176,8 +177,6 @@ def blend_offset(first_kind: str, first, approx: float, second_kind: str, second
             break
         ratios = check_blend(first, second, offset, corner, limits)
         if max(ratios) <= 1.0 + _SLACK:
-            return offset, ""
+            return offset
         wanted *= 0.5
-    if not approx > 0.0:
-        return None, "no approx"
-    return None, "the corner cannot be blended within the limits (the move stops at it)"
+    return None

@@ -56,6 +56,18 @@ class Component:
         self.period = period  # seconds between updates
         self.lifecycle = Lifecycle.UNCONFIGURED
         self.error_message: str | None = None
+        self._watchers: list = []  # called after every change of lifecycle (see watch)
+
+    def watch(self, callback) -> None:
+        """Not real-time: call ``callback()`` after every change of the lifecycle state
+        (the executive keeps its list of runnable tasks up to date this way)."""
+        self._watchers.append(callback)
+
+    def _set_lifecycle(self, state: Lifecycle) -> None:
+        if state is not self.lifecycle:
+            self.lifecycle = state
+            for callback in self._watchers:
+                callback()
 
     @property
     def running(self) -> bool:
@@ -68,7 +80,7 @@ class Component:
             return False
         if not self.on_configure():
             return False
-        self.lifecycle = Lifecycle.STOPPED
+        self._set_lifecycle(Lifecycle.STOPPED)
         self.error_message = None
         return True
 
@@ -80,7 +92,7 @@ class Component:
             return False
         if not self.on_start():
             return False
-        self.lifecycle = Lifecycle.RUNNING
+        self._set_lifecycle(Lifecycle.RUNNING)
         return True
 
     def stop(self) -> bool:
@@ -88,7 +100,7 @@ class Component:
         if self.lifecycle is not Lifecycle.RUNNING:
             return False
         self.on_stop()
-        self.lifecycle = Lifecycle.STOPPED
+        self._set_lifecycle(Lifecycle.STOPPED)
         return True
 
     def cleanup(self) -> bool:
@@ -96,18 +108,18 @@ class Component:
         if self.lifecycle is Lifecycle.RUNNING:
             return False
         self.on_cleanup()
-        self.lifecycle = Lifecycle.UNCONFIGURED
+        self._set_lifecycle(Lifecycle.UNCONFIGURED)
         return True
 
     def recover(self) -> None:
         """Not real-time: forget a failure (ERROR -> STOPPED), e.g. before a new cycle."""
         if self.lifecycle is Lifecycle.ERROR:
-            self.lifecycle = Lifecycle.STOPPED
+            self._set_lifecycle(Lifecycle.STOPPED)
         self.error_message = None
 
     def error(self, message: str) -> None:
         """Real-time safe: stop updating and remember why (the supervisor reads it)."""
-        self.lifecycle = Lifecycle.ERROR
+        self._set_lifecycle(Lifecycle.ERROR)
         self.error_message = message
 
     # -- hooks --

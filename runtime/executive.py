@@ -8,6 +8,13 @@ execution time and lateness and counts deadline misses (with the simulated clock
 in eight, and nothing is late); each task has a miss policy:
 hard (one miss faults), firm (more than N misses in a window of W ticks faults), soft
 (counted only). Statistics live in preallocated arrays: a tick allocates nothing.
+
+The simulated clock's untimed ticks take a short path: the executive keeps, per tick of
+its schedule table, the tasks that can run (bound to a running component, or to none),
+refreshed when a component's lifecycle changes (``Component.watch``), and counts the
+runs per table entry instead of per task. A change during a tick (the supervisor starts
+the servo) sends the rest of that tick through the full per-task checks, so which tasks
+run on which tick is the same on both paths.
 """
 from __future__ import annotations
 
@@ -151,6 +158,14 @@ class Executive:
         self._last_tick_late = 0.0  # how late the last tick started (wall clock)
         self._hyper = 1  # ticks in the schedule table (0: no table)
         self._due: list[tuple[Task, ...]] = [()]  # tasks due on each tick of the table
+        # The short path (simulated clock, untimed ticks; see the module's doc): per tick of
+        # the table, the due tasks that can run now, or None where a due task has an
+        # enabled() condition or a component that cannot be watched; and how many ticks ran
+        # each entry since the runs were last added to the tasks' statistics.
+        self._short = clock.simulated and getattr(clock, "tick", None) == tick
+        self._runnable: list[tuple[Task, ...] | None] = [()]
+        self._runnable_ticks: list[int] = [0]
+        self._stale = True  # _runnable must be rebuilt before it is used
 
     def add(self, name: str, run: Callable[[float], None], period: float, phase: str,
             enabled: Callable[[], bool] | None = None, policy: MissPolicy | None = None,
@@ -163,6 +178,8 @@ class Executive:
         if ticks < 1 or abs(ticks * self.tick - period) > 1e-9:
             raise ValueError(f"{name}: period {period} s is not a multiple of the {self.tick} s tick")
         task = Task(name, run, ticks, phase, enabled, component, policy or MissPolicy())
+        if component is not None and hasattr(component, "watch"):
+            component.watch(self._invalidate)
         self.tasks.append(task)
         self.tasks.sort(key=lambda t: PHASES.index(t.phase))  # stable: insertion order within a phase
         self._plan()
@@ -184,15 +201,61 @@ class Executive:
         """The schedule: for each tick of the hyperperiod (the periods' least common
         multiple), the tasks due on it, in phase order. Periods whose hyperperiod exceeds
         MAX_HYPERPERIOD ticks get no table: each tick then picks its due tasks itself."""
+        self._count_short_runs()
         hyper = math.lcm(*(t.period for t in self.tasks))
         self._hyper = hyper if hyper <= MAX_HYPERPERIOD else 0
         self._due = [tuple([t for t in self.tasks if k % t.period == 0]) for k in range(self._hyper)]
+        self._runnable, self._runnable_ticks = [None] * self._hyper, [0] * self._hyper
+        self._stale = True
+
+    def _invalidate(self) -> None:
+        """A component's lifecycle changed (real-time safe): rebuild the runnable lists."""
+        self._stale = True
+
+    def _count_short_runs(self) -> None:
+        """Add the runs made on the short path to the tasks' statistics."""
+        for runnable, ticks in zip(self._runnable, self._runnable_ticks):
+            if runnable and ticks:
+                for task in runnable:
+                    task.stats.runs += ticks
+        self._runnable_ticks = [0] * len(self._runnable_ticks)
+
+    def _refresh(self) -> None:
+        """Real-time (only after a lifecycle change): the runnable tasks of each tick of
+        the table, from the components' states now."""
+        self._count_short_runs()
+        runnable = []
+        for due in self._due:
+            if any(t.enabled is not None or (t.component is not None and not hasattr(t.component, "watch"))
+                   for t in due):
+                runnable.append(None)
+            else:
+                runnable.append(tuple([t for t in due if t.component is None or t.component.lifecycle is _RUNNING]))
+        self._runnable = runnable
+        self._stale = False
 
     def step(self) -> None:
         """One tick (real-time): wait for its start, then run every due task in phase order."""
         k = self.ticks
-        scheduled = k * self.tick
         clock = self.clock
+        if self._short and k % SIM_SAMPLE_EVERY and self._hyper:  # the short path (see the module's doc)
+            if k > clock.ticks:
+                clock.ticks = k  # the simulated clock's wait_until
+            if self._stale:
+                self._refresh()
+            slot = k % self._hyper
+            runnable = self._runnable[slot]
+            if runnable is not None:
+                scheduled = k * self.tick
+                for task in runnable:
+                    task.run(scheduled)
+                    if self._stale:  # a lifecycle changed: check each of the tick's other tasks
+                        self._finish_tick(k, scheduled, runnable, task)
+                        return
+                self._runnable_ticks[slot] += 1
+                self.ticks = k + 1
+                return
+        scheduled = k * self.tick
         clock.wait_until(scheduled)
         simulated = clock.simulated
         # Simulated time does not pass while code runs: no lateness, no misses, and the
@@ -236,6 +299,21 @@ class Executive:
                 self._missed(task, k)
         self.ticks = k + 1
 
+    def _finish_tick(self, k: int, scheduled: float, runnable: tuple, last: Task) -> None:
+        """The short path's tick after a lifecycle change during ``last``'s run: count the
+        runs so far, then run the due tasks after ``last`` that can run now."""
+        done = runnable.index(last) + 1
+        for task in runnable[:done]:
+            task.stats.runs += 1
+        due = self._due[k % self._hyper]
+        for task in due[due.index(last) + 1:]:
+            component = task.component
+            if component is not None and component.lifecycle is not _RUNNING:
+                continue
+            task.run(scheduled)
+            task.stats.runs += 1
+        self.ticks = k + 1
+
     def _missed(self, task: Task, k: int) -> None:
         stats = task.stats
         stats.misses += 1
@@ -257,6 +335,7 @@ class Executive:
         the misses and the execution-time and lateness statistics."""
         self.fault = None
         self.tick_late_max = 0.0
+        self._runnable_ticks = [0] * len(self._runnable_ticks)
         for task in self.tasks:
             task.stats = TaskStats()
 
@@ -273,4 +352,5 @@ class Executive:
         return self.ticks - start
 
     def statistics(self) -> dict:
+        self._count_short_runs()
         return {task.name: task.stats.summary() for task in self.tasks}

@@ -63,7 +63,9 @@ class _Compiled:
     run: Program | None
     handle: Program | None
     exit: Program
+    final: bool = False  # the machine's final state
     transitions: tuple = ()  # ((target, guard|None, program, event|None, compiled-target), ...)
+    guarded: tuple = ()  # the transitions without an event: ((guard|None, program, compiled-target), ...)
 
 
 @dataclass
@@ -97,14 +99,18 @@ class FSM:
             raise FSMError(f"{self.name}: mode must be {AUTOMATIC!r} or {REACTIVE!r}")
         for s in self.states:
             # run and handle stay None when absent: the step skips them (it runs every cycle)
-            self._by_name[s.name] = _Compiled(s, s.entry or _nothing, s.run, s.handle, s.exit or _nothing)
+            self._by_name[s.name] = _Compiled(s, s.entry or _nothing, s.run, s.handle, s.exit or _nothing,
+                                              s.name == self.final)
         rows: dict[str, list] = {n: [] for n in names}
         for t in self.transitions:
             if t.source not in rows or t.target not in rows:
                 raise FSMError(f"{self.name}: transition {t.source!r} -> {t.target!r} names an unknown state")
             rows[t.source].append((t.target, t.guard, t.program or _nothing, t.event, self._by_name[t.target]))
         for n in names:
-            self._by_name[n].transitions = tuple(rows[n])
+            compiled = self._by_name[n]
+            compiled.transitions = tuple(rows[n])
+            compiled.guarded = tuple([(guard, program, target) for _name, guard, program, event, target in rows[n]
+                                      if event is None])
 
     # ---- inspection ----
     @property
@@ -181,28 +187,37 @@ class FSM:
         if pending:  # events posted during this step stay pending for the next one
             self._events = set()
         sub = current.state.sub
-        if sub is not None and sub.active and not sub.finished:
+        if sub is not None and sub._current is not None and not sub._current.final:  # active, not finished
             sub.step()
         if current.run is not None:
             current.run()
         requested = self._requested
-        self._requested = None
-        automatic = self.mode == AUTOMATIC
-        for target, guard, program, event, compiled in current.transitions:
-            if requested is not None:
-                if target != requested:
+        if requested is None and not pending and self.mode == AUTOMATIC:
+            # the usual step: the guarded transitions in table order (event rows wait for their event)
+            for guard, program, compiled in current.guarded:
+                if guard is None or guard():
+                    program()
+                    self._leave(current)
+                    self._enter(compiled, current.state.name)
+                    return True
+        else:
+            self._requested = None
+            automatic = self.mode == AUTOMATIC
+            for target, guard, program, event, compiled in current.transitions:
+                if requested is not None:
+                    if target != requested:
+                        continue
+                elif event is not None:
+                    if event not in pending:
+                        continue
+                elif not automatic:
                     continue
-            elif event is not None:
-                if event not in pending:
+                if guard is not None and not guard():
                     continue
-            elif not automatic:
-                continue
-            if guard is not None and not guard():
-                continue
-            program()
-            self._leave(current)
-            self._enter(compiled, current.state.name)
-            return True
+                program()
+                self._leave(current)
+                self._enter(compiled, current.state.name)
+                return True
         if current.handle is not None:
             current.handle()
         return False

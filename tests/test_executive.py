@@ -8,6 +8,8 @@ import random
 import time
 
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from runtime.component import Component
 from runtime.executive import PHASES, Executive, MissPolicy, SimClock, TaskStats, WallClock
@@ -446,3 +448,76 @@ def test_hard_fault_message_gives_the_deadline_in_ms_for_any_tick():
     ex.step()
     assert ex.fault is not None
     assert "10 ms" in ex.fault, ex.fault
+
+
+# ---- the simulated clock's short path -------------------------------------------------------
+
+_ACTIONS = ("start", "stop", "error", "recover")
+
+
+def _scheduled_system(seed_tasks, actions, short: bool):
+    """An executive with components, tasks bound to them (or to none) and, inside the tasks'
+    runs, lifecycle changes at given (tick, task) points; returns it and the run log."""
+    ex = Executive(SimClock(TICK), TICK)
+    ex._short = short  # white box: the reference takes the full per-task path on every tick
+    comps = [Component(f"c{i}", TICK) for i in range(3)]
+    log: list[tuple[int, str]] = []
+
+    def make(name: str):
+        def run(now: float) -> None:
+            k = round(now / TICK)
+            log.append((k, name))
+            for action, c in actions.get((k, name), ()):
+                comp = comps[c]
+                {"start": comp.start, "stop": comp.stop, "error": lambda: comp.error("x"),
+                 "recover": comp.recover}[action]()
+        return run
+
+    for i, (period, phase, c) in enumerate(seed_tasks):
+        ex.add(f"t{i}", make(f"t{i}"), period * TICK, PHASES[phase],
+               component=None if c is None else comps[c])
+    return ex, log
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.lists(st.tuples(st.sampled_from([1, 2, 5, 10]), st.integers(0, len(PHASES) - 1),
+                          st.one_of(st.none(), st.integers(0, 2))), min_size=1, max_size=6),
+       st.lists(st.tuples(st.integers(0, 59), st.integers(0, 5), st.sampled_from(_ACTIONS), st.integers(0, 2)),
+                max_size=25))
+def test_property_the_short_path_runs_the_same_tasks_on_the_same_ticks(seed_tasks, raw_actions):
+    """On the simulated clock most ticks skip the per-task checks; lifecycle changes (also
+    in the middle of a tick, by an earlier task) must give exactly the runs and run counts
+    of the full path."""
+    actions: dict = {}
+    for k, t, action, c in raw_actions:
+        actions.setdefault((k, f"t{t % len(seed_tasks)}"), []).append((action, c))
+    fast, fast_log = _scheduled_system(seed_tasks, actions, short=True)
+    slow, slow_log = _scheduled_system(seed_tasks, actions, short=False)
+    fast.run(lambda: False, 60)
+    slow.run(lambda: False, 60)
+    assert fast_log == slow_log
+    assert ({n: s["runs"] for n, s in fast.statistics().items()}
+            == {n: s["runs"] for n, s in slow.statistics().items()})
+
+
+def test_a_component_started_by_an_earlier_task_runs_in_the_same_tick_on_the_short_path():
+    ex = Executive(SimClock(TICK), TICK)
+    comp = Component("servo", TICK)
+    ran: list[int] = []
+    ex.add("supervisor", lambda now: comp.start() if round(now / TICK) == 3 else None, TICK, "decide")
+    ex.add("servo", lambda now: ran.append(round(now / TICK)), TICK, "control", component=comp)
+    ex.run(lambda: False, 6)
+    assert ran == [3, 4, 5]  # tick 3 is not a sampled tick: the short path found the change
+    assert ex.statistics()["servo"]["runs"] == 3
+
+
+def test_run_counts_survive_a_period_change_and_a_statistics_reset():
+    ex = Executive(SimClock(TICK), TICK)
+    ex.add("t", lambda now: None, TICK, "control")
+    ex.run(lambda: False, 20)
+    ex.set_period("t", 0.002)
+    ex.run(lambda: False, 20)  # ticks 20..39, every second one
+    assert ex.statistics()["t"]["runs"] == 30
+    ex.reset_statistics()
+    ex.run(lambda: False, 10)
+    assert ex.statistics()["t"]["runs"] == 5

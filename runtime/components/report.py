@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import queue
 import threading
+from operator import sub as _sub
 from pathlib import Path
 
 from ..component import Component, DataPort
@@ -76,6 +77,7 @@ class Report(Component):
         self.sens_pos, self.out_vel, self.servo = sens_pos, out_vel, servo
         self.state_of = state_of  # callable -> the FSM's current state path
         self.names = [a.name for a in spec.axes]
+        self._zeros = (0.0,) * len(self.names)
         self.path: Path | None = None
         self.writer: ReportWriter | None = None
         self.batch: list = []
@@ -111,15 +113,16 @@ class Report(Component):
 
     def update(self, now: float) -> None:
         """Real-time: append one row; hand a full batch to the writer (never blocks)."""
-        n = len(self.names)
-        pos = self.sens_pos.read() or (0.0,) * n
-        vel = self.out_vel.read() or (0.0,) * n
+        zeros = self._zeros
+        pos = self.sens_pos.value or zeros
         servo = self.servo
         reference = servo.reference
-        error = tuple([r - x for r, x in zip(reference, servo.position)])
-        values = {"sens_pos": pos, "desi_pos": reference, "out_vel": vel, "following_error": error,
+        values = {"sens_pos": pos, "desi_pos": reference, "out_vel": self.out_vel.value or zeros,
+                  "following_error": tuple(map(_sub, reference, servo.position)),
                   TCP: pos[:self.main]}  # the writer turns these joints into the TCP
-        row = (now, self.state_of(), *(x for kind in self.columns for x in values[kind]))
+        row = (now, self.state_of())
+        for kind in self.columns:
+            row += values[kind]
         self.batch.append(row)
         if len(self.batch) * self.period >= FLUSH_PERIOD - 1e-9:
             self._hand_over()

@@ -31,6 +31,7 @@ class ServoController(Component):
         self.n = len(spec.axes)
         self.names = tuple(a.name for a in spec.axes)
         self.max_velocity = tuple(a.max_velocity for a in spec.axes)
+        self._min_velocity = tuple(-v for v in self.max_velocity)
         self.sens_pos, self.desi_pos, self.init_pos, self.out_vel = sens_pos, desi_pos, init_pos, out_vel
         self.tick = tick
         self.setpoint_period = 0.005  # the Trajectory Generator's and Initialization's period
@@ -122,30 +123,36 @@ class ServoController(Component):
         kp, ki, dt = self.kp, self.ki, self.tick
         integral = self.integral
         out = [0.0] * self.n
-        worst = 0.0
-        worst_axis = i = 0
-        for (p0, dp, hv0, hv1), x, vmax in zip(coeffs, position, self.max_velocity):
-            if dp or hv0 or hv1:
+        high = low = 0.0  # the largest and the smallest following error
+        i = 0
+        for (p0, dp, hv0, hv1), x, vmax, vmin in zip(coeffs, position, self.max_velocity, self._min_velocity):
+            if dp != 0.0 or hv0 != 0.0 or hv1 != 0.0:
                 e = p0 + h01 * dp + h10 * hv0 + h11 * hv1 - x
                 u = d01 * dp + d10 * hv0 + d11 * hv1 + kp * e + ki * integral[i]
             else:  # an axis whose reference stands still this interval: no interpolation
                 e = p0 - x
                 u = kp * e + ki * integral[i]
-            if e > worst or -e > worst:
-                worst, worst_axis = (e if e > 0.0 else -e), i
-            if -vmax < u < vmax:  # anti-windup: integrate only while the output is not saturated
+            if e > high:
+                high = e
+            elif e < low:
+                low = e
+            if vmin < u < vmax:  # anti-windup: integrate only while the output is not saturated
                 integral[i] += e * dt
             else:
-                u = vmax if u > 0.0 else -vmax
+                u = vmax if u > 0.0 else vmin
             out[i] = u
             i += 1
+        worst = high if high > -low else -low
         if worst > self.max_following_error:
             self.max_following_error = worst
         self.out_vel.write(tuple(out), now)
         if worst > self.following_error_limit:
-            self._following_error_fault(worst_axis, worst, out)
+            self._following_error_fault(out)
 
-    def _following_error_fault(self, i: int, worst: float, out) -> None:
+    def _following_error_fault(self, out) -> None:
+        errors = [abs(e) for e in self.following_error]
+        worst = max(errors)
+        i = errors.index(worst)
         why = ""
         measured = self.measured_velocity()
         if measured is not None and abs(measured[i]) < 0.05 and abs(out[i]) > 0.5:

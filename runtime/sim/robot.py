@@ -122,10 +122,16 @@ class SimRobot:
         self._index_events = [0] * n
         self._latched = [0] * n
         self._index_active = [False] * n
-        self._edge_lo = [0.0] * n
-        self._edge_hi = [0.0] * n
+        self._any_index_active = False  # some element of _index_active is set (cleared at the next step)
+        # Per axis, the open interval in which a step needs no hard-stop or index check:
+        # strictly inside the current index interval and within min..max (see _set_safe).
+        self._safe_lo = [0.0] * n
+        self._safe_hi = [0.0] * n
         for i in range(n):
-            self._set_edges(i)
+            self._set_safe(i)
+        # the step loop's per-axis constants, one tuple per axis (see _set_constants)
+        self._constants: tuple = ()
+        self._set_constants()
         # faults
         self._sensor_dead = [False] * n
         self._encoder_frozen = [False] * n
@@ -144,6 +150,13 @@ class SimRobot:
         self._lag_gain = 0.0
         self.time = 0.0  # simulated seconds since power-up
 
+    def _set_constants(self) -> None:
+        """Not real-time: the per-axis values the step reads, as one tuple per axis
+        (unpacked in the loop: cheaper than indexing six lists); again whenever the
+        encoder's base or origin change."""
+        self._constants = tuple(zip(self._vmax, [-v for v in self._vmax], self._offset,
+                                    self._origin, self._cpu, self._base))
+
     # ---- the real-time interface -----------------------------------------------------
 
     def step(self, dt: float, velocity_commands) -> None:
@@ -159,46 +172,34 @@ class SimRobot:
         a = self._decay
         k = self._lag_gain
         xs, vs = self._x, self._v
-        index_active = self._index_active
+        if self._any_index_active:  # pulses last one step
+            self._any_index_active = False
+            index_active = self._index_active
+            for i in range(self.n_axes):
+                index_active[i] = False
         if self._brakes_engaged:
             for i in range(self.n_axes):
                 vs[i] = 0.0
-                index_active[i] = False
         else:
             saved = None
             if self._drive_or_encoder_fault:  # rare: the loop below stays free of fault checks
                 velocity_commands, saved = self._fault_commands(velocity_commands)
-            lo, hi, vmax, offset = self._lo, self._hi, self._vmax, self._offset
-            edge_lo, edge_hi = self._edge_lo, self._edge_hi
-            counts, base, origin, cpu = self._counts, self._base, self._origin, self._cpu
-            for i in range(self.n_axes):
-                c = velocity_commands[i]
-                limit = vmax[i]
-                if c > limit:
-                    c = limit
-                elif c < -limit:
-                    c = -limit
-                elif c != c:  # NaN
-                    c = 0.0
-                u = c + offset[i]
-                dv = vs[i] - u
-                x = xs[i] + u * dt + dv * k
+            counts, floor = self._counts, _floor
+            i = 0
+            for c, x, v, safe_lo, safe_hi, (vmax, vmin, b, origin, cpu, base) in zip(
+                    velocity_commands, xs, vs, self._safe_lo, self._safe_hi, self._constants):
+                if not vmin <= c <= vmax:  # saturated (a NaN command counts as 0)
+                    c = vmax if c > vmax else vmin if c < vmin else 0.0
+                u = c + b
+                dv = v - u
+                x = x + u * dt + dv * k
                 v = u + dv * a
-                if x > hi[i]:
-                    x = hi[i]
-                    if v > 0.0:
-                        v = 0.0
-                elif x < lo[i]:
-                    x = lo[i]
-                    if v < 0.0:
-                        v = 0.0
+                if not safe_lo < x < safe_hi:  # near a hard stop or an index pulse
+                    x, v = self._edges(i, x, v)
                 xs[i] = x
                 vs[i] = v
-                if edge_lo[i] < x < edge_hi[i]:  # well inside the index interval: no pulse
-                    index_active[i] = False
-                else:
-                    self._index_check(i, x)
-                counts[i] = base[i] + _floor((x - origin[i]) * cpu[i])
+                counts[i] = base + floor((x - origin) * cpu)
+                i += 1
             if saved is not None:
                 self._restore_frozen(saved)
         if self._brake_timer > 0.0:
@@ -210,6 +211,20 @@ class SimRobot:
                     for i in range(self.n_axes):
                         vs[i] = 0.0
         self.time += dt
+
+    def _edges(self, i: int, x: float, v: float) -> tuple[float, float]:
+        """The step's slow path for axis ``i`` at ``x`` moving at ``v``, outside its safe
+        interval: the hard stops (the axis stops there), then the index pulses."""
+        if x > self._hi[i]:
+            x = self._hi[i]
+            if v > 0.0:
+                v = 0.0
+        elif x < self._lo[i]:
+            x = self._lo[i]
+            if v < 0.0:
+                v = 0.0
+        self._index_check(i, x)
+        return x, v
 
     def _fault_commands(self, velocity_commands) -> tuple[list, list]:
         """Before a step with drive or encoder faults: a dead drive gets the command that
@@ -233,11 +248,11 @@ class SimRobot:
         r = _floor(x / spacing)
         r_old = self._rev[i]
         if r == r_old:
-            self._index_active[i] = False
             return
         self._rev[i] = r
-        self._set_edges(i)
+        self._set_safe(i)
         self._index_active[i] = True
+        self._any_index_active = True
         if r > r_old:  # moving up: the last crossed is r * spacing
             self._index_events[i] += r - r_old
             z = r * spacing
@@ -246,13 +261,14 @@ class SimRobot:
             z = (r + 1) * spacing
         self._latched[i] = self._base[i] + _floor((z - self._origin[i]) * self._cpu[i])
 
-    def _set_edges(self, i: int) -> None:
-        """The open interval strictly inside axis ``i``'s current index interval in which
-        no crossing is possible (a margin keeps the test exact at the interval's ends)."""
+    def _set_safe(self, i: int) -> None:
+        """Axis ``i``'s safe interval: strictly inside its current index interval (a
+        margin keeps the crossing test exact at the interval's ends) and within its
+        min..max. Inside it a step needs neither the hard-stop nor the index check."""
         spacing, r = self._spacing[i], self._rev[i]
         margin = 1e-9 * spacing * (1 + abs(r))
-        self._edge_lo[i] = r * spacing + margin
-        self._edge_hi[i] = (r + 1) * spacing - margin
+        self._safe_lo[i] = max(r * spacing + margin, self._lo[i])
+        self._safe_hi[i] = min((r + 1) * spacing - margin, self._hi[i])
 
     def read(self):
         """The encoder side: ``(counts, index_event_counters, latched_index_counts,
@@ -261,9 +277,10 @@ class SimRobot:
         ``index_event_counters`` only grows: it counts every index pulse since power-up;
         ``latched_index_counts`` is the encoder count at the last one. Real-time.
         """
-        xs, at, window, dead = self._x, self._sensor_at, self._sensor_window, self._sensor_dead
-        sensors = tuple([not dead[i] and abs(xs[i] - at[i]) <= window[i] for i in range(self.n_axes)])
-        return tuple(self._counts), tuple(self._index_events), tuple(self._latched), sensors
+        sensors = []
+        for x, at, window, dead in zip(self._x, self._sensor_at, self._sensor_window, self._sensor_dead):
+            sensors.append(not dead and -window <= x - at <= window)
+        return tuple(self._counts), tuple(self._index_events), tuple(self._latched), tuple(sensors)
 
     def read_counts(self) -> tuple[int, ...]:
         """Only the encoder counts (the per-tick read once homing is done). Real-time."""
@@ -358,6 +375,7 @@ class SimRobot:
                 self._origin[i] = self._x[i]
             self._sensor_dead[i] = self._encoder_frozen[i] = self._drive_dead[i] = False
         self._drive_or_encoder_fault = False
+        self._set_constants()
 
     def faults(self) -> tuple[tuple[str, int], ...]:
         """The faults in effect, as (fault, axis) pairs."""

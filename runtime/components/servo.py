@@ -125,19 +125,20 @@ class ServoController(Component):
         out = [0.0] * self.n
         high = low = 0.0  # the largest and the smallest following error
         i = 0
-        for (p0, dp, hv0, hv1), x, vmax, vmin in zip(coeffs, position, self.max_velocity, self._min_velocity):
+        for (p0, dp, hv0, hv1), x, s, vmax, vmin in zip(coeffs, position, integral, self.max_velocity,
+                                                        self._min_velocity):
             if dp != 0.0 or hv0 != 0.0 or hv1 != 0.0:
                 e = p0 + h01 * dp + h10 * hv0 + h11 * hv1 - x
-                u = d01 * dp + d10 * hv0 + d11 * hv1 + kp * e + ki * integral[i]
+                u = d01 * dp + d10 * hv0 + d11 * hv1 + kp * e + ki * s
             else:  # an axis whose reference stands still this interval: no interpolation
                 e = p0 - x
-                u = kp * e + ki * integral[i]
+                u = kp * e + ki * s
             if e > high:
                 high = e
             elif e < low:
                 low = e
             if vmin < u < vmax:  # anti-windup: integrate only while the output is not saturated
-                integral[i] += e * dt
+                integral[i] = s + e * dt
             else:
                 u = vmax if u > 0.0 else vmin
             out[i] = u

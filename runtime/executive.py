@@ -143,6 +143,11 @@ class Task:
     component: object = None  # runs only while this component is RUNNING
     policy: MissPolicy = field(default_factory=MissPolicy)
     stats: TaskStats = field(default_factory=TaskStats)
+    # never on the short path: an enabled() condition, or a component that cannot be watched
+    checked_each_tick: bool = False
+
+    def __post_init__(self) -> None:
+        self.checked_each_tick = self.enabled is not None
 
 
 class Executive:
@@ -180,6 +185,8 @@ class Executive:
         task = Task(name, run, ticks, phase, enabled, component, policy or MissPolicy())
         if component is not None and hasattr(component, "watch"):
             component.watch(self._invalidate)
+        elif component is not None:
+            task.checked_each_tick = True  # a component that cannot tell of its changes
         self.tasks.append(task)
         self.tasks.sort(key=lambda t: PHASES.index(t.phase))  # stable: insertion order within a phase
         self._plan()
@@ -226,8 +233,7 @@ class Executive:
         self._count_short_runs()
         runnable = []
         for due in self._due:
-            if any(t.enabled is not None or (t.component is not None and not hasattr(t.component, "watch"))
-                   for t in due):
+            if any(t.checked_each_tick for t in due):
                 runnable.append(None)
             else:
                 runnable.append(tuple([t for t in due if t.component is None or t.component.lifecycle is _RUNNING]))

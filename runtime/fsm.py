@@ -196,9 +196,7 @@ class FSM:
             # the usual step: the guarded transitions in table order (event rows wait for their event)
             for guard, program, compiled in current.guarded:
                 if guard is None or guard():
-                    program()
-                    self._leave(current)
-                    self._enter(compiled, current.state.name)
+                    self._fire(current, program, compiled)
                     return True
         else:
             self._requested = None
@@ -214,13 +212,17 @@ class FSM:
                     continue
                 if guard is not None and not guard():
                     continue
-                program()
-                self._leave(current)
-                self._enter(compiled, current.state.name)
+                self._fire(current, program, compiled)
                 return True
         if current.handle is not None:
             current.handle()
         return False
+
+    def _fire(self, current: _Compiled, program: Program, target: _Compiled) -> None:
+        """A transition fires: its program, then the source's exit, then the target's entry."""
+        program()
+        self._leave(current)
+        self._enter(target, current.state.name)
 
     def _leave(self, compiled: _Compiled) -> None:
         sub = compiled.state.sub

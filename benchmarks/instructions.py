@@ -5,7 +5,8 @@ not: the same code, inputs and environment give the same count, whatever else ru
 counts the whole run of programs/test.irl (all phases, simulated clock) minus the same
 process's set-up, divided by the ticks; the reference, counted the same way in the same
 run, is the bare 6-axis float loop of benchmarks/sim_speed.py. Hash seeds and BLAS threads
-are pinned (both change counts from run to run otherwise).
+are pinned (both change counts from run to run otherwise). IRL_KERNELS=python in the
+environment counts the per-axis loops as Python source instead of the compiled build.
 Needs valgrind (Debian's package). Run: .venv/bin/python benchmarks/instructions.py
 """
 from __future__ import annotations
@@ -25,12 +26,14 @@ sys.path.insert(0, {root!r})
 from compiler.driver import compile_file
 from runtime.system import RobotSystem, RunOptions
 from benchmarks.sim_speed import bare_loop
+from runtime import accel
 mode, ticks = sys.argv[1], int(sys.argv[2])
 result = compile_file({program!r})
 system = RobotSystem(result.spec, RunOptions(seed=0))
 if mode == "run":
     summary = system.run(result.program)
     print("TICKS", summary["ticks"], "FAULT", summary["fault"])
+    print("KERNELS", accel.DESCRIPTION)
 elif mode == "bare":
     bare_loop(ticks)
 """
@@ -62,6 +65,8 @@ def main() -> int:
     bare, _ = count("bare", ticks)
     per_tick = (total - setup) / ticks
     bare_per_tick = (bare - setup) / ticks
+    kernels = re.search(r"KERNELS (.*)", out)
+    print(f"per-axis kernels: {kernels.group(1) if kernels else '?'}")
     print(f"paper's program, all phases: {ticks} ticks")
     print(f"instructions per 1 ms tick, everything: {per_tick:,.0f}")
     print(f"reference, bare 6-axis float loop: {bare_per_tick:,.0f} per tick (ratio {per_tick / bare_per_tick:.0f}x)")

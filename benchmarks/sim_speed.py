@@ -4,6 +4,8 @@ Figures: simulated seconds per wall second (goal >= 50), and the cost of one 1 m
 with every component in it (goal <= 20 us), with each task's mean execution time from
 the executive's own statistics. Reference measured in the same run: a bare Python loop
 doing one float multiply-add per axis per tick for the same number of ticks.
+The per-axis loops run compiled when the build made them (runtime/accel.py says which;
+the first line printed too); IRL_KERNELS=python in the environment measures the source.
 Run: .venv/bin/python benchmarks/sim_speed.py [--runs N] [--seed N]
 """
 from __future__ import annotations
@@ -19,6 +21,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from compiler.driver import compile_file  # noqa: E402
+from runtime import accel  # noqa: E402
 from runtime.system import RobotSystem, RunOptions  # noqa: E402
 
 
@@ -37,6 +40,7 @@ def main() -> int:
     ap.add_argument("--seed", type=int, default=0)
     args = ap.parse_args()
     result = compile_file(ROOT / "programs" / "test.irl")
+    print(f"per-axis kernels: {accel.DESCRIPTION}")
     speeds, per_tick, bare = [], [], []
     tasks = None
     for run in range(args.runs):

@@ -195,7 +195,8 @@ def _print_summary(env: Environment, s: dict) -> None:
     _print(env, f"  largest following error: {s['max_following_error']:.4f}")
     _print(env, f"  deadline misses: {s['deadline_misses']}; ticks {s['ticks']}")
     ratio = s["sim_time"] / s["wall_time"] if s["wall_time"] > 0 else float("inf")
-    _print(env, f"  simulated {s['sim_time']:.3f} s in {s['wall_time']:.3f} s wall ({ratio:.1f}x)")
+    _print(env, f"  simulated {s['sim_time']:.3f} s in {s['wall_time']:.3f} s wall ({ratio:.1f}x; "
+                f"kernels: {s['kernels']})")
 
 
 def cmd_run(args, env: Environment) -> int:

@@ -13,6 +13,7 @@ from pathlib import Path
 
 from compiler.objcode import Program
 
+from . import accel
 from .component import DataPort
 from .components.initialization import Initialization
 from .components.report import Report, write_states
@@ -209,6 +210,7 @@ class RobotSystem:
             "log": [{"time": t, "line": line, "text": text} for t, line, text in self.trajectory.log_lines],
             "sim_time": round(end, 6),
             "wall_time": wall_time,
+            "kernels": accel.DESCRIPTION,
             "ticks": self.executive.ticks,
             "deadline_misses": sum(s["misses"] for s in stats.values()),
             "deadlines": stats,

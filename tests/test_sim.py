@@ -124,6 +124,16 @@ def test_command_saturates_and_nan_counts_as_zero():
     assert all(math.isfinite(x) for x in robot.true_positions)
 
 
+def test_commands_may_be_any_sequence_of_numbers_but_one_per_axis():
+    as_tuple, as_list = released(SPEC), released(SPEC)
+    n = len(SPEC.axes)
+    run(as_tuple, tuple(float(i) for i in range(n)), 20)
+    run(as_list, list(range(n)), 20)  # a list of integers: the same commands
+    assert as_list.true_positions == as_tuple.true_positions
+    with pytest.raises(ValueError, match=f"{n - 1} velocity commands for {n} axes"):
+        as_tuple.step(DT, (0.0,) * (n - 1))
+
+
 # ---- brakes -------------------------------------------------------------------------------
 
 def test_brakes_hold_at_power_up_and_take_time_to_release_and_apply():

@@ -9,7 +9,10 @@ same methods.
 """
 from __future__ import annotations
 
+from ..accel import kernels
 from ..component import Component, DataPort
+
+clamp_commands = kernels.clamp_commands
 
 
 class RobotInterface(Component):
@@ -73,11 +76,7 @@ class RobotInterface(Component):
         if command is None:
             command = self._zeros
         limits = self._limit_cache if self._limit_scale == self.velocity_limit_scale else self._refresh_limits()
-        out = []
-        for v, c, m in zip(command, self.compensation, limits):
-            v += c
-            out.append(m if v > m else -m if v < -m else v)
-        out = tuple(out)
+        out = clamp_commands(command, self.compensation, limits)
         self.last_command = out
         self.backend.step(self.tick, out)
 

@@ -9,7 +9,10 @@ commands nothing (calibration); mode "hold" holds the position where it was ente
 """
 from __future__ import annotations
 
+from ..accel import kernels
 from ..component import Component, DataPort
+
+servo_law = kernels.servo_law
 
 
 class ServoController(Component):
@@ -100,7 +103,8 @@ class ServoController(Component):
 
     def update(self, now: float) -> None:
         """Real-time: one servo period. The reference and its velocity (feed-forward) are
-        evaluated inside the per-axis loop from the interpolator's Hermite weights."""
+        evaluated inside the per-axis loop (:func:`runtime.kernels.servo_law`) from the
+        interpolator's Hermite weights."""
         position = self.sens_pos.value
         mode = self.mode
         if mode == "zero" or position is None:
@@ -120,30 +124,9 @@ class ServoController(Component):
         self._reference = reference
         self.position = position
         coeffs, h01, h10, h11, d01, d10, d11 = reference
-        kp, ki, dt = self.kp, self.ki, self.tick
-        integral = self.integral
         out = [0.0] * self.n
-        high = low = 0.0  # the largest and the smallest following error
-        i = 0
-        for (p0, dp, hv0, hv1), x, s, vmax, vmin in zip(coeffs, position, integral, self.max_velocity,
-                                                        self._min_velocity):
-            if dp != 0.0 or hv0 != 0.0 or hv1 != 0.0:
-                e = p0 + h01 * dp + h10 * hv0 + h11 * hv1 - x
-                u = d01 * dp + d10 * hv0 + d11 * hv1 + kp * e + ki * s
-            else:  # an axis whose reference stands still this interval: no interpolation
-                e = p0 - x
-                u = kp * e + ki * s
-            if e > high:
-                high = e
-            elif e < low:
-                low = e
-            if vmin < u < vmax:  # anti-windup: integrate only while the output is not saturated
-                integral[i] = s + e * dt
-            else:
-                u = vmax if u > 0.0 else vmin
-            out[i] = u
-            i += 1
-        worst = high if high > -low else -low
+        worst = servo_law(coeffs, h01, h10, h11, d01, d10, d11, position, self.integral, self.max_velocity,
+                          self._min_velocity, self.kp, self.ki, self.tick, out)
         if worst > self.max_following_error:
             self.max_following_error = worst
         self.out_vel.write(tuple(out), now)

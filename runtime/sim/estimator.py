@@ -36,6 +36,10 @@ from __future__ import annotations
 
 import math
 
+from ..accel import kernels
+
+alpha_beta = kernels.alpha_beta
+
 DEFAULT_TIME_CONSTANT = 0.006  # s: both poles of the error dynamics at exp(-dt / this)
 
 
@@ -68,7 +72,7 @@ class AlphaBeta:
         self._beta_dt = beta / dt
         self._x = [0.0] * n_axes
         self._v = [0.0] * n_axes
-        self._ones, self._nulls = (1.0,) * n_axes, (0.0,) * n_axes  # update(): z = x * 1 + 0
+        self._ones, self._nulls = (1.0,) * n_axes, [0.0] * n_axes  # update(): z = x * 1 + 0
         self._started = False
 
     def reset(self, positions, velocities=None) -> None:
@@ -81,29 +85,21 @@ class AlphaBeta:
     def update(self, measured_positions):
         """Take one sample per axis; returns ``(positions, velocities)``, two tuples.
         Real-time."""
-        self.update_counts(measured_positions, self._ones, self._nulls)
+        self.update_counts(tuple([float(z) for z in measured_positions]), self._ones, self._nulls)
         return tuple(self._x), tuple(self._v)
 
     def update_counts(self, counts, scale, offset) -> tuple[float, ...]:
         """:meth:`update` with the measurement made from encoder counts in the same loop:
         ``z[i] = counts[i] * scale[i] + offset[i]``. Returns the measured positions ``z``
-        (the estimates are in :attr:`positions` and :attr:`velocities`). Real-time."""
+        (the estimates are in :attr:`positions` and :attr:`velocities`). ``counts`` and
+        ``scale`` are tuples, ``offset`` a list (see :func:`runtime.kernels.alpha_beta`).
+        Real-time."""
         xs, vs = self._x, self._v
         if not self._started:
             self.reset([c * k + o for c, k, o in zip(counts, scale, offset)])
             return tuple(xs)
-        dt, alpha, beta_dt = self.dt, self.alpha, self._beta_dt
         measured = [0.0] * self.n_axes
-        i = 0
-        for c, k, o in zip(counts, scale, offset):
-            z = c * k + o
-            measured[i] = z
-            v = vs[i]
-            predicted = xs[i] + v * dt
-            residual = z - predicted
-            xs[i] = predicted + alpha * residual
-            vs[i] = v + beta_dt * residual
-            i += 1
+        alpha_beta(counts, scale, offset, xs, vs, self.dt, self.alpha, self._beta_dt, measured)
         return tuple(measured)
 
     @property

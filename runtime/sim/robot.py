@@ -57,6 +57,10 @@ from __future__ import annotations
 import math
 import random
 
+from ..accel import kernels
+
+drive_step = kernels.drive_step
+
 FAULTS = ("sensor_dead", "encoder_frozen", "drive_dead")
 
 DEFAULT_DRIVE_TIME_CONSTANT = 0.005  # s
@@ -184,22 +188,10 @@ class SimRobot:
             saved = None
             if self._drive_or_encoder_fault:  # rare: the loop below stays free of fault checks
                 velocity_commands, saved = self._fault_commands(velocity_commands)
-            counts, floor = self._counts, _floor
-            i = 0
-            for c, x, v, safe_lo, safe_hi, (vmax, vmin, b, origin, cpu, base) in zip(
-                    velocity_commands, xs, vs, self._safe_lo, self._safe_hi, self._constants):
-                if not vmin <= c <= vmax:  # saturated (a NaN command counts as 0)
-                    c = vmax if c > vmax else vmin if c < vmin else 0.0
-                u = c + b
-                dv = v - u
-                x = x + u * dt + dv * k
-                v = u + dv * a
-                if not safe_lo < x < safe_hi:  # near a hard stop or an index pulse
-                    x, v = self._edges(i, x, v)
-                xs[i] = x
-                vs[i] = v
-                counts[i] = base + floor((x - origin) * cpu)
-                i += 1
+            if type(velocity_commands) is not tuple or len(velocity_commands) != self.n_axes:
+                velocity_commands = self._command_tuple(velocity_commands)
+            drive_step(dt, a, k, velocity_commands, xs, vs, self._safe_lo, self._safe_hi, self._constants,
+                       self._counts, self._edges)
             if saved is not None:
                 self._restore_frozen(saved)
         if self._brake_timer > 0.0:
@@ -211,6 +203,13 @@ class SimRobot:
                     for i in range(self.n_axes):
                         vs[i] = 0.0
         self.time += dt
+
+    def _command_tuple(self, velocity_commands) -> tuple[float, ...]:
+        """The commands as the tuple of floats the kernel takes (one per axis)."""
+        commands = tuple([float(c) for c in velocity_commands])
+        if len(commands) != self.n_axes:
+            raise ValueError(f"{len(commands)} velocity commands for {self.n_axes} axes")
+        return commands
 
     def _edges(self, i: int, x: float, v: float) -> tuple[float, float]:
         """The step's slow path for axis ``i`` at ``x`` moving at ``v``, outside its safe

@@ -1,0 +1,225 @@
+"""The per-axis kernels: compiled (mypyc) and source give bit-identical results, the
+runtime picks the compiled build only when it matches the source, and whole runs are the
+same byte for byte either way."""
+from __future__ import annotations
+
+import hashlib
+import json
+import math
+import os
+import struct
+import subprocess
+import sys
+import types
+from pathlib import Path
+
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from runtime import accel
+from runtime import kernels as source
+
+ROOT = Path(__file__).resolve().parents[1]
+COMPILED = accel._compiled_module()
+SETTINGS = settings(max_examples=300, deadline=None, derandomize=True, database=None)
+needs_build = pytest.mark.skipif(COMPILED is None, reason="no compiled kernels (test_the_build_compiled_the_kernels says why)")
+
+
+def bits(values) -> list:
+    """Floats as their bit patterns (NaN == NaN, -0.0 != 0.0); other values as they are."""
+    return [struct.pack("<d", v) if isinstance(v, float) else v for v in values]
+
+
+def test_the_build_compiled_the_kernels():
+    """pip install -e . compiles runtime/kernels.py; the runtime runs that build."""
+    if os.environ.get(accel.ENV, "").strip().lower() == "python":
+        assert accel.kernels is source and not accel.COMPILED
+        return
+    assert COMPILED is not None, ("runtime/_kernels_c was not built: reinstall (pip install -e .) on a machine "
+                                  "with a C compiler, or set IRL_KERNELS=python to test the source alone")
+    assert COMPILED.SOURCE_SHA256 == accel.source_digest(), "stale build: pip install -e ."
+    assert accel.kernels is COMPILED and accel.COMPILED
+    assert accel.DESCRIPTION == "compiled (mypyc)"
+    assert Path(COMPILED.__file__).suffix in (".so", ".pyd")
+
+
+# ---- selection -------------------------------------------------------------------------
+
+def fake_build(digest: str) -> types.ModuleType:
+    module = types.ModuleType("runtime._kernels_c")
+    module.SOURCE_SHA256 = digest
+    return module
+
+
+def test_select_takes_a_build_of_this_source():
+    build = fake_build("abc")
+    assert accel.select("", build, "abc") == (build, "compiled (mypyc)")
+    assert accel.select("auto", build, "abc")[0] is build
+
+
+def test_select_runs_the_source_when_asked_or_without_a_build():
+    assert accel.select("python", fake_build("abc"), "abc") == (source, "python (IRL_KERNELS=python)")
+    chosen, why = accel.select("", None, "abc")
+    assert chosen is source and "no compiled build" in why and "pip install -e ." in why
+
+
+def test_select_refuses_a_stale_build_with_a_warning():
+    with pytest.warns(UserWarning, match="stale"):
+        chosen, why = accel.select("", fake_build("old"), "new")
+    assert chosen is source and "stale" in why and "kernels.py changed" in why
+
+
+def test_select_warns_about_an_unknown_choice():
+    build = fake_build("abc")
+    with pytest.warns(UserWarning, match="IRL_KERNELS='fast'"):
+        assert accel.select("fast", build, "abc")[0] is build
+
+
+def test_source_digest_is_the_file_hash(tmp_path):
+    f = tmp_path / "k.py"
+    f.write_bytes(b"x = 1\n")
+    assert accel.source_digest(f) == hashlib.sha256(b"x = 1\n").hexdigest()
+    assert accel.source_digest(f) != accel.source_digest()
+
+
+# ---- compiled == source, bit for bit ----------------------------------------------------
+
+finite = st.floats(-1e4, 1e4, allow_nan=False, allow_infinity=False)
+anything = st.one_of(finite, st.sampled_from([math.nan, math.inf, -math.inf, 0.0, -0.0]))
+
+
+@st.composite
+def drive_cases(draw):
+    n = draw(st.integers(1, 6))
+    floats = lambda: draw(st.lists(finite, min_size=n, max_size=n))  # noqa: E731
+    commands = tuple(draw(st.lists(anything, min_size=n, max_size=n)))
+    vmax = [abs(v) + 1.0 for v in floats()]
+    lo = floats()
+    safe_lo = [min(a, b) for a, b in zip(lo, floats())]
+    safe_hi = [max(a, b) for a, b in zip(lo, floats())]
+    constants = tuple((m, -m, b, o, draw(st.floats(1.0, 1e5)), draw(st.integers(-10**6, 10**6)))
+                      for m, b, o in zip(vmax, floats(), floats()))
+    dt = draw(st.sampled_from([0.001, 0.005, 0.0001]))
+    tau = draw(st.floats(1e-4, 0.1))
+    return dt, math.exp(-dt / tau), tau * (1 - math.exp(-dt / tau)), commands, floats(), floats(), \
+        safe_lo, safe_hi, constants
+
+
+def run_drive(module, case):
+    dt, decay, gain, commands, xs, vs, safe_lo, safe_hi, constants = case
+    xs, vs, counts, calls = list(xs), list(vs), [0] * len(xs), []
+
+    def edges(i: int, x: float, v: float) -> tuple[float, float]:
+        calls.append((i, x, v))
+        return max(min(x, 100.0), -100.0), v * 0.5
+
+    module.drive_step(dt, decay, gain, commands, xs, vs, safe_lo, safe_hi, constants, counts, edges)
+    return bits(xs), bits(vs), counts, [(i, *bits((x, v))) for i, x, v in calls]
+
+
+@needs_build
+@SETTINGS
+@given(drive_cases())
+def test_drive_step_compiled_equals_source(case):
+    assert run_drive(COMPILED, case) == run_drive(source, case)
+
+
+@st.composite
+def servo_cases(draw):
+    """Servo-like magnitudes (so that most commands are not saturated), some axes still."""
+    n = draw(st.integers(1, 6))
+    reals = lambda lo, hi: draw(st.lists(st.floats(lo, hi), min_size=n, max_size=n))  # noqa: E731
+    still = draw(st.lists(st.booleans(), min_size=n, max_size=n))
+    coeffs = tuple((p, 0.0, 0.0, 0.0) if s else (p, dp, a, b)
+                   for s, p, dp, a, b in zip(still, reals(-180, 180), reals(-5, 5), reals(-1, 1), reals(-1, 1)))
+    weights = [draw(st.floats(-0.2, 1.2)) for _ in range(3)] + [draw(st.floats(-1e3, 1e3)) for _ in range(3)]
+    position = tuple(c[0] + e for c, e in zip(coeffs, reals(-3, 3)))
+    vmax = tuple(reals(1.0, 500.0))
+    return (coeffs, *weights, position, reals(-1, 1), vmax, tuple(-v for v in vmax), draw(st.floats(0, 100)),
+            draw(st.floats(0, 10)), draw(st.sampled_from([0.001, 0.0005])))
+
+
+def run_servo(module, case):
+    coeffs, h01, h10, h11, d01, d10, d11, position, integral, vmax, vmin, kp, ki, dt = case
+    integral, out = list(integral), [0.0] * len(coeffs)
+    worst = module.servo_law(coeffs, h01, h10, h11, d01, d10, d11, position, integral, vmax, vmin, kp, ki, dt, out)
+    return bits([worst]), bits(integral), bits(out)
+
+
+@needs_build
+@SETTINGS
+@given(servo_cases())
+def test_servo_law_compiled_equals_source(case):
+    assert run_servo(COMPILED, case) == run_servo(source, case)
+
+
+@st.composite
+def estimator_cases(draw):
+    n = draw(st.integers(1, 6))
+    floats = lambda: draw(st.lists(finite, min_size=n, max_size=n))  # noqa: E731
+    counts = tuple(draw(st.lists(st.integers(-10**8, 10**8), min_size=n, max_size=n)))
+    scale = tuple(1.0 / draw(st.floats(1.0, 1e5)) for _ in range(n))
+    return counts, scale, floats(), floats(), floats(), draw(st.sampled_from([0.001, 0.005])), \
+        draw(st.floats(0.01, 1.9)), draw(st.floats(0.01, 100.0))
+
+
+def run_estimator(module, case):
+    counts, scale, offset, xs, vs, dt, alpha, beta_dt = case
+    xs, vs, measured = list(xs), list(vs), [0.0] * len(xs)
+    module.alpha_beta(counts, scale, offset, xs, vs, dt, alpha, beta_dt, measured)
+    return bits(xs), bits(vs), bits(measured)
+
+
+@needs_build
+@SETTINGS
+@given(estimator_cases())
+def test_alpha_beta_compiled_equals_source(case):
+    assert run_estimator(COMPILED, case) == run_estimator(source, case)
+
+
+@needs_build
+@SETTINGS
+@given(st.integers(1, 6).flatmap(lambda n: st.tuples(
+    st.lists(anything, min_size=n, max_size=n), st.lists(finite, min_size=n, max_size=n),
+    st.lists(st.floats(0.0, 1e3), min_size=n, max_size=n))))
+def test_clamp_commands_compiled_equals_source(case):
+    command, compensation, limits = tuple(case[0]), case[1], tuple(case[2])
+    assert bits(COMPILED.clamp_commands(command, compensation, limits)) == \
+        bits(source.clamp_commands(command, compensation, limits))
+
+
+def test_clamp_commands_clamps_and_passes_nan():
+    out = accel.kernels.clamp_commands((5.0, -5.0, 0.5, math.nan), [0.0, 0.0, 0.25, 0.0], (1.0, 2.0, 1.0, 1.0))
+    assert out[:3] == (1.0, -2.0, 0.75) and math.isnan(out[3])
+
+
+@needs_build
+def test_integers_are_taken_as_floats_alike():
+    """Callers may hand integer positions or commands: both implementations compute in floats."""
+    for module in (COMPILED, source):
+        assert module.clamp_commands((1, -3), [0, 0.5], (2.0, 2.0)) == (1.0, -2.0)
+
+
+# ---- whole runs ------------------------------------------------------------------------
+
+def run_paper_program(tmp_path: Path, kernels: str) -> tuple[dict, bytes, bytes]:
+    report = tmp_path / f"{kernels}.csv"
+    env = dict(os.environ, IRL_KERNELS=kernels)
+    done = subprocess.run([sys.executable, "-m", "runtime.cli", "run", str(ROOT / "programs" / "test.irl"),
+                           "--report", str(report), "--json"], capture_output=True, text=True, env=env,
+                          cwd=ROOT, timeout=300, check=False)
+    assert done.returncode == 0, done.stderr
+    states = report.with_name(report.stem + ".states.csv")
+    return json.loads(done.stdout), report.read_bytes(), states.read_bytes()
+
+
+@needs_build
+def test_the_paper_program_gives_the_same_bytes_compiled_and_as_python(tmp_path):
+    compiled, report_c, states_c = run_paper_program(tmp_path, "auto")
+    python, report_p, states_p = run_paper_program(tmp_path, "python")
+    assert compiled["kernels"] == "compiled (mypyc)"
+    assert python["kernels"] == "python (IRL_KERNELS=python)"
+    assert report_c == report_p and states_c == states_p
+    for key in ("states", "moves", "final_position", "max_following_error", "ticks", "fault"):
+        assert compiled[key] == python[key], key

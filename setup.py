@@ -45,7 +45,7 @@ def compiled_extensions() -> list:
     try:
         os.chdir(ROOT)  # mypycify takes paths relative to the project
         extensions = mypycify([str(STAMPED.relative_to(ROOT))], opt_level="3", debug_level="0")
-    except BaseException as exc:  # mypyc exits with SystemExit on type errors
+    except (Exception, SystemExit) as exc:  # mypyc exits with SystemExit on type errors
         warn(f"mypyc could not compile runtime/kernels.py ({exc!r})")
         return []
     finally:

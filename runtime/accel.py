@@ -47,6 +47,8 @@ def select(choice: str, compiled: ModuleType | None, digest: str) -> tuple[Modul
         return source, f"python ({ENV}=python)"
     if choice not in ("", "auto"):
         warnings.warn(f"irl: {ENV}={choice!r} is not 'python' or 'auto'; taken as 'auto'", stacklevel=2)
+    if compiled is not None and str(getattr(compiled, "__file__", "")).endswith(".py"):
+        compiled = None  # the build's stamped copy, left by an interrupted build: not compiled
     if compiled is None:
         return source, "python (no compiled build: reinstall with a C compiler, pip install -e .)"
     if getattr(compiled, "SOURCE_SHA256", None) != digest:

@@ -64,6 +64,12 @@ def test_select_runs_the_source_when_asked_or_without_a_build():
     assert chosen is source and "no compiled build" in why and "pip install -e ." in why
 
 
+def test_select_ignores_a_stamped_copy_that_was_never_compiled():
+    leftover = fake_build("abc")
+    leftover.__file__ = "/somewhere/runtime/_kernels_c.py"
+    assert accel.select("", leftover, "abc")[0] is source
+
+
 def test_select_refuses_a_stale_build_with_a_warning():
     with pytest.warns(UserWarning, match="stale"):
         chosen, why = accel.select("", fake_build("old"), "new")

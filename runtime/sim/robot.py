@@ -165,7 +165,9 @@ class SimRobot:
 
     def step(self, dt: float, velocity_commands) -> None:
         """Advance the physics by ``dt`` seconds with the drives commanded to
-        ``velocity_commands`` (unit/s, one per axis, held over the step).
+        ``velocity_commands`` (unit/s, one per axis, held over the step; a tuple of floats
+        goes straight to :func:`runtime.kernels.drive_step`, any other sequence is
+        converted first; a wrong count is a ``ValueError``).
 
         Real-time: plain float arithmetic, no allocation beyond a few floats.
         """

@@ -50,11 +50,11 @@ def select(choice: str, compiled: ModuleType | None, digest: str) -> tuple[Modul
     if compiled is not None and str(getattr(compiled, "__file__", "")).endswith(".py"):
         compiled = None  # the build's stamped copy, left by an interrupted build: not compiled
     if compiled is None:
-        return source, "python (no compiled build: reinstall with a C compiler, pip install -e .)"
+        return source, "python (no compiled build; reinstall with a C compiler: pip install -e .)"
     if getattr(compiled, "SOURCE_SHA256", None) != digest:
-        problem = "the compiled kernels are stale (runtime/kernels.py changed since the build; pip install -e .)"
-        warnings.warn(f"irl: {problem}; running the Python source (slower, same results)", stacklevel=2)
-        return source, f"python ({problem})"
+        warnings.warn("irl: the compiled kernels are stale (runtime/kernels.py changed since the build; "
+                      "rebuild: pip install -e .); running the Python source (slower, same results)", stacklevel=2)
+        return source, "python (stale compiled build: runtime/kernels.py changed since; pip install -e .)"
     return compiled, "compiled (mypyc)"
 
 

@@ -73,7 +73,7 @@ def test_select_ignores_a_stamped_copy_that_was_never_compiled():
 def test_select_refuses_a_stale_build_with_a_warning():
     with pytest.warns(UserWarning, match="stale"):
         chosen, why = accel.select("", fake_build("old"), "new")
-    assert chosen is source and "stale" in why and "kernels.py changed" in why
+    assert chosen is source and "stale" in why and "kernels.py changed" in why and "pip install -e ." in why
 
 
 def test_select_warns_about_an_unknown_choice():

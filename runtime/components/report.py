@@ -23,10 +23,6 @@ TCP = "tcp"  # the tool centre point: x, y, z (mm), roll, pitch, yaw (deg), from
 TCP_FIELDS = ("x", "y", "z", "roll", "pitch", "yaw")
 
 
-def _fmt(x: float) -> str:
-    return f"{x:.6f}"
-
-
 class ReportWriter(threading.Thread):
     """Formats and writes batches of rows; not real-time (its own thread)."""
 
@@ -38,6 +34,8 @@ class ReportWriter(threading.Thread):
         self.tcp = tcp  # (start, count, forward): row[start:start + count] are joints -> the TCP
         self.error: str | None = None
         self.rows_written = 0
+        # one C-level format per row (time to the ms, the state, every value to 1e-6)
+        self.row_format = "%.3f,%s," + ",".join(["%.6f"] * (len(header) - 2)) + "\n"
 
     def run(self) -> None:
         try:
@@ -50,7 +48,8 @@ class ReportWriter(threading.Thread):
                         break
                     if self.tcp is not None:
                         batch = [self._with_tcp(r) for r in batch]
-                    f.write("".join(_row(r) for r in batch))
+                    row_format = self.row_format
+                    f.write("".join([row_format % r for r in batch]))
                     f.flush()
                     self.rows_written += len(batch)
         except OSError as exc:
@@ -61,11 +60,6 @@ class ReportWriter(threading.Thread):
         kinematics here, in the writer's thread, not in the real-time loop)."""
         start, count, forward = self.tcp
         return (*row[:start], *forward(row[start:start + count]), *row[start + count:])
-
-
-def _row(r) -> str:
-    t, state = r[0], r[1]
-    return f"{t:.3f},{state}," + ",".join(map(_fmt, r[2:])) + "\n"
 
 
 class Report(Component):

@@ -59,6 +59,18 @@ def assignable(target, value) -> bool:
     return target == value or (target == REAL and value == INTEGER) or ERROR in (target, value)
 
 
+def _literal_text(value: int) -> str:
+    """An out-of-range integer literal as a message shows it: in full up to 40 digits,
+    else its first and last digits and how many there are (a literal too long to convert
+    is a :class:`~compiler.syntax.LongInteger` that keeps its digits)."""
+    digits = getattr(value, "digits", None)
+    if digits is None:
+        return str(value)  # at most 19 digits: the parser converted it
+    if len(digits) <= 40:
+        return digits
+    return f"{digits[:10]}...{digits[-10:]} ({len(digits)} digits)"
+
+
 # ---- symbols -------------------------------------------------------------------------------
 
 @dataclass
@@ -227,8 +239,11 @@ class Checker:
         value = node.value
         if isinstance(value, int):
             if value > INT_MAX:
-                self.error(node.span, f"the integer {value} is too large (the largest is {INT_MAX})",
-                           "write it as a real (with a decimal point) if you need a larger number")
+                digits = len(getattr(value, "digits", ""))
+                self.error(node.span, f"the integer {_literal_text(value)} is too large: integers are 64-bit, "
+                                      f"from {INT_MIN} to {INT_MAX}",
+                           "write it as a real (with a decimal point) if you need a larger number"
+                           if digits <= 308 else None)  # 309 digits and more are beyond a real too (1.8e308)
                 return ERROR
             self.values[id(node)] = value
             return INTEGER

@@ -40,11 +40,18 @@ def did_you_mean(word: str, candidates, cutoff: float = 0.6) -> str | None:
 
 def render(diagnostic: Diagnostic, source: str | None) -> str:
     """``file:line:col: error: message``, then the source line and a caret under the span."""
-    d = diagnostic
+    return _render(diagnostic, source_lines(source))
+
+
+def source_lines(source: str | None) -> list[str]:
+    """The lines of ``source`` as diagnostics number them. Split at "\n" only, as the
+    parser counts lines (splitlines() also breaks at form feeds and other characters
+    that are plain white space in L-IRL)."""
+    return source.split("\n") if source is not None else []
+
+
+def _render(d: Diagnostic, lines: list[str]) -> str:
     out = [f"{d.file}:{d.line}:{d.column}: {d.severity}: {d.message}"]
-    # Split at "\n" only, as the parser counts lines (splitlines() also breaks at form
-    # feeds and other characters that are plain white space in L-IRL).
-    lines = source.split("\n") if source is not None else []
     if 1 <= d.line <= len(lines):
         text = lines[d.line - 1].rstrip("\r").expandtabs(1)
         width = (d.end_column - d.column) if d.end_line == d.line else len(text) - d.column + 1
@@ -57,4 +64,7 @@ def render(diagnostic: Diagnostic, source: str | None) -> str:
 
 
 def render_all(diagnostics, source: str | None) -> str:
-    return "\n".join(render(d, source) for d in diagnostics)
+    """Every diagnostic rendered, in order. The source is split into lines once, so the
+    time is linear in the diagnostics and the source (not their product)."""
+    lines = source_lines(source)
+    return "\n".join(_render(d, lines) for d in diagnostics)

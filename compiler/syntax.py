@@ -14,11 +14,28 @@ from grammar import make_parser
 
 from . import ast
 from .diagnostics import CompileError, Diagnostic, did_you_mean
+from .semantics import INT_MAX
 
 #: Clause names that a move accepts (also used for "did you mean" on syntax errors).
 CLAUSES = ("speed_ptp", "acc_ptp", "speed", "acc", "approx", "act_rob")
 
 MAX_SYNTAX_ERRORS = 20
+
+_INT_DIGITS = len(str(INT_MAX))  # an integer literal with more significant digits is out of range
+
+
+class LongInteger(int):
+    """The value of an integer literal with more significant digits than the largest
+    integer: compares as ``INT_MAX + 1`` (so it is out of range wherever it is looked
+    at) and keeps its ``digits`` for the checker's message. Its exact value is never
+    computed: ``int()`` of more than 4,300 digits raises ValueError (and is quadratic)."""
+
+    digits: str
+
+    def __new__(cls, digits: str):
+        self = super().__new__(cls, INT_MAX + 1)
+        self.digits = digits
+        return self
 
 
 _Span = ast.Span
@@ -217,8 +234,12 @@ class _Builder(Transformer):
     def number(self, c):
         tok, = c
         text = tok.value
-        value = int(text) if text.isdigit() else float(text)
-        return ast.Number(value, _span(tok))
+        if not text.isdigit():
+            return ast.Number(float(text), _span(tok))  # float() takes any length (inf if too large)
+        digits = text.lstrip("0") or "0"
+        if len(digits) > _INT_DIGITS:  # never int() it: thousands of digits raise ValueError
+            return ast.Number(LongInteger(digits), _span(tok))
+        return ast.Number(int(digits), _span(tok))
 
     def string(self, c):
         tok, = c

@@ -3,11 +3,13 @@ pyzmq's own certificate files and authenticator).
 
 A key directory, as ``irl keys DIR`` makes it::
 
-    DIR/server.key          the server's public key      (clients need it)
-    DIR/server.key_secret   the server's key pair        (only the server)
-    DIR/client.key_secret   a client's key pair          (the client: --keys DIR)
-    DIR/client.key          that client's public key
-    DIR/authorized/*.key    the public keys of the clients the server accepts
+    DIR/server.key          the server's public key      (clients need it)         0644
+    DIR/server.key_secret   the server's key pair        (only the server)         0600
+    DIR/client.key_secret   a client's key pair          (the client: --keys DIR)  0600
+    DIR/client.key          that client's public key                               0644
+    DIR/authorized/*.key    the public keys of the clients the server accepts      0644
+
+DIR and DIR/authorized are made 0700 when ``irl keys`` creates them.
 
 With ``--keys DIR`` the server encrypts both sockets and accepts only the clients whose
 public key is in ``DIR/authorized``; a client without one cannot connect, so it cannot
@@ -17,6 +19,8 @@ submit, control or watch. ``irl keys DIR --name NAME`` adds another client key p
 """
 from __future__ import annotations
 
+import datetime
+import os
 import shutil
 from pathlib import Path
 
@@ -25,28 +29,75 @@ class KeyError_(Exception):
     """A missing or unreadable key file (the message names it)."""
 
 
+#: File modes: a secret key is the owner's alone; a directory ``make_keys`` creates too.
+SECRET_MODE, PUBLIC_MODE, DIRECTORY_MODE = 0o600, 0o644, 0o700
+
+
 def make_keys(directory: str | Path, name: str | None = None) -> list[Path]:
-    """Write key pairs into ``directory``; returns the files written."""
-    import zmq.auth
+    """Write key pairs into ``directory``; returns the files written.
+
+    Secret key files are created with mode 0600 (by ``os.open``: never readable by
+    others, not even for a moment); the directory and its ``authorized/`` are created
+    0700 when they do not exist yet (an existing directory keeps its mode)."""
+    import zmq
 
     d = Path(directory)
     try:
-        (d / "authorized").mkdir(parents=True, exist_ok=True)
-        made = []
         names = ["server", "client"] if name is None else [name]
         for n in names:
             if not n.isidentifier():
                 raise KeyError_(f"key name {n!r}: use letters, digits and '_' only")
+        if not d.is_dir():
+            d.parent.mkdir(parents=True, exist_ok=True)
+            d.mkdir(mode=DIRECTORY_MODE, exist_ok=True)
+        (d / "authorized").mkdir(mode=DIRECTORY_MODE, exist_ok=True)
+        for n in names:
             if (d / f"{n}.key_secret").exists():
                 raise KeyError_(f"{d / (n + '.key_secret')} exists already: refusing to overwrite a key")
-            public, secret = zmq.auth.create_certificates(d, n)
-            made += [Path(public), Path(secret)]
+        made = []
+        for n in names:
+            public, secret = zmq.curve_keypair()
+            secret_path, public_path = d / f"{n}.key_secret", d / f"{n}.key"
+            _write_key_file(secret_path, _certificate(public, secret), SECRET_MODE)
+            _write_key_file(public_path, _certificate(public, None), PUBLIC_MODE)
+            made += [public_path, secret_path]
             if n != "server":
-                shutil.copy(public, d / "authorized" / f"{n}.key")
+                shutil.copy(public_path, d / "authorized" / f"{n}.key")
                 made.append(d / "authorized" / f"{n}.key")
         return made
     except OSError as exc:
         raise KeyError_(f"cannot write keys in {d}: {exc.strerror or exc}") from None
+
+
+def _certificate(public: bytes, secret: bytes | None) -> str:
+    """A key file in ZeroMQ's certificate format (what ``zmq.auth.load_certificate`` reads)."""
+    now = datetime.datetime.now().isoformat(sep=" ", timespec="seconds")
+    if secret is None:
+        banner = "#   ZeroMQ CURVE Public Certificate (made by irl keys)\n#   Give it to the other side.\n"
+    else:
+        banner = ("#   ZeroMQ CURVE **Secret** Certificate (made by irl keys)\n"
+                  "#   DO NOT PROVIDE THIS FILE TO OTHER USERS nor change its permissions.\n")
+    text = f"#   Generated on {now}\n{banner}\nmetadata\ncurve\n    public-key = \"{public.decode('ascii')}\"\n"
+    if secret is not None:
+        text += f"    secret-key = \"{secret.decode('ascii')}\"\n"
+    return text
+
+
+def _write_key_file(path: Path, text: str, mode: int) -> None:
+    """Write ``text`` to ``path``, created with ``mode`` from the start (the umask can only
+    take bits away). A secret key file must not exist yet (O_EXCL: never overwritten,
+    never opened through a link someone else put there)."""
+    flags = os.O_WRONLY | os.O_CREAT | (os.O_EXCL if mode == SECRET_MODE else os.O_TRUNC)
+    fd = os.open(path, flags, mode)
+    try:
+        with os.fdopen(fd, "w", encoding="ascii") as f:
+            fd = -1
+            f.write(text)
+    except BaseException:
+        if fd >= 0:
+            os.close(fd)
+        path.unlink(missing_ok=True)
+        raise
 
 
 def _load(path: Path, secret: bool) -> tuple[bytes, bytes | None]:

@@ -57,8 +57,15 @@ def _guard(fn):
 def cmd_serve(args, env) -> int:
     cli = _cli()
     from compiler.spec import SpecError, load_spec
-    from runtime.server import ServeOptions, serve
+    from runtime.server import InsecureEndpoint, ServeOptions, check_endpoints, serve
 
+    options = ServeOptions(endpoint=args.endpoint, telemetry=args.telemetry, state_dir=args.state_dir,
+                           sim_clock=args.sim_clock, seed=args.seed, keys=args.keys,
+                           allow_insecure_remote=args.insecure_allow_remote_without_encryption)
+    try:
+        check_endpoints(options)  # before anything is loaded or bound
+    except InsecureEndpoint as exc:
+        raise cli.UsageError(str(exc)) from None
     try:
         spec = load_spec(args.spec)
     except SpecError as exc:
@@ -71,8 +78,6 @@ def cmd_serve(args, env) -> int:
             configurations = load_configurations(args.config)
         except ConfigError as exc:
             raise cli.UsageError(str(exc)) from None
-    options = ServeOptions(endpoint=args.endpoint, telemetry=args.telemetry, state_dir=args.state_dir,
-                           sim_clock=args.sim_clock, seed=args.seed, keys=args.keys)
     if args.keys:
         from runtime.keys import KeyError_, check_server_keys
 
@@ -176,7 +181,7 @@ def _cell_endpoint(path: str, robots: tuple) -> str:
         cell = tomllib.loads(Path(path).read_text(encoding="utf-8"))
     except OSError as exc:
         raise cli.UsageError(f"cannot read {path}: {exc.strerror or exc}") from None
-    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
+    except (ValueError, RecursionError) as exc:  # TOMLDecodeError, UnicodeDecodeError, an integer too long
         raise cli.UsageError(f"{path}: not a valid cell file: {exc}") from None
     table = cell.get("robots")
     if not isinstance(table, dict) or not table:
@@ -398,6 +403,9 @@ def add_commands(sub) -> None:
     p.add_argument("--sim-clock", action="store_true", help="simulated clock (default: wall clock)")
     p.add_argument("--seed", type=int, default=0, help="the simulated robot's seed")
     p.add_argument("--keys", metavar="DIR", help="require CURVE authentication with the keys in DIR")
+    p.add_argument("--insecure-allow-remote-without-encryption", action="store_true",
+                   help="allow endpoints other machines can reach without --keys: anyone on the network could "
+                        "then move the robot (without it, such endpoints are refused)")
     p.set_defaults(run=cmd_serve)
 
     p = sub.add_parser("submit", help="send a program to a server's queue")

@@ -24,6 +24,9 @@ MAX_REQUEST_BYTES = 1 << 20
 TRANSPORT_MAX_BYTES = 8 << 20
 #: Largest chunk of a report file in one ``report`` reply.
 MAX_CHUNK_BYTES = 256 << 10
+#: Most programs (and reconfigurations) waiting in a server's queue, the running one not
+#: counted; a ``submit`` or ``reconfigure`` beyond it gets a ``queue_full`` error.
+MAX_QUEUED = 100
 
 TELEMETRY_TOPIC = b"telemetry"
 
@@ -37,6 +40,7 @@ ERRORS = {
     "wrong_robot": "the program was compiled for another robot or another version of its specification",
     "not_found": "no such program (or report)",
     "refused": "the request is well-formed but cannot be done now (the reason says why)",
+    "queue_full": f"the queue already holds {MAX_QUEUED} programs waiting to run: submit again when one has started",
     "script_error": "the scripting command is malformed or names no property or operation",
     "internal": "the server failed to handle the request (a bug: the message says what)",
 }

@@ -54,6 +54,66 @@ class ServeOptions:
     sim_clock: bool = False
     seed: int = 0
     keys: str | Path | None = None  # CURVE key directory (see runtime.keys)
+    #: Bind endpoints other machines can reach without CURVE keys (see check_endpoints).
+    allow_insecure_remote: bool = False
+
+
+INSECURE_FLAG = "--insecure-allow-remote-without-encryption"
+
+
+class InsecureEndpoint(Exception):
+    """An endpoint reachable from other machines, without CURVE keys and without the
+    explicit permission (:data:`INSECURE_FLAG`)."""
+
+
+def is_local_endpoint(endpoint: str) -> bool:
+    """Whether only this machine can connect to a ZeroMQ endpoint bound here:
+    ``ipc://`` and ``inproc://``, and ``tcp://`` (or ``ws://``) on a loopback address
+    (127.0.0.0/8, ::1, ``localhost``). Anything else is taken as reachable from the
+    network: ``*``, 0.0.0.0, ::, another address, a host or interface name (``eth0``),
+    and the other transports (pgm, epgm, udp, tipc, vmci...)."""
+    import ipaddress
+
+    scheme, sep, rest = endpoint.partition("://")
+    scheme = scheme.lower()
+    if not sep:
+        return False
+    if scheme in ("ipc", "inproc"):
+        return True
+    if scheme not in ("tcp", "ws", "wss"):
+        return False
+    address = rest.split("/", 1)[0]  # ws://host:port/path
+    host, sep, _port = address.rpartition(":")
+    if not sep or not host:
+        return False
+    if host.startswith("[") and host.endswith("]"):
+        host = host[1:-1]
+    if host.lower() == "localhost":
+        return True
+    try:
+        ip = ipaddress.ip_address(host)
+    except ValueError:
+        return False  # a host or interface name: it may well face the network
+    if isinstance(ip, ipaddress.IPv6Address) and ip.ipv4_mapped is not None:
+        ip = ip.ipv4_mapped
+    return ip.is_loopback
+
+
+def check_endpoints(options: ServeOptions) -> None:
+    """Refuse (InsecureEndpoint, with what to do) to serve the robot unencrypted and
+    unauthenticated on an endpoint other machines can reach, unless asked explicitly."""
+    if options.keys or options.allow_insecure_remote:
+        return
+    for what, endpoint in (("request", options.endpoint), ("telemetry", options.telemetry)):
+        if not is_local_endpoint(endpoint):
+            raise InsecureEndpoint(
+                f"refusing to bind the {what} endpoint {endpoint} without CURVE keys: other machines can reach "
+                f"it (only loopback, 127.0.0.0/8, ::1 or localhost, and ipc:// are local), so anyone on the "
+                f"network could "
+                + ("submit programs to the robot, move it and change its settings"
+                   if what == "request" else "watch the robot's telemetry")
+                + f". Give --keys DIR (make them with 'irl keys DIR') to require authenticated, encrypted "
+                  f"clients, or, on a network you trust completely, {INSECURE_FLAG}")
 
 
 class Job:
@@ -149,6 +209,7 @@ class Server:
     # ---- sockets --------------------------------------------------------------------
     def bind(self) -> None:
         """Bind the request and telemetry sockets (raises zmq.ZMQError when taken)."""
+        check_endpoints(self.options)
         ctx = self.ctx
         self.router = ctx.socket(zmq.ROUTER)
         self.pub = ctx.socket(zmq.PUB)
@@ -436,7 +497,17 @@ class Server:
                 "calibrated": system.memory.calibrated, "initialized": system.memory.initialized,
                 "position": list(system.robot.positions), "shutting_down": self.stop_reason is not None}
 
+    def _check_queue_room(self) -> None:
+        """Refuse (``queue_full``) a program or reconfiguration beyond MAX_QUEUED waiting
+        ones (the running one does not count). Call with ``_submit_lock`` held."""
+        if len(self.queue) >= protocol.MAX_QUEUED:
+            raise ProtocolError("queue_full", f"the queue is full: it holds {len(self.queue)} programs waiting to "
+                                              f"run, at most {protocol.MAX_QUEUED} may wait; submit again when "
+                                              "one has started (or abort queued ones)")
+
     def op_submit(self, args: dict) -> dict:
+        with self._submit_lock:
+            self._check_queue_room()  # before verifying: a full queue costs no verification
         data = args["object"]
         try:
             program = load(data, None)
@@ -455,6 +526,7 @@ class Server:
             raise ProtocolError("refused", "the server is shutting down")
         name = str(args.get("name") or program.name or "program")[:200]
         with self._submit_lock:  # ids in the order programs are queued
+            self._check_queue_room()
             job = Job(self.next_id, name, program, self.report_dir / f"program-{self.next_id}.csv")
             self.next_id += 1
             self.jobs[job.id] = job
@@ -552,6 +624,7 @@ class Server:
         if self.stop_reason is not None:
             raise ProtocolError("refused", "the server is shutting down")
         with self._submit_lock:
+            self._check_queue_room()
             job = Job(self.next_id, f"reconfigure {name}", None, None,
                       settings=settings, configuration=name)
             self.next_id += 1
@@ -568,13 +641,16 @@ class Server:
         which = args.get("file", "report")
         if which not in ("report", "states"):
             raise ProtocolError("bad_request", "report: file must be \"report\" or \"states\"")
+        if job.report is None:
+            raise ProtocolError("not_found", f"program {job.id} is a reconfiguration: it has no {which} file")
         path = job.report if which == "report" else job.report.with_suffix(".states.csv")
-        offset = args.get("offset", 0)
-        if offset < 0:
-            raise ProtocolError("bad_request", "report: offset must be >= 0")
+        offset = args.get("offset", 0)  # an int (not a bool): protocol.decode_request checked the type
         try:
             with open(path, "rb") as f:
                 size = os.fstat(f.fileno()).st_size
+                if not 0 <= offset <= size:
+                    raise ProtocolError("bad_request", f"report: offset must be an integer from 0 to the size of "
+                                                       f"the {which} file ({size} bytes now), got {offset}")
                 f.seek(offset)
                 data = f.read(protocol.MAX_CHUNK_BYTES)
         except FileNotFoundError:
@@ -607,6 +683,15 @@ def serve(spec, options: ServeOptions, configurations=None, stderr=None) -> int:
     log.setLevel(logging.INFO)
     from .config import ConfigError
 
+    try:
+        check_endpoints(options)
+    except InsecureEndpoint as exc:
+        log.error("%s", exc)
+        log.removeHandler(handler)
+        return 2
+    if not options.keys and not (is_local_endpoint(options.endpoint) and is_local_endpoint(options.telemetry)):
+        log.warning("serving without CURVE keys on an endpoint other machines can reach (%s): anyone on the "
+                    "network can control the robot", INSECURE_FLAG)
     try:
         server = Server(spec, options, configurations)
     except ConfigError as exc:

@@ -18,6 +18,7 @@ from typing import Callable
 
 import msgpack
 
+from .semantics import MAX_STRING_LENGTH as _MAX_STRING_LENGTH
 from .values import from_plain, to_plain
 
 MAGIC = b"IRLO"
@@ -27,7 +28,14 @@ _HEADER = struct.Struct(">4sHI")
 #: Largest object file the decoder accepts (a 10,000-line program is well under 1 MiB).
 MAX_SIZE = 64 * 1024 * 1024
 #: Largest "count" operand (array length, values printed, arguments).
-MAX_COUNT = 1_000_000
+MAX_COUNT = 100_000
+#: Largest array value, in elements (all levels of an array of arrays together): the
+#: compiler refuses a larger declaration, the VM a larger array built by forged code.
+MAX_ARRAY_ELEMENTS = 100_000
+#: Longest string value, in characters (declared with the values' semantics): a longer
+#: constant is refused by the decoder, a longer string built at run time (``+``) stops
+#: the program at its line.
+MAX_STRING_LENGTH = _MAX_STRING_LENGTH
 
 
 class ObjectCodeError(Exception):
@@ -48,7 +56,7 @@ OPERAND_KINDS = {
     "local": "local variable slot of the current procedure",
     "target": "code offset to jump to",
     "proc": "index into the procedure table",
-    "count": "a non-negative count (at most 1,000,000)",
+    "count": "a non-negative count (at most 100,000)",
     "int": "a signed integer",
     "builtin": "built-in function number (see below)",
     "field": "field number: 0 x, 1 y, 2 z",
@@ -302,6 +310,9 @@ def decode(data: bytes) -> Program:
     _expect(isinstance(body["constants"], list), "body: constants must be a list")
     constants = []
     for i, c in enumerate(body["constants"]):
+        _expect(not isinstance(c, str) or len(c) <= MAX_STRING_LENGTH,
+                f"constant {i}: a string of {len(c) if isinstance(c, str) else 0} characters "
+                f"(at most {MAX_STRING_LENGTH})")
         try:
             constants.append(from_plain(c))
         except ValueError as exc:

@@ -67,7 +67,15 @@ BINARY = {
 INT_MIN, INT_MAX = -(2 ** 63), 2 ** 63 - 1  # integers are 64-bit
 
 
+#: Longest string value, in characters: a program that builds a longer one stops at its
+#: line; the compiler and the object-code decoder refuse longer constants.
+MAX_STRING_LENGTH = 10_000
+
+
 def binary(op: str, a, b):
+    if op == "+" and isinstance(a, str) and isinstance(b, str) and len(a) + len(b) > MAX_STRING_LENGTH:
+        raise EvalError(f"string too long: joining {len(a)} and {len(b)} characters gives more than "
+                        f"{MAX_STRING_LENGTH}, the longest string allowed")
     result = BINARY[op](a, b)
     if isinstance(result, float):
         _finite(result, f"the result of '{op}'")

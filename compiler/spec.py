@@ -12,10 +12,13 @@ from __future__ import annotations
 import hashlib
 import json
 import math
+import os
+import stat
 import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from . import params
 from .diagnostics import did_you_mean
 
 
@@ -93,10 +96,11 @@ class Spec:
     inputs: int
     outputs: int
     tool: tuple[float, ...]  # x, y, z (mm), roll, pitch, yaw (deg) of the TCP in the flange frame
-    controller: dict
+    controller: dict  # [controller], every key of compiler.params with its value (defaults filled in)
     hash: str
     description: str = ""
-    simulation: dict = field(default_factory=dict)
+    simulation: dict = field(default_factory=dict)  # [simulation], likewise
+    safety: dict = field(default_factory=dict)  # [safety], likewise
 
     @property
     def main_axes(self) -> tuple[Axis, ...]:
@@ -225,6 +229,10 @@ def parse_spec(text: str, file: str = "<spec>") -> Spec:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise SpecError(file, None, f"not valid TOML: {exc}") from None
+    except RecursionError:
+        raise SpecError(file, None, "not valid TOML: nested too deeply") from None
+    except ValueError as exc:  # e.g. an integer with more digits than Python converts
+        raise SpecError(file, None, f"not valid TOML: {exc}") from None
     top = _Reader(file, "", data)
     robot = _Reader(file, "robot", top.get("robot", "table", expect="a [robot] table"))
     name = robot.get("name", "string", expect="the robot's name (what act_rob names)")
@@ -287,57 +295,66 @@ def parse_spec(text: str, file: str = "<spec>") -> Spec:
     else:
         top.get("kinematics", "table", None)
 
-    tables = {}
-    for section in ("controller", "simulation"):
-        table = top.get(section, "table", {})
-        for key, value in table.items():
-            if isinstance(value, bool) or not isinstance(value, (int, float, str)):
-                raise SpecError(file, f"{section}.{key}", f"expected a number or a string, got {value!r}")
-        tables[section] = dict(table)
-    _check_controller(file, tables["controller"])
+    tables = {section: _parameters(file, section, top.get(section, "table", {})) for section in params.SPEC_SECTIONS}
+    broken = params.check_spec_rules(tables)
+    if broken is not None:
+        raise SpecError(file, *broken)
     top.finish()
     return Spec(name, file, axes, defaults, max_speed, max_acc, inputs, outputs, tool, tables["controller"],
-                _canonical_hash(data), description, tables["simulation"])
+                _canonical_hash(data), description, tables["simulation"], tables["safety"])
+
+
+def _parameters(file: str, section: str, table: dict) -> dict:
+    """One of the specification's parameter tables, validated through
+    :mod:`compiler.params` (unknown keys are errors: a misspelled limit must never be
+    silently ignored); every parameter of the table with its value or its default."""
+    accepted = params.spec_section(section)
+    values = {}
+    for key, value in table.items():
+        param = accepted.get(key)
+        if param is None:
+            guess = did_you_mean(key, list(accepted))
+            hint = f" (did you mean '{guess}'?)" if guess else ""
+            raise SpecError(file, f"{section}.{key}", f"unknown key{hint}; known: {', '.join(accepted)}")
+        try:
+            values[key] = param.check(value)
+        except params.ParamError as exc:
+            raise SpecError(file, f"{section}.{key}", exc.reason) from None
+    for key, param in accepted.items():
+        values.setdefault(key, param.default)
+    return values
+
+
+#: The largest specification file read (a robot's data is a few kilobytes).
+MAX_SPEC_BYTES = 1 << 20
 
 
 def load_spec(path: str | Path) -> Spec:
-    """Read and validate a specification file; raises :class:`SpecError`."""
+    """Read and validate a specification file (a regular file of at most
+    :data:`MAX_SPEC_BYTES`); raises :class:`SpecError`."""
+    name = str(path)
+    if "\0" in name:
+        raise SpecError(repr(name), None, "the file name contains a NUL byte")
     path = Path(path)
     try:
-        text = path.read_text(encoding="utf-8")
+        with open(path, "rb") as f:
+            if not stat.S_ISREG(os.fstat(f.fileno()).st_mode):
+                raise SpecError(name, None, "not a regular file (expected a TOML specification file)")
+            data = f.read(MAX_SPEC_BYTES + 1)
     except OSError as exc:
-        raise SpecError(str(path), None, f"cannot read: {exc.strerror or exc}") from None
+        raise SpecError(name, None, f"cannot read: {exc.strerror or exc}") from None
+    except ValueError as exc:  # e.g. a name the operating system cannot take
+        raise SpecError(repr(name), None, f"cannot read: {exc}") from None
+    if len(data) > MAX_SPEC_BYTES:
+        raise SpecError(name, None, f"larger than {MAX_SPEC_BYTES // 1024} KiB: not a specification file")
+    try:
+        text = data.decode("utf-8")
     except UnicodeDecodeError:
-        raise SpecError(str(path), None, "not a text file (expected UTF-8 TOML)") from None
-    return parse_spec(text, str(path))
+        raise SpecError(name, None, "not a text file (expected UTF-8 TOML)") from None
+    return parse_spec(text, name)
 
 
-#: ``[controller]`` keys the runtime reads, with what they allow (the others are free).
-CONTROLLER_PROFILES = ("jerk", "trapezoid")
-DEFAULT_PROFILE = "jerk"
-DEFAULT_LOOKAHEAD = 4
-MAX_LOOKAHEAD = 16
-
-
-def controller_profile(file, controller: dict) -> str:
-    """``[controller] profile``: the PTP velocity profile, "jerk" (the default) or
-    "trapezoid"; SpecError otherwise."""
-    profile = controller.get("profile", DEFAULT_PROFILE)
-    if profile not in CONTROLLER_PROFILES:
-        raise SpecError(file, "controller.profile", f'expected "jerk" or "trapezoid", got {profile!r}')
-    return profile
-
-
-def controller_lookahead(file, controller: dict) -> int:
-    """``[controller] lookahead``: how many moves may be planned ahead of the robot, a
-    whole number 0..16 (default 4); SpecError otherwise."""
-    depth = controller.get("lookahead", DEFAULT_LOOKAHEAD)
-    if isinstance(depth, bool) or not isinstance(depth, int) or not 0 <= depth <= MAX_LOOKAHEAD:
-        raise SpecError(file, "controller.lookahead", f"expected a whole number 0..{MAX_LOOKAHEAD}, got {depth!r}")
-    return depth
-
-
-def _check_controller(file, controller: dict) -> None:
-    """The ``[controller]`` keys the runtime reads must hold values it can use."""
-    controller_profile(file, controller)
-    controller_lookahead(file, controller)
+#: ``[controller] profile`` and ``lookahead`` (declared in :mod:`compiler.params`).
+CONTROLLER_PROFILES = params.section_params("controller")["profile"].choices
+DEFAULT_LOOKAHEAD = params.section_params("controller")["lookahead"].default
+MAX_LOOKAHEAD = params.section_params("controller")["lookahead"].high

@@ -191,6 +191,8 @@ def _print_summary(env: Environment, s: dict) -> None:
     for entry in s["log"]:
         _print(env, f"  [{entry['time']:8.3f} s] line {entry['line']}: {entry['text']}")
     _print(env, "")
+    if s.get("stop"):
+        _print(env, f"  stopped: category {s['stop']['category']} (docs/safety.md)")
     _print(env, "  final position: " + ", ".join(f"{x:.3f}" for x in s["final_position"]))
     _print(env, f"  largest following error: {s['max_following_error']:.4f}")
     _print(env, f"  deadline misses: {s['deadline_misses']}; ticks {s['ticks']}")

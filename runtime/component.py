@@ -44,11 +44,12 @@ class DataPort:
 class Component:
     """Base class. Subclasses override the ``on_*`` hooks and ``update``.
 
-    ``PROPERTIES`` maps a property name to (type, doc); the value is the attribute of the
-    same name. ``OPERATIONS`` names the methods the scripting interface may call.
+    ``PROPERTIES`` maps a property name to its declaration (:class:`compiler.params.Param`:
+    type, unit, range, safety relevance, when it may change); the value is the attribute
+    of the same name. ``OPERATIONS`` names the methods the scripting interface may call.
     """
 
-    PROPERTIES: dict[str, tuple[type, str]] = {}
+    PROPERTIES: dict = {}  # name -> compiler.params.Param
     OPERATIONS: tuple[str, ...] = ("configure", "start", "stop", "cleanup")
 
     def __init__(self, name: str, period: float):
@@ -145,11 +146,8 @@ class Component:
         return getattr(self, name)
 
     def set_property(self, name: str, value) -> None:
+        """Not real-time: set a property to a value its declaration accepts (a
+        ``compiler.params.ParamError``, a ValueError, otherwise; nothing changes)."""
         if name not in self.PROPERTIES:
             raise KeyError(f"{self.name} has no property {name!r}")
-        kind, _doc = self.PROPERTIES[name]
-        if kind is float and isinstance(value, int) and not isinstance(value, bool):
-            value = float(value)
-        if not isinstance(value, kind) or isinstance(value, bool) and kind is not bool:
-            raise TypeError(f"{self.name}.{name} must be {kind.__name__}, not {type(value).__name__}")
-        setattr(self, name, value)
+        setattr(self, name, self.PROPERTIES[name].check(value))

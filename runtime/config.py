@@ -31,8 +31,10 @@ File format (TOML)::
   naming another configuration of the file. ``based_on`` chains are resolved key by key
   (a configuration's own settings override the ones it is based on); cycles and unknown
   names are errors.
-* The settable keys, their types and checks are the table :data:`SCHEMA` (rendered for the
-  documentation by :func:`schema_markdown`). Periods are seconds, a whole multiple of the
+* The settable keys, their types and checks are the table :data:`SCHEMA`, a view of the
+  components' parameters in :mod:`compiler.params` (the one declaration of every
+  parameter's type, unit, range and safety relevance), rendered for the documentation
+  by :func:`schema_markdown`. Periods are seconds, a whole multiple of the
   1 ms tick, from 0.001 to 1.0. ``trajectory.period`` must equal ``initialization.period``
   when both are given (after ``based_on`` is resolved): the servo interpolates both
   setpoint streams with one setpoint period.
@@ -48,11 +50,13 @@ Nothing else escapes :func:`load_configurations`, :func:`parse_configurations` o
 from __future__ import annotations
 
 import difflib
-import math
 import tomllib
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
+
+from compiler.params import COMPONENTS as CONFIG_COMPONENTS
+from compiler.params import REPORT_COLUMNS, TICK, Param, ParamError, component_params, markdown
 
 __all__ = [
     "COLUMNS",
@@ -68,11 +72,8 @@ __all__ = [
     "validate_settings",
 ]
 
-TICK = 0.001            # s, the executive's base tick; every period is a whole multiple of it
 TICK_TOLERANCE = 1e-9   # s, how far a period may be from a whole multiple of the tick
-PERIOD_MIN = 0.001      # s
-PERIOD_MAX = 1.0        # s
-COLUMNS = ("sens_pos", "desi_pos", "out_vel", "following_error", "tcp")  # what the report component can log
+COLUMNS = REPORT_COLUMNS  # what the report component can log
 TOP_LEVEL_KEYS = ("default", "configurations")
 BASED_ON = "based_on"
 
@@ -130,78 +131,16 @@ def _known(names) -> str:
     return ", ".join(names) if names else "(none)"
 
 
-# ---- checks ------------------------------------------------------------------------------------
-
-def _is_number(value: object) -> bool:
-    return isinstance(value, (int, float)) and not isinstance(value, bool)
-
-
-def _finite_float(value: object) -> float:
-    """``value`` as a finite float, or _Invalid."""
-    if not _is_number(value):
-        raise _Invalid()
-    try:
-        result = float(value)
-    except OverflowError:
-        raise _Invalid(f"expected a finite number, got {_describe(value)}") from None
-    if not math.isfinite(result):
-        raise _Invalid(f"expected a finite number, got {_describe(value)}")
-    return result
-
-
-def _number(accept: Callable[[float], bool]) -> Callable[[object], object]:
-    def check(value: object) -> float:
-        result = _finite_float(value)
-        if not accept(result):
-            raise _Invalid()
-        return result
-    return check
-
-
-def _integer(low: int, high: int) -> Callable[[object], object]:
-    def check(value: object) -> int:
-        if not isinstance(value, int) or isinstance(value, bool) or not low <= value <= high:
-            raise _Invalid()
-        return int(value)
-    return check
-
-
-def _period(value: object) -> float:
-    seconds = _finite_float(value)
-    if not PERIOD_MIN - TICK_TOLERANCE <= seconds <= PERIOD_MAX + TICK_TOLERANCE:
-        raise _Invalid(f"expected a period between {PERIOD_MIN} and {PERIOD_MAX} s, got {_describe(value)}")
-    ticks = round(seconds / TICK)
-    if abs(seconds - ticks * TICK) > TICK_TOLERANCE:
-        below, above = math.floor(seconds / TICK), math.ceil(seconds / TICK)
-        raise _Invalid(f"expected a whole multiple of the {TICK * 1000:g} ms tick, got {_describe(value)} "
-                       f"(nearest: {below * TICK:g} or {above * TICK:g})")
-    return ticks / round(1 / TICK)  # the float nearest to the whole number of ticks
-
-
-def _columns(value: object) -> list[str]:
-    if not isinstance(value, (list, tuple)) or not value:
-        raise _Invalid()
-    seen: list[str] = []
-    for index, column in enumerate(value):
-        if not isinstance(column, str):
-            raise _Invalid(f"expected column names (strings), got {_describe(column)} at index {index}")
-        if column not in COLUMNS:
-            raise _Invalid(f"unknown column {column!r}{_suggest(column, COLUMNS)}; known: {_known(COLUMNS)}")
-        if column in seen:
-            raise _Invalid(f"duplicate column {column!r}")
-        seen.append(column)
-    return seen
-
-
-# ---- the schema --------------------------------------------------------------------------------
+# ---- the schema: compiler.params, the one declaration of every parameter ------------------------
 
 @dataclass(frozen=True)
 class Setting:
-    """One settable key of a component.
+    """One settable key of a component (a view of its :class:`compiler.params.Param`).
 
     ``type`` is the kind of TOML value; ``expected`` describes a valid value (messages say
     "expected <expected>, got ..."); ``check`` returns the normalized value or raises
-    ``_Invalid``; ``unit`` and ``description`` document the key.
+    ``_Invalid``; ``unit`` and ``description`` document the key; ``safety``: whether it is
+    safety-relevant.
     """
 
     type: str
@@ -209,58 +148,32 @@ class Setting:
     check: Callable[[object], object]
     unit: str
     description: str
+    safety: bool = False
 
 
-_PERIOD_TEXT = f"a number of seconds, a whole multiple of the 1 ms tick, {PERIOD_MIN} to {PERIOD_MAX}"
+_TYPES = {"number": "number", "integer": "integer", "period": "number", "columns": "list of strings",
+          "choice": "string"}
 
 
-def _period_setting(description: str) -> Setting:
-    return Setting("number", _PERIOD_TEXT, _period, "s", description)
+def _setting(param: Param) -> Setting:
+    def check(value: object) -> object:
+        try:
+            return param.check(value)
+        except ParamError as error:
+            raise _Invalid(error.reason if error.specific else None) from None
+    return Setting(_TYPES[param.kind], param.allowed(), check, param.unit, param.doc, param.safety)
 
 
 SCHEMA: dict[str, dict[str, Setting]] = {
-    "servo": {
-        "kp": Setting("number", "a number > 0", _number(lambda x: x > 0), "1/s", "position loop gain"),
-        "ki": Setting("number", "a number >= 0", _number(lambda x: x >= 0), "1/s^2", "integral gain"),
-        "following_error_limit": Setting(
-            "number", "a number > 0", _number(lambda x: x > 0), "deg",
-            "largest allowed difference between reference and measured position; beyond it the servo faults"),
-    },
-    "robot": {
-        "velocity_limit_scale": Setting(
-            "number", "a number > 0 and <= 1", _number(lambda x: 0 < x <= 1), "",
-            "fraction of each axis' max_velocity the drives accept"),
-    },
-    "trajectory": {
-        "budget": Setting("integer", "an integer from 1 to 100000", _integer(1, 100_000), "instructions per update",
-                          "largest number of object-code instructions the interpreter executes in one update"),
-        "period": _period_setting("time between trajectory updates (setpoints); must equal initialization.period "
-                                  "when both are given"),
-    },
-    "initialization": {
-        "period": _period_setting("time between updates of the move to the start position; must equal "
-                                  "trajectory.period when both are given"),
-    },
-    "report": {
-        "period": _period_setting("time between two logged rows"),
-        "columns": Setting("list of strings", "a non-empty list of unique column names from " + ", ".join(COLUMNS),
-                           _columns, "", "signals logged in each row, in this order"),
-    },
+    component: {name: _setting(param) for name, param in component_params(component).items()}
+    for component in CONFIG_COMPONENTS
 }
 
 
 def schema_markdown() -> str:
-    """The schema as a Markdown table (component, key, type/check with unit, description) for the documentation."""
-    def cell(text: str) -> str:
-        return text.replace("|", "\\|")
-
-    lines = ["| Component | Key | Type / check | Description |", "|---|---|---|---|"]
-    for component, keys in SCHEMA.items():
-        for key, setting in keys.items():
-            unit = f" (unit: {setting.unit})" if setting.unit else ""
-            lines.append(f"| `{cell(component)}` | `{cell(key)}` | {cell(setting.expected + unit)} "
-                         f"| {cell(setting.description)} |")
-    return "\n".join(lines) + "\n"
+    """The components' parameters as a Markdown table for the documentation
+    (:func:`compiler.params.markdown`)."""
+    return markdown(CONFIG_COMPONENTS)
 
 
 # ---- validation --------------------------------------------------------------------------------

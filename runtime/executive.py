@@ -1,7 +1,7 @@
 """The cyclic executive: one thread, a 1 ms base tick, components at multiples of it.
 
 Each tick runs the due tasks in the fixed order sense -> decide -> plan -> control ->
-act -> record. Two clocks stand behind one interface: the simulated clock (time moves
+guard -> act -> record. Two clocks stand behind one interface: the simulated clock (time moves
 by exactly one tick per tick, as fast as the CPU allows, bit-for-bit deterministic) and
 the wall clock (sleep, then spin to the tick's deadline). Per task the executive measures
 execution time and lateness and counts deadline misses (with the simulated clock, execution times are sampled on one tick
@@ -29,7 +29,7 @@ from .component import Lifecycle
 _RUNNING = Lifecycle.RUNNING
 _sleep = time.sleep
 
-PHASES = ("sense", "decide", "plan", "control", "act", "record")
+PHASES = ("sense", "decide", "plan", "control", "guard", "act", "record")
 
 #: With the simulated clock, execution times are measured on one tick in this many.
 SIM_SAMPLE_EVERY = 8

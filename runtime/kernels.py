@@ -121,3 +121,85 @@ def clamp_commands(command: tuple[float, ...], compensation: list[float],
         m = limits[i]
         out[i] = m if v > m else -m if v < -m else v
     return tuple(out)
+
+
+#: What :func:`safety_check` and :func:`direction_check` found (the code is ``kind * 256 + axis``).
+SAFE, OVER_VELOCITY, OVER_ACCELERATION, OVER_LIMIT, NO_COUNTS, WRONG_WAY, NOT_STILL = 0, 1, 2, 3, 4, 5, 6
+
+
+def safety_check(commands: tuple[float, ...], previous: tuple[float, ...], velocity_limits: tuple[float, ...],
+                 step_limits: tuple[float, ...], positions: tuple[float, ...], low: tuple[float, ...],
+                 high: tuple[float, ...], reaction: float, braking: tuple[float, ...], counts: tuple[int, ...],
+                 last_counts: list[int], travel: list[float], window: list[float], plausible: tuple[float, ...],
+                 dt: float, leak: float) -> int:
+    """The safety supervisor's per-axis checks of one 1 ms command (:mod:`runtime.components.safety`).
+
+    Per axis ``i``, in this order, the first violation is returned as ``kind * 256 + i``
+    (0: every axis passed):
+
+    * OVER_VELOCITY: ``|commands[i]| > velocity_limits[i]`` (a NaN command too);
+    * OVER_ACCELERATION: ``|commands[i] - previous[i]| > step_limits[i]`` (the velocity
+      change one tick allows);
+    * OVER_LIMIT: where the axis would come to rest if the stop began now,
+      ``positions[i] + c reaction + c |c| braking[i]`` (``braking = 1 / (2 deceleration)``),
+      is outside ``low[i]..high[i]`` (infinite bounds: not checked);
+    * NO_COUNTS: the recent commanded travel since the encoder last changed exceeds
+      ``plausible[i]`` either way: ``travel[i]`` sums ``c dt`` and forgets at the rate
+      ``leak`` per tick (``1 - dt / memory``), so a small command that only holds the
+      axis against a drift (the axis does not move, rightly) never adds up to a fault.
+
+    ``last_counts``, ``travel`` and ``window`` (the commanded travel of the direction
+    check's window, :func:`direction_check`) are updated in place.
+    """
+    for i in range(len(commands)):
+        c = commands[i]
+        if not -velocity_limits[i] <= c <= velocity_limits[i]:
+            return OVER_VELOCITY * 256 + i
+        d = c - previous[i]
+        if not -step_limits[i] <= d <= step_limits[i]:
+            return OVER_ACCELERATION * 256 + i
+        rest = positions[i] + c * reaction + c * abs(c) * braking[i]
+        if not low[i] <= rest <= high[i]:
+            return OVER_LIMIT * 256 + i
+        n = counts[i]
+        step = c * dt
+        window[i] += step
+        if n != last_counts[i]:
+            last_counts[i] = n
+            travel[i] = 0.0
+        else:
+            t = travel[i] * leak + step
+            travel[i] = t
+            p = plausible[i]
+            if not -p <= t <= p:
+                return NO_COUNTS * 256 + i
+    return SAFE
+
+
+def direction_check(window: list[float], counts: tuple[int, ...], window_counts: list[int],
+                    counts_per_unit: tuple[float, ...], distance: tuple[float, ...]) -> int:
+    """At the end of a window of ticks: per axis, the commanded travel (``window[i]``)
+    against the encoder's (``counts - window_counts``). WRONG_WAY (``kind * 256 + i``)
+    when the axis was commanded more than twice ``distance[i]`` one way and its encoder
+    went more than ``distance[i]`` the other way; 0 otherwise. Starts the next window
+    (``window`` zeroed, ``window_counts`` = ``counts``)."""
+    found = SAFE
+    for i in range(len(window)):
+        commanded = window[i]
+        measured = (counts[i] - window_counts[i]) / counts_per_unit[i]
+        p = distance[i]
+        if found == SAFE and (commanded > 2.0 * p and measured < -p or commanded < -2.0 * p and measured > p):
+            found = WRONG_WAY * 256 + i
+        window[i] = 0.0
+        window_counts[i] = counts[i]
+    return found
+
+
+def standstill_check(counts: tuple[int, ...], reference: tuple[int, ...], tolerance: int) -> int:
+    """NOT_STILL (``kind * 256 + i``) for the first axis whose encoder moved more than
+    ``tolerance`` counts from ``reference``; 0 otherwise."""
+    for i in range(len(counts)):
+        d = counts[i] - reference[i]
+        if d > tolerance or d < -tolerance:
+            return NOT_STILL * 256 + i
+    return SAFE

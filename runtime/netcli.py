@@ -218,6 +218,9 @@ def cmd_status(args, env) -> int:
     cli._print(env, f"robot: {status['state']}  (override {status['override']:g} %, "
                     f"{'calibrated' if status['calibrated'] else 'not calibrated'}, "
                     f"{'initialized' if status['initialized'] else 'not initialized'})")
+    for key in ("calibration", "initialization"):  # why each is (or is not) remembered
+        if status.get(key):
+            cli._print(env, f"  {status[key]}")
     if status["running"]:
         cli._print(env, "running: " + _job_line(status["running"]))
     cli._print(env, "queue: " + (", ".join(map(str, status["queue"])) or "empty"))

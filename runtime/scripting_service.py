@@ -1,11 +1,22 @@
 """The scripting interface on the server: parsed text commands (``runtime.scripting``)
 carried out against the robot's components, as the paper's task browser does.
 
-Only what a target declares is reachable: its ``PROPERTIES`` (read and write, with their
-types), ``READ_ONLY`` properties, and whitelisted ``OPERATIONS``. Reads are answered by
-the I/O thread at once; writes and operations run in the real-time loop between ticks.
+Only what a target declares is reachable: its ``PROPERTIES`` (declared in
+:mod:`compiler.params`), ``READ_ONLY`` properties, and whitelisted ``OPERATIONS``. Reads
+are answered by the I/O thread at once; writes and operations run in the real-time loop
+between ticks. What the network may change is limited (docs/safety.md):
+
+* a property is written only if its declaration says ``live``; a safety-relevant
+  parameter (or any other that changes by configuration) is refused: it changes only
+  with a whole configuration applied in Robot Reconfiguration (``irl reconfigure NAME``);
+  a value outside the declared range is refused with the name, the value and the range;
+* a component's operations (its lifecycle, the brakes, the servo's hold) run only while
+  no program runs (they could move the robot or lose data); ``robot.release_brakes`` never
+  (Start Robot alone releases the brakes); the supervisor's mode is read-only.
 """
 from __future__ import annotations
+
+from compiler.params import ParamError
 
 from .protocol import ProtocolError
 from .scripting import (
@@ -17,8 +28,9 @@ class FsmTarget:
     """The supervisor's state machine as a scripting target (``fsm``)."""
 
     name = "fsm"
-    PROPERTIES = {"mode": (str, "'automatic' (guards fire) or 'reactive' (only requests and events)")}
-    READ_ONLY = {"state": "the current state (with the sub-machine's)"}
+    PROPERTIES: dict = {}
+    READ_ONLY = {"state": "the current state (with the sub-machine's)",
+                 "mode": "'automatic' (guards fire); fixed while the supervisor drives the robot"}
     OPERATIONS = ("request_state", "post")
 
     def __init__(self, server):
@@ -39,11 +51,6 @@ class FsmTarget:
     @property
     def lifecycle(self):
         return None
-
-    def set_property(self, name: str, value) -> None:
-        if not isinstance(value, str):
-            raise TypeError(f"fsm.{name} must be str, not {type(value).__name__}")
-        self._fsm.set_mode(value)
 
     def request_state(self, name: str) -> bool:
         """Ask for a transition to ``name`` at the next step (if one leads there)."""
@@ -92,6 +99,21 @@ class ServerTarget:
         return f"reconfiguration to {result['requested']!r} queued as {result['program']}"
 
 
+#: Operations of the components that the network may never call (the others: only while
+#: no program runs).
+NEVER = {("robot", "release_brakes"): "the brakes are released only by Start Robot, when a program begins"}
+
+
+def _operation_refused(server, component: str, name: str, target) -> str | None:
+    """Why the operation may not run now (None: it may). Runs in the loop."""
+    if (component, name) in NEVER:
+        return NEVER[(component, name)]
+    if getattr(target, "lifecycle", None) is not None and server.current is not None:
+        return (f"program {server.current.id} is running: a component's operations could move the robot or "
+                "lose data (call it when the robot is idle; to stop the robot: irl abort or irl estop)")
+    return None
+
+
 def targets(server) -> dict:
     s = server.system
     return {"robot": s.robot, "servo": s.servo, "initialization": s.init, "trajectory": s.trajectory,
@@ -125,14 +147,21 @@ def call(server, text: str):
             read_only = command.name in getattr(target, "READ_ONLY", {})
             raise ProtocolError("script_error", f"{where} is read-only" if read_only else
                                 f"{command.component} has no property {command.name!r} ({_names(target)})")
+        param = target.PROPERTIES[command.name]
+        if param.change != "live":
+            what = f"{where} is safety-relevant: it" if param.safety else where
+            raise ProtocolError("refused", f"{what} changes only with a whole configuration applied between "
+                                           "programs (irl reconfigure NAME; docs/safety.md), never by a single "
+                                           "write over the network")
+        try:
+            value = param.check(command.value)
+        except ParamError as exc:
+            raise ProtocolError("bad_request", f"{where}: {exc.reason}") from None
 
         def set_property():
-            try:
-                target.set_property(command.name, command.value)
-            except (TypeError, ValueError) as exc:
-                raise ProtocolError("script_error", str(exc)) from None
-            value = _plain(getattr(target, command.name))
-            return {"output": f"{where} = {format_value(value)}", "value": value}
+            target.set_property(command.name, value)
+            shown = _plain(getattr(target, command.name))
+            return {"output": f"{where} = {format_value(shown)}", "value": shown}
         return set_property
     assert isinstance(command, CallOperation)
     if command.name not in target.OPERATIONS:
@@ -140,6 +169,9 @@ def call(server, text: str):
                                             f"(operations: {', '.join(target.OPERATIONS)})")
 
     def operation():
+        refused = _operation_refused(server, command.component, command.name, target)
+        if refused is not None:
+            raise ProtocolError("refused", f"{where}: {refused}")
         try:
             value = _plain(getattr(target, command.name)(*command.args))
         except TypeError as exc:
@@ -173,8 +205,11 @@ def _lifecycle(target) -> str:
 
 def _describe(name: str, target) -> str:
     lines = [f"{name} ({_lifecycle(target)})", "  properties:"]
-    for prop, (kind, doc) in target.PROPERTIES.items():
-        lines.append(f"    {prop} = {format_value(_plain(getattr(target, prop)))}  ({kind.__name__}) {doc}")
+    for prop, param in target.PROPERTIES.items():
+        how = "writable" if param.change == "live" else ("safety-relevant, by configuration" if param.safety
+                                                         else "by configuration")
+        lines.append(f"    {prop} = {format_value(_plain(getattr(target, prop)))}  ({param.allowed()}; {how}) "
+                     f"{param.doc}")
     for prop, doc in getattr(target, "READ_ONLY", {}).items():
         lines.append(f"    {prop} = {format_value(_plain(getattr(target, prop)))}  (read-only) {doc}")
     lines.append("  operations: " + ", ".join(f"{op}()" for op in target.OPERATIONS))

@@ -195,6 +195,7 @@ class Server:
         self.outbox: collections.deque = collections.deque()  # (identity, reply bytes) for the I/O thread
         self.work = threading.Event()  # set when the loop has something to do
         self.stop_reason: str | None = None
+        self._shutdown_deadline: float | None = None
         self.telemetry_seq = 0
         self.telemetry_sent = 0
         self._seen_states = 0
@@ -245,35 +246,41 @@ class Server:
         rest; returns the exit status."""
         self.io_thread = threading.Thread(target=self._io_main, name="irl-io", daemon=True)
         self.io_thread.start()
-        system = self.system
-        ex = system.executive
-        sup = system.supervisor
-        shutdown_deadline = None
-        while True:
-            if self.commands:
-                self._apply_commands()
-            if self.current is None:
-                if self.stop_reason is not None:
-                    break
-                if self.queue:
-                    self._start_next()
-                    sup = system.supervisor
-                else:
-                    self._idle()
-                    continue
-            if self.stop_reason is not None and shutdown_deadline is None:
-                shutdown_deadline = time.monotonic() + SHUTDOWN_TIMEOUT
-                self._stop_current(self.stop_reason)
-            ex.step()
-            if ex.ticks % TELEMETRY_EVERY == 0:
-                self._publish_progress()
-            if sup.done:
-                self._finish_current()
-            elif shutdown_deadline is not None and time.monotonic() > shutdown_deadline:
-                log.error("the robot did not come to rest within %g s of the shutdown", SHUTDOWN_TIMEOUT)
-                self._finish_current()
+        while self.turn():
+            pass
         self._publish({"kind": "event", "event": "shutdown", "reason": self.stop_reason})
         return 0
+
+    def turn(self, idle_wait: bool = True) -> bool:
+        """One turn of the real-time loop: the queued operator commands, then one tick of
+        the running program (or the next program started, or an idle wait when there is
+        none and ``idle_wait``). False once a shutdown is done. Tests drive the server
+        turn by turn (no sockets, no I/O thread: they call the ``op_*`` handlers)."""
+        if self.commands:
+            self._apply_commands()
+        if self.current is None:
+            if self.stop_reason is not None:
+                return False
+            if self.queue:
+                self._start_next()
+            elif idle_wait:
+                self._idle()
+                return True
+            else:
+                return True
+        if self.stop_reason is not None and self._shutdown_deadline is None:
+            self._shutdown_deadline = time.monotonic() + SHUTDOWN_TIMEOUT
+            self._stop_current(self.stop_reason)
+        ex = self.system.executive
+        ex.step()
+        if ex.ticks % TELEMETRY_EVERY == 0:
+            self._publish_progress()
+        if self.system.supervisor.done:
+            self._finish_current()
+        elif self._shutdown_deadline is not None and time.monotonic() > self._shutdown_deadline:
+            log.error("the robot did not come to rest within %g s of the shutdown", SHUTDOWN_TIMEOUT)
+            self._finish_current()
+        return True
 
     def request_shutdown(self, reason: str = "the server is shutting down") -> None:
         """Safe from a signal handler or another thread: stop after bringing the robot to rest."""
@@ -365,6 +372,8 @@ class Server:
                 log.exception("command failed")
                 reply = protocol.error(request_id, "internal", f"{type(exc).__name__}: {exc}")
             self.outbox.append((identity, reply))
+        if self._wake_tx is None:  # not bound: the caller reads the outbox itself
+            return
         try:
             self._wake_tx.send(b"", zmq.NOBLOCK)
         except zmq.Again:
@@ -376,6 +385,8 @@ class Server:
         message["v"] = protocol.VERSION
         message["seq"] = self.telemetry_seq
         message["t"] = self.system.clock.now()
+        if self.pub is None:  # not bound (driven turn by turn, in-process)
+            return
         try:
             self.pub.send_multipart((protocol.TELEMETRY_TOPIC, protocol.pack(message)), zmq.NOBLOCK)
             self.telemetry_sent += 1
@@ -495,6 +506,7 @@ class Server:
                              if job.state != "running"][-20:],
                 "override": self.override, "configuration": self.configuration,
                 "calibrated": system.memory.calibrated, "initialized": system.memory.initialized,
+                "calibration": system.memory.calibration_why, "initialization": system.memory.initialization_why,
                 "position": list(system.robot.positions), "shutting_down": self.stop_reason is not None}
 
     def _check_queue_room(self) -> None:

@@ -16,8 +16,9 @@ from compiler.objcode import Program
 from . import accel
 from .component import DataPort
 from .components.initialization import Initialization
-from .components.report import Report, write_states
+from .components.report import Report
 from .components.robot_interface import RobotInterface
+from .components.safety import SafetySupervisor
 from .components.servo import ServoController
 from .components.trajectory import TrajectoryGenerator
 from .executive import Executive, MissPolicy, SimClock, WallClock
@@ -46,35 +47,42 @@ class RobotSystem:
         self.options = options
         self.clock = WallClock() if options.realtime else SimClock(TICK)
         n = len(spec.axes)
-        self.ports = {name: DataPort(name) for name in ("sens_pos", "desi_pos", "init_pos", "out_vel")}
+        self.ports = {name: DataPort(name) for name in ("sens_pos", "desi_pos", "init_pos", "out_vel", "drive_cmd")}
         p = self.ports
         self.backend = backend if backend is not None else SimRobot(spec, options.seed)
         for fault, axis in options.faults:
             self.backend.inject(fault, axis)
-        self.robot = RobotInterface(spec, self.backend, p["sens_pos"], p["out_vel"], AlphaBeta(n, TICK), TICK)
+        self.robot = RobotInterface(spec, self.backend, p["sens_pos"], p["drive_cmd"], AlphaBeta(n, TICK), TICK)
         self.servo = ServoController(spec, p["sens_pos"], p["desi_pos"], p["init_pos"], p["out_vel"],
                                      Interpolator, TICK)
+        self.safety = SafetySupervisor(spec, self.robot, self.servo, p["out_vel"], p["drive_cmd"], self.clock, TICK)
         self.init = Initialization(spec, self.robot, p["init_pos"], p["sens_pos"], self.clock)
-        self.init.on_encoder_reset = self.servo.rebase
+        self.init.on_encoder_reset = self._encoder_reset
         self.servo.measured_velocity = lambda: self.robot.velocities
         self.trajectory = TrajectoryGenerator(spec, self.robot, p["desi_pos"], p["sens_pos"], self.clock)
-        self.report = Report(spec, p["sens_pos"], p["out_vel"], self.servo, lambda: self.supervisor.fsm.path())
+        self.trajectory.safety = self.safety
+        self.report = Report(spec, p["sens_pos"], p["drive_cmd"], self.servo, lambda: self.supervisor.fsm.path(),
+                             history=lambda: self.supervisor.fsm.history)
         self.executive = Executive(self.clock, TICK)
-        identity = f"{spec.name}:{spec.hash[:16]}:" + (f"sim-seed-{options.seed}" if backend is None else "hardware")
+        identity = {"robot": spec.name, "spec_hash": spec.hash,
+                    "backend": f"sim-seed-{options.seed}" if backend is None else "hardware"}
+        drift = spec.safety["max_drive_drift"]
         self.memory = memory or RobotMemory()
+        self.state_file = StateFile(options.state_dir, identity, tuple(drift for _ in spec.axes))
+        self.state_file.start()
         self.supervisor = Supervisor(self.clock, self.robot, self.servo, self.init, self.trajectory, self.report,
-                                     self.executive, self.memory, StateFile(options.state_dir, identity))
+                                     self.executive, self.memory, self.state_file, self.safety)
         self.supervisor.reconfigure = self.apply_settings
         ex, robot = self.executive, self.robot
-        controller = spec.controller
-        servo_policy = MissPolicy(str(controller.get("servo_miss_policy", "firm")),
-                                  limit=int(controller.get("servo_miss_limit", 50)),
-                                  window=int(controller.get("servo_miss_window", 1000)))
+        controller = spec.controller  # validated (compiler.params), every key present
+        servo_policy = MissPolicy(controller["servo_miss_policy"], limit=controller["servo_miss_limit"],
+                                  window=controller["servo_miss_window"])
         ex.add("robot.read", robot.read, TICK, "sense", component=robot)
         ex.add("supervisor", self.supervisor.step, TICK, "decide")
         ex.add("initialization", self.init.update, 0.005, "plan", component=self.init)
         ex.add("trajectory", self.trajectory.update, 0.005, "plan", component=self.trajectory)
         ex.add("servo", self.servo.update, TICK, "control", policy=servo_policy, component=self.servo)
+        ex.add("safety", self.safety.update, TICK, "guard", component=self.safety)
         ex.add("robot.write", robot.write, TICK, "act", component=robot)
         ex.add("report", self.report.update, 0.01, "record", component=self.report)
 
@@ -90,16 +98,25 @@ class RobotSystem:
         self.supervisor.reset()
         self.supervisor.pending_settings = settings
         self.executive.reset_statistics()  # the summary's deadlines are this cycle's
-        for component in (self.robot, self.servo, self.init, self.trajectory, self.report):
+        for component in (self.robot, self.servo, self.init, self.trajectory, self.report, self.safety):
             component.recover()  # a fault of the last cycle is not this one's
+            component.stop()  # a clean slate: the supervisor alone starts what the cycle needs
         self.init.fault = None
         self.servo.max_following_error = 0.0
+        self.supervisor.load_calibration()
+        self.safety.set_referenced(None, self.memory.initialized)
         self.trajectory.load(program)
         self.trajectory.override = self.options.override
         self.report.open(report)
         self.robot.configure()
         self.robot.start()
+        self.safety.start()
         self.supervisor.fsm.start()
+
+    def _encoder_reset(self, axis: int, delta: float) -> None:
+        """Homing reset the encoder of ``axis``: the servo follows, the axis is referenced."""
+        self.servo.rebase(axis, delta)
+        self.safety.set_referenced(axis)
 
     # ---- configuration (not real-time: between programs) ----
     def settings(self) -> dict:
@@ -109,7 +126,7 @@ class RobotSystem:
                           "following_error_limit": self.servo.following_error_limit},
                 "robot": {"velocity_limit_scale": self.robot.velocity_limit_scale},
                 "trajectory": {"budget": self.trajectory.budget, "period": ex["trajectory"]},
-                "initialization": {"period": ex["initialization"]},
+                "initialization": {"period": ex["initialization"], "home_speed": self.init.home_speed},
                 "report": {"period": ex["report"], "columns": list(self.report.columns)}}
 
     def apply_settings(self, settings: dict) -> None:
@@ -118,8 +135,16 @@ class RobotSystem:
         servo, robot, trajectory, report = self.servo, self.robot, self.trajectory, self.report
         for key, value in settings.get("servo", {}).items():
             setattr(servo, key, value)
+        self.safety.following_error_limit = servo.following_error_limit
         if "velocity_limit_scale" in settings.get("robot", {}):
-            robot.velocity_limit_scale = settings["robot"]["velocity_limit_scale"]
+            scale = settings["robot"]["velocity_limit_scale"]
+            robot.velocity_limit_scale = scale
+            servo.set_velocity_limit_scale(scale)
+            self.safety.set_velocity_limit_scale(scale)
+            self.init.velocity_limit_scale = scale
+            trajectory.velocity_limit_scale = scale
+        if "home_speed" in settings.get("initialization", {}):
+            self.init.home_speed = settings["initialization"]["home_speed"]
         t = settings.get("trajectory", {})
         if "budget" in t:
             trajectory.budget = t["budget"]
@@ -137,19 +162,18 @@ class RobotSystem:
             report.columns = list(r["columns"])
 
     def emergency_stop(self, reason: str = "emergency stop by the operator") -> None:
-        """Real-time safe: drives commanded to zero and the servo off now, brakes applied,
-        the supervisor to Stop Robot (which waits for the brakes, then stops the rest)."""
-        self.robot.apply_brakes()
-        self.servo.out_vel.write((0.0,) * len(self.spec.axes), self.clock.now())
-        self.servo.stop()
-        self.supervisor.request_stop(reason)
+        """Real-time safe: a stop of category 1 by the safety supervisor at once (its own
+        ramp to zero at each axis's max_acceleration, then brakes, then torque off; see
+        docs/safety.md), and the supervisor to Stop Robot."""
+        if self.safety.running and self.robot.brakes_released():
+            self.safety.stop_robot(1, reason)
+        self.supervisor.request_stop(reason, emergency=True)
 
     def finish(self) -> dict:
-        """Not real-time: after a cycle ended, flush the report, write the state
-        transitions beside it, and return the cycle's summary."""
+        """Not real-time: after a cycle ended, flush the report and the state transitions
+        beside it (both written as the cycle ran), and return the cycle's summary."""
         error = self.report.close()
-        if self._report_path:
-            write_states(Path(self._report_path).with_suffix(".states.csv"), self.supervisor.fsm.history)
+        self.state_file.flush()
         summary = self.summary(time.perf_counter() - self._wall0)
         if error:
             summary["fault"] = summary["fault"] or error
@@ -207,6 +231,8 @@ class RobotSystem:
             "final_position": list(self.robot.positions),
             "max_following_error": self.servo.max_following_error,
             "fault": sup.fault,
+            "stop": ({"category": self.safety.category, "reason": self.safety.stop_reason}
+                     if self.safety.category is not None else None),
             "log": [{"time": t, "line": line, "text": text} for t, line, text in self.trajectory.log_lines],
             "sim_time": round(end, 6),
             "wall_time": wall_time,

@@ -31,6 +31,21 @@ loop takes about 170 ns per instruction, the table loop about 280 ns (1.6x slowe
 Real-time notes: ``step``, ``pause``, ``resume`` and ``abort`` run in the real-time
 loop. ``step`` allocates only what the program's own values need (arrays, strings,
 joint and pose values, call frames) and the few objects of a move hand-over.
+
+Bounds (no program, and no forged object file, can stall the loop or exhaust memory):
+
+* instructions: at most ``budget`` per step (``trajectory.budget``, 1..10,000);
+* time: given a ``deadline`` (the wall clock; the trajectory generator gives
+  :data:`TIME_SLICE` per update), the step runs in slices of :data:`SLICE` instructions
+  and ends at the first slice boundary after the deadline (the program goes on at the
+  next step). On the simulated clock there is no deadline: the run stays deterministic;
+* values: a string of at most :data:`compiler.semantics.MAX_STRING_LENGTH` characters,
+  an array of at most :data:`compiler.objcode.MAX_ARRAY_ELEMENTS` elements (all levels
+  together), at most :data:`MAX_CALL_DEPTH` nested calls; a program that exceeds one
+  stops with an error at its line. The longest single instruction is therefore bounded
+  too (copying the largest array);
+* the operator log: ``print`` lines of at most MAX_STRING_LENGTH characters, and the
+  host keeps a bounded number of them.
 """
 from __future__ import annotations
 
@@ -38,13 +53,19 @@ import enum
 from dataclasses import dataclass
 from typing import Protocol
 
-from compiler.objcode import BUILTIN_NAMES, FIELDS, INSTRUCTIONS, OP, Program, clause_names
-from compiler.semantics import (INT_MAX, INT_MIN, EvalError, binary, call_builtin, check_index, get_axis,
-                                get_field, make_joint, make_pos, make_quat, make_rpy, set_axis, unary)
+from time import perf_counter
+
+from compiler.objcode import BUILTIN_NAMES, FIELDS, INSTRUCTIONS, MAX_ARRAY_ELEMENTS, OP, Program, clause_names
+from compiler.semantics import (INT_MAX, INT_MIN, MAX_STRING_LENGTH, EvalError, binary, call_builtin,
+                                check_index, get_axis, get_field, make_joint, make_pos, make_quat, make_rpy,
+                                set_axis, unary)
 from compiler.values import Pose, format_number, format_value
 
 #: Deepest nesting of procedure calls before the program is stopped with an error.
 MAX_CALL_DEPTH = 200
+
+#: Instructions run between two looks at the step's deadline.
+SLICE = 32
 
 #: What ``print`` puts between its values. The example programs and the language
 #: reference write their own spaces (``print "cycle ", n, ": ", kind;``), so the values
@@ -111,6 +132,17 @@ class MotionHost(Protocol):
 _NO_WAIT, _W_MOTION, _W_DWELL, _W_QUEUE = 0, 1, 2, 3
 
 _CLAUSE_NAMES = tuple(tuple(clause_names(mask)) for mask in range(1 << 6))
+
+
+def array_elements(value) -> int:
+    """How many elements an array value holds, all levels together (1 for a non-array)."""
+    count = 1
+    while type(value) is list:
+        count *= len(value)
+        if not value:
+            return 0
+        value = value[0]
+    return count
 
 
 def copy_array(array: list) -> list:
@@ -217,10 +249,12 @@ class VM:
             self.paused = False
 
     # -- running (real-time) --------------------------------------------------------------
-    def step(self) -> VMStatus:
-        """Real-time. Execute at most ``budget`` instructions; stop early at a wait.
+    def step(self, deadline: float | None = None) -> VMStatus:
+        """Real-time. Execute at most ``budget`` instructions; stop early at a wait, or
+        at the first slice of :data:`SLICE` instructions that ends after ``deadline``
+        (``time.perf_counter`` seconds; None: no time bound).
 
-        Returns the new status: RUNNING (budget used up), WAITING, DONE or ERROR.
+        Returns the new status: RUNNING (budget or time used up), WAITING, DONE or ERROR.
         Never raises.
         """
         status = self.status
@@ -239,7 +273,16 @@ class VM:
                 return ERROR
             self._wait = _NO_WAIT
         self.status = RUNNING
-        self._run(self.budget)
+        if deadline is None:
+            self._run(self.budget)
+            return self.status
+        left = self.budget
+        while left > 0:
+            chunk = SLICE if left > SLICE else left
+            self._run(chunk)
+            left -= chunk
+            if self.status is not RUNNING or perf_counter() > deadline:
+                break
         return self.status
 
     def _wait_over(self) -> bool:
@@ -561,6 +604,9 @@ class VM:
     def op_make_array(self, n, pc):
         stack = self.stack
         element = stack[-1]
+        if n * array_elements(element) > MAX_ARRAY_ELEMENTS:
+            raise EvalError(f"an array of {n} x {array_elements(element)} elements is larger than "
+                            f"{MAX_ARRAY_ELEMENTS} elements, the largest allowed")
         if type(element) is list:
             stack[-1] = [copy_array(element) for _ in range(n)]
         else:
@@ -712,7 +758,16 @@ class VM:
     def op_print(self, n, pc):
         if not self._at_robot():
             return pc
-        text = PRINT_SEPARATOR.join(v if type(v) is str else format_value(v) for v in self._pop_n(n))
+        parts, length = [], 0
+        for v in self._pop_n(n):
+            if length > MAX_STRING_LENGTH:
+                break
+            part = v if type(v) is str else format_value(v)
+            parts.append(part)
+            length += len(part)
+        text = PRINT_SEPARATOR.join(parts)
+        if len(text) > MAX_STRING_LENGTH:  # a line of the operator log is at most this long
+            text = text[:MAX_STRING_LENGTH - 3] + "..."
         self.host.log(text, self.program.line_at(pc)[0])
         return pc + 1
 

@@ -464,7 +464,7 @@ def test_lookahead_zero_waits_for_each_move_and_nothing_blends(tmp_path):
 def test_an_invalid_lookahead_is_refused_naming_the_setting(tmp_path, value):
     """Refused when the specification is loaded (so irl check, run and serve all say so)."""
     path = spec_copy(tmp_path, f"lookahead = {value}")
-    with pytest.raises(SpecError, match=r"controller\.lookahead: expected a whole number 0\.\.16"):
+    with pytest.raises(SpecError, match=r"controller\.lookahead: expected an integer 0 <= x <= 16"):
         load_spec(path)
 
 

@@ -19,6 +19,7 @@ import pytest
 from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
 
+from compiler.params import component_params
 from runtime.config import (
     COLUMNS,
     SCHEMA,
@@ -42,7 +43,7 @@ STANDARD = {
     "servo": {"kp": 40.0, "ki": 2.0, "following_error_limit": 2.0},
     "robot": {"velocity_limit_scale": 1.0},
     "trajectory": {"budget": 200, "period": 0.005},
-    "initialization": {"period": 0.005},
+    "initialization": {"period": 0.005, "home_speed": 0.2},
     "report": {"period": 0.01, "columns": ["sens_pos", "desi_pos", "out_vel", "following_error", "tcp"]},
 }
 
@@ -199,7 +200,7 @@ def test_validate_settings_normalizes():
 
 
 def test_validate_settings_errors_start_with_where():
-    with pytest.raises(ConfigError, match=r"^client: configuration 'x': servo\.kp: expected a number > 0, got -1$"):
+    with pytest.raises(ConfigError, match=r"^client: configuration 'x': servo\.kp: expected a number 0 < x <= 100 \(1/s\), got -1$"):
         validate_settings({"servo": {"kp": -1}}, "client: configuration 'x'")
     with pytest.raises(ConfigError, match=r"^net: trajectory\.period: expected the same period as initialization"):
         validate_settings({"trajectory": {"period": 0.005}, "initialization": {"period": 0.01}}, "net")
@@ -226,15 +227,16 @@ def test_configurations_do_not_share_mutable_values():
 def test_schema_markdown():
     text = schema_markdown()
     lines = text.splitlines()
-    assert lines[0] == "| Component | Key | Type / check | Description |"
-    assert lines[1] == "|---|---|---|---|"
+    assert lines[0] == "| parameter | allowed | default | safety | changes by | meaning |"
+    assert lines[1] == "|---|---|---|---|---|---|"
     rows = lines[2:]
     assert len(rows) == sum(len(keys) for keys in SCHEMA.values())
     for component, keys in SCHEMA.items():
         for key, setting in keys.items():
-            row = next(r for r in rows if r.startswith(f"| `{component}` | `{key}` |"))
-            assert setting.expected in row and setting.description in row
-            assert len(re.split(r"(?<!\\)\|", row)) == 6  # four cells
+            row = next(r for r in rows if r.startswith(f"| `{component}.{key}`"))
+            assert setting.expected in row and setting.description.replace("|", "\\|") in row
+            assert len(re.split(r"(?<!\\)\|", row)) == 8  # six cells
+            assert ("| yes |" in row) == setting.safety
 
 
 def test_schema_entries_are_complete():
@@ -317,7 +319,7 @@ def test_message_names_file_configuration_and_key():
     text = one("servo", "kp = 40.0", "standard") + '[configurations.gentle]\nbased_on = "standard"\n' \
         + "[configurations.gentle.servo]\nkp = -1\n"
     assert error_of(text, "lola15.toml") == (
-        "lola15.toml: configuration 'gentle': servo.kp: expected a number > 0, got -1")
+        "lola15.toml: configuration 'gentle': servo.kp: expected a number 0 < x <= 100 (1/s), got -1")
 
 
 def test_unknown_component_with_suggestion():
@@ -368,23 +370,23 @@ def test_configurations_is_not_a_table():
 
 
 @pytest.mark.parametrize("component, body, expected", [
-    ("servo", "kp = 0", "servo.kp: expected a number > 0, got 0"),
-    ("servo", "kp = -2.5", "servo.kp: expected a number > 0, got -2.5"),
-    ("servo", 'kp = "40"', "servo.kp: expected a number > 0, got '40'"),
-    ("servo", "kp = [40]", "servo.kp: expected a number > 0, got [40]"),
-    ("servo", "kp = {a = 1}", "servo.kp: expected a number > 0, got a table"),
-    ("servo", "kp = 1979-05-27", "servo.kp: expected a number > 0, got 1979-05-27 (a date)"),
-    ("servo", "kp = inf", "servo.kp: expected a finite number, got inf"),
-    ("servo", "kp = nan", "servo.kp: expected a finite number, got nan"),
-    ("servo", "kp = " + "9" * 400, "servo.kp: expected a finite number, got a very large integer"),
-    ("servo", "ki = -0.1", "servo.ki: expected a number >= 0, got -0.1"),
-    ("servo", "following_error_limit = 0.0", "servo.following_error_limit: expected a number > 0, got 0.0"),
-    ("robot", "velocity_limit_scale = 0", "robot.velocity_limit_scale: expected a number > 0 and <= 1, got 0"),
-    ("robot", "velocity_limit_scale = 1.5", "robot.velocity_limit_scale: expected a number > 0 and <= 1, got 1.5"),
-    ("trajectory", "budget = 0", "trajectory.budget: expected an integer from 1 to 100000, got 0"),
-    ("trajectory", "budget = 100001", "trajectory.budget: expected an integer from 1 to 100000, got 100001"),
-    ("trajectory", "budget = 200.0", "trajectory.budget: expected an integer from 1 to 100000, got 200.0"),
-    ("trajectory", 'budget = "200"', "trajectory.budget: expected an integer from 1 to 100000, got '200'"),
+    ("servo", "kp = 0", "servo.kp: expected a number 0 < x <= 100 (1/s), got 0"),
+    ("servo", "kp = -2.5", "servo.kp: expected a number 0 < x <= 100 (1/s), got -2.5"),
+    ("servo", 'kp = "40"', "servo.kp: expected a number 0 < x <= 100 (1/s), got '40'"),
+    ("servo", "kp = [40]", "servo.kp: expected a number 0 < x <= 100 (1/s), got [40]"),
+    ("servo", "kp = {a = 1}", "servo.kp: expected a number 0 < x <= 100 (1/s), got a table"),
+    ("servo", "kp = 1979-05-27", "servo.kp: expected a number 0 < x <= 100 (1/s), got 1979-05-27 (a date)"),
+    ("servo", "kp = inf", "servo.kp: expected a number 0 < x <= 100 (1/s), got inf"),
+    ("servo", "kp = nan", "servo.kp: expected a number 0 < x <= 100 (1/s), got nan"),
+    ("servo", "kp = " + "9" * 400, "servo.kp: expected a number 0 < x <= 100 (1/s), got a very large integer"),
+    ("servo", "ki = -0.1", "servo.ki: expected a number 0 <= x <= 100 (1/s^2), got -0.1"),
+    ("servo", "following_error_limit = 0.0", "servo.following_error_limit: expected a number 0 < x <= 10 (deg or mm), got 0.0"),
+    ("robot", "velocity_limit_scale = 0", "robot.velocity_limit_scale: expected a number 0 < x <= 1, got 0"),
+    ("robot", "velocity_limit_scale = 1.5", "robot.velocity_limit_scale: expected a number 0 < x <= 1, got 1.5"),
+    ("trajectory", "budget = 0", "trajectory.budget: expected an integer 1 <= x <= 10000 (instructions), got 0"),
+    ("trajectory", "budget = 10001", "trajectory.budget: expected an integer 1 <= x <= 10000 (instructions), got 10001"),
+    ("trajectory", "budget = 200.0", "trajectory.budget: expected an integer 1 <= x <= 10000 (instructions), got 200.0"),
+    ("trajectory", 'budget = "200"', "trajectory.budget: expected an integer 1 <= x <= 10000 (instructions), got '200'"),
 ])
 def test_wrong_values(component, body, expected):
     assert error_of(one(component, body)) == f"t.toml: configuration 'c': {expected}"
@@ -402,9 +404,9 @@ def test_bool_rejected_for_numbers(component, key, value):
 
 
 def test_bool_rejected_by_validate_settings():
-    with pytest.raises(ConfigError, match=r"servo\.kp: expected a number > 0, got true \(a boolean\)"):
+    with pytest.raises(ConfigError, match=r"servo\.kp: expected a number 0 < x <= 100 \(1/s\), got true \(a boolean\)"):
         validate_settings({"servo": {"kp": True}}, "net")
-    with pytest.raises(ConfigError, match=r"trajectory\.budget: expected an integer from 1 to 100000, got true"):
+    with pytest.raises(ConfigError, match=r"trajectory\.budget: expected an integer 1 <= x <= 10000 \(instructions\), got true"):
         validate_settings({"trajectory": {"budget": True}}, "net")
 
 
@@ -423,14 +425,14 @@ def test_period_not_a_multiple_of_the_tick(component, period, nearest):
 @pytest.mark.parametrize("period", ["0", "0.0", "-0.005", "0.0005", "1.001", "2", "1e300", "-1e300"])
 def test_period_out_of_range(component, period):
     assert error_of(one(component, f"period = {period}")) == (
-        f"t.toml: configuration 'c': {component}.period: expected a period between 0.001 and 1.0 s, "
+        f"t.toml: configuration 'c': {component}.period: expected a period of 0.001 to 1 s, a whole multiple of the 1 ms tick, "
         f"got {float(period) if '.' in period or 'e' in period else int(period)!r}")
 
 
 @pytest.mark.parametrize("value, expected", [
-    ("'sens_pos'", "expected a non-empty list of unique column names from sens_pos, desi_pos, out_vel, "
+    ("'sens_pos'", "expected a non-empty list of distinct names from sens_pos, desi_pos, out_vel, "
                    "following_error, tcp, got 'sens_pos'"),
-    ("[]", "expected a non-empty list of unique column names from sens_pos, desi_pos, out_vel, following_error, "
+    ("[]", "expected a non-empty list of distinct names from sens_pos, desi_pos, out_vel, following_error, "
            "tcp, got []"),
     ("['sens_pos', 3]", "expected column names (strings), got 3 at index 1"),
     ("['sens_pos', 'out_vell']", "unknown column 'out_vell' (did you mean 'out_vel'?); "
@@ -523,7 +525,7 @@ def test_load_error_names_the_file(tmp_path):
     path.write_text(one("servo", "kp = -1", "gentle"), encoding="utf-8")
     with pytest.raises(ConfigError) as info:
         load_configurations(path)
-    assert str(info.value) == f"{path}: configuration 'gentle': servo.kp: expected a number > 0, got -1"
+    assert str(info.value) == f"{path}: configuration 'gentle': servo.kp: expected a number 0 < x <= 100 (1/s), got -1"
 
 
 def test_load_invalid_toml(tmp_path):
@@ -638,7 +640,7 @@ KEYS = st.one_of(st.sampled_from(WORDS), TEXT)
 SCALARS = st.one_of(
     st.booleans(),
     st.integers(min_value=-2 ** 63, max_value=2 ** 63 - 1),
-    st.sampled_from([0, 1, 5, 200, 100_000, 100_001, 10 ** 30]),
+    st.sampled_from([0, 1, 5, 200, 10_000, 10_001, 10 ** 30]),
     st.floats(allow_nan=True, allow_infinity=True),
     st.sampled_from([0.0, 0.001, 0.005, 0.0025, 0.01, 0.02, 0.5, 1.0, 1.5, -0.005, 1e-12]),
     st.sampled_from(WORDS),
@@ -652,17 +654,18 @@ VALUES = st.recursive(
 
 
 def valid_value(component: str, key: str) -> st.SearchStrategy:
-    if key == "period":
+    """Any value the parameter's declaration (compiler.params) accepts."""
+    param = component_params(component)[key]
+    if param.kind == "period":
         return st.integers(1, 1000).map(lambda n: n / 1000)
-    if key == "columns":
+    if param.kind == "columns":
         return st.permutations(COLUMNS).flatmap(lambda cols: st.integers(1, len(cols)).map(lambda n: list(cols[:n])))
-    if key == "budget":
-        return st.integers(1, 100_000)
-    if key == "velocity_limit_scale":
-        return st.floats(min_value=1e-6, max_value=1.0)
-    if key == "ki":
-        return st.one_of(st.integers(0, 1000), st.floats(min_value=0, max_value=1e6))
-    return st.one_of(st.integers(1, 1000), st.floats(min_value=1e-6, max_value=1e6))
+    if param.kind == "integer":
+        return st.integers(int(param.low), int(param.high))
+    floats = st.floats(min_value=param.low, max_value=param.high, exclude_min=param.low_open,
+                       exclude_max=param.high_open)
+    ints = st.integers(int(param.low) + (1 if param.low_open else 0), int(param.high))
+    return st.one_of(ints, floats)
 
 
 @st.composite

@@ -238,10 +238,11 @@ def test_report_csv_header_and_rows_every_10_ms(paper):
     assert all(b - a == 10 for a, b in zip(ms, ms[1:])), "a row is missing or doubled"
     for r in rows:
         [float(x) for x in r[2:]]  # numbers throughout
-    # the report runs from Calibrate Offsets (where the paper starts it) to the end of Move Robot
+    # the report runs from Calibrate Offsets (where the paper starts it) to the end of Stop
+    # Robot (the robot at rest, the brakes applied)
     s = paper["summary"]
     assert ms[0] == round(state(s, "Calibrate Offsets")["t_enter"] * 1000)
-    assert ms[-1] <= round(state(s, "Move Robot")["t_exit"] * 1000)
+    assert round(state(s, "Stop Robot")["t_enter"] * 1000) < ms[-1] <= round(state(s, "Stop Robot")["t_exit"] * 1000)
     # the last row is at the end of the program: the encoders read the last target
     last = [float(x) for x in rows[-1][2:2 + len(NAMES)]]
     assert within_counts(last, PAPER_TARGETS[-1], counts=40), last
@@ -265,7 +266,7 @@ def test_report_state_column_passes_through_the_phases_in_order(paper):
             tops.append(top)
         if sub and (not subs or subs[-1] != sub):
             subs.append(sub)
-    assert tops == ["Calibrate Offsets", "Initialization Sequence", "Move Robot"]
+    assert tops == ["Calibrate Offsets", "Initialization Sequence", "Move Robot", "Stop Robot"]
     assert subs == ["Find Sensors", "Find Index", "Go To Start"]
 
 
@@ -667,7 +668,7 @@ def test_an_unknown_profile_is_refused(tmp_path):
     shutil.copy(TEST_IRL, tmp_path / "test.irl")
     code, out, err = run("run", tmp_path / "test.irl")
     no_crash(code, out, err)
-    assert code != 0 and 'controller.profile: expected "jerk" or "trapezoid"' in err
+    assert code != 0 and 'controller.profile: expected one of "jerk", "trapezoid"' in err
 
 
 def test_move_ptp_to_a_pose_uses_the_inverse_kinematics(work):

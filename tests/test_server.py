@@ -718,10 +718,20 @@ def test_scripting_call_and_console(server):
     e = ("--endpoint", server.endpoint)
     proc = run_irl("call", "servo.kp", *e)
     assert proc.returncode == 0 and proc.stdout.strip() == "servo.kp = 40.0", proc.stdout + proc.stderr
-    proc = run_irl("call", "servo.kp = 30", *e)
-    assert proc.returncode == 0 and proc.stdout.strip() == "servo.kp = 30.0", proc.stdout + proc.stderr
+    proc = run_irl("call", "servo.kp = 30", *e)  # safety-relevant: only by a whole configuration
+    assert proc.returncode == 1 and "refused" in proc.stderr and "safety-relevant" in proc.stderr, proc.stderr
+    assert "irl reconfigure" in proc.stderr
     proc = run_irl("call", "servo.kp", *e)
-    assert proc.returncode == 0 and proc.stdout.strip() == "servo.kp = 30.0", proc.stdout + proc.stderr
+    assert proc.returncode == 0 and proc.stdout.strip() == "servo.kp = 40.0", proc.stdout + proc.stderr
+    proc = run_irl("call", "trajectory.budget = 500", *e)  # a live parameter
+    assert proc.returncode == 0 and proc.stdout.strip() == "trajectory.budget = 500", proc.stdout + proc.stderr
+    proc = run_irl("call", "trajectory.budget = 0", *e)  # out of its range: refused, nothing stored
+    assert proc.returncode == 1 and "bad_request" in proc.stderr, proc.stderr
+    assert "trajectory.budget: expected an integer 1 <= x <= 10000 (instructions), got 0" in proc.stderr
+    proc = run_irl("call", "trajectory.budget", *e)
+    assert proc.returncode == 0 and proc.stdout.strip() == "trajectory.budget = 500", proc.stdout + proc.stderr
+    proc = run_irl("call", "trajectory.budget = 200", *e)
+    assert proc.returncode == 0
 
     proc = run_irl("call", "servo.nope", *e)
     assert proc.returncode == 1
@@ -739,7 +749,7 @@ def test_scripting_call_and_console(server):
     listed = [line.split()[0] for line in out.splitlines() if line and not line.startswith(("connected", " "))]
     for name in ("robot", "servo", "initialization", "trajectory", "report", "fsm"):
         assert name in listed, out
-    assert "kp = 30.0" in out and "ki = 2.0" in out  # help servo
+    assert "kp = 40.0" in out and "ki = 2.0" in out  # help servo
     assert "servo.ki = 2.0" in out.splitlines()
 
 

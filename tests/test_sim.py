@@ -183,10 +183,12 @@ def test_brake_commands_cancel_each_other():
 
 # ---- hard stops ---------------------------------------------------------------------------
 
-def test_hard_stops_at_the_limits():
+def test_hard_stops_beyond_the_software_limits():
     robot = released()
-    hi = tuple(a.max for a in SPEC.axes)
-    lo = tuple(a.min for a in SPEC.axes)
+    margin = SPEC.simulation["end_stop_margin"]
+    hi = tuple(a.max + margin for a in SPEC.axes)
+    lo = tuple(a.min - margin for a in SPEC.axes)
+    assert robot.end_stops == tuple(zip(lo, hi))
 
     def within(r):
         assert all(l <= x <= h for l, x, h in zip(lo, r.true_positions, hi))

@@ -5,9 +5,14 @@ encoder's index (Z) pulse; from the known position of that pulse it resets the e
 then all axes go to the start position. The Initialization component writes the
 setpoints (``init_pos``, every 5 ms); the sequence itself is a sub-machine of the
 supervisor's Initialization Sequence state (:meth:`Initialization.machine`). Every search
-is bounded: a sensor or pulse that does not come is a fault, never a hang.
+is bounded: a sensor or pulse that does not come is a fault, never a hang. The searches
+start and stop with ramps at ``home_speed`` x each axis's max_acceleration (never a step
+of velocity), at the search velocity (within ``velocity_limit_scale``); the move to the
+start position begins only when every axis is at rest.
 """
 from __future__ import annotations
+
+from compiler.params import component_params
 
 from ..component import Component, DataPort
 from ..fsm import FSM, State, Transition
@@ -19,7 +24,7 @@ FROZEN_AFTER = 0.2  # s of commanded motion without a single encoder count -> fr
 
 
 class Initialization(Component):
-    PROPERTIES = {"home_speed": (float, "fraction of the axis maxima used to go to the start position")}
+    PROPERTIES = component_params("initialization")
 
     def __init__(self, spec, robot, init_pos: DataPort, sens_pos: DataPort, clock, period: float = 0.005):
         super().__init__("initialization", period)
@@ -31,45 +36,70 @@ class Initialization(Component):
         self.axes = spec.axes
         self.n = len(spec.axes)
         self.home_speed = HOME_SPEED
+        self.velocity_limit_scale = 1.0  # robot.velocity_limit_scale (set by the system)
         self.positions = [0.0] * self.n
         self.velocities = [0.0] * self.n
+        self.targets = [0.0] * self.n  # the velocity each axis ramps to
         self.trajectory = None
         self.t_trajectory = 0.0
         self.fault: str | None = None
-        self.done = False
+        self.done = False  # the sub-machine is in Done (also when it was stopped early)
+        self.completed = False  # the sequence itself reached Done: every axis referenced, at the start
         self.step_name = ""
-        self.on_encoder_reset = None  # called after an encoder reset (the servo re-bases)
+        self.on_encoder_reset = None  # called with (axis, delta) after an encoder reset (the servo re-bases)
 
     # ---- the setpoint generator (real-time, every 5 ms) ----
     def on_start(self) -> bool:
         position = self.sens_pos.read() or (0.0,) * self.n
         self.positions = list(position)
         self.velocities = [0.0] * self.n
+        self.targets = [0.0] * self.n
         self.trajectory = None
         self.fault = None
         self.done = False
+        self.completed = False
+        self._first = True  # the first update publishes the rest state (the servo interpolates from it)
         self.init_pos.write((0.0, tuple(self.positions), tuple(self.velocities)), -1.0)
         return True
 
     def update(self, now: float) -> None:
         """Real-time: advance ramps or the go-to-start trajectory; write ``init_pos``."""
         dt = self.period
-        if self.trajectory is not None:
+        if self._first:
+            self._first = False
+        elif self.trajectory is not None:
             self.t_trajectory += dt
             pos, vel = self.trajectory.sample(self.t_trajectory)
             self.positions, self.velocities = list(pos), list(vel)
         else:
-            for i, v in enumerate(self.velocities):
-                if v:
-                    self.positions[i] += v * dt
+            velocities, positions, targets = self.velocities, self.positions, self.targets
+            for i, v in enumerate(velocities):
+                target = targets[i]
+                if v != target:  # ramp at home_speed x max_acceleration
+                    step = self.home_speed * self.axes[i].max_acceleration * dt
+                    new = target if abs(target - v) <= step else v + step if target > v else v - step
+                    positions[i] += 0.5 * (v + new) * dt
+                    velocities[i] = new
+                elif v:
+                    positions[i] += v * dt
         self.init_pos.write((now, tuple(self.positions), tuple(self.velocities)), now)
 
     # ---- commands from the sequence (between ticks) ----
+    def search_velocity(self, axis: int) -> float:
+        """How fast ``axis`` searches: its search_velocity, within half the reduced speed."""
+        a = self.axes[axis]
+        return min(a.search_velocity, 0.5 * self.velocity_limit_scale * a.max_velocity)
+
     def ramp(self, axis: int, velocity: float) -> None:
-        self.velocities[axis] = velocity
+        """Ramp ``axis`` to ``velocity`` (not a step: see :meth:`update`)."""
+        self.targets[axis] = velocity
 
     def halt_axis(self, axis: int) -> None:
-        self.velocities[axis] = 0.0
+        self.targets[axis] = 0.0
+
+    def at_rest(self) -> bool:
+        """Every axis's setpoint stands still."""
+        return not any(self.velocities) and not any(self.targets)
 
     def shift(self, axis: int, delta: float) -> None:
         """The encoder of ``axis`` was reset: move its setpoint into the new coordinates,
@@ -82,7 +112,7 @@ class Initialization(Component):
     def go_to_start(self) -> str | None:
         start = tuple(self.positions)
         target = tuple(a.home for a in self.axes)
-        f = self.home_speed
+        f = min(self.home_speed, self.velocity_limit_scale)
         result, trajectory, message = plan_ptp(PtpInput(
             start, target, tuple(a.max_velocity * f for a in self.axes),
             tuple(a.max_acceleration * f for a in self.axes)))
@@ -111,8 +141,8 @@ class Initialization(Component):
         ]
         transitions = [
             Transition("Find Sensors", "Find Index", seq.all_axes_done, label="all sensors found"),
-            Transition("Find Index", "Go To Start", seq.all_axes_done, label="all index pulses found"),
-            Transition("Go To Start", "Done", self.at_start, label="at the start position"),
+            Transition("Find Index", "Go To Start", seq.all_found_at_rest, label="all index pulses found, at rest"),
+            Transition("Go To Start", "Done", self.at_start, program=seq.complete, label="at the start position"),
         ]
         return FSM("initialization", states, transitions, initial="Find Sensors", final="Done", clock=clock.now)
 
@@ -140,6 +170,9 @@ class _Sequence:
 
     def all_axes_done(self) -> bool:
         return self.axis >= self.init.n
+
+    def all_found_at_rest(self) -> bool:
+        return self.axis >= self.init.n and self.init.at_rest()
 
     def _name(self) -> str:
         return self.init.axes[self.axis].name
@@ -172,9 +205,17 @@ class _Sequence:
             return
         a = self.init.axes[self.axis]
         self.init.step_name = f"sensor {a.name}"
-        # Inside the window already? Leave it upwards first, so the edge found is the upper one.
-        self.phase = "leave" if self.robot.sensors[self.axis] else "search"
-        self._search(a.search_velocity if self.phase == "leave" else -a.search_velocity)
+        # Inside the window already? Leave it upwards first, so the edge found is the upper
+        # one. Below it (by the last known positions, e.g. homing again after a fault)?
+        # Approach it upwards, pass through, then search downwards as from above.
+        if self.robot.sensors[self.axis]:
+            self.phase = "leave"
+        elif self.init.positions[self.axis] < a.sensor_position:
+            self.phase = "approach"
+        else:
+            self.phase = "search"
+        speed = self.init.search_velocity(self.axis)
+        self._search(-speed if self.phase == "search" else speed)
 
     def _search(self, velocity: float) -> None:
         """Start moving the current axis at ``velocity``, watching its encoder."""
@@ -190,10 +231,18 @@ class _Sequence:
         now = self.init.robot_now()
         self._watch_encoder(now)
         active = self.robot.sensors[self.axis]
+        if self.phase == "approach":
+            if active:
+                self.phase = "leave"
+                self.travel_start = self.init.positions[self.axis]
+            elif self._travelled() > a.max - a.min:
+                self._fail(f"homing sensor of {a.name} not found within the axis travel "
+                           f"({a.max - a.min:g} {a.unit}) upwards")
+            return
         if self.phase == "leave":
             if not active:
                 self.phase = "search"
-                self.init.ramp(self.axis, -a.search_velocity)
+                self.init.ramp(self.axis, -self.init.search_velocity(self.axis))
                 self.travel_start = self.init.positions[self.axis]
             elif self._travelled() > 2 * a.sensor_window + 1.0:
                 self._fail(f"homing sensor of {a.name} does not turn off")
@@ -218,7 +267,7 @@ class _Sequence:
         a = self.init.axes[self.axis]
         self.init.step_name = f"index {a.name}"
         self.index_seen = self.robot.index_events[self.axis]
-        self._search(-a.search_velocity)
+        self._search(-self.init.search_velocity(self.axis))
 
     def run_index(self) -> None:
         if self.all_axes_done() or self.init.fault:
@@ -240,7 +289,7 @@ class _Sequence:
             self.init.shift(i, after - before)
             self.init.halt_axis(i)
             if self.init.on_encoder_reset is not None:
-                self.init.on_encoder_reset()
+                self.init.on_encoder_reset(i, after - before)
             self.axis += 1
             self._start_axis_index()
         elif self._travelled() > 2 * a.index_spacing + 2 * a.sensor_window:
@@ -261,6 +310,11 @@ class _Sequence:
                    if abs(m - a.home) * a.counts_per_unit > 1.0]
             self._fail(f"the axes did not settle at the start position within {SETTLE_TIMEOUT:g} s: "
                        + ", ".join(far))
+
+    def complete(self) -> None:
+        """The transition Go To Start -> Done: the only way the sequence completes (a stop
+        of the sub-machine from outside also enters Done, but not through here)."""
+        self.init.completed = self.init.fault is None
 
     def finish(self) -> None:
         self.init.step_name = "done"

@@ -1,12 +1,15 @@
 """Report: every 10 ms, one row of what the components exchanged.
 
 Columns: time, FSM state, and per axis ``sens_pos``, ``desi_pos`` (the servo's reference),
-``out_vel`` and the following error (the ``columns`` setting chooses among these four). The real-time side only appends a tuple of numbers;
-every 100 ms (ten rows) it hands the batch to a writer thread through a bounded queue,
-and the thread formats, writes and flushes the CSV, so a crash loses at most the last
-100 ms and the loop never does I/O. State transitions go to ``<report>.states.csv``.
-The bytes written depend only on the rows: with the simulated clock the same program
-and seed give the same file.
+``out_vel`` (the velocity command to the drives, after the safety supervisor) and the
+following error (the ``columns`` setting chooses among these, and the TCP). The report
+records from Calibrate Offsets to the end of Stop Robot (the robot at rest, brakes
+applied). The real-time side only appends a tuple of numbers; every 100 ms (ten rows)
+it hands the batch, with the state transitions since the last one, to a writer thread
+through a bounded queue, and the thread formats, writes and flushes both the CSV and
+``<report>.states.csv``, whole lines only: a crash (kill -9) loses at most the last
+100 ms of either, and the loop never does I/O. The bytes written depend only on the rows:
+with the simulated clock the same program and seed give the same files.
 """
 from __future__ import annotations
 
@@ -14,6 +17,8 @@ import queue
 import threading
 from operator import sub as _sub
 from pathlib import Path
+
+from compiler.params import component_params
 
 from ..component import Component, DataPort
 
@@ -29,6 +34,7 @@ class ReportWriter(threading.Thread):
     def __init__(self, path: Path, header: list[str], tcp=None):
         super().__init__(name="report-writer", daemon=True)
         self.path = path
+        self.states_path = path.with_suffix(".states.csv")
         self.queue: queue.Queue = queue.Queue(maxsize=1000)
         self.header = header
         self.tcp = tcp  # (start, count, forward): row[start:start + count] are joints -> the TCP
@@ -39,13 +45,22 @@ class ReportWriter(threading.Thread):
 
     def run(self) -> None:
         try:
-            with open(self.path, "w", encoding="utf-8", newline="") as f:
+            with open(self.path, "w", encoding="utf-8", newline="") as f, \
+                    open(self.states_path, "w", encoding="utf-8", newline="") as states:
                 f.write(",".join(self.header) + "\n")
                 f.flush()
+                states.write(STATES_HEADER)
+                states.flush()
                 while True:
-                    batch = self.queue.get()
-                    if batch is None:
+                    item = self.queue.get()
+                    if item is None:
                         break
+                    batch, transitions = item
+                    if transitions:
+                        states.write("".join([state_row(t) for t in transitions]))
+                        states.flush()
+                    if not batch:
+                        continue
                     if self.tcp is not None:
                         batch = [self._with_tcp(r) for r in batch]
                     row_format = self.row_format
@@ -63,13 +78,16 @@ class ReportWriter(threading.Thread):
 
 
 class Report(Component):
-    PROPERTIES = {}
+    PROPERTIES = component_params("report")
 
-    def __init__(self, spec, sens_pos: DataPort, out_vel: DataPort, servo, state_of, period: float = 0.01):
+    def __init__(self, spec, sens_pos: DataPort, out_vel: DataPort, servo, state_of, period: float = 0.01,
+                 history=lambda: ()):
         super().__init__("report", period)
         self.spec = spec
         self.sens_pos, self.out_vel, self.servo = sens_pos, out_vel, servo
         self.state_of = state_of  # callable -> the FSM's current state path
+        self.history = history  # callable -> the FSM's transitions so far: (time, from, to)
+        self._transitions_sent = 0
         self.names = [a.name for a in spec.axes]
         self._zeros = (0.0,) * len(self.names)
         self.path: Path | None = None
@@ -93,6 +111,7 @@ class Report(Component):
         self.writer = None
         self.batch = []
         self.dropped = 0
+        self._transitions_sent = 0
         if self.path is not None:
             try:
                 self.path.parent.mkdir(parents=True, exist_ok=True)
@@ -122,11 +141,15 @@ class Report(Component):
             self._hand_over()
 
     def _hand_over(self) -> None:
-        if self.writer is not None and self.batch:
-            try:
-                self.writer.queue.put_nowait(self.batch)
-            except queue.Full:
-                self.dropped += len(self.batch)
+        if self.writer is not None:
+            history = self.history()
+            transitions = history[self._transitions_sent:] if len(history) > self._transitions_sent else ()
+            if self.batch or transitions:
+                try:
+                    self.writer.queue.put_nowait((self.batch, transitions))
+                    self._transitions_sent += len(transitions)
+                except queue.Full:
+                    self.dropped += len(self.batch)
         self.batch = []
 
     def on_stop(self) -> None:
@@ -152,9 +175,10 @@ def _forward_kinematics(spec):
         return None
 
 
-def write_states(path: Path, history) -> None:
-    """The state transitions, beside the report (not real-time)."""
-    with open(path, "w", encoding="utf-8") as f:
-        f.write("time,from,to\n")
-        for t, source, target in history:
-            f.write(f"{t:.3f},{source or ''},{target}\n")
+STATES_HEADER = "time,from,to\n"
+
+
+def state_row(transition) -> str:
+    """One line of ``<report>.states.csv``: a transition (time, from, to)."""
+    t, source, target = transition
+    return f"{t:.3f},{source or ''},{target}\n"

@@ -3,11 +3,16 @@
 Sense (every 1 ms): read the incremental encoders, turn counts into axis positions
 (relative to power-up until the initialization resets the encoders), estimate each
 axis's velocity with an alpha-beta filter, and write ``sens_pos``. Act (every 1 ms):
-apply ``out_vel`` (plus the calibrated offset compensation) to the drives. The hardware
-is a backend; the simulated robot is the default, real hardware plugs in behind the
-same methods.
+apply ``drive_cmd`` (the safety supervisor's, made from the servo's ``out_vel``; plus the
+calibrated offset compensation) to the drives; a command the safety did not write this
+tick is never applied: the interface then takes the torque off and applies the brakes
+itself. The hardware is a backend; the simulated robot is the default, real hardware
+plugs in behind the same methods (encoders, drives with a velocity command and a torque
+enable, brakes, digital I/O).
 """
 from __future__ import annotations
+
+from compiler.params import component_params
 
 from ..accel import kernels
 from ..component import Component, DataPort
@@ -16,15 +21,15 @@ clamp_commands = kernels.clamp_commands
 
 
 class RobotInterface(Component):
-    PROPERTIES = {"velocity_limit_scale": (float, "fraction of max_velocity the drives accept")}
+    PROPERTIES = component_params("robot")
     OPERATIONS = Component.OPERATIONS + ("release_brakes", "apply_brakes")
 
-    def __init__(self, spec, backend, sens_pos: DataPort, out_vel: DataPort, estimator, tick: float = 0.001):
+    def __init__(self, spec, backend, sens_pos: DataPort, drive_cmd: DataPort, estimator, tick: float = 0.001):
         super().__init__("robot", tick)
         self.spec = spec
         self.backend = backend
         self.sens_pos = sens_pos
-        self.out_vel = out_vel
+        self.drive_cmd = drive_cmd
         self.estimator = estimator
         self.tick = tick
         self.axes = spec.axes
@@ -33,7 +38,8 @@ class RobotInterface(Component):
         self.offset = [0.0] * self.n  # position = counts / counts_per_unit + offset
         self.compensation = [0.0] * self.n  # added to every velocity command (calibration)
         self.max_velocity = tuple(a.max_velocity for a in spec.axes)
-        self.velocity_limit_scale = 1.0
+        self.velocity_limit_scale = 1.0  # reduced speed (the planners and the safety supervisor apply it)
+        self.unguarded: str | None = None  # why the interface stopped the drives itself
         self.counts = (0,) * self.n
         self.index_events = (0,) * self.n
         self.latched = (0,) * self.n
@@ -42,8 +48,6 @@ class RobotInterface(Component):
         self.last_command = (0.0,) * self.n
         self.homing = True  # read sensors and index pulses (the initialization needs them)
         self._zeros = (0.0,) * self.n
-        self._limit_scale = None
-        self._limit_cache = ()
 
     # -- lifecycle --
     def on_start(self) -> bool:
@@ -71,19 +75,22 @@ class RobotInterface(Component):
         return self.estimator.velocities
 
     def write(self, now: float) -> None:
-        """Real-time (act): ``out_vel`` + compensation, clamped, to the drives."""
-        command = self.out_vel.value
-        if command is None:
+        """Real-time (act): ``drive_cmd`` + compensation to the drives (within each
+        axis's max_velocity, the drive's own range). A command not written by the safety
+        supervisor for this very tick is not applied: zero, torque off, brakes on."""
+        port = self.drive_cmd
+        if port.stamp != now or port.value is None:
             command = self._zeros
-        limits = self._limit_cache if self._limit_scale == self.velocity_limit_scale else self._refresh_limits()
-        out = clamp_commands(command, self.compensation, limits)
+            if self.backend.brakes_released() and self.unguarded is None:
+                self.unguarded = (f"the drives got no command from the safety supervisor at {now:.3f} s: "
+                                  "torque off, brakes applied")
+                self.backend.disable_drives()
+                self.backend.apply_brakes()
+        else:
+            command = port.value
+        out = clamp_commands(command, self.compensation, self.max_velocity)
         self.last_command = out
         self.backend.step(self.tick, out)
-
-    def _refresh_limits(self) -> tuple:
-        self._limit_scale = self.velocity_limit_scale
-        self._limit_cache = tuple(v * self._limit_scale for v in self.max_velocity)
-        return self._limit_cache
 
     # -- operations (called by the supervisor between ticks) --
     def release_brakes(self) -> None:
@@ -91,6 +98,17 @@ class RobotInterface(Component):
 
     def apply_brakes(self) -> None:
         self.backend.apply_brakes()
+
+    def disable_drives(self) -> None:
+        """Safe torque off (real-time safe)."""
+        self.backend.disable_drives()
+
+    def enable_drives(self) -> None:
+        self.unguarded = None
+        self.backend.enable_drives()
+
+    def drives_enabled(self) -> bool:
+        return self.backend.drives_enabled()
 
     def brakes_released(self) -> bool:
         return self.backend.brakes_released()

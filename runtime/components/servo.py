@@ -9,6 +9,8 @@ commands nothing (calibration); mode "hold" holds the position where it was ente
 """
 from __future__ import annotations
 
+from compiler.params import component_params
+
 from ..accel import kernels
 from ..component import Component, DataPort
 
@@ -16,25 +18,20 @@ servo_law = kernels.servo_law
 
 
 class ServoController(Component):
-    PROPERTIES = {
-        "kp": (float, "position gain (1/s)"),
-        "ki": (float, "integral gain (1/s^2)"),
-        "following_error_limit": (float, "largest allowed |reference - position| (deg)"),
-    }
+    PROPERTIES = component_params("servo")
     OPERATIONS = Component.OPERATIONS + ("hold",)
 
     def __init__(self, spec, sens_pos: DataPort, desi_pos: DataPort, init_pos: DataPort, out_vel: DataPort,
                  interpolator_factory, tick: float = 0.001):
         super().__init__("servo", tick)
-        controller = spec.controller
-        self.kp = float(controller.get("kp", 40.0))
-        self.ki = float(controller.get("ki", 2.0))
-        self.following_error_limit = float(controller.get("following_error_limit", 2.0))
+        controller = spec.controller  # validated (compiler.params), every key present
+        self.kp = controller["kp"]
+        self.ki = controller["ki"]
+        self.following_error_limit = controller["following_error_limit"]
         self.spec = spec
         self.n = len(spec.axes)
         self.names = tuple(a.name for a in spec.axes)
-        self.max_velocity = tuple(a.max_velocity for a in spec.axes)
-        self._min_velocity = tuple(-v for v in self.max_velocity)
+        self.set_velocity_limit_scale(1.0)
         self.sens_pos, self.desi_pos, self.init_pos, self.out_vel = sens_pos, desi_pos, init_pos, out_vel
         self.tick = tick
         self.setpoint_period = 0.005  # the Trajectory Generator's and Initialization's period
@@ -48,7 +45,14 @@ class ServoController(Component):
         self.position = (0.0,) * self.n  # sens_pos at the last update
         self._hold((0.0,) * self.n)
         self.max_following_error = 0.0
+        self.worst_error = 0.0  # the largest |following error| of the last update
         self._zeros = (0.0,) * self.n
+
+    def set_velocity_limit_scale(self, scale: float) -> None:
+        """Not real-time: the commands saturate at ``scale`` x each axis's max_velocity
+        (robot.velocity_limit_scale; the safety supervisor enforces the same limit)."""
+        self.max_velocity = tuple(a.max_velocity * scale for a in self.spec.axes)
+        self._min_velocity = tuple(-v for v in self.max_velocity)
 
     def set_mode(self, mode: str) -> None:
         """Not real-time: choose where the reference comes from."""
@@ -60,16 +64,25 @@ class ServoController(Component):
         self.integral = [0.0] * self.n
         self._hold(position)
         self.position = position
+        self.worst_error = 0.0
 
     def _hold(self, position) -> None:
         self.hold_position = tuple(position)
         self._held = (tuple([(p, 0.0, 0.0, 0.0) for p in self.hold_position]), 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
         self._reference = self._held
 
-    def rebase(self) -> None:
-        """An encoder was reset: drop setpoints in the old coordinates (start afresh from
-        the position measured now, in the new ones)."""
-        self.set_mode(self.mode)
+    def rebase(self, axis: int, delta: float) -> None:
+        """Real-time safe: the encoder of ``axis`` was reset, its positions now read
+        ``delta`` more: move the reference into the new coordinates (the command goes on
+        smoothly; the integral is kept)."""
+        self.interpolator.shift(axis, delta)
+        held = list(self.hold_position)
+        held[axis] += delta
+        self._hold(held)
+        if self.position is not None and len(self.position) == self.n:
+            moved = list(self.position)
+            moved[axis] += delta
+            self.position = tuple(moved)
 
     def hold(self) -> None:
         """Hold the position the robot is at now."""
@@ -127,6 +140,7 @@ class ServoController(Component):
         out = [0.0] * self.n
         worst = servo_law(coeffs, h01, h10, h11, d01, d10, d11, position, self.integral, self.max_velocity,
                           self._min_velocity, self.kp, self.ki, self.tick, out)
+        self.worst_error = worst
         if worst > self.max_following_error:
             self.max_following_error = worst
         self.out_vel.write(tuple(out), now)

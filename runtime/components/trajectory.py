@@ -25,11 +25,13 @@ error, as if there were no look-ahead.
 from __future__ import annotations
 
 import threading
+import time
 from collections import deque
 from dataclasses import dataclass
 
 from compiler.objcode import Program
-from compiler.spec import DEFAULT_LOOKAHEAD, controller_lookahead, controller_profile
+from compiler.params import component_params
+from compiler.spec import DEFAULT_LOOKAHEAD
 from compiler.values import Joint, Pose
 
 from ..component import Component, DataPort
@@ -42,18 +44,23 @@ from ..vm import DONE, ERROR, VM
 LOOKAHEAD = DEFAULT_LOOKAHEAD
 #: Timeline times closer than this are the same instant (the timeline is a running sum).
 _SAME_TIME = 1e-9
+#: Seconds of interpreter time per update on the wall clock (runtime.vm: the step ends at
+#: the first slice of instructions after it); none on the simulated clock (deterministic).
+TIME_SLICE = 0.0005
+#: Lines of the operator log (print) kept per program; later ones are counted, not kept.
+MAX_LOG_LINES = 10_000
 
 
 def motion_profile(spec) -> str:
     """The PTP velocity profile the specification asks for (``[controller] profile``,
-    checked when the specification was loaded: SpecError otherwise)."""
-    return controller_profile(spec.file, spec.controller)
+    checked when the specification was loaded)."""
+    return spec.controller["profile"]
 
 
 def lookahead_depth(spec) -> int:
     """How many moves may be planned ahead of the robot (``[controller] lookahead``,
     0..16, default 4; 0: the program waits for each move to end)."""
-    return controller_lookahead(spec.file, spec.controller)
+    return spec.controller["lookahead"]
 
 
 @dataclass
@@ -135,7 +142,7 @@ class TrajectoryGenerator(Component):
     (percent) scales the time of the moves, the one under way too (a smooth, monotonic
     change of rate)."""
 
-    PROPERTIES = {"budget": (int, "object-code instructions per 5 ms update")}
+    PROPERTIES = component_params("trajectory")
 
     def __init__(self, spec, robot, desi_pos: DataPort, sens_pos: DataPort, clock, period: float = 0.005):
         super().__init__("trajectory", period)
@@ -157,6 +164,9 @@ class TrajectoryGenerator(Component):
         self.start_position: tuple | None = None  # the commanded position to plan from (else sens_pos)
         self.rate = 1.0  # trajectory seconds per real second: the override, now
         self._override = 1.0  # the override's rate (what the rate goes to)
+        self._percent = 100.0  # the override as the operator set it
+        self.velocity_limit_scale = 1.0  # robot.velocity_limit_scale: the rate never exceeds it
+        self.safety = None  # the safety supervisor: told when the motion is at rest, and of stops on the path
         self._rate_from = self._rate_to = 1.0
         self._rate_t = self._rate_T = 0.0  # progress and length (s) of a change of rate
         self.profile = motion_profile(spec)
@@ -175,6 +185,7 @@ class TrajectoryGenerator(Component):
         self.moves = []
         self.completed = 0  # moves that reached their end (telemetry reads it every 10 ms)
         self.log_lines = []
+        self.log_dropped = 0
         self.fault = None
         self.abort_reason = None
         self._clear_motion()
@@ -229,12 +240,15 @@ class TrajectoryGenerator(Component):
         exactly the move planned with velocity x p, acceleration x p^2 and jerk x p^3: the
         same path. A change while a move runs is a smooth transition of the rate (a
         quintic smoothstep: continuous in rate, its derivative and second derivative),
-        monotonic, so the speed never overshoots the new value."""
-        return self._override * 100.0
+        monotonic, so the speed never overshoots the new value. The rate never exceeds
+        ``velocity_limit_scale`` (reduced speed: every axis within that fraction of its
+        max_velocity)."""
+        return self._percent
 
     @override.setter
     def override(self, percent: float) -> None:
-        rate = min(max(float(percent), 1.0), 100.0) / 100.0
+        self._percent = min(max(float(percent), 1.0), 100.0)
+        rate = min(self._percent / 100.0, self.velocity_limit_scale)
         self._override = rate
         if self._hold:  # stopping or stopped on the timeline: resume goes to the new rate
             return
@@ -303,9 +317,12 @@ class TrajectoryGenerator(Component):
         elif self._segments:
             self._sample_timeline(now)
         self.desi_pos.write((now, self.positions, self.velocities), now)
+        safety = self.safety
+        if safety is not None:
+            safety.expect_standstill(self._at_rest())
         vm = self.vm
         if vm is not None and vm.status < DONE:
-            vm.step()
+            vm.step(None if self.clock.simulated else time.perf_counter() + TIME_SLICE)
         if self._requests and self._planning is None:
             request = self._requests[0]
             problem = self._plan_next()
@@ -453,6 +470,8 @@ class TrajectoryGenerator(Component):
             # on the blended path and resume speeds up again on it
             self._hold = True
             self._change_rate(0.0)
+            if self.safety is not None:
+                self.safety.expect_rest_within(self._rate_T)
             return
         t = self.t_move - first.start
         request = first.request
@@ -472,6 +491,8 @@ class TrajectoryGenerator(Component):
         first.stop = stop
         self.interrupted = first
         self._stop, self.t_stop = stop, 0.0
+        if self.safety is not None:
+            self.safety.expect_rest_within(stop.duration)
 
     def _held(self) -> None:
         """The timeline's rate reached 0 (a stop inside a blend): at rest."""
@@ -745,4 +766,12 @@ class TrajectoryGenerator(Component):
         self.robot.write_output(n, value)
 
     def log(self, text: str, line: int) -> None:
-        self.log_lines.append((self.clock.now(), line, text))
+        """The operator log: at most MAX_LOG_LINES lines per program (then one line that
+        says how many more were not kept)."""
+        if len(self.log_lines) < MAX_LOG_LINES:
+            self.log_lines.append((self.clock.now(), line, text))
+        else:
+            self.log_dropped += 1
+            if self.log_dropped == 1:
+                self.log_lines.append((self.clock.now(), line, f"(more than {MAX_LOG_LINES} lines: the rest of "
+                                                              "the log is not kept)"))

@@ -82,6 +82,23 @@ class Interpolator:
         self._hold_for = None  # the positions self._hold was made for
         self._hold = ()
 
+    def shift(self, axis: int, delta: float) -> None:
+        """Move every stored setpoint of ``axis`` by ``delta`` (its coordinates changed:
+        an encoder reset). The interpolated path is the same, shifted. Real-time safe."""
+        def moved(values: tuple) -> tuple:
+            values = list(values)
+            values[axis] += delta
+            return tuple(values)
+
+        self._p0 = moved(self._p0)
+        self._p1 = moved(self._p1)
+        if self._coeffs:
+            coeffs = list(self._coeffs)
+            p0, dp, hv0, hv1 = coeffs[axis]
+            coeffs[axis] = (p0 + delta, dp, hv0, hv1)
+            self._coeffs = tuple(coeffs)
+        self._hold_for = None
+
     @property
     def setpoints(self) -> int:
         """How many setpoints were pushed since construction or :meth:`reset`."""

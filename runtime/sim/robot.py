@@ -21,14 +21,21 @@ made from). The model, per axis:
 
   The command is saturated at +-``drive_saturation`` x the axis' ``max_velocity``
   (default 1.5; a real amplifier has a limit too); a NaN command counts as 0.
-* **Hard stops** at the axis ``min`` / ``max``: the axis stops there (its velocity
-  towards the stop becomes 0).
+* **Hard stops** (the mechanical end stops) ``end_stop_margin`` (default 5 deg or mm)
+  beyond the axis ``min`` / ``max``, which are the software limits: the axis stops there
+  (its velocity towards the stop becomes 0). :attr:`SimRobot.end_stops` gives them.
+* **Drive enable** (safe torque off): the drives are enabled at power-up;
+  :meth:`SimRobot.disable_drives` takes the torque away at once (the commands are ignored,
+  each axis coasts to rest with the drive's lag, as a dead drive does) until
+  :meth:`SimRobot.enable_drives`.
 * **Brakes** (all axes together): engaged at power-up. While engaged the axis does not
   move and its velocity is 0. :meth:`SimRobot.release_brakes` / :meth:`apply_brakes` take
   ``spec.simulation['brake_time']`` (default 0.05 s) of simulated time before they are
   effective; :meth:`brakes_released` / :meth:`brakes_applied` say when they are.
 * **Power-up position**: ``home`` + seeded uniform in +-``park_spread`` (default 3 deg),
   clipped into min..max.
+* The parameters (``[simulation]`` of the specification) are validated when the
+  specification loads (:mod:`compiler.params`).
 * **Incremental encoder**: ``counts = floor((x - x_power_up) * counts_per_unit)``: it counts
   from zero wherever the axis parks, quantised to whole counts.
 * **Index (Z) pulse**: once per motor revolution, i.e. at the absolute axis positions
@@ -63,22 +70,7 @@ drive_step = kernels.drive_step
 
 FAULTS = ("sensor_dead", "encoder_frozen", "drive_dead")
 
-DEFAULT_DRIVE_TIME_CONSTANT = 0.005  # s
-DEFAULT_MAX_DRIVE_OFFSET = 0.5  # unit/s
-DEFAULT_PARK_SPREAD = 3.0  # unit
-DEFAULT_BRAKE_TIME = 0.05  # s
-DEFAULT_DRIVE_SATURATION = 1.5  # x max_velocity
-
 _floor = math.floor
-
-
-def _sim_number(spec, key: str, default: float, positive: bool) -> float:
-    value = spec.simulation.get(key, default)
-    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) \
-            or value < 0 or (positive and value == 0):
-        need = "a positive number" if positive else "a number >= 0"
-        raise ValueError(f"{spec.file}: simulation.{key}: expected {need}, got {value!r}")
-    return float(value)
 
 
 class SimRobot:
@@ -92,11 +84,13 @@ class SimRobot:
         self.seed = seed
         axes = spec.axes
         n = self.n_axes = len(axes)
-        self.tau = _sim_number(spec, "drive_time_constant", DEFAULT_DRIVE_TIME_CONSTANT, True)
-        max_offset = _sim_number(spec, "max_drive_offset", DEFAULT_MAX_DRIVE_OFFSET, False)
-        spread = _sim_number(spec, "park_spread", DEFAULT_PARK_SPREAD, False)
-        self.brake_time = _sim_number(spec, "brake_time", DEFAULT_BRAKE_TIME, False)
-        saturation = _sim_number(spec, "drive_saturation", DEFAULT_DRIVE_SATURATION, True)
+        sim = spec.simulation  # validated (compiler.params), every key present
+        self.tau = sim["drive_time_constant"]
+        max_offset = sim["max_drive_offset"]
+        spread = sim["park_spread"]
+        self.brake_time = sim["brake_time"]
+        saturation = sim["drive_saturation"]
+        margin = sim["end_stop_margin"]
 
         rng = random.Random(seed)
         offsets, parks = [], []
@@ -106,8 +100,8 @@ class SimRobot:
 
         # constants per axis
         self._offset = offsets
-        self._lo = [a.min for a in axes]
-        self._hi = [a.max for a in axes]
+        self._lo = [a.min - margin for a in axes]  # the mechanical end stops
+        self._hi = [a.max + margin for a in axes]
         self._vmax = [saturation * a.max_velocity for a in axes]
         self._cpu = [a.counts_per_unit for a in axes]
         self._spacing = [a.index_spacing for a in axes]
@@ -140,7 +134,8 @@ class SimRobot:
         self._sensor_dead = [False] * n
         self._encoder_frozen = [False] * n
         self._drive_dead = [False] * n
-        self._drive_or_encoder_fault = False  # any of the two above: step's slower path
+        self._drives_enabled = True  # safe torque off when False
+        self._drive_or_encoder_fault = False  # a fault above, or drives disabled: step's slower path
         # brakes: engaged at power-up
         self._brakes_engaged = True
         self._brake_target = True
@@ -232,7 +227,10 @@ class SimRobot:
         cancels its offset (it then produces nothing: u = -b + b = 0 exactly), and what a
         frozen encoder shows is saved, to be put back after the step."""
         dead, offset = self._drive_dead, self._offset
-        commands = [-offset[i] if dead[i] else c for i, c in enumerate(velocity_commands)]
+        if not self._drives_enabled:  # no torque: every axis coasts (as a dead drive does)
+            commands = [-b for b in offset]
+        else:
+            commands = [-offset[i] if dead[i] else c for i, c in enumerate(velocity_commands)]
         saved = [(i, self._counts[i], self._index_events[i], self._latched[i])
                  for i, frozen in enumerate(self._encoder_frozen) if frozen]
         return commands, saved
@@ -309,6 +307,25 @@ class SimRobot:
                     for i in range(self.n_axes):
                         self._v[i] = 0.0
 
+    def disable_drives(self) -> None:
+        """Safe torque off: the drives ignore their commands from the next step on (the
+        axes coast to rest with the drives' lag). Real-time."""
+        self._drives_enabled = False
+        self._drive_or_encoder_fault = True
+
+    def enable_drives(self) -> None:
+        """Torque on again: the drives follow their commands. Real-time."""
+        self._drives_enabled = True
+        self._drive_or_encoder_fault = any(self._encoder_frozen) or any(self._drive_dead)
+
+    def drives_enabled(self) -> bool:
+        return self._drives_enabled
+
+    @property
+    def end_stops(self) -> tuple[tuple[float, float], ...]:
+        """Per axis, where the mechanical end stops are: (low, high)."""
+        return tuple(zip(self._lo, self._hi))
+
     def brakes_released(self) -> bool:
         """True once the brakes are released and the axes can move. Real-time."""
         return not self._brakes_engaged
@@ -365,7 +382,8 @@ class SimRobot:
         if not 0 <= axis < self.n_axes:
             raise IndexError(f"axis {axis} does not exist: {self.spec.name} has axes 0..{self.n_axes - 1}")
         table[axis] = True
-        self._drive_or_encoder_fault = any(self._encoder_frozen) or any(self._drive_dead)
+        self._drive_or_encoder_fault = (any(self._encoder_frozen) or any(self._drive_dead)
+                                        or not self._drives_enabled)
 
     def clear_faults(self) -> None:
         """Remove every injected fault. The encoder of a frozen axis counts on from the
@@ -375,7 +393,7 @@ class SimRobot:
                 self._base[i] = self._counts[i]
                 self._origin[i] = self._x[i]
             self._sensor_dead[i] = self._encoder_frozen[i] = self._drive_dead[i] = False
-        self._drive_or_encoder_fault = False
+        self._drive_or_encoder_fault = not self._drives_enabled
         self._set_constants()
 
     def faults(self) -> tuple[tuple[str, int], ...]:

@@ -1,0 +1,328 @@
+"""Every parameter of the robot, declared once: type, unit, range, default, whether it is
+safety-relevant and when it may change.
+
+The specification loader (``[controller]``, ``[simulation]`` and ``[safety]`` of a
+``.spc``), the TOML configurations (``runtime.config``), the components' properties and
+the scripting interface's writes all validate through this table; the documentation's
+parameter tables are rendered from it (:func:`markdown`). Nothing else declares a range.
+
+A parameter lives in a *section*: a table of the specification (``controller``,
+``simulation``, ``safety``) or a component (``servo``, ``robot``, ``trajectory``,
+``initialization``, ``report``), whose parameters are keys of the TOML configurations
+and properties of the component. A component parameter may take its start value from the
+specification (``spec_key``, e.g. ``servo.kp`` from ``[controller] kp``).
+
+When a parameter may change (``change``):
+
+* ``specification``: only by editing the specification (the robot's data; calibration
+  and object code depend on its hash);
+* ``configuration``: only with a whole configuration applied in Robot Reconfiguration,
+  between programs (``irl reconfigure NAME``), never by a single network write;
+* ``live``: also by a scripting write (``irl call 'trajectory.budget = 500'``).
+
+Every safety-relevant parameter changes at most by configuration. NaN, infinities, values
+out of range and values of the wrong type are refused with the name, the value and the
+allowed range (:class:`ParamError`).
+
+Imports nothing from Lark, NumPy or ZeroMQ.
+"""
+from __future__ import annotations
+
+import difflib
+import math
+from dataclasses import dataclass
+
+__all__ = ["COMPONENTS", "PARAMS", "SPEC_SECTIONS", "Param", "ParamError", "component_params", "describe",
+           "markdown", "section_params", "spec_section"]
+
+#: The specification's tables whose keys are parameters.
+SPEC_SECTIONS = ("controller", "simulation", "safety")
+#: The components whose settings are parameters (TOML configurations, scripting).
+COMPONENTS = ("servo", "robot", "trajectory", "initialization", "report")
+CHANGES = ("specification", "configuration", "live")
+
+TICK = 0.001  # s: every period is a whole multiple of the executive's tick
+PERIOD_MIN, PERIOD_MAX = 0.001, 1.0
+REPORT_COLUMNS = ("sens_pos", "desi_pos", "out_vel", "following_error", "tcp")
+
+
+class ParamError(ValueError):
+    """A value a parameter does not accept. ``reason`` is the message without the
+    parameter's name ("expected ..., got ..."); ``specific`` when it says more than the
+    allowed range (a period off the tick, an unknown column)."""
+
+    def __init__(self, name: str, reason: str, specific: bool = False):
+        super().__init__(f"{name}: {reason}")
+        self.name = name
+        self.reason = reason
+        self.specific = specific
+
+
+def describe(value: object, limit: int = 60) -> str:
+    """``value`` as a message shows it (shortened; never fails)."""
+    try:
+        if isinstance(value, bool):
+            text = "true" if value else "false"
+        elif isinstance(value, int):
+            text = repr(value) if abs(value) < 10 ** 30 else "a very large integer"
+        elif isinstance(value, (float, str)):
+            text = repr(value)
+        elif isinstance(value, (list, tuple)):
+            text = "[" + ", ".join(describe(v, 20) for v in value[:5]) + (", ...]" if len(value) > 5 else "]")
+        elif isinstance(value, dict):
+            text = "a table"
+        else:
+            text = f"a {type(value).__name__}"
+    except Exception:  # noqa: BLE001 - a message must never fail
+        text = f"a {type(value).__name__}"
+    return text if len(text) <= limit else text[:limit - 3] + "..."
+
+
+def _number(x: float) -> str:
+    return f"{x:g}"
+
+
+@dataclass(frozen=True)
+class Param:
+    """One parameter. ``kind``: "number" (a finite float), "integer", "choice" (one of
+    ``choices``), "period" (seconds, a whole multiple of the 1 ms tick) or "columns" (a
+    non-empty list of distinct names from ``choices``). Numbers lie in ``low``..``high``,
+    each end excluded where ``low_open``/``high_open``."""
+
+    section: str
+    name: str
+    kind: str
+    default: object
+    unit: str = ""
+    low: float | None = None
+    high: float | None = None
+    low_open: bool = False
+    high_open: bool = False
+    choices: tuple = ()
+    safety: bool = False
+    change: str = "specification"
+    spec_key: str | None = None  # "controller.kp": the specification gives the start value
+    doc: str = ""
+
+    @property
+    def key(self) -> str:
+        return f"{self.section}.{self.name}"
+
+    def allowed(self) -> str:
+        """What the parameter accepts, as messages and the documentation say it."""
+        unit = f" ({self.unit})" if self.unit else ""
+        if self.kind == "choice":
+            return "one of " + ", ".join(f'"{c}"' for c in self.choices)
+        if self.kind == "columns":
+            return "a non-empty list of distinct names from " + ", ".join(self.choices)
+        if self.kind == "period":
+            return f"a period of {PERIOD_MIN:g} to {PERIOD_MAX:g} s, a whole multiple of the {TICK * 1000:g} ms tick"
+        what = "an integer" if self.kind == "integer" else "a number"
+        if self.low is not None and self.high is not None:
+            lo = "<" if self.low_open else "<="
+            hi = "<" if self.high_open else "<="
+            return f"{what} {_number(self.low)} {lo} x {hi} {_number(self.high)}{unit}"
+        if self.low is not None:
+            return f"{what} {'>' if self.low_open else '>='} {_number(self.low)}{unit}"
+        return what + unit
+
+    def check(self, value: object) -> object:
+        """The value normalized (numbers as float, integers as int), or ParamError."""
+        kind = self.kind
+        if kind == "choice":
+            if not isinstance(value, str) or value not in self.choices:
+                raise self._error(value)
+            return value
+        if kind == "columns":
+            return self._columns(value)
+        if isinstance(value, bool) or not isinstance(value, (int, float)):
+            raise self._error(value)
+        if kind == "integer":
+            if not isinstance(value, int):
+                raise self._error(value)
+            x: float | int = value
+        else:
+            try:
+                x = float(value)
+            except OverflowError:
+                raise self._error(value) from None
+            if not math.isfinite(x):
+                raise self._error(value)
+        if kind == "period":
+            return self._period(x, value)
+        low, high = self.low, self.high
+        if low is not None and (x < low or (self.low_open and x == low)):
+            raise self._error(value)
+        if high is not None and (x > high or (self.high_open and x == high)):
+            raise self._error(value)
+        return x
+
+    def _error(self, value: object, reason: str | None = None) -> ParamError:
+        return ParamError(self.key, reason or f"expected {self.allowed()}, got {describe(value)}", reason is not None)
+
+    def _period(self, seconds: float, value: object) -> float:
+        if not PERIOD_MIN - 1e-9 <= seconds <= PERIOD_MAX + 1e-9:
+            raise self._error(value)
+        ticks = round(seconds / TICK)
+        if abs(seconds - ticks * TICK) > 1e-9:
+            below, above = math.floor(seconds / TICK), math.ceil(seconds / TICK)
+            raise self._error(value, f"expected a whole multiple of the {TICK * 1000:g} ms tick, got "
+                                     f"{describe(value)} (nearest: {below * TICK:g} or {above * TICK:g})")
+        return ticks / round(1 / TICK)
+
+    def _columns(self, value: object) -> list:
+        if not isinstance(value, (list, tuple)) or not value:
+            raise self._error(value)
+        seen: list[str] = []
+        for index, column in enumerate(value):
+            if not isinstance(column, str):
+                raise self._error(value, f"expected column names (strings), got {describe(column)} at index {index}")
+            if column not in self.choices:
+                close = difflib.get_close_matches(column, list(self.choices), n=1)
+                hint = f" (did you mean {close[0]!r}?)" if close else ""
+                raise self._error(value, f"unknown column {column!r}{hint}; known: {', '.join(self.choices)}")
+            if column in seen:
+                raise self._error(value, f"duplicate column {column!r}")
+            seen.append(column)
+        return seen
+
+
+def _p(section, name, kind, default, unit="", low=None, high=None, **kw) -> Param:
+    return Param(section, name, kind, default, unit, low, high, **kw)
+
+
+#: THE table. Order: as the documentation lists them.
+PARAMS: tuple[Param, ...] = (
+    # ---- the servo (1 ms position loop); start values from [controller] ----
+    _p("servo", "kp", "number", 40.0, "1/s", 0.0, 100.0, low_open=True, safety=True, change="configuration",
+       spec_key="controller.kp", doc="position loop gain"),
+    _p("servo", "ki", "number", 2.0, "1/s^2", 0.0, 100.0, safety=True, change="configuration",
+       spec_key="controller.ki", doc="integral gain"),
+    _p("servo", "following_error_limit", "number", 2.0, "deg or mm", 0.0, 10.0, low_open=True, safety=True,
+       change="configuration", spec_key="controller.following_error_limit",
+       doc="largest allowed |reference - measured position| of any axis; beyond it the robot stops "
+           "(category 1). It cannot be switched off: at most 10"),
+    # ---- [controller]: the loop's policies ----
+    _p("controller", "servo_miss_policy", "choice", "firm", choices=("hard", "firm", "soft"), safety=True,
+       doc="deadline policy of the 1 ms servo task on the wall clock: hard (one miss faults), firm (more than "
+           "servo_miss_limit misses within servo_miss_window ticks fault) or soft (counted only)"),
+    _p("controller", "servo_miss_limit", "integer", 50, "misses", 0, 10_000, safety=True,
+       doc="firm policy: misses allowed within the window (must be below servo_miss_window)"),
+    _p("controller", "servo_miss_window", "integer", 1000, "ticks", 1, 100_000, safety=True,
+       doc="firm policy: the window of ticks the misses are counted in"),
+    _p("controller", "profile", "choice", "jerk", choices=("jerk", "trapezoid"),
+       doc="PTP velocity profile: seven-phase jerk-limited, or trapezoidal (velocity and acceleration only)"),
+    _p("controller", "lookahead", "integer", 4, "moves", 0, 16,
+       doc="moves planned ahead of the robot (0: each move is planned when the one before has ended)"),
+    # ---- [safety]: the safety supervisor (docs/safety.md) ----
+    _p("safety", "max_drive_drift", "number", 2.0, "deg/s or mm/s", 0.0, 100.0, low_open=True, safety=True,
+       doc="largest drift of a drive under a zero command that calibration accepts (measured or loaded)"),
+    _p("safety", "standstill_tolerance", "integer", 10, "counts", 1, 10_000, safety=True,
+       doc="standstill monitoring: how far (encoder counts) an axis may move while it must be at rest"),
+    _p("safety", "plausibility_distance", "number", 0.1, "deg or mm", 0.0, 10.0, low_open=True, safety=True,
+       doc="encoder plausibility: commanded travel of an axis without a single encoder count (or against the "
+           "counts' direction) that is a fault"),
+    _p("safety", "plausibility_time", "number", 0.2, "s", 0.01, 2.0, safety=True,
+       doc="encoder plausibility: how long commanded travel is remembered while no count comes (a command "
+           "below plausibility_distance / plausibility_time, 0.5 deg/s by default, never adds up to a fault: "
+           "it may only hold the axis against a drift)"),
+    _p("safety", "stop_reaction_time", "number", 0.01, "s", 0.001, 0.1, safety=True,
+       doc="software position limits: the time from a stop command until the drives decelerate (their lag "
+           "and one tick), added to the stopping distance"),
+    _p("safety", "limit_tolerance", "number", 0.05, "deg or mm", 0.0, 5.0, safety=True,
+       doc="software position limits: how far beyond min/max the predicted rest position may lie before the "
+           "robot stops (covers settling on a target at the limit)"),
+    _p("safety", "acceleration_factor", "number", 2.0, "x max_acceleration", 1.0, 10.0, safety=True,
+       doc="a commanded velocity that changes faster than this multiple of the axis's max_acceleration is a "
+           "fault (the servo's corrections and the interpolation add up to 5/3 of the planned acceleration)"),
+    _p("safety", "homing_velocity_factor", "number", 2.0, "x search_velocity", 1.0, 10.0, safety=True,
+       doc="before an axis is referenced (homing), its commanded velocity may not exceed this multiple of its "
+           "search_velocity"),
+    _p("safety", "stop_time_margin", "number", 0.5, "s", 0.05, 5.0, safety=True,
+       doc="a controlled stop (pause, abort, a stop on the path) that has not brought the robot to rest this "
+           "long after its planned duration is taken over by the safety's own ramp"),
+    # ---- [simulation]: the simulated arm ----
+    _p("simulation", "drive_time_constant", "number", 0.005, "s", 0.0, 1.0, low_open=True,
+       doc="first-order lag of each velocity-commanded drive"),
+    _p("simulation", "max_drive_offset", "number", 0.5, "deg/s or mm/s", 0.0, 100.0,
+       doc="largest constant velocity offset of a drive (seeded per axis)"),
+    _p("simulation", "park_spread", "number", 3.0, "deg or mm", 0.0, 90.0,
+       doc="power-up position: home +- this (seeded per axis)"),
+    _p("simulation", "brake_time", "number", 0.05, "s", 0.0, 5.0, doc="time the brakes take to engage or release"),
+    _p("simulation", "drive_saturation", "number", 1.5, "x max_velocity", 1.0, 10.0,
+       doc="the drives' own velocity limit"),
+    _p("simulation", "end_stop_margin", "number", 5.0, "deg or mm", 0.0, 90.0, low_open=True,
+       doc="the mechanical end stops lie this far beyond each axis's min and max (the software limits)"),
+    # ---- the other components (TOML configurations; scripting for 'live' ones) ----
+    _p("robot", "velocity_limit_scale", "number", 1.0, "", 0.0, 1.0, low_open=True, safety=True,
+       change="configuration",
+       doc="reduced speed: the fraction of each axis's max_velocity that moves are planned with and that the "
+           "safety supervisor enforces"),
+    _p("initialization", "home_speed", "number", 0.2, "", 0.0, 1.0, low_open=True, safety=True,
+       change="configuration",
+       doc="fraction of each axis's max_velocity and max_acceleration used by homing (searches ramp with this "
+           "fraction of max_acceleration; the move to the start position uses both)"),
+    _p("initialization", "period", "period", 0.005, "s", change="configuration",
+       doc="time between setpoints of the homing sequence; must equal trajectory.period"),
+    _p("trajectory", "budget", "integer", 200, "instructions", 1, 10_000, change="live",
+       doc="object-code instructions the interpreter runs per update at most (on the wall clock each "
+           "update is also bounded in time: runtime.vm.TIME_SLICE)"),
+    _p("trajectory", "period", "period", 0.005, "s", change="configuration",
+       doc="time between setpoints of the program's motion; must equal initialization.period"),
+    _p("report", "period", "period", 0.01, "s", change="configuration", doc="time between two logged rows"),
+    _p("report", "columns", "columns", list(REPORT_COLUMNS), choices=REPORT_COLUMNS, change="configuration",
+       doc="signals logged in each row, in this order (tcp: x, y, z, roll, pitch, yaw of the tool)"),
+)
+
+_BY_SECTION: dict[str, dict[str, Param]] = {}
+for _param in PARAMS:
+    assert _param.change in CHANGES, _param
+    assert not (_param.safety and _param.change == "live"), f"{_param.key}: safety-relevant parameters are not live"
+    _BY_SECTION.setdefault(_param.section, {})[_param.name] = _param
+
+
+def section_params(section: str) -> dict[str, Param]:
+    """The parameters of one section (a specification table or a component), by name."""
+    return dict(_BY_SECTION.get(section, {}))
+
+
+def component_params(component: str) -> dict[str, Param]:
+    return section_params(component)
+
+
+def spec_section(section: str) -> dict[str, Param]:
+    """What a specification table accepts: its own parameters, and the component
+    parameters whose start value it gives (``[controller] kp`` -> ``servo.kp``)."""
+    result = section_params(section)
+    for param in PARAMS:
+        if param.spec_key is not None and param.spec_key.split(".", 1)[0] == section:
+            result[param.spec_key.split(".", 1)[1]] = param
+    return result
+
+
+def check_spec_rules(values: dict[str, dict[str, object]]) -> tuple[str, str] | None:
+    """Rules across keys of the specification's tables (validated values, defaults
+    filled in): ``(key, reason)`` of the first broken one, or None."""
+    controller = values["controller"]
+    if controller["servo_miss_limit"] >= controller["servo_miss_window"]:
+        return ("controller.servo_miss_limit",
+                f"expected fewer misses than the window ({controller['servo_miss_window']} ticks), "
+                f"got {controller['servo_miss_limit']}")
+    return None
+
+
+def markdown(sections=None) -> str:
+    """The table of parameters (all, or those of ``sections``) for the documentation."""
+    def cell(text: str) -> str:
+        return str(text).replace("|", "\\|")
+
+    lines = ["| parameter | allowed | default | safety | changes by | meaning |", "|---|---|---|---|---|---|"]
+    for p in PARAMS:
+        if sections is not None and p.section not in sections:
+            continue
+        where = f"`{p.key}`" + (f" (from `[{p.spec_key.split('.')[0]}] {p.spec_key.split('.')[1]}`)"
+                                if p.spec_key else "")
+        default = describe(p.default, 80) if not isinstance(p.default, str) else f'"{p.default}"'
+        lines.append(f"| {where} | {cell(p.allowed())} | {cell(default)} | {'yes' if p.safety else ''} "
+                     f"| {p.change} | {cell(p.doc)} |")
+    return "\n".join(lines) + "\n"

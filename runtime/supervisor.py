@@ -399,7 +399,12 @@ class Supervisor:
         if self.done:
             return
         safety, robot = self.safety, self.robot
-        if safety.stopping:
+        if not safety.running:  # the guard itself is gone: torque off and brakes, at once
+            robot.disable_drives()
+            robot.apply_brakes()
+            if not robot.brakes_applied() and self._elapsed() < BRAKE_TIMEOUT:
+                return
+        elif safety.stopping:
             if not safety.at_rest:
                 return
         elif not self.braking:

@@ -560,6 +560,12 @@ def test_kill9_leaves_complete_report_and_state_file(wall_server, start_server):
     for row in csv.reader(io.StringIO(text)):
         assert len(row) == len(header), row
     assert any(row.split(",")[1] == MOVE for row in lines[1:])
+    # the state transitions too, written as the program runs (whole lines, up to Move Robot)
+    states = report.with_suffix(".states.csv").read_text(encoding="utf-8")
+    assert states.endswith("\n"), "the states file ends in a partial row"
+    rows = list(csv.reader(io.StringIO(states)))
+    assert rows[0] == ["time", "from", "to"] and all(len(row) == 3 for row in rows)
+    assert rows[-1][2] == MOVE, rows
     state_file = wall_server.state_dir / "calibration.json"
     data = json.loads(state_file.read_text(encoding="utf-8"))
     assert isinstance(data, dict) and data.get("compensation")

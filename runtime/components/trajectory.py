@@ -24,6 +24,7 @@ error, as if there were no look-ahead.
 """
 from __future__ import annotations
 
+import queue
 import threading
 import time
 from collections import deque
@@ -36,7 +37,9 @@ from compiler.values import Joint, Pose
 
 from ..component import Component, DataPort
 from ..motion.blend import Limits, blend_offset
+from ..motion.cartesian import PathStop, plan_circ, plan_lin  # imported here: never in a tick (file I/O)
 from ..motion.jerk import LineStop, plan_ptp_jerk
+from ..motion.kinematics import Kinematics, KinematicsError
 from ..motion.planner import PtpInput, StopRamp, plan_ptp, scaled_limits
 from ..vm import DONE, ERROR, VM
 
@@ -116,21 +119,41 @@ class _Segment:
 
 
 class _PlanningJob:
-    """A plan computed on a thread of its own (not real-time); ``done`` once ``result``
-    is there. The thread only computes: the loop takes the result when it is done."""
+    """A plan to compute off the loop; ``done`` once ``result`` is there. The planner
+    thread only computes: the loop takes the result when it is done."""
 
     def __init__(self, plan, what):
+        self.plan = plan
         self.what = what
         self.result = (None, "not planned")
         self.done = False
-        threading.Thread(target=self._run, args=(plan,), name="irl-plan", daemon=True).start()
 
-    def _run(self, plan) -> None:
+    def run(self) -> None:
         try:
-            self.result = plan()
+            self.result = self.plan()
         except Exception as exc:  # the planners never raise; a bug must not hang the move
             self.result = (None, f"internal error while planning ({type(exc).__name__}: {exc})")
         self.done = True
+
+
+class _Planner:
+    """One planning thread, started before the loop runs (the tick never creates a
+    thread): it takes jobs from a queue (a non-blocking put from the loop) and runs them
+    in order."""
+
+    def __init__(self):
+        self.jobs: queue.SimpleQueue = queue.SimpleQueue()
+        self.thread = threading.Thread(target=self._main, name="irl-plan", daemon=True)
+        self.thread.start()
+
+    def submit(self, job: _PlanningJob) -> _PlanningJob:
+        """Real-time safe: queue ``job`` (never waits)."""
+        self.jobs.put_nowait(job)
+        return job
+
+    def _main(self) -> None:
+        while True:
+            self.jobs.get().run()
 
 
 class TrajectoryGenerator(Component):
@@ -172,11 +195,15 @@ class TrajectoryGenerator(Component):
         self.profile = motion_profile(spec)
         self._kinematics = None  # built when a program first moves to a pose
         self.abort_reason: str | None = None  # set by abort(): end the program once at rest
+        self._planner: _Planner | None = None  # on the wall clock: the planning thread (made by load)
         self._forget()
 
     def load(self, program: Program | None) -> None:
         """Not real-time: the program to run at the next start; forgets the last one
-        (its moves and log, its fault, an abort)."""
+        (its moves and log, its fault, an abort). On the wall clock, starts the planning
+        thread the first time (never in a tick)."""
+        if not self.clock.simulated and self._planner is None:
+            self._planner = _Planner()
         self.program = program
         self._forget()
 
@@ -476,8 +503,6 @@ class TrajectoryGenerator(Component):
         t = self.t_move - first.start
         request = first.request
         if request.kind != "ptp":  # decelerate along the line or arc itself
-            from ..motion.cartesian import PathStop
-
             stop = PathStop(first.trajectory, t, self.positions, rate=self.rate)
         elif getattr(first.trajectory, "synchronization", None) == "line":  # jerk-limited, on the line
             stop = LineStop(first.trajectory, t, rate=self.rate)
@@ -547,7 +572,7 @@ class TrajectoryGenerator(Component):
         if self.clock.simulated:
             self._requests.popleft()
             return self._take_plan(request, *plan())
-        self._planning = _PlanningJob(plan, request)
+        self._planning = self._planner.submit(_PlanningJob(plan, request))
         return None
 
     def _chain_start(self) -> tuple:
@@ -644,8 +669,6 @@ class TrajectoryGenerator(Component):
                       (a.max_jerk if jerk else float("inf") for a in self.axes))
 
     def _plan_cartesian(self, request: _Request, start: tuple):
-        from ..motion.cartesian import plan_circ, plan_lin
-
         kinematics = self._kinematics
         poses = request.targets
         if request.kind == "lin":
@@ -700,8 +723,6 @@ class TrajectoryGenerator(Component):
         return self.queued < self.lookahead
 
     def _kinematics_or_problem(self):
-        from ..motion.kinematics import Kinematics
-
         if self._kinematics is None:
             try:
                 self._kinematics = Kinematics(self.spec)
@@ -740,8 +761,6 @@ class TrajectoryGenerator(Component):
     def _joint_target(self, pose: Pose, near: tuple) -> tuple[Joint | None, str | None]:
         """The joint values that put the tool at ``pose``: the inverse kinematics'
         configuration nearest the joints the move starts from."""
-        from ..motion.kinematics import KinematicsError
-
         kinematics = self._kinematics
         main = len(self.spec.main_axes)
         try:

@@ -396,6 +396,14 @@ class SimRobot:
         self._drive_or_encoder_fault = not self._drives_enabled
         self._set_constants()
 
+    def set_drive_offset(self, axis: int, offset: float) -> None:
+        """Make the drive of ``axis`` drift at ``offset`` unit/s under a zero command (a
+        drive whose offset changed since calibration; tests and scenarios)."""
+        if not 0 <= axis < self.n_axes:
+            raise IndexError(f"axis {axis} does not exist: {self.spec.name} has axes 0..{self.n_axes - 1}")
+        self._offset[axis] = float(offset)
+        self._set_constants()
+
     def faults(self) -> tuple[tuple[str, int], ...]:
         """The faults in effect, as (fault, axis) pairs."""
         return tuple((f, i) for f in FAULTS for i in range(self.n_axes) if self._fault_table(f)[i])

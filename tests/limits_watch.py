@@ -1,0 +1,77 @@
+"""A per-tick watch of a running RobotSystem against the robot's limits (tests only).
+
+It reads what the simulated robot really does (its true positions) and what the drives
+were really commanded (``drive_cmd``, while the torque is on and the brakes released), and
+keeps the worst ratios seen. The tests assert on them; nothing here trusts the runtime.
+"""
+from __future__ import annotations
+
+TICK = 0.001
+
+
+class LimitWatch:
+    """Add to a system before it runs: ``LimitWatch(system)``; then read the figures.
+
+    * ``velocity_ratio``: largest |command| / (max_velocity x velocity_limit_scale);
+    * ``acceleration_ratio``: largest |command change| / tick / max_acceleration;
+    * ``beyond``: largest distance (deg or mm) of a true position beyond min..max;
+    * ``at_end_stop``: some axis reached its mechanical end stop.
+    """
+
+    def __init__(self, system):
+        self.system = system
+        axes = system.spec.axes
+        self.axes = axes
+        self.vmax = [a.max_velocity for a in axes]
+        self.amax = [a.max_acceleration for a in axes]
+        self.low = [a.min for a in axes]
+        self.high = [a.max for a in axes]
+        self.stops = system.backend.end_stops
+        self.port = system.ports["drive_cmd"]
+        self.velocity_ratio = 0.0
+        self.acceleration_ratio = 0.0
+        self.beyond = 0.0
+        self.at_end_stop = False
+        self.worst: dict[str, tuple] = {}  # figure -> (time, state, axis) where it was largest
+        self._previous = None
+        system.executive.add("limit-watch", self.tick, TICK, "record")
+
+    def reset(self) -> None:
+        self.velocity_ratio = self.acceleration_ratio = self.beyond = 0.0
+        self.at_end_stop = False
+        self.worst = {}
+        self._previous = None
+
+    def _note(self, figure: str, value: float, axis: int) -> None:
+        if value > getattr(self, figure):
+            setattr(self, figure, value)
+            self.worst[figure] = (round(self.system.clock.now(), 3), self.system.supervisor.fsm.path(),
+                                  self.axes[axis].name)
+
+    def tick(self, now: float) -> None:
+        system = self.system
+        backend = system.backend
+        command = self.port.value
+        if command is not None and self.port.stamp == now and backend.drives_enabled() \
+                and backend.brakes_released():
+            scale = system.robot.velocity_limit_scale
+            for i, c in enumerate(command):
+                self._note("velocity_ratio", abs(c) / (self.vmax[i] * scale), i)
+            if self._previous is not None:
+                for i, (c, p) in enumerate(zip(command, self._previous)):
+                    self._note("acceleration_ratio", abs(c - p) / TICK / self.amax[i], i)
+            self._previous = command
+        else:
+            self._previous = None
+        for i, x in enumerate(backend.true_positions):
+            self._note("beyond", max(self.low[i] - x, x - self.high[i]), i)
+            lo, hi = self.stops[i]
+            if x <= lo or x >= hi:
+                self.at_end_stop = True
+
+
+def at_rest_and_safe(system) -> bool:
+    """The robot at rest: brakes applied, torque off, no axis moving."""
+    backend = system.backend
+    return (backend.brakes_applied() and not backend.drives_enabled()
+            and all(v == 0.0 for v in backend.true_velocities))

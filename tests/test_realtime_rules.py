@@ -1,0 +1,173 @@
+"""The rules of the real-time loop, enforced (not only documented): nothing that runs in a
+tick opens a file, creates a thread or process, sleeps or touches a socket.
+
+A Python audit hook (sys.addaudithook; it cannot be removed, so it only records while a
+flag is set) watches every task the executive runs, through whole cycles of programs that
+exercise homing, PTP, lin, circ and blended moves, prints, pauses, aborts, emergency
+stops, faults, the report writer and the calibration file, on the simulated clock and on
+the wall clock (where moves are planned on the planner thread).
+"""
+from __future__ import annotations
+
+import sys
+import threading
+from pathlib import Path
+
+import pytest
+
+from compiler.driver import compile_source
+from compiler.spec import load_spec
+from runtime.system import RobotSystem, RunOptions
+
+ROOT = Path(__file__).resolve().parent.parent
+SPEC_PATH = ROOT / "programs" / "lola15.spc"
+SPEC = load_spec(SPEC_PATH)
+
+#: Audit events that must never happen inside a tick (prefixes).
+FORBIDDEN = ("open", "os.", "socket.", "subprocess.", "_thread.start_new_thread", "time.sleep", "shutil.",
+             "fcntl.", "pty.", "mmap.", "sqlite3.", "urllib.", "http.", "ftplib.", "smtplib.", "ctypes.")
+
+_state = threading.local()
+_seen: list[tuple[str, str]] = []
+
+
+def _hook(event: str, args) -> None:
+    if getattr(_state, "task", None) is not None and event.startswith(FORBIDDEN):
+        _seen.append((_state.task, event))
+
+
+sys.addaudithook(_hook)
+
+
+@pytest.fixture(autouse=True)
+def _thread_starts(monkeypatch):
+    """Python 3.11 has no audit event for a new thread or a sleep: watch Thread.start,
+    _thread.start_new_thread and time.sleep themselves (for this module's tests only)."""
+    import _thread
+    import time
+
+    start, start_new, sleep = threading.Thread.start, _thread.start_new_thread, time.sleep
+
+    def watched_sleep(seconds):
+        _hook("time.sleep", (seconds,))
+        return sleep(seconds)
+
+    def watched_start(self, *args, **kwargs):
+        _hook("_thread.start_new_thread", (self.name,))
+        return start(self, *args, **kwargs)
+
+    def watched_start_new(*args, **kwargs):
+        _hook("_thread.start_new_thread", args[:1])
+        return start_new(*args, **kwargs)
+    monkeypatch.setattr(threading.Thread, "start", watched_start)
+    monkeypatch.setattr(_thread, "start_new_thread", watched_start_new)
+    monkeypatch.setattr(time, "sleep", watched_sleep)
+
+
+def watch_tasks(system: RobotSystem) -> list:
+    """Wrap every task of the system's executive so the hook knows it runs in a tick."""
+    for task in system.executive.tasks:
+        run = task.run
+
+        def watched(now, run=run, name=task.name):
+            _state.task = name
+            try:
+                run(now)
+            finally:
+                _state.task = None
+        task.run = watched
+    _seen.clear()
+    return _seen
+
+
+def program(body: str, decls: str = "") -> object:
+    text = f'program rt;\nsystem_specification "{SPEC_PATH}";\n{decls}seq\n{body}endseq\nendprogram;\n'
+    result = compile_source(text, "rt.irl", SPEC_PATH)
+    assert result.ok, result.diagnostics
+    return result.program
+
+
+MOVES = program(
+    '  move ptp joint(mainjoint(0, -30, 30, 0, 60, 0)) speed_ptp := 0.5 acc_ptp := 0.5;\n'
+    '  move ptp joint(mainjoint(20, -20, 30, 10, 50, 0)) approx := 0.5;\n'
+    '  move ptp joint(mainjoint(-10, -30, 40, 0, 60, 10));\n'
+    '  move lin pose(pos(900, 0, 700), rpy(180, 0, 180)) speed := 300 approx := 20;\n'
+    '  move lin pose(pos(900, 200, 700), rpy(180, 0, 180)) speed := 300;\n'
+    '  move circ pose(pos(1000, 100, 700), rpy(180, 0, 180)), pose(pos(900, 0, 700), rpy(180, 0, 180));\n'
+    '  print "done ", 3;\n'
+    '  out[2] := true;\n')
+
+
+def run_cycle(system: RobotSystem, prog, ticks: int, during=None) -> dict:
+    system.begin(prog, system.options.report)
+    k = 0
+    while not system.supervisor.done and k < ticks:
+        system.executive.step()
+        k += 1
+        if during is not None:
+            during(system, k)
+    assert system.supervisor.done, "the cycle did not end"
+    return system.finish()
+
+
+def test_no_io_threads_or_sleeps_in_a_tick_on_the_simulated_clock(tmp_path):
+    system = RobotSystem(SPEC, RunOptions(state_dir=tmp_path / "state", report=tmp_path / "r.csv"))
+    seen = watch_tasks(system)
+    summary = run_cycle(system, MOVES, 200_000)
+    assert summary["fault"] is None, summary["fault"]
+    assert (tmp_path / "state" / "calibration.json").exists()  # written (off the loop) all the same
+    assert (tmp_path / "r.csv").stat().st_size > 0 and (tmp_path / "r.states.csv").stat().st_size > 0
+    assert seen == [], seen[:10]
+
+    def operator(system, k):  # pause, resume, then an emergency stop in the middle of a move
+        tg = system.trajectory
+        if k == 2000:
+            tg.pause()
+        elif k == 3000:
+            tg.resume()
+        elif k == 4000:
+            system.emergency_stop()
+    run_cycle(system, MOVES, 200_000, operator)
+    assert seen == [], seen[:10]
+
+    system.backend.inject("encoder_frozen", 2)  # a safety stop of category 0, then the next cycle
+    summary = run_cycle(system, MOVES, 200_000)
+    assert summary["stop"]["category"] == 0
+    assert seen == [], seen[:10]
+
+
+def test_no_io_threads_or_sleeps_in_a_tick_on_the_wall_clock(tmp_path):
+    """On the wall clock moves are planned on the planner thread, made before the loop."""
+    quick = program('  move ptp joint(mainjoint(2, 0, 0, 0, 0, 0)) speed_ptp := 1 acc_ptp := 1;\n'
+                    '  move lin pose(pos(1145, 0, 1385), rpy(180, -90, 0)) speed := 100;\n')
+    system = RobotSystem(SPEC, RunOptions(realtime=True, state_dir=tmp_path / "state"))
+    system.memory.calibrated = True  # skip calibration and homing: a short wall-clock run
+    system.memory.compensation = [0.0] * len(SPEC.axes)
+    system.memory.initialized = True
+    system.memory.encoder_offsets = [0.0] * len(SPEC.axes)
+    seen = watch_tasks(system)
+    summary = run_cycle(system, quick, 20_000)
+    assert seen == [], seen[:10]  # (a thread started in a tick would be there too)
+    assert len(summary["moves"]) == 2 or summary["fault"], summary
+    assert any(t.name == "irl-plan" for t in threading.enumerate())  # planned off the loop
+
+
+@pytest.mark.parametrize("event", ["open", "os.remove", "socket.connect", "_thread.start_new_thread", "time.sleep"])
+def test_the_watch_itself_catches_each_kind_of_event(event, tmp_path):
+    """The watch is not blind: a task that does one of the forbidden things is caught."""
+    import os
+    import socket
+    import time
+
+    system = RobotSystem(SPEC, RunOptions())
+    actions = {
+        "open": lambda: open(tmp_path / "x", "w").close(),
+        "os.remove": lambda: (open(tmp_path / "y", "w").close(), os.remove(tmp_path / "y")),
+        "socket.connect": lambda: socket.socket().connect_ex(("127.0.0.1", 9)),
+        "_thread.start_new_thread": lambda: threading.Thread(target=lambda: None).start(),
+        "time.sleep": lambda: time.sleep(0),
+    }
+    system.executive.add("bad", lambda now: actions[event](), 0.001, "record")
+    seen = watch_tasks(system)
+    system.executive.step()
+    assert any(name == "bad" and e.startswith(event) for name, e in seen), seen

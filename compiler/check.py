@@ -13,7 +13,7 @@ from grammar import keywords
 
 from . import ast
 from .diagnostics import Diagnostic, did_you_mean
-from .objcode import BUILTINS, CLAUSES, MAX_COUNT
+from .objcode import BUILTINS, CLAUSES, MAX_ARRAY_ELEMENTS, MAX_COUNT, MAX_STRING_LENGTH
 from .semantics import (INT_MAX, INT_MIN, EvalError, binary, call_builtin, make_joint, make_pos, make_quat,
                         make_rpy, unary)
 from .spec import Spec
@@ -28,7 +28,7 @@ ERROR = "<error>"  # the type of an expression already reported: suppresses foll
 
 NAMED_TYPES = (INTEGER, REAL, BOOL, STRING, JOINT, POSITION, ORIENTATION, POSE)
 NUMERIC = (INTEGER, REAL)
-MAX_ARRAY_LENGTH = 100_000
+MAX_ARRAY_LENGTH = MAX_ARRAY_ELEMENTS  # the object-code contract's limit
 
 
 @dataclass(frozen=True)
@@ -254,6 +254,10 @@ class Checker:
         return REAL
 
     def e_String(self, node: ast.String):
+        if len(node.value) > MAX_STRING_LENGTH:
+            self.error(node.span, f"a string of {len(node.value)} characters is too long (at most "
+                                  f"{MAX_STRING_LENGTH})")
+            return ERROR
         self.values[id(node)] = node.value
         return STRING
 

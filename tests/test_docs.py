@@ -251,3 +251,36 @@ def test_protocol_page_describes_every_operation_and_error_code():
     for code in protocol.ERRORS:
         assert f"| `{code}` |" in text, f"error code {code!r} is not in the table"
     assert f"version {protocol.VERSION}" in text
+
+
+def test_generated_tables_are_up_to_date():
+    """docs/safety.md and docs/runtime.md hold tables rendered from their one declaration
+    (compiler.params, runtime.components.safety.CATEGORIES)."""
+    from runtime import docgen
+
+    pages = docgen.pages()
+    assert {p.name for p in pages} >= {"safety.md", "runtime.md"}
+    for page in pages:
+        text = page.read_text(encoding="utf-8")
+        assert docgen.render(text) == text, f"{page.name} is stale: python -m runtime.docgen --write"
+    text = (ROOT / "docs" / "safety.md").read_text(encoding="utf-8")
+    from compiler.params import PARAMS
+    from runtime.components.safety import CATEGORIES
+
+    for param in PARAMS:
+        assert f"`{param.key}`" in text, param.key
+    for cause in CATEGORIES:
+        assert f"| {cause} |" in text, cause
+
+
+def test_docgen_check_and_write(tmp_path, monkeypatch):
+    from runtime import docgen
+
+    page = tmp_path / "x.md"
+    page.write_text("a\n<!-- generated: categories -->\nold\n<!-- end generated -->\nb\n", encoding="utf-8")
+    monkeypatch.setattr(docgen, "DOCS", tmp_path)
+    assert docgen.main(["--check"]) == 1
+    assert docgen.main(["--write"]) == 0
+    assert docgen.main(["--check"]) == 0
+    assert "| emergency stop | 1 |" in page.read_text(encoding="utf-8")
+    assert docgen.main([]) == 2

@@ -606,3 +606,13 @@ def test_protocol_requests_with_huge_values_are_answered_not_crashed(tmp_path):
                 result()
         assert error.value.code in ("bad_request", "refused", "script_error")
     assert protocol.decode_reply(protocol.ok(1, {"x": 1}))["ok"]
+
+
+def test_a_string_literal_longer_than_the_limit_is_a_diagnostic(tmp_path):
+    from compiler.objcode import MAX_STRING_LENGTH
+
+    path = tmp_path / "long.irl"
+    path.write_text(f'program p;\nsystem_specification "{SPEC_PATH}";\nvar s : string;\nseq\n'
+                    f'  s := "{"x" * (MAX_STRING_LENGTH + 1)}";\nendseq\nendprogram;\n', encoding="utf-8")
+    code, out, err = run_cli("check", path)
+    assert code == 1 and f"long.irl:5:8: error: a string of {MAX_STRING_LENGTH + 1} characters is too long" in err

@@ -1,0 +1,63 @@
+"""The documentation's generated tables: ``python -m runtime.docgen --write`` (or ``--check``).
+
+Each table lives between ``<!-- generated: NAME -->`` and ``<!-- end generated -->`` in a
+page of ``docs/``, and is rendered from its one declaration: the parameters from
+:mod:`compiler.params`, the stop categories from :data:`runtime.components.safety.CATEGORIES`.
+A test fails while a page is stale. Not real-time; imports nothing the loop needs.
+"""
+from __future__ import annotations
+
+import re
+import sys
+from pathlib import Path
+
+DOCS = Path(__file__).resolve().parent.parent / "docs"
+
+_BLOCK = re.compile(r"(<!-- generated: (?P<name>[a-z_]+) -->\n)(?P<body>.*?)(<!-- end generated -->)", re.S)
+
+
+def tables() -> dict[str, str]:
+    from compiler.params import COMPONENTS, markdown
+
+    from .components.safety import categories_markdown
+
+    return {"params": markdown(), "config": markdown(COMPONENTS), "categories": categories_markdown()}
+
+
+def render(text: str) -> str:
+    """``text`` with every generated block rendered anew."""
+    rendered = tables()
+
+    def block(match: re.Match) -> str:
+        name = match.group("name")
+        if name not in rendered:
+            raise KeyError(f"no generated table {name!r} (known: {', '.join(rendered)})")
+        return match.group(1) + rendered[name] + match.group(4)
+    return _BLOCK.sub(block, text)
+
+
+def pages() -> list[Path]:
+    return sorted(p for p in DOCS.glob("*.md") if "<!-- generated:" in p.read_text(encoding="utf-8"))
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = sys.argv[1:] if argv is None else argv
+    write = args == ["--write"]
+    if args not in (["--write"], ["--check"]):
+        print("usage: python -m runtime.docgen --write | --check", file=sys.stderr)
+        return 2
+    stale = []
+    for page in pages():
+        text = page.read_text(encoding="utf-8")
+        new = render(text)
+        if new != text:
+            stale.append(page)
+            if write:
+                page.write_text(new, encoding="utf-8")
+    for page in stale:
+        print(f"{'wrote' if write else 'stale'}: {page.relative_to(DOCS.parent)}")
+    return 1 if stale and not write else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -53,11 +53,11 @@ class RobotMemory:
     initialization_why: str = "not initialized: no homing sequence has completed in this process"
 
     def forget_initialization(self, why: str) -> None:
-        """The encoders' zero is no longer trusted: the next program homes again."""
-        if self.initialized:
-            self.initialized = False
-            self.encoder_offsets = []
-            self.initialization_why = f"not initialized: {why}"
+        """The encoders' zero is no longer trusted (or a homing did not complete): the
+        next program homes again."""
+        self.initialized = False
+        self.encoder_offsets = []
+        self.initialization_why = f"not initialized: {why}"
 
     def forget_calibration(self, why: str) -> None:
         self.calibrated = False

@@ -616,3 +616,57 @@ def test_a_string_literal_longer_than_the_limit_is_a_diagnostic(tmp_path):
                     f'  s := "{"x" * (MAX_STRING_LENGTH + 1)}";\nendseq\nendprogram;\n', encoding="utf-8")
     code, out, err = run_cli("check", path)
     assert code == 1 and f"long.irl:5:8: error: a string of {MAX_STRING_LENGTH + 1} characters is too long" in err
+
+
+# ---- the same, through the CLI and the protocol ------------------------------------------------------
+
+def test_an_estop_during_homing_then_the_next_program_homes_again_over_the_protocol(tmp_path):
+    server = Server(SPEC, ServeOptions(sim_clock=True, state_dir=tmp_path / "state"))
+    watch = LimitWatch(server.system)
+    first = server.op_submit({"object": encode(SHORT)})["program"]
+    while not (server.current is not None and "Find Index" in server.system.supervisor.fsm.path()):
+        server.turn(idle_wait=False)
+    server.commands.append((b"c", 1, server.op_estop({})))
+    while server.current is not None:
+        server.turn(idle_wait=False)
+    assert server.jobs[first].state == "aborted"
+    status = server.op_status({})
+    assert status["initialized"] is False and "ended early" in status["initialization"], status
+    assert at_rest_and_safe(server.system)
+    second = server.op_submit({"object": encode(SHORT)})["program"]
+    while server.jobs[second].state in ("queued", "running"):
+        server.turn(idle_wait=False)
+    job = server.jobs[second]
+    assert job.state == "completed", job.fault
+    assert INITIALIZE in [s["name"] for s in job.summary["states"]]
+    assert server.op_status({})["initialized"] is True
+    assert not watch.at_end_stop and watch.beyond == 0.0
+
+
+def test_a_growing_string_and_a_forged_array_through_irl_run(tmp_path):
+    import dataclasses
+
+    from compiler.objcode import MAX_ARRAY_ELEMENTS, OP
+
+    grow = tmp_path / "grow.irl"
+    grow.write_text(f'program grow;\nsystem_specification "{SPEC_PATH}";\nvar s : string;\nseq\n  s := "x";\n'
+                    '  while true do\n    s := s + s;\n  endwhile;\nendseq\nendprogram;\n', encoding="utf-8")
+    code, out, err = run_cli("run", grow)
+    assert code == 1 and "line 7: string too long" in out, out
+    base = program("  print 1;\n", "var a : integer;\n")
+    code_ = ((OP.CONST, 0), (OP.MAKE_ARRAY, MAX_ARRAY_ELEMENTS), (OP.MAKE_ARRAY, MAX_ARRAY_ELEMENTS),
+             (OP.STORE_GLOBAL, 0), (OP.END,))
+    forged = dataclasses.replace(base, code=code_, constants=(0.0,),
+                                 lines=tuple((i, 5, 3) for i in range(len(code_))))
+    path = tmp_path / "forged.irlo"
+    path.write_bytes(encode(forged))
+    code, out, err = run_cli("run", path, "--spec", SPEC_PATH)
+    assert code == 1 and "larger than 100000 elements" in out, out + err
+
+
+def test_an_out_of_range_configuration_is_refused_by_irl_serve(tmp_path):
+    bad = tmp_path / "bad.toml"
+    bad.write_text("[configurations.fast.servo]\nkp = 1e9\nfollowing_error_limit = 1e299\n", encoding="utf-8")
+    code, out, err = run_cli("serve", "--spec", SPEC_PATH, "--config", bad, "--sim-clock",
+                             "--endpoint", "tcp://127.0.0.1:1", "--telemetry", "tcp://127.0.0.1:2")
+    assert code == 2 and "servo.kp: expected a number 0 < x <= 100 (1/s), got 1000000000.0" in err, err

@@ -75,3 +75,30 @@ def at_rest_and_safe(system) -> bool:
     backend = system.backend
     return (backend.brakes_applied() and not backend.drives_enabled()
             and all(v == 0.0 for v in backend.true_velocities))
+
+
+def run_cycle(system, program, ticks: int = 400_000, during=None, report=None) -> dict:
+    """One cycle of ``system`` with ``program`` to its end (at most ``ticks``), calling
+    ``during(system, k)`` after tick k; the summary."""
+    system.begin(program, report)
+    k = 0
+    while not system.supervisor.done and k < ticks:
+        system.executive.step()
+        k += 1
+        if during is not None:
+            during(system, k)
+    assert system.supervisor.done, "the cycle did not end"
+    return system.finish()
+
+
+class IdleHost:
+    """A motion host for a VM alone: no motion, the clock stands at 0, the log dropped."""
+
+    def now(self) -> float:
+        return 0.0
+
+    def motion_done(self) -> bool:
+        return True
+
+    def log(self, text: str, line: int) -> None:
+        pass

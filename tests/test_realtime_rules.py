@@ -15,6 +15,7 @@ from pathlib import Path
 
 import pytest
 
+import limits_watch
 from compiler.driver import compile_source
 from compiler.spec import load_spec
 from runtime.system import RobotSystem, RunOptions
@@ -99,15 +100,7 @@ MOVES = program(
 
 
 def run_cycle(system: RobotSystem, prog, ticks: int, during=None) -> dict:
-    system.begin(prog, system.options.report)
-    k = 0
-    while not system.supervisor.done and k < ticks:
-        system.executive.step()
-        k += 1
-        if during is not None:
-            during(system, k)
-    assert system.supervisor.done, "the cycle did not end"
-    return system.finish()
+    return limits_watch.run_cycle(system, prog, ticks, during, report=system.options.report)
 
 
 def test_no_io_threads_or_sleeps_in_a_tick_on_the_simulated_clock(tmp_path):

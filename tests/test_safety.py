@@ -17,7 +17,7 @@ import pytest
 from compiler.driver import compile_source
 from compiler.objcode import encode
 from compiler.spec import SpecError, load_spec, parse_spec
-from limits_watch import LimitWatch, at_rest_and_safe
+from limits_watch import IdleHost, LimitWatch, at_rest_and_safe, run_cycle
 from runtime import protocol
 from runtime.cli import main
 from runtime.components.safety import CATEGORIES
@@ -66,15 +66,7 @@ def fresh(seed: int = 0, **options) -> tuple[RobotSystem, LimitWatch]:
 
 
 def run_to_end(system: RobotSystem, prog, ticks: int = 400_000, during=None) -> dict:
-    system.begin(prog, None)
-    k = 0
-    while not system.supervisor.done and k < ticks:
-        system.executive.step()
-        k += 1
-        if during is not None:
-            during(system, k)
-    assert system.supervisor.done, "the cycle did not end"
-    return system.finish()
+    return run_cycle(system, prog, ticks, during)
 
 
 def run_until(system: RobotSystem, condition, ticks: int = 400_000) -> None:
@@ -556,16 +548,7 @@ def test_a_forged_object_cannot_allocate_without_bound():
     nested = dataclasses.replace(forged, code=code, constants=(0.0,), globals=("a",),
                                  lines=tuple((i, 1, 1) for i in range(len(code))))
 
-    class Host:
-        def now(self):
-            return 0.0
-
-        def motion_done(self):
-            return True
-
-        def log(self, text, line):
-            pass
-    vm = VM(nested, Host())
+    vm = VM(nested, IdleHost())
     vm.step()
     assert vm.status is ERROR and "larger than" in vm.error.message
     too_long = dataclasses.replace(forged, constants=("x" * (MAX_STRING_LENGTH + 1),))
@@ -578,18 +561,9 @@ def test_the_interpreter_time_per_update_is_bounded_on_the_wall_clock():
 
     prog = program("  while true do\n    i := i + 1;\n  endwhile;\n", "var i : integer;\n")
 
-    class Host:
-        def now(self):
-            return 0.0
-
-        def motion_done(self):
-            return True
-
-        def log(self, text, line):
-            pass
     import time
 
-    vm = VM(prog, Host(), budget=10_000)
+    vm = VM(prog, IdleHost(), budget=10_000)
     start = time.perf_counter()
     vm.step(deadline=start)  # the deadline is already over: one slice, then the step ends
     assert vm.instructions <= 64

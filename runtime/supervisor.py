@@ -41,8 +41,10 @@ class RobotMemory:
     ``initialized`` is set only by a homing sequence that completed, and cleared by any
     cycle that does not end normally (a fault, an abort, an emergency stop): after those
     the encoders' zero is not trusted and the next program homes again. ``calibrated``
-    is set by a calibration measured in range, or by a state file that passes every
-    check (:class:`StateFile`). The ``*_why`` texts say how each came to be what it is
+    is set by a calibration measured in range and then confirmed by the same cycle (its
+    homing completed, or the cycle ended normally: every drive and encoder was seen to
+    follow its commands; a frozen encoder or a dead drive measures a plausible zero
+    drift), or by a state file that passes every check (:class:`StateFile`). The ``*_why`` texts say how each came to be what it is
     (``irl status`` shows them)."""
 
     calibrated: bool = False
@@ -198,6 +200,7 @@ class Supervisor:
         self.calibration_sums = [0.0] * self.n
         self.calibration_samples = 0
         self.calibration_done = False
+        self.provisional: list | None = None  # measured in this cycle, not confirmed yet
         self.settled_since = None
         self.braking = False  # a normal end: the brakes are closing
         self.emergency = False
@@ -226,7 +229,12 @@ class Supervisor:
         trusted (whatever ended the cycle early may have moved the robot unobserved)."""
         if self.fault is None:
             self.fault = message
-            self.memory.forget_initialization(f"the cycle at {self.clock.now():.3f} s ended early: {message}")
+            why = f"the cycle at {self.clock.now():.3f} s ended early: {message}"
+            self.memory.forget_initialization(why)
+            if self.provisional is not None:  # measured, never confirmed: measured again next time
+                self.provisional = None
+                self.memory.forget_calibration(f"the calibration measured in the cycle at {self.clock.now():.3f} s "
+                                               f"was never confirmed: {message}")
 
     def reconfiguring(self) -> bool:
         return self.pending_settings is not None
@@ -321,10 +329,18 @@ class Supervisor:
                             "([safety] max_drive_drift): the drive or its encoder is faulty")
                 return
         self.robot.compensation[:] = compensation
-        self.memory.calibrated, self.memory.compensation = True, compensation
-        self.memory.calibration_why = f"calibrated: measured at {self.clock.now():.3f} s of this cycle"
-        self.state_file.save(compensation)
+        self.provisional = compensation  # remembered once the cycle confirms it (_confirm_calibration)
         self.calibration_done = True
+
+    def _confirm_calibration(self) -> None:
+        """The drives and encoders followed their commands (homing completed, or the
+        cycle ended normally): remember this cycle's calibration and save it."""
+        if self.provisional is not None:
+            compensation, self.provisional = self.provisional, None
+            self.memory.calibrated, self.memory.compensation = True, compensation
+            self.memory.calibration_why = (f"calibrated: measured and confirmed by the cycle at "
+                                           f"{self.clock.now():.3f} s")
+            self.state_file.save(compensation)
 
     def calibrate_exit(self) -> None:
         self.servo.set_mode("hold")
@@ -344,6 +360,7 @@ class Supervisor:
             self.memory.initialized = True
             self.memory.encoder_offsets = list(self.robot.offset)
             self.memory.initialization_why = f"initialized: homing completed at {self.clock.now():.3f} s"
+            self._confirm_calibration()
             self.servo.hold_at(self.init.positions)  # exactly the start position
         else:
             self.servo.hold()
@@ -386,7 +403,9 @@ class Supervisor:
         self.braking = False
         if self.fault is not None:
             self.safety.stop_robot(1, self.fault)
-        elif self.servo.running:
+            return
+        self._confirm_calibration()
+        if self.servo.running:
             self.servo.hold_reference()
         else:  # nothing moved (a reconfiguration): the brakes close at once
             self.safety.expect_standstill(True)

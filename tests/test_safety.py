@@ -120,8 +120,11 @@ def test_a_homing_that_does_not_complete_is_not_remembered(how):
     safe_end(system, watch)
     system.backend.clear_faults()
     watch.reset()
-    again = run_to_end(system, PAPER)  # homes again, and moves where the program says
-    assert [s["name"] for s in again["states"]] == ["Start Robot", INITIALIZE, MOVE, "Stop Robot"]
+    # the calibration of that cycle was never confirmed (no homing completed): measured again
+    assert not system.memory.calibrated and "measured in the cycle" in system.memory.calibration_why
+    again = run_to_end(system, PAPER)  # calibrates and homes again, and moves where the program says
+    assert [s["name"] for s in again["states"]] == ["Start Robot", "Calibrate Offsets", INITIALIZE, MOVE,
+                                                    "Stop Robot"]
     assert again["fault"] is None
     assert again["final_position"] == pytest.approx([45, -45, 45, 0, 0, 0], abs=0.01)
     assert system.memory.initialized and system.memory.initialization_why.startswith("initialized: homing completed")
@@ -644,3 +647,47 @@ def test_an_out_of_range_configuration_is_refused_by_irl_serve(tmp_path):
     code, out, err = run_cli("serve", "--spec", SPEC_PATH, "--config", bad, "--sim-clock",
                              "--endpoint", "tcp://127.0.0.1:1", "--telemetry", "tcp://127.0.0.1:2")
     assert code == 2 and "servo.kp: expected a number 0 < x <= 100 (1/s), got 1000000000.0" in err, err
+
+
+@pytest.mark.parametrize("fault", ["encoder_frozen", "drive_dead"])
+def test_a_calibration_measured_with_a_broken_axis_is_never_kept(tmp_path, fault):
+    """A frozen encoder or a dead drive measures a plausible drift of zero: such a
+    calibration is confirmed only by a homing that completes, never saved before."""
+    state = tmp_path / "state"
+    system, watch = fresh(state_dir=state, faults=[(fault, 3)])
+    summary = run_to_end(system, PAPER)
+    assert summary["fault"] and "A4" in summary["fault"]
+    assert not system.memory.calibrated and not (state / "calibration.json").exists()
+    system.backend.clear_faults()  # repaired: the next program calibrates again and completes
+    summary = run_to_end(system, PAPER)
+    assert summary["fault"] is None, summary["fault"]
+    assert "Calibrate Offsets" in [s["name"] for s in summary["states"]]
+    assert (state / "calibration.json").exists() and system.memory.calibrated
+    safe_end(system, watch)
+
+
+def test_homing_again_after_a_stop_mid_search_searches_towards_the_sensor():
+    """An emergency stop during A1's sensor search leaves it some degrees from where it was
+    powered up; the next homing must search from where it is now, not from the power-up
+    position taken as home (it used to run the wrong way, into the other end stop)."""
+    system, watch = fresh()
+    system.begin(PAPER, None)
+    run_until(system, lambda: system.init.step_name == "sensor A1")
+    t0 = system.clock.now()
+    run_until(system, lambda: system.clock.now() >= t0 + 1.1)
+    system.emergency_stop()
+    run_until(system, lambda: system.supervisor.done)
+    system.finish()
+    summary = run_to_end(system, PAPER)
+    assert summary["fault"] is None, summary["fault"]
+    assert summary["final_position"] == pytest.approx([45, -45, 45, 0, 0, 0], abs=0.01)
+    safe_end(system, watch)
+
+
+def test_a_dead_homing_sensor_is_searched_for_a_bounded_distance_not_to_the_end_stop():
+    system, watch = fresh(faults=[("sensor_dead", 1)])
+    summary = run_to_end(system, PAPER)
+    assert "homing sensor of A2 not found within" in summary["fault"], summary["fault"]
+    safe_end(system, watch)
+    # the sensor is at -5: searched down to about -15.5, then back up once over that and 20 more
+    assert -20 < system.backend.true_positions[1] < 25, system.backend.true_positions[1]

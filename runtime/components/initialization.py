@@ -19,6 +19,9 @@ from ..fsm import FSM, State, Transition
 from ..motion.planner import PtpInput, plan_ptp
 
 HOME_SPEED = 0.2  # fraction of each axis's maximum velocity and acceleration for "Go To Start"
+#: How much farther (deg or mm) than expected a sensor search goes before it gives up: the
+#: uncertainty of where an axis rests before homing (parked at home at power-up).
+SEARCH_MARGIN = 10.0
 SETTLE_TIMEOUT = 2.0  # s after the move to the start position for every axis to settle there
 FROZEN_AFTER = 0.2  # s of commanded motion without a single encoder count -> frozen encoder
 
@@ -161,6 +164,8 @@ class _Sequence:
         self.last_counts = 0
         self.search_counts = 0
         self.still_since = 0.0
+        self.search_range = 0.0  # how far the current sensor search may go
+        self.reversed = False  # the current sensor search has turned back once
 
     def _fail(self, message: str) -> None:
         if self.init.fault is None:
@@ -195,6 +200,26 @@ class _Sequence:
     def _travelled(self) -> float:
         return abs(self.init.positions[self.axis] - self.travel_start)
 
+    def _estimate(self, axis: int) -> float:
+        """Where ``axis`` is, in absolute terms, as far as homing can tell before its
+        reference is found: its position if an earlier homing of this process reset its
+        encoder, else its power-up position taken as its home (robots are parked there)."""
+        offset = 0.0 if self.robot.zeroed[axis] else self.init.axes[axis].home
+        return self.init.positions[axis] + offset
+
+    def _search_failed(self, a, upwards: bool) -> str | None:
+        """Why the current sensor search must stop (None: it goes on): it went farther
+        than the sensor can be, or the axis would pass its software limit (by the
+        estimate): the mechanical end stops beyond the limits are never searched."""
+        x = self._estimate(self.axis)
+        if not a.min <= x <= a.max:
+            return (f"homing sensor of {a.name} not found before the axis's {'upper' if upwards else 'lower'} "
+                    f"limit ({a.max if upwards else a.min:g} {a.unit}, by its estimated position)")
+        if self._travelled() > self.search_range:
+            return (f"homing sensor of {a.name} not found within {self.search_range:.1f} {a.unit} of search "
+                    f"(where the sensor should be, and {SEARCH_MARGIN:g} {a.unit} more)")
+        return None
+
     # -- Find Sensors --
     def begin_sensors(self) -> None:
         self.axis = 0
@@ -208,12 +233,15 @@ class _Sequence:
         # Inside the window already? Leave it upwards first, so the edge found is the upper
         # one. Below it (by the last known positions, e.g. homing again after a fault)?
         # Approach it upwards, pass through, then search downwards as from above.
+        x = self._estimate(self.axis)
         if self.robot.sensors[self.axis]:
             self.phase = "leave"
-        elif self.init.positions[self.axis] < a.sensor_position:
+        elif x < a.sensor_position:
             self.phase = "approach"
         else:
             self.phase = "search"
+        self.search_range = abs(x - a.sensor_position) + a.sensor_window + SEARCH_MARGIN
+        self.reversed = False
         speed = self.init.search_velocity(self.axis)
         self._search(-speed if self.phase == "search" else speed)
 
@@ -235,15 +263,15 @@ class _Sequence:
             if active:
                 self.phase = "leave"
                 self.travel_start = self.init.positions[self.axis]
-            elif self._travelled() > a.max - a.min:
-                self._fail(f"homing sensor of {a.name} not found within the axis travel "
-                           f"({a.max - a.min:g} {a.unit}) upwards")
+            else:
+                self._search_on(a, upwards=True)
             return
         if self.phase == "leave":
             if not active:
                 self.phase = "search"
                 self.init.ramp(self.axis, -self.init.search_velocity(self.axis))
                 self.travel_start = self.init.positions[self.axis]
+                self.search_range = 2 * a.sensor_window + SEARCH_MARGIN
             elif self._travelled() > 2 * a.sensor_window + 1.0:
                 self._fail(f"homing sensor of {a.name} does not turn off")
             return
@@ -252,9 +280,26 @@ class _Sequence:
             self.init.halt_axis(self.axis)
             self.axis += 1
             self._start_axis_sensor()
-        elif self._travelled() > a.max - a.min:
-            self._fail(f"homing sensor of {a.name} not found within the axis travel "
-                       f"({a.max - a.min:g} {a.unit})")
+        else:
+            self._search_on(a, upwards=False)
+
+    def _search_on(self, a, upwards: bool) -> None:
+        """The sensor was not found yet: go on; at the end of the search's range (or at
+        the software limit) turn back once, over the range searched and the margin again
+        on the other side (the estimate of where the axis was may be off, as after a stop
+        in the middle of a search); after that, fail."""
+        problem = self._search_failed(a, upwards)
+        if problem is None:
+            return
+        if self.reversed:
+            self._fail(problem)
+            return
+        self.reversed = True
+        self.search_range = self._travelled() + 2 * SEARCH_MARGIN + 2 * a.sensor_window
+        self.travel_start = self.init.positions[self.axis]
+        speed = self.init.search_velocity(self.axis)
+        self.phase = "search" if upwards else "approach"
+        self.init.ramp(self.axis, -speed if upwards else speed)
 
     # -- Find Index --
     def begin_index(self) -> None:

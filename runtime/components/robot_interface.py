@@ -36,6 +36,7 @@ class RobotInterface(Component):
         self.n = len(spec.axes)
         self.scale = tuple(1.0 / a.counts_per_unit for a in spec.axes)
         self.offset = [0.0] * self.n  # position = counts / counts_per_unit + offset
+        self.zeroed = [False] * self.n  # per axis: its encoder was reset by a homing (positions absolute)
         self.compensation = [0.0] * self.n  # added to every velocity command (calibration)
         self.max_velocity = tuple(a.max_velocity for a in spec.axes)
         self.velocity_limit_scale = 1.0  # reduced speed (the planners and the safety supervisor apply it)
@@ -121,6 +122,7 @@ class RobotInterface(Component):
         new = position_at - counts_at * self.scale[axis]
         delta = new - self.offset[axis]
         self.offset[axis] = new
+        self.zeroed[axis] = True
         positions = list(self.estimator.positions)
         positions[axis] += delta
         self.estimator.reset(positions, self.estimator.velocities)

@@ -262,6 +262,11 @@ class SafetySupervisor(Component):
         if self.rest_deadline is None or deadline < self.rest_deadline:
             self.rest_deadline = deadline
 
+    def rest_not_expected(self) -> None:
+        """Real-time safe: the stop on the path was called off before it reached rest (a
+        resume): its deadline no longer applies."""
+        self.rest_deadline = None
+
     # -- violations and stops (real-time) --
     def _axis_violation(self, code: int, command, now: float) -> None:
         kind, i = divmod(code, 256)

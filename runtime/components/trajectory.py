@@ -462,6 +462,8 @@ class TrajectoryGenerator(Component):
             return False
         self._paused = False
         vm.resume()
+        if self.safety is not None:
+            self.safety.rest_not_expected()
         if self._hold:
             self._hold = False
             self._change_rate(self._override)

@@ -691,3 +691,46 @@ def test_a_dead_homing_sensor_is_searched_for_a_bounded_distance_not_to_the_end_
     safe_end(system, watch)
     # the sensor is at -5: searched down to about -15.5, then back up once over that and 20 more
     assert -20 < system.backend.true_positions[1] < 25, system.backend.true_positions[1]
+
+
+FULL_SPEED = program("  move ptp joint(mainjoint(60, -10, 50, 40, 30, 90)) speed_ptp := 1 acc_ptp := 1 approx := 1;\n"
+                     "  move ptp joint(mainjoint(-60, -40, 20, -40, 80, -90)) speed_ptp := 1 acc_ptp := 1;\n")
+
+
+@pytest.mark.parametrize("when, percent", [(0.12, 1), (0.4, 50), (0.6, 1), (0.72, 50)])
+def test_a_change_of_override_at_full_acceleration_keeps_the_limits(when, percent):
+    """The rate of trajectory time adds (rate)' x v to each axis's acceleration: it changes
+    only as fast as the path's own acceleration leaves room for (it used to reach twice the
+    limit at a full-acceleration move, and the safety stopped a healthy robot)."""
+    system, watch = fresh()
+    run_to_end(system, SHORT)
+    watch.reset()
+    system.begin(FULL_SPEED, None)
+    into_move(system, when)
+    system.trajectory.override = percent
+    for _ in range(300):
+        system.executive.step()
+    system.trajectory.override = 100
+    run_until(system, lambda: system.supervisor.done)
+    summary = system.finish()
+    assert summary["fault"] is None, summary["fault"]
+    assert watch.acceleration_ratio <= 1.25, watch.worst
+    safe_end(system, watch)
+
+
+@pytest.mark.parametrize("when", [0.5, 0.9, 1.1])
+def test_a_pause_inside_a_full_speed_blend_and_a_quick_resume_keep_the_limits(when):
+    system, watch = fresh()
+    run_to_end(system, SHORT)
+    watch.reset()
+    system.begin(FULL_SPEED, None)
+    into_move(system, when)
+    system.trajectory.pause()
+    for _ in range(150):  # resumed before it came to rest
+        system.executive.step()
+    system.trajectory.resume()
+    run_until(system, lambda: system.supervisor.done)
+    summary = system.finish()
+    assert summary["fault"] is None, summary["fault"]
+    assert watch.acceleration_ratio <= 1.25, watch.worst
+    safe_end(system, watch)

@@ -24,6 +24,7 @@ error, as if there were no look-ahead.
 """
 from __future__ import annotations
 
+import math
 import queue
 import threading
 import time
@@ -50,6 +51,9 @@ _SAME_TIME = 1e-9
 #: Seconds of interpreter time per update on the wall clock (runtime.vm: the step ends at
 #: the first slice of instructions after it); none on the simulated clock (deterministic).
 TIME_SLICE = 0.0005
+#: A change of the rate (override, a stop inside a blend) keeps every axis within this
+#: fraction of its acceleration limit (the rest is the servo's and the interpolation's).
+RATE_CHANGE_MARGIN = 0.9
 #: Lines of the operator log (print) kept per program; later ones are counted, not kept.
 MAX_LOG_LINES = 10_000
 
@@ -192,6 +196,9 @@ class TrajectoryGenerator(Component):
         self.safety = None  # the safety supervisor: told when the motion is at rest, and of stops on the path
         self._rate_from = self._rate_to = 1.0
         self._rate_t = self._rate_T = 0.0  # progress and length (s) of a change of rate
+        self._path_velocity: tuple = (0.0,) * self.n  # the timeline's velocity per trajectory second
+        self._path_acceleration: tuple = (0.0,) * self.n  # ... and acceleration (estimated)
+        self._accelerations = tuple(a.max_acceleration * RATE_CHANGE_MARGIN for a in spec.axes)
         self.profile = motion_profile(spec)
         self._kinematics = None  # built when a program first moves to a pose
         self.abort_reason: str | None = None  # set by abort(): end the program once at rest
@@ -293,14 +300,50 @@ class TrajectoryGenerator(Component):
         self._rate_T = max(0.2, 1.875 * abs(rate - self.rate) * ratio)
 
     def _step_rate(self, dt: float) -> float:
+        """The rate for the next period: towards the quintic schedule, but never changing
+        faster than every axis's acceleration limit allows where the path is now. With the
+        rate r of trajectory time, an axis moving at v (per trajectory second) and
+        accelerating at a has the acceleration ``r^2 a + r' v``: a change of rate adds
+        ``r' v`` to what the path itself asks, so r' is kept where the sum stays within the
+        limit (0 always is: r <= 1). The rate then only lags the schedule, monotonically."""
         self._rate_t += dt
         u = self._rate_t / self._rate_T
+        target = self._rate_to
         if u >= 1.0:
-            self.rate = self._rate_from = self._rate_to
-            self._rate_T = 0.0
+            scheduled = target
         else:
-            self.rate = self._rate_from + (self._rate_to - self._rate_from) * u * u * u * (10.0 + u * (6.0 * u - 15.0))
-        return self.rate
+            scheduled = self._rate_from + (target - self._rate_from) * u * u * u * (10.0 + u * (6.0 * u - 15.0))
+        rate = self.rate
+        wanted = (scheduled - rate) / dt
+        peak = 1.875 * abs(target - self._rate_from) / self._rate_T  # the schedule's steepest
+        low, high = self._rate_change_bounds(rate)
+        change = min(max(wanted, low, -peak), high, peak)
+        rate += change * dt
+        if (change >= 0.0 and rate >= target) or (change <= 0.0 and rate <= target):
+            if u >= 1.0 or rate == target:
+                rate = target
+        if u >= 1.0 and rate == target:
+            self._rate_from = target
+            self._rate_T = 0.0
+        self.rate = rate
+        return rate
+
+    def _rate_change_bounds(self, rate: float) -> tuple[float, float]:
+        """How fast (1/s) the rate may change now: every axis within RATE_CHANGE_MARGIN of
+        its acceleration limit, given the path's velocity and acceleration here."""
+        low, high = -math.inf, math.inf
+        r2 = rate * rate
+        for v, a, limit in zip(self._path_velocity, self._path_acceleration, self._accelerations):
+            if -1e-9 < v < 1e-9:
+                continue
+            lo, hi = (-limit - r2 * a) / v, (limit - r2 * a) / v
+            if v < 0.0:
+                lo, hi = hi, lo
+            if lo > low:
+                low = lo
+            if hi < high:
+                high = hi
+        return min(low, 0.0), max(high, 0.0)
 
     @property
     def finished(self) -> bool:
@@ -378,11 +421,16 @@ class TrajectoryGenerator(Component):
             self._schedule()
         held = False
         if self._rate_T:
+            before = self.rate
             rate = self._step_rate(self.period)
             held = self._hold and not self._rate_T  # the rate reached 0: at rest on the path
+            # trajectory time over the period at the mean rate: the setpoints' positions then
+            # agree with their velocities (rate x the path's), which the servo interpolates
+            step = self.period * 0.5 * (before + rate)
         else:
             rate = self.rate
-        tm = self.t_move = self.t_move + self.period * rate
+            step = self.period * rate
+        tm = self.t_move = self.t_move + step
         if first.record is None:
             self._started(first, now)
         t = tm - first.start
@@ -396,6 +444,9 @@ class TrajectoryGenerator(Component):
             positions = tuple([a + b - c for a, b, c in zip(positions, p2, corner)])
             velocities = tuple([a + b for a, b in zip(velocities, v2)])
         self.positions = positions
+        if step > 1e-9:  # the path's acceleration, for the next change of rate
+            self._path_acceleration = tuple([(v - w) / step for v, w in zip(velocities, self._path_velocity)])
+        self._path_velocity = velocities
         self.velocities = velocities if rate == 1.0 else tuple([v * rate for v in velocities])
         if held:
             self._held()

@@ -14,6 +14,10 @@ class LimitWatch:
 
     * ``velocity_ratio``: largest |command| / (max_velocity x velocity_limit_scale);
     * ``acceleration_ratio``: largest |command change| / tick / max_acceleration;
+    * ``planned_velocity_ratio``, ``planned_acceleration_ratio``: the same of the setpoints
+      the planners give the servo (``desi_pos`` from the trajectory generator, ``init_pos``
+      from the homing: every 5 ms, a position and a velocity per axis): largest |velocity| /
+      (max_velocity x velocity_limit_scale), and |velocity change| / the time between two samples / max_acceleration;
     * ``beyond``: largest distance (deg or mm) of a true position beyond min..max;
     * ``at_end_stop``: some axis reached its mechanical end stop.
     """
@@ -28,19 +32,17 @@ class LimitWatch:
         self.high = [a.max for a in axes]
         self.stops = system.backend.end_stops
         self.port = system.ports["drive_cmd"]
-        self.velocity_ratio = 0.0
-        self.acceleration_ratio = 0.0
-        self.beyond = 0.0
-        self.at_end_stop = False
-        self.worst: dict[str, tuple] = {}  # figure -> (time, state, axis) where it was largest
-        self._previous = None
+        self.setpoints = [system.ports["desi_pos"], system.ports["init_pos"]]
+        self.reset()
         system.executive.add("limit-watch", self.tick, TICK, "record")
 
     def reset(self) -> None:
         self.velocity_ratio = self.acceleration_ratio = self.beyond = 0.0
+        self.planned_velocity_ratio = self.planned_acceleration_ratio = 0.0
         self.at_end_stop = False
-        self.worst = {}
+        self.worst: dict[str, tuple] = {}  # figure -> (time, state, axis) where it was largest
         self._previous = None
+        self._previous_setpoints: list = [None] * len(self.setpoints)  # (time, velocities) per port
 
     def _note(self, figure: str, value: float, axis: int) -> None:
         if value > getattr(self, figure):
@@ -63,11 +65,34 @@ class LimitWatch:
             self._previous = command
         else:
             self._previous = None
+        for k, port in enumerate(self.setpoints):
+            self._setpoint(k, port, now)
         for i, x in enumerate(backend.true_positions):
             self._note("beyond", max(self.low[i] - x, x - self.high[i]), i)
             lo, hi = self.stops[i]
             if x <= lo or x >= hi:
                 self.at_end_stop = True
+
+
+    def _setpoint(self, k: int, port, now: float) -> None:
+        """A setpoint written this tick, against the same port's previous one (a gap of more
+        than one period, or a port the servo does not follow, starts over)."""
+        value = port.value
+        if value is None or port.stamp != now or self.system.servo.source is not port:
+            if port.stamp != now:
+                return
+            self._previous_setpoints[k] = None
+            return
+        t, _positions, velocities = value
+        scale = self.system.robot.velocity_limit_scale
+        for i, v in enumerate(velocities):
+            self._note("planned_velocity_ratio", abs(v) / (self.vmax[i] * scale), i)
+        previous = self._previous_setpoints[k]
+        if previous is not None and 0.0 < t - previous[0] <= 0.0101:
+            dt = t - previous[0]
+            for i, (v, p) in enumerate(zip(velocities, previous[1])):
+                self._note("planned_acceleration_ratio", abs(v - p) / dt / self.amax[i], i)
+        self._previous_setpoints[k] = (t, velocities)
 
 
 def at_rest_and_safe(system) -> bool:

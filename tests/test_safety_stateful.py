@@ -23,7 +23,9 @@ from the file, no initialization). Several rules first take the program to a pha
 Invariants, after every rule and after every tick of the loop:
 
 * no command the drives got beyond any axis's velocity limit, nor changing faster than
-  ``[safety] acceleration_factor`` x its acceleration limit; no true position beyond the
+  ``[safety] acceleration_factor`` x its acceleration limit (the servo's corrections
+  included); no setpoint the planners gave the servo beyond the velocity limit or changing
+  faster than the acceleration limit; no true position beyond the
   software limits by more than STOP_TOLERANCE; never at a mechanical end stop
   (``tests/limits_watch.py``, which trusts nothing of the runtime's own account);
 * whenever no program runs (once one has run), the arm is at rest, brakes applied,
@@ -136,7 +138,8 @@ MAX_TURNS_TO_END = 40_000
 
 #: The figures over every example run (printed by the test; ``pytest -s`` shows them).
 FIGURES: dict = {"examples": 0, "rules": 0, "ticks": 0, "restarts": 0, "velocity_ratio": 0.0,
-                 "acceleration_ratio": 0.0, "beyond": 0.0, "worst": {}, "cycles": collections.Counter(),
+                 "acceleration_ratio": 0.0, "planned_velocity_ratio": 0.0, "planned_acceleration_ratio": 0.0,
+                 "beyond": 0.0, "worst": {}, "cycles": collections.Counter(),
                  "stops": collections.Counter(), "injected": collections.Counter(),
                  "replies": collections.Counter(), "injected where": collections.Counter(),
                  "commands where": collections.Counter(), "stopped, yet completed": collections.Counter(),
@@ -250,7 +253,8 @@ class SafetyMachine(RuleBasedStateMachine):
         self.log: list[str] = []  # the rules called, in order
         self.survey = SURVEY  # record violations and go on (a replay never does)
         self.seen: set[str] = set()  # survey: the kinds of violation already recorded in this example
-        self.figures = {"velocity_ratio": 0.0, "acceleration_ratio": 0.0, "beyond": 0.0}
+        self.figures = {"velocity_ratio": 0.0, "acceleration_ratio": 0.0, "planned_velocity_ratio": 0.0,
+                        "planned_acceleration_ratio": 0.0, "beyond": 0.0}
         self.busy = False  # the client keeps a program queued (power_up)
         self.last_body: str | None = None
         self.server: Server | None = None
@@ -423,6 +427,10 @@ class SafetyMachine(RuleBasedStateMachine):
                      lambda: (watch.velocity_ratio, watch.worst.get("velocity_ratio")))
         self._expect(watch.acceleration_ratio <= ACCELERATION_LIMIT + 1e-9, "acceleration",
                      lambda: (watch.acceleration_ratio, watch.worst.get("acceleration_ratio")))
+        self._expect(watch.planned_velocity_ratio <= 1.0 + 1e-9, "planned velocity",
+                     lambda: (watch.planned_velocity_ratio, watch.worst.get("planned_velocity_ratio")))
+        self._expect(watch.planned_acceleration_ratio <= 1.0 + 1e-6, "planned acceleration",
+                     lambda: (watch.planned_acceleration_ratio, watch.worst.get("planned_acceleration_ratio")))
         self._expect(watch.beyond <= STOP_TOLERANCE, "beyond the software limits",
                      lambda: (watch.beyond, watch.worst.get("beyond")))
         self._expect(not watch.at_end_stop, "at a mechanical end stop",
@@ -625,8 +633,10 @@ def test_the_safety_guarantees_hold_whatever_the_operator_and_the_hardware_do():
         print(f"\nstateful safety test: {f['examples']} cases ({EXAMPLES} asked), {f['rules']} rules, "
               f"{f['ticks']} ticks ({f['ticks'] / 1000:.0f} simulated s), {f['restarts']} restarts, "
               f"{time.perf_counter() - start:.1f} s; faults injected {dict(f['injected'])}")
-        print(f"  largest velocity ratio {f['velocity_ratio']:.4f}, acceleration ratio "
-              f"{f['acceleration_ratio']:.4f} (limit {ACCELERATION_LIMIT:g}), excursion beyond the software "
+        print(f"  largest ratio to the axis's limit: the drives' commands: velocity {f['velocity_ratio']:.4f}, "
+              f"acceleration {f['acceleration_ratio']:.4f} (limit {ACCELERATION_LIMIT:g}); the planners' setpoints: "
+              f"velocity {f['planned_velocity_ratio']:.4f}, acceleration {f['planned_acceleration_ratio']:.4f} "
+              f"(limit 1); excursion beyond the software "
               f"limits {f['beyond']:.4f} (tolerance {STOP_TOLERANCE:g}); where (s, state, axis): {f['worst']}")
         print(f"  faults injected in {dict(f['injected where'])}; commands applied in {dict(f['commands where'])}")
         print(f"  programs that an accepted abort or estop did not end early (they 'completed'): "

@@ -263,6 +263,9 @@ def test_fault_matrix(phase, fault, axis):
     if watch.acceleration_ratio > SPEC.safety["acceleration_factor"] + 1e-9:
         problems.append(f"acceleration ratio {watch.acceleration_ratio:.4f} "
                         f"({watch.worst.get('acceleration_ratio')})")
+    if watch.planned_velocity_ratio > 1.0 + 1e-9 or watch.planned_acceleration_ratio > 1.0 + 1e-6:
+        problems.append(f"a setpoint beyond the limits: velocity ratio {watch.planned_velocity_ratio:.4f}, "
+                        f"acceleration ratio {watch.planned_acceleration_ratio:.4f} ({watch.worst})")
     if watch.beyond > STOP_TOLERANCE:
         problems.append(f"{watch.beyond:.3f} beyond a software limit ({watch.worst.get('beyond')})")
     if watch.at_end_stop:

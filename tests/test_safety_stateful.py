@@ -66,7 +66,9 @@ asserts the correct behaviour; 1-4 are fixed by 467842e, 5 and 6 by f16d2c8):
 Each has its shortest sequence of rules replayed below (COUNTER_EXAMPLES).
 
 Settings: ``IRL_STATEFUL_EXAMPLES`` examples (default EXAMPLES: the file in about a minute
-on this 2-core machine, when nothing fails) of ``STEPS`` rules each. A failure is shrunk
+on this 2-core machine, when nothing fails) of ``STEPS`` rules each, each example's rules
+that advance time spending at most TICK_BUDGET ticks between them (so that the test's
+time does not depend on which examples the search happens to draw). A failure is shrunk
 (hypothesis gives up shrinking after 5 minutes). ``IRL_STATEFUL_FAULTS`` (a comma-separated
 subset of FAULTS, default all) narrows the injected kinds. ``IRL_STATEFUL_SURVEY=1`` records
 every kind of violation (with the shortest sequence of rules seen) and goes on instead of
@@ -135,9 +137,13 @@ PHASE_TIMES = st.tuples(st.sampled_from(PHASES), st.integers(0, 300))
 WHEN = st.tuples(st.sampled_from([*PHASES, "now"]), st.integers(0, 300))
 #: Ticks (1 ms each) at most of one run to a phase or to a program's end (a paused program holds).
 MAX_TURNS_TO_END = 40_000
+#: Ticks at most of one example that rules advancing time may spend (their share of the
+#: test's time: about 2 s of this machine's time each); once spent, they do nothing (a
+#: request still takes its tick).
+TICK_BUDGET = 150_000
 
 #: The figures over every example run (printed by the test; ``pytest -s`` shows them).
-FIGURES: dict = {"examples": 0, "rules": 0, "ticks": 0, "restarts": 0, "velocity_ratio": 0.0,
+FIGURES: dict = {"examples": 0, "rules": 0, "ticks": 0, "restarts": 0, "over budget": 0, "velocity_ratio": 0.0,
                  "acceleration_ratio": 0.0, "planned_velocity_ratio": 0.0, "planned_acceleration_ratio": 0.0,
                  "beyond": 0.0, "worst": {}, "cycles": collections.Counter(),
                  "stops": collections.Counter(), "injected": collections.Counter(),
@@ -257,6 +263,7 @@ class SafetyMachine(RuleBasedStateMachine):
                         "planned_acceleration_ratio": 0.0, "beyond": 0.0}
         self.busy = False  # the client keeps a program queued (power_up)
         self.last_body: str | None = None
+        self.spent = 0  # ticks spent by rules advancing time (TICK_BUDGET)
         self.server: Server | None = None
         self._new_server()
         FIGURES["examples"] += 1
@@ -287,16 +294,19 @@ class SafetyMachine(RuleBasedStateMachine):
         server = self.server
         FIGURES["ticks"] += server.system.executive.ticks
         server.system.state_file.flush()  # its calibration on disk before the next server reads it
+        server.system.report.close()  # its report's writer thread done (not writing into a removed directory)
         server.close()  # (its calibration writer thread stays, idle: a few KB)
 
     def teardown(self) -> None:
-        if self.server is not None:
-            self._retire_server()
-            self.server = None
-            if currently_in_test_context():  # (not in a replay)
-                for figure, value in self.figures.items():  # steer the search towards the limits
-                    target(value, label=figure)
-        shutil.rmtree(self.directory, ignore_errors=True)
+        try:
+            if self.server is not None:
+                self._retire_server()
+                self.server = None
+                if currently_in_test_context():  # (not in a replay)
+                    for figure, value in self.figures.items():  # steer the search towards the limits
+                        target(value, label=figure)
+        finally:
+            shutil.rmtree(self.directory)
 
     # ---- violations -------------------------------------------------------------------------
     def _violation(self, kind: str, message: str) -> None:
@@ -331,7 +341,7 @@ class SafetyMachine(RuleBasedStateMachine):
             return self._decode(protocol.ok(rid, result))
         FIGURES["commands where"][self._phase()] += 1
         server.commands.append(([b"stateful"], rid, result))
-        self._turns(1)
+        self._turns(1, budgeted=False)
         return self.replies.pop(rid)
 
     def _decode(self, payload: bytes) -> dict:
@@ -346,9 +356,15 @@ class SafetyMachine(RuleBasedStateMachine):
         reply = self._request("submit", {"object": object_code(body), "name": "stateful"})
         assert reply["ok"], reply  # a valid program and a queue far from full
 
-    def _turns(self, n: int, until=None) -> None:
+    def _turns(self, n: int, until=None, budgeted: bool = True) -> None:
         server = self.server
         for _ in range(n):
+            if budgeted:
+                if self.spent >= TICK_BUDGET:
+                    FIGURES["over budget"] += self.spent == TICK_BUDGET  # (once per example)
+                    self.spent += 1
+                    return
+                self.spent += 1
             if self.busy and server.current is None and not server.queue and self.last_body is not None:
                 self._submit(self.last_body)
             server.turn(idle_wait=False)
@@ -454,7 +470,7 @@ class SafetyMachine(RuleBasedStateMachine):
         if warm:
             self._submit(FIXED_PROGRAMS[1])
             job = self.server.jobs[1]
-            self._turns(MAX_TURNS_TO_END, until=lambda: job.state not in ("queued", "running"))
+            self._turns(MAX_TURNS_TO_END, until=lambda: job.state not in ("queued", "running"), budgeted=False)
             assert job.state == "completed", job.fault
         self._submit(body)
         self.busy = busy
@@ -631,7 +647,8 @@ def test_the_safety_guarantees_hold_whatever_the_operator_and_the_hardware_do():
     finally:
         f = FIGURES
         print(f"\nstateful safety test: {f['examples']} cases ({EXAMPLES} asked), {f['rules']} rules, "
-              f"{f['ticks']} ticks ({f['ticks'] / 1000:.0f} simulated s), {f['restarts']} restarts, "
+              f"{f['ticks']} ticks ({f['ticks'] / 1000:.0f} simulated s; {f['over budget']} cases spent their "
+              f"{TICK_BUDGET} ticks), {f['restarts']} restarts, "
               f"{time.perf_counter() - start:.1f} s; faults injected {dict(f['injected'])}")
         print(f"  largest ratio to the axis's limit: the drives' commands: velocity {f['velocity_ratio']:.4f}, "
               f"acceleration {f['acceleration_ratio']:.4f} (limit {ACCELERATION_LIMIT:g}); the planners' setpoints: "

@@ -145,7 +145,7 @@ TICK_BUDGET = 150_000
 #: The figures over every example run (printed by the test; ``pytest -s`` shows them).
 FIGURES: dict = {"examples": 0, "rules": 0, "ticks": 0, "restarts": 0, "over budget": 0, "velocity_ratio": 0.0,
                  "acceleration_ratio": 0.0, "planned_velocity_ratio": 0.0, "planned_acceleration_ratio": 0.0,
-                 "beyond": 0.0, "worst": {}, "cycles": collections.Counter(),
+                 "beyond": 0.0, "healthy": {"velocity_ratio": 0.0, "acceleration_ratio": 0.0}, "worst": {}, "cycles": collections.Counter(),
                  "stops": collections.Counter(), "injected": collections.Counter(),
                  "replies": collections.Counter(), "injected where": collections.Counter(),
                  "commands where": collections.Counter(), "stopped, yet completed": collections.Counter(),
@@ -280,7 +280,13 @@ class SafetyMachine(RuleBasedStateMachine):
         self.homed = False  # a homing completed in a cycle that ended "completed", none ended otherwise since
 
     def _note_figures(self) -> None:
+        """The watch's figures into the example's and the test's (and, when no fault was in
+        effect since the watch began, into the healthy arm's)."""
         watch = self.watch
+        if not self.faulty:
+            healthy = FIGURES["healthy"]
+            for figure in healthy:
+                healthy[figure] = max(healthy[figure], getattr(watch, figure))
         for figure in self.figures:
             value = getattr(watch, figure)
             self.figures[figure] = max(self.figures[figure], value)
@@ -583,6 +589,7 @@ class SafetyMachine(RuleBasedStateMachine):
         """A fault of the simulated arm, now or when the program reaches a phase."""
         self._go(when)
         server = self.server
+        self._note_figures()  # (what came before, on a healthy arm or not)
         server.system.backend.inject(fault, axis)
         self.faulty = True
         self.exposed.update(job.id for job in [server.current, *server.queue] if job is not None)
@@ -595,6 +602,8 @@ class SafetyMachine(RuleBasedStateMachine):
     def repair(self):
         """Between programs (brakes on, torque off): the faulty part is replaced."""
         self.server.system.backend.clear_faults()
+        self._note_figures()
+        self.watch.reset()  # (its figures from now on: a healthy arm's)
         self.faulty = False
 
     @rule(which=st.sampled_from(["status", "status of a program", "report", "hello"]))
@@ -655,6 +664,8 @@ def test_the_safety_guarantees_hold_whatever_the_operator_and_the_hardware_do():
               f"velocity {f['planned_velocity_ratio']:.4f}, acceleration {f['planned_acceleration_ratio']:.4f} "
               f"(limit 1); excursion beyond the software "
               f"limits {f['beyond']:.4f} (tolerance {STOP_TOLERANCE:g}); where (s, state, axis): {f['worst']}")
+        print(f"  on a healthy arm (no fault injected): the drives' commands: velocity "
+              f"{f['healthy']['velocity_ratio']:.4f}, acceleration {f['healthy']['acceleration_ratio']:.4f}")
         print(f"  faults injected in {dict(f['injected where'])}; commands applied in {dict(f['commands where'])}")
         print(f"  programs that an accepted abort or estop did not end early (they 'completed'): "
               f"{dict(f['stopped, yet completed'])}")

@@ -13,7 +13,7 @@ from hypothesis import strategies as st
 
 from compiler.driver import compile_file
 from runtime.executive import Executive, SimClock
-from runtime.motion.planner import StopRamp
+from runtime.motion.planner import REST_VELOCITY, StopRamp
 from runtime.supervisor import MOVE, RECONFIGURE, STOP
 from runtime.system import RobotSystem, RunOptions
 
@@ -112,9 +112,11 @@ def test_the_stop_ramp_keeps_within_the_deceleration_limit():
     assert resting.duration == 0.0 and resting.sample(0.0) == ((1.0, 2.0), (0.0, 0.0))
 
 
-# velocities of an axis: at rest, or at least 1e-9 unit/s (subnormal floats such as 2e-313, whose
-# stop times lose their precision, are no velocity a drive is ever commanded)
-VELOCITIES = st.one_of(st.just(0.0), st.floats(1e-9, 200), st.floats(-200, -1e-9))
+# velocities of an axis: any, subnormal ones (2.2e-311) and the rest threshold's neighbours
+# included: a subnormal velocity once gave a subnormal stop time whose fractions lost their
+# precision (the stop is now at rest below REST_VELOCITY)
+VELOCITIES = st.one_of(st.floats(-200, 200), st.sampled_from([0.0, -0.0, 2.2e-311, -5e-324, REST_VELOCITY,
+                                                              REST_VELOCITY * 0.999, -REST_VELOCITY]))
 
 
 @settings(max_examples=100, deadline=None, derandomize=True, database=None)
@@ -123,13 +125,17 @@ def test_property_stop_ramp_respects_every_axis_limit_and_stays_proportional(axe
     v0 = tuple(v for v, _ in axes)
     a_max = tuple(a for _, a in axes)
     ramp = StopRamp((0.0,) * len(axes), v0, a_max)
-    for v, a in zip(v0, a_max):
-        assert abs(v) / ramp.duration <= a * (1 + 1e-12) if ramp.duration > 0 else v == 0
+    _, start = ramp.sample(0.0)
+    for v, v_start, a in zip(v0, start, a_max):
+        assert v_start == (v if abs(v) >= REST_VELOCITY else 0.0)  # (slower is rest)
+        assert abs(v_start) / ramp.duration <= a * (1 + 1e-12) if ramp.duration > 0 else v_start == 0.0
     for k in range(11):
         t = ramp.duration * k / 10
-        _, vel = ramp.sample(t)
-        for v, v_now in zip(v0, vel):  # every axis keeps the same fraction of its start velocity
+        pos, vel = ramp.sample(t)
+        for v, v_now, x in zip(v0, vel, pos):  # every axis keeps the same fraction of its start velocity
             assert math.isclose(v_now, v * (1 - k / 10), rel_tol=1e-9, abs_tol=1e-9)
+            assert math.isclose(x, v * t * (1 - k / 20), rel_tol=1e-9, abs_tol=1e-9)  # (its integral)
+    assert ramp.sample(ramp.duration)[1] == (0.0,) * len(axes)
 
 
 def test_abort_stops_then_ends_with_the_operator_named(system):

@@ -358,6 +358,10 @@ def scaled_limits(axes_max_velocity, axes_max_acceleration, speed_ptp: float,
     return velocities, accelerations
 
 
+#: Slower than this (deg/s or mm/s) is rest for a stop: no drive is ever commanded it.
+REST_VELOCITY = 1e-12
+
+
 class StopRamp:
     """A controlled stop: from positions ``p0`` moving at ``v0``, every axis decelerates
     uniformly to rest in the same time ``duration``, the shortest that keeps each axis
@@ -372,17 +376,19 @@ class StopRamp:
     :class:`PtpTrajectory`. Real-time safe.
     """
 
-    __slots__ = ("duration", "start_position", "target_position", "_v0", "_dec", "_zeros")
+    __slots__ = ("duration", "start_position", "target_position", "_v0", "_zeros")
 
     def __init__(self, p0: tuple[float, ...], v0: tuple[float, ...], a_max: tuple[float, ...]):
+        # A velocity below REST_VELOCITY is rest: a subnormal one (2e-311) would give a
+        # subnormal duration, and the fractions t / duration would lose their precision.
+        v0 = tuple(v if abs(v) >= REST_VELOCITY else 0.0 for v in v0)
         duration = 0.0
         for v, a in zip(v0, a_max):
             if a > 0.0 and abs(v) / a > duration:
                 duration = abs(v) / a
         self.duration = duration
         self.start_position = tuple(p0)
-        self._v0 = tuple(v0) if duration > 0.0 else (0.0,) * len(p0)
-        self._dec = tuple(v / duration for v in self._v0) if duration > 0.0 else self._v0
+        self._v0 = v0 if duration > 0.0 else (0.0,) * len(p0)
         self.target_position = tuple(p + 0.5 * v * duration for p, v in zip(p0, self._v0))
         self._zeros = (0.0,) * len(p0)
 
@@ -391,5 +397,8 @@ class StopRamp:
             return self.target_position, self._zeros
         if not t > 0.0:
             return self.start_position, self._v0
-        return (tuple([p + v * t - 0.5 * d * t * t for p, v, d in zip(self.start_position, self._v0, self._dec)]),
-                tuple([v - d * t for v, d in zip(self._v0, self._dec)]))
+        # every axis at the same fraction of its start velocity: (1 - t / T) v0
+        left = 1.0 - t / self.duration
+        travelled = t * (1.0 + left) * 0.5  # (t - t^2 / 2T)
+        return (tuple([p + v * travelled for p, v in zip(self.start_position, self._v0)]),
+                tuple([v * left for v in self._v0]))

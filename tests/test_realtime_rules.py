@@ -1,5 +1,6 @@
 """The rules of the real-time loop, enforced (not only documented): nothing that runs in a
-tick opens a file, creates a thread or process, sleeps or touches a socket.
+tick opens a file, creates a thread or process, sleeps, touches a socket, or builds the
+robot's kinematics.
 
 A Python audit hook (sys.addaudithook; it cannot be removed, so it only records while a
 flag is set) watches every task the executive runs, through whole cycles of programs that
@@ -26,7 +27,8 @@ SPEC = load_spec(SPEC_PATH)
 
 #: Audit events that must never happen inside a tick (prefixes).
 FORBIDDEN = ("open", "os.", "socket.", "subprocess.", "_thread.start_new_thread", "time.sleep", "shutil.",
-             "fcntl.", "pty.", "mmap.", "sqlite3.", "urllib.", "http.", "ftplib.", "smtplib.", "ctypes.")
+             "fcntl.", "pty.", "mmap.", "sqlite3.", "urllib.", "http.", "ftplib.", "smtplib.", "ctypes.",
+             "irl.kinematics")  # (the robot's kinematics: tables and a solver, built before the loop)
 
 _state = threading.local()
 _seen: list[tuple[str, str]] = []
@@ -43,9 +45,19 @@ sys.addaudithook(_hook)
 @pytest.fixture(autouse=True)
 def _thread_starts(monkeypatch):
     """Python 3.11 has no audit event for a new thread or a sleep: watch Thread.start,
-    _thread.start_new_thread and time.sleep themselves (for this module's tests only)."""
+    _thread.start_new_thread and time.sleep themselves (for this module's tests only); and
+    the building of a robot's kinematics (``irl.kinematics``)."""
     import _thread
     import time
+
+    from runtime.motion.kinematics import Kinematics
+
+    build = Kinematics.__init__
+
+    def watched_build(self, *args, **kwargs):
+        _hook("irl.kinematics", ())
+        return build(self, *args, **kwargs)
+    monkeypatch.setattr(Kinematics, "__init__", watched_build)
 
     start, start_new, sleep = threading.Thread.start, _thread.start_new_thread, time.sleep
 
@@ -145,12 +157,15 @@ def test_no_io_threads_or_sleeps_in_a_tick_on_the_wall_clock(tmp_path):
     assert any(t.name == "irl-plan" for t in threading.enumerate())  # planned off the loop
 
 
-@pytest.mark.parametrize("event", ["open", "os.remove", "socket.connect", "_thread.start_new_thread", "time.sleep"])
+@pytest.mark.parametrize("event", ["open", "os.remove", "socket.connect", "_thread.start_new_thread", "time.sleep",
+                                   "irl.kinematics"])
 def test_the_watch_itself_catches_each_kind_of_event(event, tmp_path):
     """The watch is not blind: a task that does one of the forbidden things is caught."""
     import os
     import socket
     import time
+
+    from runtime.motion.kinematics import Kinematics
 
     system = RobotSystem(SPEC, RunOptions())
     actions = {
@@ -159,6 +174,7 @@ def test_the_watch_itself_catches_each_kind_of_event(event, tmp_path):
         "socket.connect": lambda: socket.socket().connect_ex(("127.0.0.1", 9)),
         "_thread.start_new_thread": lambda: threading.Thread(target=lambda: None).start(),
         "time.sleep": lambda: time.sleep(0),
+        "irl.kinematics": lambda: Kinematics(SPEC),
     }
     system.executive.add("bad", lambda now: actions[event](), 0.001, "record")
     seen = watch_tasks(system)

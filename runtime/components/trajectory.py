@@ -160,6 +160,14 @@ class _Planner:
             self.jobs.get().run()
 
 
+def _build_kinematics(spec) -> tuple[Kinematics | None, str | None]:
+    """Not real-time: the robot's kinematics, or None and why a pose cannot be used."""
+    try:
+        return Kinematics(spec), None
+    except ValueError as exc:
+        return None, f"this robot's kinematics are not usable for poses: {exc}"
+
+
 class TrajectoryGenerator(Component):
     """Operator control (real-time safe, called between ticks): :meth:`pause` stops the
     program before its next instruction and brings the motion to a controlled stop on
@@ -200,7 +208,8 @@ class TrajectoryGenerator(Component):
         self._path_acceleration: tuple = (0.0,) * self.n  # ... and acceleration (estimated)
         self._accelerations = tuple(a.max_acceleration * RATE_CHANGE_MARGIN for a in spec.axes)
         self.profile = motion_profile(spec)
-        self._kinematics = None  # built when a program first moves to a pose
+        # the robot's kinematics, built here (never in a tick), or why poses cannot be used
+        self._kinematics, self._kinematics_problem = _build_kinematics(spec)
         self.abort_reason: str | None = None  # set by abort(): end the program once at rest
         self._planner: _Planner | None = None  # on the wall clock: the planning thread (made by load)
         self._forget()
@@ -776,12 +785,7 @@ class TrajectoryGenerator(Component):
         return self.queued < self.lookahead
 
     def _kinematics_or_problem(self):
-        if self._kinematics is None:
-            try:
-                self._kinematics = Kinematics(self.spec)
-            except ValueError as exc:
-                return None, f"this robot's kinematics are not usable for poses: {exc}"
-        return self._kinematics, None
+        return self._kinematics, self._kinematics_problem
 
     def _cartesian_request(self, kind: str, targets: tuple, clauses: dict, line: int, approx: float):
         """``move lin TARGET`` / ``move circ VIA, TARGET``: the path is checked whole

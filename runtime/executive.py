@@ -25,6 +25,7 @@ from dataclasses import dataclass, field
 from typing import Callable
 
 from .component import Lifecycle
+from .timing import TICK
 
 _RUNNING = Lifecycle.RUNNING
 _sleep = time.sleep
@@ -47,7 +48,7 @@ class SimClock:
 
     simulated = True
 
-    def __init__(self, tick: float = 0.001):
+    def __init__(self, tick: float = TICK):
         self.tick = tick
         self.ticks = 0
 
@@ -153,7 +154,7 @@ class Task:
 class Executive:
     """Runs tasks tick by tick; ``fault`` names the first deadline fault (then it stops)."""
 
-    def __init__(self, clock, tick: float = 0.001):
+    def __init__(self, clock, tick: float = TICK):
         self.clock = clock
         self.tick = tick
         self.ticks = 0

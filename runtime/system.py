@@ -26,8 +26,8 @@ from .motion.interpolator import Interpolator
 from .sim.estimator import AlphaBeta
 from .sim.robot import SimRobot
 from .supervisor import RobotMemory, StateFile, Supervisor
+from .timing import REPORT_PERIOD, SETPOINT_PERIOD, TICK
 
-TICK = 0.001
 
 
 @dataclass
@@ -79,12 +79,12 @@ class RobotSystem:
                                   window=controller["servo_miss_window"])
         ex.add("robot.read", robot.read, TICK, "sense", component=robot)
         ex.add("supervisor", self.supervisor.step, TICK, "decide")
-        ex.add("initialization", self.init.update, 0.005, "plan", component=self.init)
-        ex.add("trajectory", self.trajectory.update, 0.005, "plan", component=self.trajectory)
+        ex.add("initialization", self.init.update, SETPOINT_PERIOD, "plan", component=self.init)
+        ex.add("trajectory", self.trajectory.update, SETPOINT_PERIOD, "plan", component=self.trajectory)
         ex.add("servo", self.servo.update, TICK, "control", policy=servo_policy, component=self.servo)
         ex.add("safety", self.safety.update, TICK, "guard", component=self.safety)
         ex.add("robot.write", robot.write, TICK, "act", component=robot)
-        ex.add("report", self.report.update, 0.01, "record", component=self.report)
+        ex.add("report", self.report.update, REPORT_PERIOD, "record", component=self.report)
 
     def begin(self, program: Program | None, report: str | Path | None = None, settings: dict | None = None) -> None:
         """Not real-time: start one cycle of the supervisor (power-up to Stop Robot) with

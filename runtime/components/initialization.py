@@ -17,6 +17,7 @@ from compiler.params import component_params
 from ..component import Component, DataPort
 from ..fsm import FSM, State, Transition
 from ..motion.planner import PtpInput, plan_ptp
+from ..timing import SETPOINT_PERIOD
 
 HOME_SPEED = 0.2  # fraction of each axis's maximum velocity and acceleration for "Go To Start"
 #: How much farther (deg or mm) than expected a sensor search goes before it gives up: the
@@ -29,7 +30,7 @@ FROZEN_AFTER = 0.2  # s of commanded motion without a single encoder count -> fr
 class Initialization(Component):
     PROPERTIES = component_params("initialization")
 
-    def __init__(self, spec, robot, init_pos: DataPort, sens_pos: DataPort, clock, period: float = 0.005):
+    def __init__(self, spec, robot, init_pos: DataPort, sens_pos: DataPort, clock, period: float = SETPOINT_PERIOD):
         super().__init__("initialization", period)
         # the encoder watch counts in tick time: after a stall of the host the catch-up
         # ticks are 1 ms apart, as the robot's samples are (the deadline policy reports

@@ -21,6 +21,7 @@ from pathlib import Path
 from compiler.params import component_params
 
 from ..component import Component, DataPort
+from ..timing import REPORT_PERIOD
 
 FLUSH_PERIOD = 0.1  # s of rows per batch handed to the writer (10 rows at the default 10 ms)
 COLUMNS = ["sens_pos", "desi_pos", "out_vel", "following_error"]  # the per-axis quantities
@@ -80,7 +81,7 @@ class ReportWriter(threading.Thread):
 class Report(Component):
     PROPERTIES = component_params("report")
 
-    def __init__(self, spec, sens_pos: DataPort, out_vel: DataPort, servo, state_of, period: float = 0.01,
+    def __init__(self, spec, sens_pos: DataPort, out_vel: DataPort, servo, state_of, period: float = REPORT_PERIOD,
                  history=lambda: ()):
         super().__init__("report", period)
         self.spec = spec

@@ -16,6 +16,7 @@ from compiler.params import component_params
 
 from ..accel import kernels
 from ..component import Component, DataPort
+from ..timing import TICK
 
 clamp_commands = kernels.clamp_commands
 
@@ -24,7 +25,7 @@ class RobotInterface(Component):
     PROPERTIES = component_params("robot")
     OPERATIONS = Component.OPERATIONS + ("release_brakes", "apply_brakes")
 
-    def __init__(self, spec, backend, sens_pos: DataPort, drive_cmd: DataPort, estimator, tick: float = 0.001):
+    def __init__(self, spec, backend, sens_pos: DataPort, drive_cmd: DataPort, estimator, tick: float = TICK):
         super().__init__("robot", tick)
         self.spec = spec
         self.backend = backend

@@ -38,6 +38,7 @@ import math
 
 from ..accel import kernels
 from ..component import Component, DataPort
+from ..timing import TICK
 
 safety_check = kernels.safety_check
 direction_check = kernels.direction_check
@@ -89,7 +90,7 @@ class SafetySupervisor(Component):
     PROPERTIES: dict = {}
     OPERATIONS: tuple[str, ...] = ()
 
-    def __init__(self, spec, robot, servo, out_vel: DataPort, drive_cmd: DataPort, clock, tick: float = 0.001):
+    def __init__(self, spec, robot, servo, out_vel: DataPort, drive_cmd: DataPort, clock, tick: float = TICK):
         super().__init__("safety", tick)
         self.spec, self.robot, self.servo = spec, robot, servo
         self.out_vel, self.drive_cmd = out_vel, drive_cmd

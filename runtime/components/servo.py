@@ -13,6 +13,7 @@ from compiler.params import component_params
 
 from ..accel import kernels
 from ..component import Component, DataPort
+from ..timing import SETPOINT_PERIOD, TICK
 
 servo_law = kernels.servo_law
 
@@ -22,7 +23,7 @@ class ServoController(Component):
     OPERATIONS = Component.OPERATIONS + ("hold",)
 
     def __init__(self, spec, sens_pos: DataPort, desi_pos: DataPort, init_pos: DataPort, out_vel: DataPort,
-                 interpolator_factory, tick: float = 0.001):
+                 interpolator_factory, tick: float = TICK):
         super().__init__("servo", tick)
         controller = spec.controller  # validated (compiler.params), every key present
         self.kp = controller["kp"]
@@ -34,7 +35,7 @@ class ServoController(Component):
         self.set_velocity_limit_scale(1.0)
         self.sens_pos, self.desi_pos, self.init_pos, self.out_vel = sens_pos, desi_pos, init_pos, out_vel
         self.tick = tick
-        self.setpoint_period = 0.005  # the Trajectory Generator's and Initialization's period
+        self.setpoint_period = SETPOINT_PERIOD  # the Trajectory Generator's and Initialization's period
         self.interpolator_factory = interpolator_factory  # called with the start positions
         self.measured_velocity = lambda: None  # the robot interface's velocity estimate, when wired
         self.interpolator = interpolator_factory((0.0,) * self.n)

@@ -42,6 +42,7 @@ from ..motion.cartesian import PathStop, plan_circ, plan_lin  # imported here: n
 from ..motion.jerk import LineStop, plan_ptp_jerk
 from ..motion.kinematics import Kinematics, KinematicsError
 from ..motion.planner import PtpInput, StopRamp, plan_ptp, scaled_limits
+from ..timing import SETPOINT_PERIOD
 from ..vm import DONE, ERROR, VM
 
 #: Moves planned ahead of the robot by default (``[controller] lookahead``).
@@ -179,7 +180,7 @@ class TrajectoryGenerator(Component):
 
     PROPERTIES = component_params("trajectory")
 
-    def __init__(self, spec, robot, desi_pos: DataPort, sens_pos: DataPort, clock, period: float = 0.005):
+    def __init__(self, spec, robot, desi_pos: DataPort, sens_pos: DataPort, clock, period: float = SETPOINT_PERIOD):
         super().__init__("trajectory", period)
         self.spec, self.robot, self.desi_pos, self.sens_pos = spec, robot, desi_pos, sens_pos
         self.clock = clock

@@ -38,8 +38,10 @@ from math import ceil
 
 import numpy as np
 
-#: The verification grid (s).
-STEP = 0.001
+from ..timing import TICK
+
+#: The verification grid (s): the servo's tick, where the 1 ms references are made.
+STEP = TICK
 #: Halvings of an overlap that breaks a limit before the corner is not blended.
 TRIES = 4
 #: Relative slack for rounding in the limit comparison.

@@ -107,6 +107,8 @@ from math import atan2, ceil, cos, floor, inf, isfinite, log10, pi, sin, sqrt
 from typing import Sequence
 
 from compiler.values import Joint, Pose, Quat
+
+from ..timing import SETPOINT_PERIOD
 from .jerk import JerkStop, time_optimal_profile
 from .kinematics import (
     ELBOW_DOWN,
@@ -747,7 +749,7 @@ class CheckedPath:
             return self.start_joints
         return self.kinematics.inverse(self.move.sample(t), near=self.seed(t) if near is None else near)
 
-    def stream(self, period: float = 0.005, additional: Sequence[float] = ()) -> "JointStream":
+    def stream(self, period: float = SETPOINT_PERIOD, additional: Sequence[float] = ()) -> "JointStream":
         """A :class:`JointStream` over this path, sampled every ``period`` s; the
         ``additional`` axes (positions) are held."""
         return JointStream(self, period, additional)
@@ -1017,7 +1019,7 @@ class JointStream:
     __slots__ = ("checked", "period", "duration", "fault", "_additional", "_zeros",
                  "_start", "_end", "_tp", "_qp", "_tc", "_qc", "_tn", "_qn")
 
-    def __init__(self, checked: CheckedPath, period: float = 0.005, additional: Sequence[float] = ()):
+    def __init__(self, checked: CheckedPath, period: float = SETPOINT_PERIOD, additional: Sequence[float] = ()):
         self.checked = checked
         self.period = _positive("period", period)
         self.duration = checked.duration
@@ -1106,7 +1108,7 @@ def _plan(kinematics, start_joints, make_path, speed, acc, jerk, axis_limits, pe
 
 
 def plan_lin(kinematics: Kinematics, start_joints, target, speed: float, acc: float,
-             jerk: float | None = None, axis_limits=None, period: float = 0.005,
+             jerk: float | None = None, axis_limits=None, period: float = SETPOINT_PERIOD,
              **check) -> tuple[JointStream | None, str]:
     """Plan ``move lin target`` from the joint values ``start_joints`` (the six main axes,
     then any additional axes, which are held): the straight line from the forward
@@ -1120,7 +1122,7 @@ def plan_lin(kinematics: Kinematics, start_joints, target, speed: float, acc: fl
 
 
 def plan_circ(kinematics: Kinematics, start_joints, via, target, speed: float, acc: float,
-              jerk: float | None = None, axis_limits=None, period: float = 0.005,
+              jerk: float | None = None, axis_limits=None, period: float = SETPOINT_PERIOD,
               **check) -> tuple[JointStream | None, str]:
     """Plan ``move circ via, target`` (the language's order: the via point first) like
     :func:`plan_lin`: the arc from the current pose through ``via``'s position to

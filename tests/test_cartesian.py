@@ -702,3 +702,103 @@ def test_tangents_and_orientation_at():
     for s in np.linspace(1.0, circ.length - 1.0, 9):
         fd = (np.array(circ.position_at(s + 1e-4)) - circ.position_at(s - 1e-4)) / 2e-4
         assert np.allclose(circ.tangent_at(s), fd / np.linalg.norm(fd), atol=1e-7)
+
+
+# ---- every joint within its limits (issue 14): the move slows down instead ------------------
+
+LIMITS = ([a.max_velocity for a in AXES], [a.max_acceleration for a in AXES], [a.max_jerk for a in AXES])
+SETPOINT = 0.005
+
+
+def setpoint_ratios(stream) -> tuple[float, float, float]:
+    """The largest ratio of any joint's velocity (as sampled), acceleration and jerk
+    (differences of consecutive samples) to its limit, over the 5 ms setpoints."""
+    steps = int(math.ceil(stream.duration / SETPOINT)) + 2
+    samples = [stream.sample(n * SETPOINT) for n in range(steps + 1)]
+    v = np.array([s[1][:6] for s in samples])
+    a = np.diff(v, axis=0) / SETPOINT
+    j = np.diff(a, axis=0) / SETPOINT
+    return tuple(float(np.max(np.abs(x) / np.array(limit))) for x, limit in zip((v, a, j), LIMITS))
+
+
+def tcp_speed(stream) -> float:
+    """The largest TCP speed (mm/s) between two 5 ms setpoints."""
+    steps = int(math.ceil(stream.duration / SETPOINT)) + 1
+    points = [KIN.forward(stream.sample(n * SETPOINT)[0][:6])[:3] for n in range(steps + 1)]
+    return max((math.dist(p, q) / SETPOINT for p, q in zip(points, points[1:])), default=0.0)
+
+
+@st.composite
+def cartesian_moves(draw):
+    """(start joints, "lin"/"circ", arguments, speed): a start within the limits (half of
+    them with the wrist near its singularity), 50-500 mm in any direction, a tilted tool."""
+    q0 = [draw(st.floats(max(a.min, -150), min(a.max, 150))) for a in AXES]
+    if draw(st.booleans()):
+        q0[4] = math.copysign(math.degrees(math.asin(draw(st.floats(0.05, 0.2)))), draw(st.sampled_from([-1, 1])))
+    margins = KIN.singularity_margins(q0)
+    assume(margins[0] >= 50.0 and margins[1] >= 0.2 and margins[2] >= 0.05)
+    x, y, z, r, p, w = KIN.forward(q0)
+    direction = np.array([draw(st.floats(-1, 1)) for _ in range(3)])
+    assume(np.linalg.norm(direction) > 0.1)
+    direction /= np.linalg.norm(direction)
+    length = draw(st.floats(50, 500))
+    tilt = tuple(c + draw(st.floats(-20, 20)) for c in (r, p, w))
+    end = tuple(np.array((x, y, z)) + length * direction) + tilt
+    speed = draw(st.sampled_from([100.0, 250.0, 500.0, 1000.0]))
+    acc = draw(st.sampled_from([500.0, 1500.0, 5000.0]))
+    if draw(st.booleans()):
+        return q0, "lin", (end, speed, acc), speed
+    side = np.cross(direction, [0.0, 0.0, 1.0] if abs(direction[2]) < 0.9 else [1.0, 0.0, 0.0])
+    side /= np.linalg.norm(side)
+    via = tuple(np.array((x, y, z)) + 0.5 * length * direction + draw(st.floats(0.1, 0.5)) * length * side)
+    return q0, "circ", (via + tilt, end, speed, acc), speed
+
+
+@settings(max_examples=60, deadline=None, derandomize=True, database=None, suppress_health_check=list(HealthCheck))
+@given(cartesian_moves())
+def test_property_lin_and_circ_setpoints_keep_every_joint_limit_and_the_speed(drawn):
+    q0, kind, args, speed = drawn
+    if kind == "lin":
+        stream, message = plan_lin(KIN, q0, args[0], args[1], args[2], axis_limits=SPEC)
+    else:
+        stream, message = plan_circ(KIN, q0, args[0], args[1], args[2], args[3], axis_limits=SPEC)
+    assume(stream is not None)  # out of reach or through a singularity: refused (tested above)
+    assert "would need" not in message
+    velocity, acceleration, jerk = setpoint_ratios(stream)
+    assert velocity <= 1.0 + 1e-6 and acceleration <= 1.0 + 1e-6 and jerk <= 1.0 + 1e-6, (velocity, acceleration,
+                                                                                            jerk)
+    assert tcp_speed(stream) <= speed * (1.0 + 1e-6)
+
+
+def test_a_lin_move_near_the_wrist_singularity_slows_down_instead_of_exceeding_the_limits():
+    """Issue 14's example: a vertical lin with a tilted tool that asked A4 for 7.8x its
+    acceleration limit now takes longer, within every limit."""
+    q0 = (0.0, -30.0, 30.0, 0.0, 4.0, 0.0)  # the wrist 4 deg from its singularity
+    x, y, z, r, p, w = KIN.forward(q0)
+    target = (x, y, z - 120.0, r, p, w + 10.0)
+    fast = check_path(CartesianMove(LinPath(KIN.forward(q0), target), 200.0, 1500.0), KIN, q0, SPEC,
+                      check_velocity=False, min_samples=200)
+    before = max(setpoint_ratios(fast.stream())[1:])
+    stream, message = plan_lin(KIN, q0, target, 200.0, 1500.0, axis_limits=SPEC)
+    assert stream is not None, message
+    assert before > 1.5  # (the move as programmed would break a limit)
+    assert max(setpoint_ratios(stream)) <= 1.0
+    assert stream.duration > fast.duration
+
+
+def test_the_shipped_palletizing_program_keeps_every_joint_limit_end_to_end():
+    """programs/palletize.irl's lin moves reached 1.77x A4's acceleration limit; run whole
+    (homing included), the setpoints and the drives' commands stay within the limits."""
+    from compiler.driver import compile_source
+    from limits_watch import LimitWatch, run_cycle
+    from runtime.system import RobotSystem, RunOptions
+
+    path = ROOT / "programs" / "palletize.irl"
+    result = compile_source(path.read_text(encoding="utf-8"), str(path), ROOT / "programs" / "lola15.spc")
+    assert result.ok, result.diagnostics
+    system = RobotSystem(SPEC, RunOptions(seed=0))
+    watch = LimitWatch(system)
+    summary = run_cycle(system, result.program)
+    assert summary["fault"] is None, summary["fault"]
+    assert watch.planned_velocity_ratio <= 1.0 and watch.planned_acceleration_ratio <= 1.0, watch.worst
+    assert watch.acceleration_ratio <= 1.0, watch.worst  # (the servo's corrections included)

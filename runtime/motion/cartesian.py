@@ -89,6 +89,12 @@ joints, which must put the TCP at the path's start). It fails (:class:`PathError
 Geometric failures are reported at the first sample where they occur; velocity
 (acceleration) violations after the whole path is known good, at the worst one.
 
+:func:`plan_lin` and :func:`plan_circ` with a specification's axes never refuse a move
+for its joint velocities: they time it within every joint's velocity, acceleration and
+jerk limit first (:func:`joint_limit_scale`: the move run k times slower, the one factor
+that brings every joint within JOINT_LIMIT_SHARE of its limits at samples at least as
+fine as the setpoints), then check it as above.
+
 Real time
 ---------
 Construction and :func:`check_path` run once per move (the check: about 40 us per
@@ -105,6 +111,8 @@ from __future__ import annotations
 from bisect import bisect_left
 from math import atan2, ceil, cos, floor, inf, isfinite, log10, pi, sin, sqrt
 from typing import Sequence
+
+import numpy as np
 
 from compiler.values import Joint, Pose, Quat
 
@@ -758,7 +766,8 @@ class CheckedPath:
 def check_path(move: CartesianMove, kinematics: Kinematics, start_joints: Sequence[float],
                axis_limits=None, step: float = 1.0, step_deg: float = 1.0,
                min_samples: int = 50, max_joint_step: float = MAX_JOINT_STEP,
-               check_acceleration: bool = False, start_tolerance: float = START_TOL) -> CheckedPath:
+               check_acceleration: bool = False, start_tolerance: float = START_TOL,
+               check_velocity: bool = True) -> CheckedPath:
     """Check that the arm can follow ``move`` from ``start_joints`` (module docstring);
     return the :class:`CheckedPath` or raise :class:`PathError`.
 
@@ -769,7 +778,9 @@ def check_path(move: CartesianMove, kinematics: Kinematics, start_joints: Sequen
     (mm) and ``step_deg`` (deg): the largest TCP and orientation motion between two
     samples; ``min_samples``: the fewest intervals; ``max_joint_step`` (deg): the largest
     joint motion between two samples; ``start_tolerance`` (mm and deg): how far the
-    path's start may be from the forward kinematics of ``start_joints``.
+    path's start may be from the forward kinematics of ``start_joints``;
+    ``check_velocity=False``: the joint velocities are not checked (what
+    :func:`joint_limit_scale` measures).
     ``ValueError`` (not ``PathError``) for arguments that make no sense.
     """
     q = _start_joints(start_joints)
@@ -857,7 +868,7 @@ def check_path(move: CartesianMove, kinematics: Kinematics, start_joints: Sequen
                     g = abs(dq[j]) / ds
                     if g > gain[j]:
                         gain[j] = g
-                if vel_limits is not None and rate > vel_limits[j] * (1.0 + 1e-9):
+                if check_velocity and vel_limits is not None and rate > vel_limits[j] * (1.0 + 1e-9):
                     ratio = rate / vel_limits[j]
                     if worst_velocity is None or ratio > worst_velocity[0]:
                         worst_velocity = (ratio, j, rate, 0.5 * (fraction + fractions[-1]))
@@ -1091,6 +1102,49 @@ class JointStream:
 # ============================================================================ one call
 
 
+#: The share of each joint's velocity, acceleration and jerk limit that a Cartesian move is
+#: timed to at the check's samples (the rest: what lies between the samples, and the
+#: interpolation to the servo's 1 ms references).
+JOINT_LIMIT_SHARE = 0.9
+
+
+def joint_limit_scale(checked: CheckedPath, limits: Sequence[Sequence[float]],
+                      share: float = JOINT_LIMIT_SHARE) -> float:
+    """The largest k <= 1 such that the move of ``checked`` run k times slower in time
+    (path speed x k, acceleration x k^2, jerk x k^3: the time-optimal profile scales so)
+    keeps every joint's velocity, acceleration and jerk within ``share`` of ``limits``
+    (three sequences of six: max velocity, max acceleration, max jerk), measured by finite
+    differences over the check's samples (uniform in time)."""
+    times, joints = checked.times, checked.joints
+    if len(times) < 2 or not checked.duration > 0.0:
+        return 1.0
+    dt = times[1] - times[0]
+    q = np.asarray(joints, dtype=float)
+    k = 1.0
+    derivative = q
+    for order, limit in enumerate(limits, start=1):
+        if len(derivative) < 2:
+            break
+        derivative = np.diff(derivative, axis=0) / dt
+        ratio = float(np.max(np.abs(derivative) / np.asarray(limit, dtype=float)))
+        if ratio > share:
+            k = min(k, (share / ratio) ** (1.0 / order))
+    return k
+
+
+def _joint_limits(axis_limits):
+    """(velocities, accelerations, jerks) of the six main axes, or None unless
+    ``axis_limits`` is a specification (or its axes) that gives all three."""
+    if hasattr(axis_limits, "main_axes"):
+        axis_limits = axis_limits.main_axes
+    try:
+        axes = list(axis_limits)
+        return (tuple(float(a.max_velocity) for a in axes), tuple(float(a.max_acceleration) for a in axes),
+                tuple(float(a.max_jerk) for a in axes))
+    except (AttributeError, TypeError):
+        return None
+
+
 def _plan(kinematics, start_joints, make_path, speed, acc, jerk, axis_limits, period, **check):
     try:
         joints = tuple(start_joints.axes if isinstance(start_joints, Joint) else start_joints)
@@ -1099,7 +1153,20 @@ def _plan(kinematics, start_joints, make_path, speed, acc, jerk, axis_limits, pe
         main, additional = joints[:6], joints[6:]
         path = make_path(kinematics.forward(main))
         move = CartesianMove(path, speed, acc, jerk)
-        checked = check_path(move, kinematics, main, axis_limits, **check)
+        limits = _joint_limits(axis_limits)
+        if limits is None:
+            checked = check_path(move, kinematics, main, axis_limits, **check)
+        else:
+            # timed within every joint's limits: slower (uniformly) where the programmed
+            # speed, acc and jerk would ask more of a joint than it can give; measured at
+            # least as finely as the setpoints will be made
+            check.setdefault("min_samples", 50)
+            fine = dict(check, min_samples=max(check["min_samples"], ceil(move.duration / period)))
+            checked = check_path(move, kinematics, main, axis_limits, check_velocity=False, **fine)
+            k = joint_limit_scale(checked, limits)
+            if k < 1.0:
+                move = CartesianMove(path, move.speed * k, move.acc * k * k, move.jerk * k * k * k)
+                checked = check_path(move, kinematics, main, axis_limits, **check)
         return checked.stream(period, additional), ""
     except (ValueError, TypeError) as exc:  # PathError and KinematicsError are ValueErrors
         return None, str(exc)

@@ -14,13 +14,25 @@ DEFAULT_TELEMETRY = "tcp://127.0.0.1:5556"
 
 
 class ClientError(Exception):
-    """An error reply (``code`` from protocol.ERRORS), or ``code="unreachable"`` when the
-    server did not answer in time."""
+    """An error reply (``code`` from protocol.ERRORS), ``code="unreachable"`` when the
+    server did not answer in time, or ``code="keys"`` for the client's own key files."""
 
     def __init__(self, code: str, message: str):
         super().__init__(message)
         self.code = code
         self.message = message
+
+
+def _secure(sock, keys) -> None:
+    """Make ``sock`` a CURVE client with the keys in ``keys``; a missing, unreadable or
+    unprotected key file is a ClientError ``"keys"`` naming it (the socket closed)."""
+    from .keys import KeyError_, client_security
+
+    try:
+        client_security(sock, keys)
+    except KeyError_ as exc:
+        sock.close()
+        raise ClientError("keys", str(exc)) from None
 
 
 class Client:
@@ -31,9 +43,7 @@ class Client:
         self.sock = self.ctx.socket(zmq.DEALER)
         self.sock.setsockopt(zmq.LINGER, 0)
         if keys:
-            from .keys import client_security
-
-            client_security(self.sock, keys)
+            _secure(self.sock, keys)
         try:
             self.sock.connect(endpoint)
         except zmq.ZMQError as exc:
@@ -85,9 +95,7 @@ class Subscriber:
         self.sock = self.ctx.socket(zmq.SUB)
         self.sock.setsockopt(zmq.LINGER, 0)
         if keys:
-            from .keys import client_security
-
-            client_security(self.sock, keys)
+            _secure(self.sock, keys)
         self.sock.setsockopt(zmq.SUBSCRIBE, protocol.TELEMETRY_TOPIC)
         self.sock.connect(endpoint)
         self.last_seq: int | None = None

@@ -9,7 +9,10 @@ A key directory, as ``irl keys DIR`` makes it::
     DIR/client.key          that client's public key                               0644
     DIR/authorized/*.key    the public keys of the clients the server accepts      0644
 
-DIR and DIR/authorized are made 0700 when ``irl keys`` creates them.
+DIR and DIR/authorized are made 0700 when ``irl keys`` creates them. A key directory (or
+its ``authorized/``) that others may write to, and a secret key file that others may read,
+are refused wherever they are used (``irl keys``, ``irl serve --keys``, a client's
+``--keys``), with the ``chmod`` that fixes them.
 
 With ``--keys DIR`` the server encrypts both sockets and accepts only the clients whose
 public key is in ``DIR/authorized``; a client without one cannot connect, so it cannot
@@ -50,7 +53,9 @@ def make_keys(directory: str | Path, name: str | None = None) -> list[Path]:
         if not d.is_dir():
             d.parent.mkdir(parents=True, exist_ok=True)
             d.mkdir(mode=DIRECTORY_MODE, exist_ok=True)
+        _check_directory(d)
         (d / "authorized").mkdir(mode=DIRECTORY_MODE, exist_ok=True)
+        _check_directory(d / "authorized")
         for n in names:
             if (d / f"{n}.key_secret").exists():
                 raise KeyError_(f"{d / (n + '.key_secret')} exists already: refusing to overwrite a key")
@@ -100,11 +105,27 @@ def _write_key_file(path: Path, text: str, mode: int) -> None:
         raise
 
 
+def _mode(path: Path) -> int:
+    return path.stat().st_mode & 0o777
+
+
+def _check_directory(d: Path) -> None:
+    """A key directory (or its ``authorized/``) that others may write to is refused: they
+    could replace a key, or authorize a client of their own."""
+    if os.name == "posix" and d.is_dir() and _mode(d) & 0o022:
+        raise KeyError_(f"{d}: writable by others (mode {_mode(d):04o}): anyone could replace or add a key; "
+                        f"'chmod go-w {d}' (irl keys makes it 0700)")
+
+
 def _load(path: Path, secret: bool) -> tuple[bytes, bytes | None]:
     import zmq.auth
 
     if not path.is_file():
         raise KeyError_(f"{path}: no such key file (make keys with 'irl keys {path.parent}')")
+    _check_directory(path.parent)
+    if secret and os.name == "posix" and _mode(path) & 0o077:
+        raise KeyError_(f"{path}: a secret key readable by others (mode {_mode(path):04o}): 'chmod 600 {path}' "
+                        "(and make new keys if others may have read it)")
     try:
         public, private = zmq.auth.load_certificate(path)
     except (OSError, ValueError) as exc:
@@ -119,6 +140,7 @@ def check_server_keys(directory: str | Path) -> None:
     _load(d / "server.key_secret", True)
     if not (d / "authorized").is_dir():
         raise KeyError_(f"{d / 'authorized'}: missing (the public keys of the clients to accept go there)")
+    _check_directory(d / "authorized")
 
 
 def server_security(ctx, directory: str | Path, sockets):
@@ -127,6 +149,7 @@ def server_security(ctx, directory: str | Path, sockets):
     from zmq.auth.thread import ThreadAuthenticator
 
     d = Path(directory)
+    check_server_keys(d)
     public, secret = _load(d / "server.key_secret", True)
     auth = ThreadAuthenticator(ctx)
     auth.start()

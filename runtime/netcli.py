@@ -270,9 +270,12 @@ cmd_reconfigure = _simple("reconfigure", lambda r: f"reconfiguration to {r['requ
 # ---- watch ---------------------------------------------------------------------------------------
 def cmd_watch(args, env) -> int:
     cli = _cli()
-    from runtime.client import Subscriber
+    from runtime.client import ClientError, Subscriber
 
-    sub = Subscriber(args.telemetry, keys=args.keys)
+    try:
+        sub = Subscriber(args.telemetry, keys=args.keys)
+    except ClientError as exc:
+        raise cli.UsageError(exc.message) from None
     received = 0
     deadline = time.monotonic() + args.timeout if args.timeout else None
     try:

@@ -83,3 +83,35 @@ def test_serve_with_a_bad_spec_or_config_is_a_usage_error(tmp_path):
 def test_serve_with_missing_keys_is_a_usage_error(tmp_path):
     code, _, err = run("serve", "--spec", ROOT / "programs" / "lola15.spc", "--keys", tmp_path)
     assert code == 2 and "server.key_secret" in err
+
+
+def test_a_client_with_missing_keys_is_a_usage_error_not_a_crash(tmp_path):
+    for command in (["status"], ["watch", "--count", "1"]):
+        code, _, err = run(*command, "--keys", tmp_path / "none")
+        assert code == 2 and "client.key_secret: no such key file" in err and "internal" not in err, err
+
+
+def test_keys_that_others_may_write_or_read_are_refused_with_the_fix(tmp_path):
+    import os
+
+    spec = ROOT / "programs" / "lola15.spc"
+    d = tmp_path / "k"
+    assert run("keys", d)[0] == 0
+    check_server_keys(d)
+    os.chmod(d / "authorized", 0o777)  # anyone could authorize a client of their own
+    code, _, err = run("serve", "--spec", spec, "--keys", d)
+    assert code == 2 and "writable by others (mode 0777)" in err and f"chmod go-w {d / 'authorized'}" in err, err
+    os.chmod(d / "authorized", 0o700)
+    os.chmod(d, 0o757)
+    code, _, err = run("status", "--keys", d)
+    assert code == 2 and "writable by others" in err, err
+    code, _, err = run("keys", d, "--name", "second")
+    assert code == 2 and "writable by others" in err, err
+    assert not (d / "second.key_secret").exists()
+    os.chmod(d, 0o700)
+    os.chmod(d / "server.key_secret", 0o644)  # a secret key readable by everyone
+    code, _, err = run("serve", "--spec", spec, "--keys", d)
+    assert code == 2 and "a secret key readable by others (mode 0644)" in err and "chmod 600" in err, err
+    os.chmod(d / "server.key_secret", 0o600)
+    check_server_keys(d)
+    assert run("keys", d, "--name", "second")[0] == 0

@@ -164,6 +164,8 @@ DEFAULT_JERK_FACTOR = 10.0
 POINT_TOL = 1e-3
 #: deg: a joint moving more than this between two check samples is a jump
 MAX_JOINT_STEP = 10.0
+#: the fewest intervals a path is checked in (:func:`check_path`)
+MIN_SAMPLES = 50
 #: the check's start pose may differ from the forward kinematics of the start joints by
 #: this much (mm, deg)
 START_TOL = 1e-3
@@ -675,10 +677,10 @@ def _start_joints(joints) -> tuple[float, ...]:
 
 
 def _axis_limits(axis_limits):
-    """``(positions, velocities, accelerations)``: six ``(min, max)`` pairs or None, six
-    max velocities or None, six max accelerations or None."""
+    """``(positions, velocities, accelerations, jerks)``: six ``(min, max)`` pairs or None,
+    six max velocities or None, six max accelerations or None, six max jerks or None."""
     if axis_limits is None:
-        return None, None, None
+        return None, None, None, None
     if hasattr(axis_limits, "main_axes"):  # a Spec
         axis_limits = axis_limits.main_axes
     items = list(axis_limits)
@@ -688,14 +690,15 @@ def _axis_limits(axis_limits):
         vel = tuple(float(a.max_velocity) for a in items)
         acc = (tuple(float(a.max_acceleration) for a in items)
                if all(hasattr(a, "max_acceleration") for a in items) else None)
+        jerk = tuple(float(a.max_jerk) for a in items) if all(hasattr(a, "max_jerk") for a in items) else None
         pos = (tuple((float(a.min), float(a.max)) for a in items)
                if all(hasattr(a, "min") and hasattr(a, "max") for a in items) else None)
     else:
         vel = tuple(float(v) for v in items)
-        acc = pos = None
+        acc = pos = jerk = None
     if not all(v > 0.0 for v in vel):
         raise ValueError(f"axis_limits: every max_velocity must be positive, got {vel}")
-    return pos, vel, acc
+    return pos, vel, acc, jerk
 
 
 def _nice_speed(speed: float) -> str:
@@ -765,7 +768,7 @@ class CheckedPath:
 
 def check_path(move: CartesianMove, kinematics: Kinematics, start_joints: Sequence[float],
                axis_limits=None, step: float = 1.0, step_deg: float = 1.0,
-               min_samples: int = 50, max_joint_step: float = MAX_JOINT_STEP,
+               min_samples: int = MIN_SAMPLES, max_joint_step: float = MAX_JOINT_STEP,
                check_acceleration: bool = False, start_tolerance: float = START_TOL,
                check_velocity: bool = True) -> CheckedPath:
     """Check that the arm can follow ``move`` from ``start_joints`` (module docstring);
@@ -784,7 +787,7 @@ def check_path(move: CartesianMove, kinematics: Kinematics, start_joints: Sequen
     ``ValueError`` (not ``PathError``) for arguments that make no sense.
     """
     q = _start_joints(start_joints)
-    pos_limits, vel_limits, acc_limits = _axis_limits(axis_limits)
+    pos_limits, vel_limits, acc_limits, _ = _axis_limits(axis_limits)
     step = _positive("step", step)
     step_deg = _positive("step_deg", step_deg)
     max_joint_step = _positive("max_joint_step", max_joint_step)
@@ -1132,19 +1135,6 @@ def joint_limit_scale(checked: CheckedPath, limits: Sequence[Sequence[float]],
     return k
 
 
-def _joint_limits(axis_limits):
-    """(velocities, accelerations, jerks) of the six main axes, or None unless
-    ``axis_limits`` is a specification (or its axes) that gives all three."""
-    if hasattr(axis_limits, "main_axes"):
-        axis_limits = axis_limits.main_axes
-    try:
-        axes = list(axis_limits)
-        return (tuple(float(a.max_velocity) for a in axes), tuple(float(a.max_acceleration) for a in axes),
-                tuple(float(a.max_jerk) for a in axes))
-    except (AttributeError, TypeError):
-        return None
-
-
 def _plan(kinematics, start_joints, make_path, speed, acc, jerk, axis_limits, period, **check):
     try:
         joints = tuple(start_joints.axes if isinstance(start_joints, Joint) else start_joints)
@@ -1153,15 +1143,14 @@ def _plan(kinematics, start_joints, make_path, speed, acc, jerk, axis_limits, pe
         main, additional = joints[:6], joints[6:]
         path = make_path(kinematics.forward(main))
         move = CartesianMove(path, speed, acc, jerk)
-        limits = _joint_limits(axis_limits)
-        if limits is None:
+        _, *limits = _axis_limits(axis_limits)  # (velocities, accelerations, jerks)
+        if None in limits:  # not a specification's axes: nothing to time the move within
             checked = check_path(move, kinematics, main, axis_limits, **check)
         else:
             # timed within every joint's limits: slower (uniformly) where the programmed
             # speed, acc and jerk would ask more of a joint than it can give; measured at
             # least as finely as the setpoints will be made
-            check.setdefault("min_samples", 50)
-            fine = dict(check, min_samples=max(check["min_samples"], ceil(move.duration / period)))
+            fine = dict(check, min_samples=max(check.get("min_samples", MIN_SAMPLES), ceil(move.duration / period)))
             checked = check_path(move, kinematics, main, axis_limits, check_velocity=False, **fine)
             k = joint_limit_scale(checked, limits)
             if k < 1.0:

@@ -135,12 +135,15 @@ def _load(path: Path, secret: bool) -> tuple[bytes, bytes | None]:
     return public, private
 
 
-def check_server_keys(directory: str | Path) -> None:
+def check_server_keys(directory: str | Path) -> tuple[bytes, bytes]:
+    """The server's key pair from ``directory``, once its files and ``authorized/`` pass
+    every check (KeyError_ naming what does not)."""
     d = Path(directory)
-    _load(d / "server.key_secret", True)
+    public, secret = _load(d / "server.key_secret", True)
     if not (d / "authorized").is_dir():
         raise KeyError_(f"{d / 'authorized'}: missing (the public keys of the clients to accept go there)")
     _check_directory(d / "authorized")
+    return public, secret
 
 
 def server_security(ctx, directory: str | Path, sockets):
@@ -149,8 +152,7 @@ def server_security(ctx, directory: str | Path, sockets):
     from zmq.auth.thread import ThreadAuthenticator
 
     d = Path(directory)
-    check_server_keys(d)
-    public, secret = _load(d / "server.key_secret", True)
+    public, secret = check_server_keys(d)
     auth = ThreadAuthenticator(ctx)
     auth.start()
     auth.configure_curve(domain="*", location=str(d / "authorized"))

@@ -44,8 +44,8 @@ class RobotMemory:
     is set by a calibration measured in range and then confirmed by the same cycle (its
     homing completed, or the cycle ended normally: every drive and encoder was seen to
     follow its commands; a frozen encoder or a dead drive measures a plausible zero
-    drift), or by a state file that passes every check (:class:`StateFile`). The ``*_why`` texts say how each came to be what it is
-    (``irl status`` shows them)."""
+    drift), or by a state file that passes every check (:class:`StateFile`). The
+    ``*_why`` texts say how each came to be what it is (``irl status`` shows them)."""
 
     calibrated: bool = False
     compensation: list = field(default_factory=list)

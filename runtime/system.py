@@ -29,7 +29,6 @@ from .supervisor import RobotMemory, StateFile, Supervisor
 from .timing import REPORT_PERIOD, SETPOINT_PERIOD, TICK
 
 
-
 @dataclass
 class RunOptions:
     seed: int = 0

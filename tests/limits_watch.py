@@ -77,10 +77,10 @@ class LimitWatch:
     def _setpoint(self, k: int, port, now: float) -> None:
         """A setpoint written this tick, against the same port's previous one (a gap of more
         than one period, or a port the servo does not follow, starts over)."""
+        if port.stamp != now:
+            return
         value = port.value
-        if value is None or port.stamp != now or self.system.servo.source is not port:
-            if port.stamp != now:
-                return
+        if value is None or self.system.servo.source is not port:
             self._previous_setpoints[k] = None
             return
         t, _positions, velocities = value

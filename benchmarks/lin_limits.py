@@ -91,19 +91,34 @@ def measure(stream, q0, name: str, setpoints: Ratios, references: Ratios) -> Non
                 ratios.note(order, v, name)
 
 
-def random_move(rng, kin, spec, near_wrist: bool):
-    """(start joints, kind, arguments) of a random move, or None if the draw is unusable."""
-    q0 = [rng.uniform(max(a.min, -150), min(a.max, 150)) for a in spec.main_axes]
+def random_start(rng, kin, axes, near_wrist: bool = False):
+    """Random start joints within the limits (the main axes within +-150 deg), away from
+    the shoulder and elbow singularities, the wrist near its own (``near_wrist``) or away
+    from it; None if the draw is unusable."""
+    q0 = [rng.uniform(max(a.min, -150), min(a.max, 150)) for a in axes]
     if near_wrist:
         q0[4] = math.degrees(math.asin(rng.uniform(0.05, 0.2))) * rng.choice((-1, 1))
-        if not spec.main_axes[4].min < q0[4] < spec.main_axes[4].max:
+        if not axes[4].min < q0[4] < axes[4].max:
             return None
     margins = kin.singularity_margins(q0)
     if margins[0] < 50.0 or margins[1] < 0.2 or (not near_wrist and margins[2] < 0.2):
         return None
-    x, y, z, r, p, w = kin.forward(q0)
+    return q0
+
+
+def random_direction(rng) -> tuple[list[float], float]:
+    """A random direction (not normalised) and its length."""
     direction = [rng.gauss(0, 1) for _ in range(3)]
-    norm = math.sqrt(sum(c * c for c in direction))
+    return direction, math.sqrt(sum(c * c for c in direction))
+
+
+def random_move(rng, kin, spec, near_wrist: bool):
+    """(start joints, kind, arguments) of a random move, or None if the draw is unusable."""
+    q0 = random_start(rng, kin, spec.main_axes, near_wrist)
+    if q0 is None:
+        return None
+    x, y, z, r, p, w = kin.forward(q0)
+    direction, norm = random_direction(rng)
     length = rng.uniform(50, 500)
     tilt = (r + rng.uniform(-20, 20), p + rng.uniform(-20, 20), w + rng.uniform(-20, 20))
     end = tuple(c + length * d / norm for c, d in zip((x, y, z), direction)) + tilt
@@ -164,13 +179,11 @@ def main() -> int:
     # planning time: 500 mm lines, against a jerk-limited PTP between the same joints
     lin_ns, ptp_ns = [], []
     while len(lin_ns) < 100:
-        q0 = [rng.uniform(max(a.min, -150), min(a.max, 150)) for a in axes]
-        margins = kin.singularity_margins(q0)
-        if margins[0] < 50.0 or min(margins[1:]) < 0.2:
+        q0 = random_start(rng, kin, axes)
+        if q0 is None:
             continue
         x, y, z, r, p, w = kin.forward(q0)
-        direction = [rng.gauss(0, 1) for _ in range(3)]
-        norm = math.sqrt(sum(c * c for c in direction))
+        direction, norm = random_direction(rng)
         end = tuple(c + 500.0 * d / norm for c, d in zip((x, y, z), direction)) + (r, p, w)
         t0 = time.perf_counter_ns()
         stream, _message = plan_lin(kin, q0, end, 250.0, 1500.0, axis_limits=spec)

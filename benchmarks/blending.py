@@ -46,8 +46,8 @@ class _Spy(DataPort):
         DataPort.write(self, value, stamp)
         tg = self.tg
         if tg.vm is not None:
-            segs = tg._segments
-            blending = len(segs) > 1 and segs[1].start is not None and tg.t_move > segs[1].start
+            segs = tg.motion._segments
+            blending = len(segs) > 1 and segs[1].start is not None and tg.motion.t_move > segs[1].start
             self.rows.append(value[1])
             self.windows.append(blending)
 

@@ -22,7 +22,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from compiler.spec import load_spec  # noqa: E402
-from runtime.motion.cartesian import plan_lin  # noqa: E402
+from runtime.motion.cartesian import CartesianInput, plan_cartesian  # noqa: E402
 from runtime.motion.interpolator import Interpolator  # noqa: E402
 from runtime.motion.kinematics import Kinematics  # noqa: E402
 
@@ -57,7 +57,8 @@ def main() -> int:
         norm = math.sqrt(sum(c * c for c in direction))
         length = rng.uniform(50, 400)
         end = tuple(c + length * d / norm for c, d in zip((x, y, z), direction))
-        stream, _message = plan_lin(kin, q0, end + (r, p, w), args.speed, 1000.0, axis_limits=spec)
+        _, stream, _message = plan_cartesian(CartesianInput(kin, q0, end + (r, p, w), args.speed, 1000.0,
+                                                             axis_limits=spec))
         if stream is None:
             refused += 1
             continue

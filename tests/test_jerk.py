@@ -41,7 +41,12 @@ from runtime.motion.jerk import (
     profile_with_duration,
     time_optimal_profile,
 )
-from runtime.motion.planner import DISTANCE_EPSILON, MAX_DURATION, Result
+from runtime.motion.planner import DISTANCE_EPSILON, MAX_DURATION, PtpInput, Result
+
+
+def jerk_plan(start, target, v_max, a_max, j_max, synchronization="line"):
+    """plan_ptp_jerk through its typed input (the line synchronisation unless told)."""
+    return plan_ptp_jerk(PtpInput(start, target, v_max, a_max, max_jerk=j_max, synchronization=synchronization))
 
 EPS = float(np.finfo(float).eps)
 REL = 1e-9  # relative tolerance on limits
@@ -146,15 +151,15 @@ def distance_by_integration(p: JerkProfile) -> float:
 def test_reference_moves(synchronization):
     expected = [1.053939, 1.500000]
     for (start, target), want in zip(zip(REF_MOVES, REF_MOVES[1:]), expected):
-        result, traj, message = plan_ptp_jerk(start, target, *REF_LIMITS, synchronization)
+        result, traj, message = jerk_plan(start, target, *REF_LIMITS, synchronization)
         assert (result, message) == (Result.WORKING, "")
         assert abs(traj.duration - want) < 1e-6, traj.duration
         assert traj.sample(traj.duration) == (target, (0.0,) * 6)
         assert traj.sample(0.0) == (start, (0.0,) * 6)
     # the closed forms: case (iii-a), t_j = a / j = 0.1; case (i): 90 / 100 + 0.5 + 0.1
-    assert plan_ptp_jerk(REF_MOVES[0], REF_MOVES[1], *REF_LIMITS)[1].duration == \
+    assert jerk_plan(REF_MOVES[0], REF_MOVES[1], *REF_LIMITS)[1].duration == \
         pytest.approx(0.1 + math.sqrt(0.01 + 4 * 45 / 200), rel=1e-15)
-    assert plan_ptp_jerk(REF_MOVES[1], REF_MOVES[2], *REF_LIMITS)[1].duration == \
+    assert jerk_plan(REF_MOVES[1], REF_MOVES[2], *REF_LIMITS)[1].duration == \
         pytest.approx(1.5, rel=1e-15)
 
 
@@ -460,9 +465,9 @@ def test_against_ruckig_six_axes_time_synchronised():
         inp.current_position, inp.target_position = start, target
         inp.max_velocity, inp.max_acceleration, inp.max_jerk = v, a, j
         assert otg.calculate(inp, traj) == ruckig.Result.Working
-        _, ours, _ = plan_ptp_jerk(start, target, v, a, j, "time")
+        _, ours, _ = jerk_plan(start, target, v, a, j, "time")
         assert ours.duration == pytest.approx(traj.duration, abs=1e-9)
-        _, line, _ = plan_ptp_jerk(start, target, v, a, j, "line")
+        _, line, _ = jerk_plan(start, target, v, a, j, "line")
         assert line.duration >= traj.duration - 1e-9
 
 
@@ -471,7 +476,7 @@ def test_against_ruckig_six_axes_time_synchronised():
 
 def test_result_of_nothing_to_move_is_finished():
     for sync in ("line", "time"):
-        result, traj, message = plan_ptp_jerk((1.0, 2.0), (1.0, 2.0), (1.0, 1.0), (1.0, 1.0),
+        result, traj, message = jerk_plan((1.0, 2.0), (1.0, 2.0), (1.0, 1.0), (1.0, 1.0),
                                               (1.0, 1.0), sync)
         assert (result, message) == (Result.FINISHED, "")
         assert traj.duration == 0.0 and traj.degrees_of_freedom == 2
@@ -519,37 +524,37 @@ INVALID = [
 @pytest.mark.parametrize("fields,message", INVALID)
 @pytest.mark.parametrize("sync", ["line", "time"])
 def test_invalid_input_is_an_error_result_never_an_exception(fields, message, sync):
-    result = plan_ptp_jerk(fields["start"], fields["target"], fields["v_max"], fields["a_max"],
+    result = jerk_plan(fields["start"], fields["target"], fields["v_max"], fields["a_max"],
                            fields["j_max"], sync)
     assert result == (Result.ERROR_INVALID_INPUT, None, message)
 
 
 def test_invalid_synchronization_and_junk():
-    assert plan_ptp_jerk(*GOOD.values(), "phase") == (
+    assert jerk_plan(*GOOD.values(), "phase") == (
         Result.ERROR_INVALID_INPUT, None, "synchronization must be 'line', 'time' or 'auto', got 'phase'")
     for junk in (None, 42, "move", object()):
-        result, traj, message = plan_ptp_jerk(junk, junk, junk, junk, junk)
+        result, traj, message = jerk_plan(junk, junk, junk, junk, junk)
         assert result == Result.ERROR_INVALID_INPUT and traj is None and message
 
 
 @pytest.mark.parametrize("sync", ["line", "time"])
 def test_limits_too_small_for_the_distance(sync):
-    result, traj, message = plan_ptp_jerk((0.0, 0.0), (1e6, 1.0), (1e-3, 1.0), (1.0, 1.0),
+    result, traj, message = jerk_plan((0.0, 0.0), (1e6, 1.0), (1e-3, 1.0), (1.0, 1.0),
                                           (1.0, 1.0), sync)
     assert result == Result.ERROR_LIMITS and traj is None
     assert message.startswith("axis 1: the move needs ") and f"{MAX_DURATION:g}" in message
     assert "max_jerk 1," in message and "distance 1000000)" in message
-    assert plan_ptp_jerk((0.0,), (1e308,), (1e-308,), (1e-308,), (1e-308,), sync)[0] == \
+    assert jerk_plan((0.0,), (1e308,), (1e-308,), (1e-308,), (1e-308,), sync)[0] == \
         Result.ERROR_LIMITS
-    result, traj, message = plan_ptp_jerk((-1e308,), (1e308,), (1.0,), (1.0,), (1.0,), sync)
+    result, traj, message = jerk_plan((-1e308,), (1e308,), (1.0,), (1.0,), (1.0,), sync)
     assert result == Result.ERROR_INVALID_INPUT
     assert message == "axis 1: target_position - current_position overflows, got 1e+308 - -1e+308"
 
 
 def test_ints_and_lists_are_accepted_like_floats():
-    a = plan_ptp_jerk([0, 0, 0], [45, 0, -45], [100, 100, 100], [200, 200, 200],
+    a = jerk_plan([0, 0, 0], [45, 0, -45], [100, 100, 100], [200, 200, 200],
                       [2000, 2000, 2000])
-    b = plan_ptp_jerk((0.0, 0.0, 0.0), (45.0, 0.0, -45.0), (100.0,) * 3, (200.0,) * 3,
+    b = jerk_plan((0.0, 0.0, 0.0), (45.0, 0.0, -45.0), (100.0,) * 3, (200.0,) * 3,
                       (2000.0,) * 3)
     assert a[0] == b[0] == Result.WORKING and a[1].duration == b[1].duration
     assert a[1].sample(0.3) == b[1].sample(0.3)
@@ -560,10 +565,10 @@ def test_subnormal_distances_are_no_motion_and_end_exactly_at_the_target():
     start = (0.0, 0.0, 0.0, 5e-324, 0.0, 0.0)
     lim = ((15.0,) * 6, (40.0,) * 6, (400.0,) * 6)
     for sync in ("line", "time"):
-        result, traj, _ = plan_ptp_jerk(start, (0.0,) * 6, *lim, sync)
+        result, traj, _ = jerk_plan(start, (0.0,) * 6, *lim, sync)
         assert result == Result.FINISHED and traj.sample(traj.duration) == ((0.0,) * 6,) * 2
         target = (0.0, 0.0, 0.0, 0.0, 0.0, 25.0)
-        result, traj, _ = plan_ptp_jerk(start, target, *lim, sync)
+        result, traj, _ = jerk_plan(start, target, *lim, sync)
         assert traj.start_position == (0.0,) * 6  # the still axis starts at its target
         pos, vel = traj.sample(traj.duration / 2)
         assert pos[3] == 0.0 and vel[3] == 0.0 and vel[5] > 0.0
@@ -575,8 +580,8 @@ def test_time_synchronisation_is_not_a_straight_line_in_general():
     no-cruise shape, the 90 deg axes cruise: "time" leaves the joint-space line, "line"
     does not (here at no cost: all limits are equal)."""
     start, target = REF_MOVES[1], REF_MOVES[2]
-    _, timed, _ = plan_ptp_jerk(start, target, *REF_LIMITS, "time")
-    _, line, _ = plan_ptp_jerk(start, target, *REF_LIMITS, "line")
+    _, timed, _ = jerk_plan(start, target, *REF_LIMITS, "time")
+    _, line, _ = jerk_plan(start, target, *REF_LIMITS, "line")
     assert timed.duration == line.duration == 1.5
     d = np.subtract(target, start)[:3]
     worst_time = worst_line = 0.0
@@ -595,8 +600,8 @@ def test_line_costs_time_when_the_axes_are_bound_by_different_limits():
     # axis 1 velocity-bound, axis 2 jerk-bound: no shape is time-optimal for both
     start, target = (0.0, 0.0), (90.0, 10.0)
     v, a, j = (100.0, 100.0), (200.0, 200.0), (2000.0, 130.0)
-    _, timed, _ = plan_ptp_jerk(start, target, v, a, j, "time")
-    _, line, _ = plan_ptp_jerk(start, target, v, a, j, "line")
+    _, timed, _ = jerk_plan(start, target, v, a, j, "time")
+    _, line, _ = jerk_plan(start, target, v, a, j, "line")
     assert timed.duration == pytest.approx(1.5, rel=1e-15)  # axis 1's own minimum
     assert line.duration > timed.duration + 0.01
     # and it is the unit-distance optimum under V = min v_i/|d_i|, A, J likewise
@@ -640,7 +645,7 @@ def six_axis_moves(draw):
 
 def check_trajectory(move, sync) -> JerkPtpTrajectory:
     start, target, v, a, j = move
-    result, traj, message = plan_ptp_jerk(start, target, v, a, j, sync)
+    result, traj, message = jerk_plan(start, target, v, a, j, sync)
     assert result in (Result.WORKING, Result.FINISHED), message
     assert traj.synchronization == sync
     n = len(start)
@@ -738,8 +743,8 @@ def test_property_equal_shapes_cost_the_line_nothing(move, fv, fa, fj):
     straight line is as fast as the fastest synchronised move."""
     start, target = move[0], move[1]
     v, a, j = (156.0 * fv,) * 6, (400.0 * fa,) * 6, (4000.0 * fj,) * 6
-    _, line, _ = plan_ptp_jerk(start, target, v, a, j, "line")
-    _, timed, _ = plan_ptp_jerk(start, target, v, a, j, "time")
+    _, line, _ = jerk_plan(start, target, v, a, j, "line")
+    _, timed, _ = jerk_plan(start, target, v, a, j, "time")
     assert line.duration == pytest.approx(timed.duration, rel=1e-12, abs=1e-15)
 
 
@@ -750,7 +755,7 @@ def test_sample_of_line_and_time_with_other_axis_counts():
         target = tuple(10.0 * (i + 1) * (-1) ** i for i in range(n))
         lim = ((50.0,) * n, (100.0,) * n, (1000.0,) * n)
         for sync in ("line", "time"):
-            _, traj, _ = plan_ptp_jerk(start, target, *lim, sync)
+            _, traj, _ = jerk_plan(start, target, *lim, sync)
             for t in np.linspace(0.0, traj.duration, 23):
                 pos, vel = traj.sample(float(t))
                 assert len(pos) == len(vel) == n
@@ -790,7 +795,7 @@ extreme_limit = st.floats(1e-300, 1e300)
       for x in (extreme, extreme, extreme_limit, extreme_limit, extreme_limit)))),
     st.sampled_from(["line", "time"]))
 def test_property_extreme_input_never_raises_nor_samples_non_finite(args, sync):
-    result, traj, message = plan_ptp_jerk(*args, sync)
+    result, traj, message = jerk_plan(*args, sync)
     assert result in (Result.WORKING, Result.FINISHED, Result.ERROR_LIMITS,
                       Result.ERROR_INVALID_INPUT), message
     if traj is not None:
@@ -809,9 +814,9 @@ def test_property_auto_is_time_optimal_and_a_straight_line_when_that_is_free(axe
     start = (0.0,) * 6
     target = tuple(d for d, _v, _a, _j in axes)
     limits = [tuple(x[k] for x in axes) for k in (1, 2, 3)]
-    r_auto, auto, _ = plan_ptp_jerk(start, target, *limits, synchronization="auto")
-    r_time, timed, _ = plan_ptp_jerk(start, target, *limits, synchronization="time")
-    r_line, line, _ = plan_ptp_jerk(start, target, *limits, synchronization="line")
+    r_auto, auto, _ = jerk_plan(start, target, *limits, synchronization="auto")
+    r_time, timed, _ = jerk_plan(start, target, *limits, synchronization="time")
+    r_line, line, _ = jerk_plan(start, target, *limits, synchronization="line")
     assert r_auto == r_time == r_line
     if auto is None:
         return
@@ -825,7 +830,7 @@ def test_property_auto_is_time_optimal_and_a_straight_line_when_that_is_free(axe
 def test_property_jerk_stop_comes_to_rest_within_the_limits(v0, a0, a_max, j_max):
     """The stop from (v0, a0): never backwards, ends at rest at `distance`, |a| within
     max(a_max, |a0|), and the jerk within j_max (by differences of the acceleration)."""
-    from runtime.motion.jerk import JerkStop
+    from runtime.motion.stops import JerkStop
 
     a0 = max(min(a0, a_max), -a_max)
     stop = JerkStop(v0, a0, a_max, j_max)

@@ -13,7 +13,7 @@ from hypothesis import strategies as st
 
 from compiler.driver import compile_file
 from runtime.executive import Executive, SimClock
-from runtime.motion.planner import REST_VELOCITY, StopRamp
+from runtime.motion.stops import REST_VELOCITY, StopRamp
 from runtime.supervisor import MOVE, RECONFIGURE, STOP
 from runtime.system import RobotSystem, RunOptions
 
@@ -78,20 +78,20 @@ def test_pause_comes_to_a_controlled_stop_and_resume_finishes_the_move(system):
     to_move(system, 700)  # mid first move: (0..) -> (45, 0, -45, 0, 0, 0)
     tg = system.trajectory
     start, target = tg.trajectory.start_position, tg.trajectory.target_position
-    assert any(abs(v) > 1.0 for v in tg.velocities)
+    assert any(abs(v) > 1.0 for v in tg.motion.velocities)
     line = tg.line
-    at_pause, moving = tg.positions, tg.velocities
+    at_pause, moving = tg.motion.positions, tg.motion.velocities
     assert tg.pause()
     assert tg.paused
     ex = system.executive
     ex.run(lambda: tg.trajectory is None, 10**5)
-    stopped = tg.positions
-    assert all(v == 0.0 for v in tg.velocities)
+    stopped = tg.motion.positions
+    assert all(v == 0.0 for v in tg.motion.velocities)
     assert along(stopped, at_pause, moving)  # the setpoints stop along the direction of motion
     assert on_segment(stopped, start, target, 1e-9)  # here A1 and A3 share one shape: on the path
     assert 0 < abs(stopped[0]) < 45
     ex.run(lambda: False, 500)  # stays paused: no new setpoints, the robot holds
-    assert tg.positions == stopped and tg.line == line
+    assert tg.motion.positions == stopped and tg.line == line
     assert all(abs(x - s) <= 10 * c for x, s, c in zip(system.robot.positions, stopped, COUNTS))
     assert tg.resume() and not tg.paused
     summary = finish(system)
@@ -142,10 +142,10 @@ def test_abort_stops_then_ends_with_the_operator_named(system):
     system.begin(PAPER.program)
     to_move(system, 700)
     tg = system.trajectory
-    at_abort, moving = tg.positions, tg.velocities
+    at_abort, moving = tg.motion.positions, tg.motion.velocities
     assert tg.abort()
     system.executive.run(lambda: tg.trajectory is None, 10**5)
-    assert along(tg.positions, at_abort, moving)
+    assert along(tg.motion.positions, at_abort, moving)
     summary = finish(system)
     assert summary["fault"] == "Move Robot: aborted by the operator at line 4"
     assert states(summary)[-1] == STOP
@@ -240,7 +240,7 @@ class _WallLike:
 
 
 def test_on_the_wall_clock_cartesian_moves_are_planned_off_the_loop(system, monkeypatch):
-    from runtime.components import trajectory as tg_module
+    from runtime.motion import motionqueue as tg_module
 
     source = ('program linbg;\nsystem_specification "lola15.spc";\nseq\n'
               "  move ptp joint(mainjoint(0, -30, 30, 0, 45, 0));\n"
@@ -300,18 +300,18 @@ def test_pause_of_a_lin_move_stops_on_the_line_and_resume_finishes_it(system):
     seen = []
     while tg.trajectory is not None:
         ex.run(lambda: False, 5)
-        seen.append(kin.forward(tg.positions)[:3])
+        seen.append(kin.forward(tg.motion.positions)[:3])
     for p in seen:  # every setpoint of the stop is on the line
         assert _distance_from_segment(p, start, end) < 1e-6, p
     stopped = seen[-1]
     assert 10.0 < math.dist(stopped, start) and math.dist(stopped, end) > 10.0
     ex.run(lambda: False, 300)
-    assert kin.forward(tg.positions)[:3] == pytest.approx(stopped, abs=1e-9)  # held
+    assert kin.forward(tg.motion.positions)[:3] == pytest.approx(stopped, abs=1e-9)  # held
     assert tg.resume()
     rest = []
     while not tg.motion_done():
         ex.run(lambda: False, 5)
-        rest.append(kin.forward(tg.positions)[:3])
+        rest.append(kin.forward(tg.motion.positions)[:3])
     for p in rest:
         assert _distance_from_segment(p, start, end) < 1e-6, p
     summary = finish(system)
@@ -326,16 +326,16 @@ def test_override_changed_during_a_move_is_a_smooth_monotonic_transition(system)
     tg, ex = system.trajectory, system.executive
     ex.run(lambda: tg.line == 5 and tg.trajectory is not None, 10**5)  # the 90 deg move
     ex.run(lambda: False, 2500)  # into its cruise
-    v_cruise = abs(tg.velocities[0])
+    v_cruise = abs(tg.motion.velocities[0])
     assert v_cruise > 10.0
     tg.override = 50.0
-    assert tg.override == 50.0 and tg.rate == 1.0  # the transition starts, no jump
+    assert tg.override == 50.0 and tg.motion.rate == 1.0  # the transition starts, no jump
     speeds = []
-    while tg.rate != 0.5:
+    while tg.motion.rate != 0.5:
         ex.run(lambda: False, 5)
-        speeds.append(abs(tg.velocities[0]))
+        speeds.append(abs(tg.motion.velocities[0]))
     ex.run(lambda: False, 50)
-    speeds.append(abs(tg.velocities[0]))
+    speeds.append(abs(tg.motion.velocities[0]))
     assert all(b <= a + 1e-9 for a, b in zip(speeds, speeds[1:]))  # monotonic: no overshoot
     assert speeds[-1] == pytest.approx(0.5 * v_cruise, rel=1e-9)
     a_max = SPEC.axes[0].max_acceleration * 0.1  # the move's acc_ptp
@@ -387,7 +387,7 @@ def test_property_every_setpoint_of_random_ptp_programs_keeps_the_limits(moves):
 
     def recording(now):
         real_update(now)
-        samples.append((tg.line, tg.positions))
+        samples.append((tg.line, tg.motion.positions))
 
     task.run = recording
     try:
@@ -422,13 +422,13 @@ def test_a_ptp_pause_is_a_jerk_limited_stop_on_the_line(system):
     tg, ex = system.trajectory, system.executive
     assert tg.trajectory.synchronization == "line"
     start, target = tg.trajectory.start_position, tg.trajectory.target_position
-    samples = [tg.positions]
+    samples = [tg.motion.positions]
     tg.pause()
     while tg.trajectory is not None:
         ex.run(lambda: False, 5)
-        samples.append(tg.positions)
+        samples.append(tg.motion.positions)
     ex.run(lambda: False, 20)
-    samples.append(tg.positions)
+    samples.append(tg.motion.positions)
     h = 0.005
     for p in samples:
         assert on_segment(p, start, target, 1e-9)

@@ -306,7 +306,7 @@ def test_configurations_refuse_out_of_range_values(settings, words):
 def test_an_estop_mid_move_ramps_every_axis_down_within_its_limits_and_the_report_shows_rest(tmp_path):
     system, watch = fresh(report=tmp_path / "r.csv")
     system.begin(LONG, tmp_path / "r.csv")
-    run_until(system, lambda: system.supervisor.fsm.state == MOVE and max(map(abs, system.trajectory.velocities))
+    run_until(system, lambda: system.supervisor.fsm.state == MOVE and max(map(abs, system.trajectory.motion.velocities))
               > 10)
     moving = system.ports["drive_cmd"].value
     system.emergency_stop()
@@ -368,7 +368,7 @@ def test_a_move_planned_beyond_the_limit_is_stopped_before_the_limit(tmp_path):
     system, watch = fresh()
     run_to_end(system, SHORT)
     tg = system.trajectory
-    tg.axes = tuple(dataclasses.replace(a, max=150.0) if a.name == "A5" else a for a in SPEC.axes)
+    tg.planner.axes = tuple(dataclasses.replace(a, max=150.0) if a.name == "A5" else a for a in SPEC.axes)
     summary = run_to_end(system, result.program)
     a5 = SPEC.axes[4]
     assert "would come to rest" in summary["fault"] and "A5" in summary["fault"], summary["fault"]
@@ -422,7 +422,7 @@ def test_a_stop_on_the_path_that_never_ends_is_taken_over():
     into_move(system, 5)
     tg = system.trajectory
     tg.pause()
-    tg._at_rest = lambda: False  # a planner bug: it never tells that its stop reached rest
+    tg.motion.at_rest = lambda: False  # a planner bug: it never tells that its stop reached rest
     run_until(system, lambda: system.supervisor.done)
     summary = system.finish()
     assert "did not reach rest" in summary["fault"]

@@ -39,6 +39,7 @@ from math import ceil
 import numpy as np
 
 from ..timing import TICK
+from .trajectory import Trajectory
 
 #: The verification grid (s): the servo's tick, where the 1 ms references are made.
 STEP = TICK
@@ -65,66 +66,29 @@ class Limits:
                       map(max, self.jerk, other.jerk))
 
 
-def ramp_time(trajectory) -> float:
-    """How long a planned move accelerates (= decelerates): the longest acceleration
-    phase of any moving axis (ptp), or of the path parameter (lin/circ)."""
-    checked = getattr(trajectory, "checked", None)
-    if checked is not None:
-        return checked.move.profile.t_acc
-    profiles = getattr(trajectory, "profiles", ())
-    return max((p.t_acc for p in profiles if p.distance != 0.0), default=0.0)
-
-
-def path_time(trajectory, distance: float, at_end: bool) -> float:
-    """For a lin/circ move: the time it takes for its first (``at_end`` False) or last
-    ``distance`` mm of tool path (the whole move when it is shorter)."""
-    move = trajectory.checked.move
-    profile, length = move.profile, move.path.length
-    tcp = move.path.position_length / length if length > 0.0 else 0.0
-    s_goal = distance / tcp if tcp > 0.0 else length
-    if s_goal >= length:
-        return move.duration
-    if at_end:
-        s_goal = length - s_goal
-    lo, hi = 0.0, move.duration  # s(t) is non-decreasing: bisection
-    for _ in range(50):
-        mid = 0.5 * (lo + hi)
-        if profile.sample(mid)[0] < s_goal:
-            lo = mid
-        else:
-            hi = mid
-    return move.duration - hi if at_end else hi
-
-
-def overlap_wanted(first_kind: str, first, approx: float, second_kind: str, second) -> float:
+def overlap_wanted(first_kind: str, first: Trajectory, approx: float, second_kind: str, second: Trajectory) -> float:
     """The overlap (s) that ``approx`` on the move ``first`` asks for with the move
-    ``second`` (module docstring); 0 when the corner is not to be blended."""
+    ``second`` (module docstring; the kinds say what ``approx`` means: a fraction after
+    a ptp move, a distance after a lin or circ move); 0 when the corner is not to be
+    blended."""
     if not approx > 0.0 or first.duration <= 0.0 or second.duration <= 0.0:
         return 0.0
-    ramp1, ramp2 = ramp_time(first), ramp_time(second)
+    ramp = min(first.ramp_time, second.ramp_time)
     if first_kind == "ptp":
-        f = min(approx, 1.0)
-        return f * min(ramp1, ramp2)
-    wanted = min(ramp1, ramp2, path_time(first, approx, at_end=True))
+        return min(approx, 1.0) * ramp
+    wanted = min(ramp, first.path_time(approx, at_end=True))
     if second_kind != "ptp":
-        wanted = min(wanted, path_time(second, approx, at_end=False))
+        wanted = min(wanted, second.path_time(approx, at_end=False))
     return wanted
-
-
-def positions_at(trajectory, t: float) -> tuple:
-    """The joint positions of a planned move at its time ``t``, without touching any state
-    the real-time loop uses (safe from a planning thread)."""
-    at = getattr(trajectory, "position_at", None)
-    return at(t) if at is not None else trajectory.sample(t)[0]
 
 
 def composite(first, second, offset: float, corner, times) -> np.ndarray:
     """Positions of the superposition at ``times`` (first move's time): an (n, axes) array."""
     rows = []
     for t in times:
-        p1 = positions_at(first, t)
+        p1 = first.position_at(t)
         if t > offset:
-            p2 = positions_at(second, t - offset)
+            p2 = second.position_at(t - offset)
             rows.append([a + b - c for a, b, c in zip(p1, p2, corner)])
         else:
             rows.append(p1)

@@ -85,9 +85,10 @@ Two ways, chosen by ``synchronization``:
 
 Reference (every axis 100 deg/s, 200 deg/s^2, 2000 deg/s^3)::
 
-    >>> lim = (100.0,) * 6, (200.0,) * 6, (2000.0,) * 6
+    >>> from runtime.motion.planner import PtpInput
+    >>> v, a, j = (100.0,) * 6, (200.0,) * 6, (2000.0,) * 6
     >>> moves = [(0.0,) * 6, (45.0, 0.0, -45.0, 0.0, 0.0, 0.0), (-45.0, 45.0, 45.0, 0.0, 0.0, 0.0)]
-    >>> [f"{plan_ptp_jerk(p, q, *lim)[1].duration:.6f}" for p, q in zip(moves, moves[1:])]
+    >>> [f"{plan_ptp_jerk(PtpInput(p, q, v, a, max_jerk=j))[1].duration:.6f}" for p, q in zip(moves, moves[1:])]
     ['1.053939', '1.500000']
 
 (The first is case (iii-a): ``t_j = 0.1``, ``t_a = 0.326970`` s; the second case (i):
@@ -112,7 +113,9 @@ from __future__ import annotations
 from math import cbrt, isfinite, sqrt
 from numbers import Real
 
-from .planner import DISTANCE_EPSILON, MAX_DURATION, Result, _fmt
+from .planner import DISTANCE_EPSILON, MAX_DURATION, PtpInput, _fmt
+from .stops import LineStop, StopRamp
+from .trajectory import Result, Trajectory
 
 __all__ = [
     "JerkProfile",
@@ -341,10 +344,10 @@ def profile_with_duration(start: float, distance: float, max_velocity: float,
 # ----------------------------------------------------------------------------- trajectory
 
 
-class JerkPtpTrajectory:
+class JerkPtpTrajectory(Trajectory):
     """A planned, synchronised, jerk-limited PTP move: every axis starts at ``t = 0`` and
-    stops at ``t = duration``. Same interface as
-    :class:`runtime.motion.planner.PtpTrajectory`; made by :func:`plan_ptp_jerk`.
+    stops at ``t = duration`` (a :class:`~runtime.motion.trajectory.Trajectory`); made by
+    :func:`plan_ptp_jerk`.
 
     * ``duration`` -- seconds.
     * ``profiles`` -- one :class:`JerkProfile` per axis, all of ``duration`` (built on
@@ -499,6 +502,25 @@ class JerkPtpTrajectory:
         """Accelerations (unit/s^2) of all axes at time ``t`` (s); 0 outside the move."""
         return tuple([p.sample(t)[2] for p in self.profiles])
 
+    def at_time(self, t: float) -> tuple[tuple[float, ...], tuple[float, ...], tuple[float, ...]]:
+        """Exact positions, velocities and accelerations at ``t``."""
+        positions, velocities = self.sample(t)
+        return positions, velocities, self.sample_accelerations(t)
+
+    @property
+    def ramp_time(self) -> float:
+        """The longest acceleration phase of any moving axis."""
+        return max((p.t_acc for p in self.profiles if p.distance != 0.0), default=0.0)
+
+    def stop(self, t: float, positions: tuple, velocities: tuple, rate: float = 1.0) -> Trajectory:
+        """On the joint-space line (``"line"``): a jerk-limited :class:`LineStop` on it;
+        else (``"time"``) every axis to rest together within its acceleration limit
+        (times ``rate^2``) along the direction of motion (:class:`StopRamp`)."""
+        if self.synchronization == "line":
+            p, v, a = self.at_time(t)
+            return LineStop(self.start_position, self._distances, self._limits, p, v, a, rate)
+        return StopRamp(positions, velocities, tuple([a * rate * rate for a in self._limits[1]]))
+
     def __repr__(self) -> str:
         return (f"JerkPtpTrajectory(duration={self.duration!r}, "
                 f"slowest_axis={self.slowest_axis}, degrees_of_freedom={len(self._distances)}, "
@@ -585,17 +607,19 @@ def _too_short(distances, minima, v_max, a_max, j_max):
             f"max_jerk {_fmt(j_max[axis])}, distance {_fmt(distances[axis])})")
 
 
-def plan_ptp_jerk(start, target, v_max, a_max, j_max, synchronization: str = "line",
-                  ) -> tuple[Result, JerkPtpTrajectory | None, str]:
-    """Plan the synchronised, jerk-limited PTP move from ``start`` to ``target``.
+def plan_ptp_jerk(inp: PtpInput) -> tuple[Result, JerkPtpTrajectory | None, str]:
+    """Plan the synchronised, jerk-limited PTP move ``inp`` describes
+    (:class:`runtime.motion.planner.PtpInput` with ``max_jerk``).
 
-    ``start``, ``target`` (positions), ``v_max``, ``a_max``, ``j_max`` (per-axis limits,
-    > 0, already scaled by the move's fractions): one number per axis; the axes are at
-    rest at the start. ``synchronization``: ``"line"`` (default; a straight line in joint
-    space, the fastest such move), ``"time"`` (every axis stretched to the slowest
-    axis's minimal duration; Ruckig's default) -- see the module docstring -- or
-    ``"auto"``: the straight line when it is as fast as ``"time"`` (axes whose limits
-    bind alike, the common case), else ``"time"``: always the time-optimal duration.
+    ``current_position``, ``target_position`` (positions), ``max_velocity``,
+    ``max_acceleration``, ``max_jerk`` (per-axis limits, > 0, already scaled by the move's
+    fractions): one number per axis; the axes are at rest at the start.
+    ``synchronization``: ``"line"`` (a straight line in joint space, the fastest such
+    move), ``"time"`` (every axis stretched to the slowest axis's minimal duration;
+    Ruckig's default) -- see the module docstring -- or ``"auto"`` (the default): the
+    straight line when it is as fast as ``"time"`` (axes whose limits bind alike, the
+    common case), else ``"time"``: always the time-optimal duration. The position range
+    (``min_position`` / ``max_position``) is not checked here.
 
     Returns ``(result, trajectory, message)`` like
     :func:`runtime.motion.planner.plan_ptp`, with the same results and messages: on
@@ -607,6 +631,9 @@ def plan_ptp_jerk(start, target, v_max, a_max, j_max, synchronization: str = "li
     ``"axis 3: max_jerk must be positive, got 0"``. Never raises. Runs once per move.
     """
     try:
+        start, target = inp.current_position, inp.target_position
+        v_max, a_max, j_max = inp.max_velocity, inp.max_acceleration, inp.max_jerk
+        synchronization = inp.synchronization
         auto = synchronization == "auto"
         if synchronization == "line" or auto:
             line = True
@@ -695,104 +722,3 @@ def plan_ptp_jerk(start, target, v_max, a_max, j_max, synchronization: str = "li
     except Exception as exc:  # noqa: BLE001 - the contract is: never raise
         return (Result.ERROR, None,
                 f"internal error in plan_ptp_jerk: {type(exc).__name__}: {exc}")
-
-
-# ----------------------------------------------------------------------------- stopping
-
-
-class JerkStop:
-    """A jerk-limited stop of one coordinate (a path parameter): from velocity ``v0 >= 0``
-    and acceleration ``a0`` to rest, within ``|a| <= a_max`` and ``|jerk| <= j_max``.
-
-    The acceleration ramps at ``-j_max`` from ``a0`` to ``-a_p``, holds ``-a_p``, and
-    ramps back to 0 at ``+j_max``; ``a_p = a_max`` when there is room, else the value
-    that ends exactly at rest (``a_p = sqrt(V j_max)`` with ``V = v0 + a0^2 / (2 j_max)``).
-    When the coordinate is already braking harder than that (``a0 < -a_p``), the
-    acceleration only ramps up to 0; should the velocity reach 0 first, the stop ends
-    there (the last step of acceleration is then at most ``|a0|``). ``sample(t)`` gives the
-    displacement from the start, the velocity and the acceleration; ``distance`` is where
-    it stops. Real-time safe (plain floats; a handful of segments)."""
-
-    __slots__ = ("duration", "distance", "_segments")
-
-    def __init__(self, v0: float, a0: float, a_max: float, j_max: float):
-        v0 = max(v0, 0.0)
-        big_v = v0 + a0 * a0 / (2.0 * j_max)
-        a_p = a_max
-        hold = (big_v - a_p * a_p / j_max) / a_p
-        if hold < 0.0:
-            hold = 0.0
-            a_p = sqrt(max(big_v * j_max, 0.0))
-        if a0 < -a_p:  # already braking harder: only ramp the acceleration up to 0
-            plan = [(-a0 / j_max, j_max)]
-        else:
-            plan = [((a0 + a_p) / j_max, -j_max), (hold, 0.0), (a_p / j_max, j_max)]
-        segments = []  # (t_start, duration, s, v, a, jerk)
-        t = s = 0.0
-        v, a = v0, a0
-        for length, jerk in plan:
-            if length <= 0.0:
-                continue
-            if jerk > 0.0 and a < 0.0:  # the velocity may reach 0 before the acceleration does
-                disc = a * a - 2.0 * jerk * v
-                if disc >= 0.0:
-                    root = (-a - sqrt(disc)) / jerk
-                    if 0.0 <= root < length:
-                        length = root
-            segments.append((t, length, s, v, a, jerk))
-            s += v * length + 0.5 * a * length * length + jerk * length ** 3 / 6.0
-            v += a * length + 0.5 * jerk * length * length
-            a += jerk * length
-            t += length
-        self._segments = tuple(segments)
-        self.duration = t
-        self.distance = s
-
-    def sample(self, t: float) -> tuple[float, float, float]:
-        if not t > 0.0 or not self._segments:
-            if self._segments:
-                _t, _l, s, v, a, _j = self._segments[0]
-                return s, v, a
-            return 0.0, 0.0, 0.0
-        if t >= self.duration:
-            return self.distance, 0.0, 0.0
-        for t0, length, s, v, a, jerk in self._segments:
-            if t < t0 + length:
-                u = t - t0
-                return (s + v * u + 0.5 * a * u * u + jerk * u * u * u / 6.0,
-                        v + a * u + 0.5 * jerk * u * u, a + jerk * u)
-        return self.distance, 0.0, 0.0
-
-
-class LineStop:
-    """A jerk-limited stop **on** the straight joint-space line of a ``"line"``
-    :class:`JerkPtpTrajectory` at its time ``t``: the shared path parameter stops
-    (:class:`JerkStop` within the shape's own acceleration and jerk limits, so every axis
-    keeps its limits) and every axis follows ``start + d * s``. Same sampling interface
-    as the trajectory; ``target_position`` is where it stops. Real-time safe."""
-
-    __slots__ = ("duration", "start_position", "target_position", "_stop", "_base", "_d", "_s0", "_zeros")
-
-    def __init__(self, trajectory: JerkPtpTrajectory, t: float, rate: float = 1.0):
-        d = trajectory._distances
-        k = max(range(len(d)), key=lambda i: abs(d[i]))
-        p, v = trajectory.sample(t)
-        a = trajectory.sample_accelerations(t)
-        s0 = (p[k] - trajectory.start_position[k]) / d[k] if d[k] else 1.0
-        v_s, a_s = (v[k] / d[k] * rate, a[k] / d[k] * rate * rate) if d[k] else (0.0, 0.0)
-        moving = [(abs(di), vi) for di, vi in zip(d, zip(*trajectory._limits)) if di]
-        big_a = min((lim[1] / di for di, lim in moving), default=1.0)
-        big_j = min((lim[2] / di for di, lim in moving), default=1.0)
-        self._stop = JerkStop(v_s, a_s, big_a, big_j)
-        self._base, self._d, self._s0 = trajectory.start_position, d, s0
-        self.duration = self._stop.duration
-        self.start_position = p
-        self.target_position = tuple([b + di * (s0 + self._stop.distance) for b, di in zip(self._base, d)])
-        self._zeros = (0.0,) * len(d)
-
-    def sample(self, t: float) -> tuple[tuple[float, ...], tuple[float, ...]]:
-        if t >= self.duration:
-            return self.target_position, self._zeros
-        ds, v, _a = self._stop.sample(t)
-        s = self._s0 + ds
-        return (tuple([b + di * s for b, di in zip(self._base, self._d)]), tuple([di * v for di in self._d]))

@@ -31,11 +31,12 @@ See benchmarks/ptp_planner.py.
 """
 from __future__ import annotations
 
-import enum
 from dataclasses import dataclass
 from math import isfinite
 from numbers import Real
 
+from .stops import StopRamp
+from .trajectory import Result, Trajectory
 from .profiles import (
     TrapezoidalProfile,
     _minimum_duration,
@@ -48,7 +49,6 @@ __all__ = [
     "PtpInput",
     "PtpTrajectory",
     "Result",
-    "StopRamp",
     "plan_ptp",
     "scaled_limits",
 ]
@@ -57,31 +57,6 @@ __all__ = [
 # distance to be a sensible move (and sampling times lose precision). Ruckig's own bound
 # (ErrorTrajectoryDuration) plays the same role.
 MAX_DURATION = 1.0e5
-
-
-class Result(enum.IntEnum):
-    """What :func:`plan_ptp` did. Non-negative: a trajectory; negative: an error.
-
-    The values follow Ruckig's ``Result`` where the meaning is the same.
-    """
-
-    #: A trajectory was planned and has a positive duration: sample it until the end.
-    WORKING = 0
-    #: Nothing to do: the target equals the current position; the trajectory has
-    #: duration 0 and holds the position.
-    FINISHED = 1
-    #: An unexpected internal error (a bug): the message carries the exception.
-    ERROR = -1
-    #: The input is malformed: lengths differ, a value is not a finite number, a limit
-    #: is not positive. The message names the quantity, the value and the axis.
-    ERROR_INVALID_INPUT = -100
-    #: The input is well formed, but the limits make the move impossible to plan: its
-    #: duration is not finite or exceeds :data:`MAX_DURATION` (tiny limits against a long
-    #: distance).
-    ERROR_LIMITS = -101
-    #: The target lies outside the axis's position range (only when the input gives
-    #: ``min_position`` / ``max_position``).
-    ERROR_POSITION_LIMITS = -102
 
 
 @dataclass(frozen=True, slots=True)
@@ -100,6 +75,12 @@ class PtpInput:
       given, a target outside it is refused (``ERROR_POSITION_LIMITS``). The path of a
       PTP move is monotonic per axis, so a target inside the range keeps the whole
       move inside (a current position outside it may move back in).
+    * ``max_jerk`` -- per-axis jerk limit (unit/s^3, > 0), for
+      :func:`runtime.motion.jerk.plan_ptp_jerk` (which needs it; :func:`plan_ptp`'s
+      trapezoids have no jerk limit and ignore it).
+    * ``synchronization`` -- for :func:`runtime.motion.jerk.plan_ptp_jerk`: ``"line"``
+      (a straight line in joint space), ``"time"`` (every axis stretched to the slowest
+      axis's duration) or ``"auto"`` (the line when it costs no time, else ``"time"``).
     """
 
     current_position: tuple[float, ...]
@@ -108,29 +89,34 @@ class PtpInput:
     max_acceleration: tuple[float, ...]
     min_position: tuple[float, ...] | None = None
     max_position: tuple[float, ...] | None = None
+    max_jerk: tuple[float, ...] | None = None
+    synchronization: str = "auto"
 
     @property
     def degrees_of_freedom(self) -> int:
         return len(self.current_position)
 
 
-class PtpTrajectory:
+class PtpTrajectory(Trajectory):
     """A planned, synchronised PTP move: every axis starts at ``t = 0`` and stops at
-    ``t = duration``.
+    ``t = duration`` (a :class:`~runtime.motion.trajectory.Trajectory`).
 
     * ``duration`` -- seconds (the slowest axis's minimal duration).
     * ``profiles`` -- one :class:`~runtime.motion.profiles.TrapezoidalProfile` per axis.
     * ``slowest_axis`` -- index (from 0) of the axis that sets the duration.
     * ``start_position`` / ``target_position`` -- the input positions.
+    * ``max_acceleration`` -- the input's acceleration limits (a stop keeps them).
     """
 
     __slots__ = ("duration", "profiles", "slowest_axis", "start_position", "target_position",
-                 "_zeros", "_params")
+                 "max_acceleration", "_zeros", "_params")
 
     def __init__(self, profiles: tuple[TrapezoidalProfile, ...], duration: float,
                  slowest_axis: int, start_position: tuple[float, ...],
-                 target_position: tuple[float, ...]):
+                 target_position: tuple[float, ...], max_acceleration: tuple[float, ...] | None = None):
         self.profiles = profiles
+        self.max_acceleration = (tuple(p.accel for p in profiles) if max_acceleration is None
+                                 else tuple(max_acceleration))
         self.duration = duration
         self.slowest_axis = slowest_axis
         self.start_position = start_position
@@ -178,6 +164,21 @@ class PtpTrajectory:
     def sample_accelerations(self, t: float) -> tuple[float, ...]:
         """Accelerations (unit/s^2) of all axes at time ``t`` (s); 0 outside the move."""
         return tuple(p.sample(t)[2] for p in self.profiles)
+
+    def at_time(self, t: float) -> tuple[tuple[float, ...], tuple[float, ...], tuple[float, ...]]:
+        """Exact positions, velocities and accelerations at ``t``."""
+        positions, velocities = self.sample(t)
+        return positions, velocities, self.sample_accelerations(t)
+
+    @property
+    def ramp_time(self) -> float:
+        """The longest acceleration phase of any moving axis."""
+        return max((p.t_acc for p in self.profiles if p.distance != 0.0), default=0.0)
+
+    def stop(self, t: float, positions: tuple, velocities: tuple, rate: float = 1.0) -> StopRamp:
+        """Every axis to rest in the same time, within this move's acceleration limits
+        (times ``rate^2``), along the direction of motion (:class:`StopRamp`)."""
+        return StopRamp(positions, velocities, tuple([a * rate * rate for a in self.max_acceleration]))
 
     def __repr__(self) -> str:
         return (f"PtpTrajectory(duration={self.duration!r}, slowest_axis={self.slowest_axis}, "
@@ -328,7 +329,7 @@ def plan_ptp(inp: PtpInput) -> tuple[Result, PtpTrajectory | None, str]:
             if minima[i] == duration else
             _profile_with_duration(start[i], distances[i], v_max[i], a_max[i], duration)
             for i in range(n)])
-        trajectory = PtpTrajectory(profiles, duration, slowest, start, target)
+        trajectory = PtpTrajectory(profiles, duration, slowest, start, target, a_max)
         return (Result.WORKING if duration > 0.0 else Result.FINISHED), trajectory, ""
     except Exception as exc:  # noqa: BLE001 - the contract is: never raise
         return Result.ERROR, None, f"internal error in plan_ptp: {type(exc).__name__}: {exc}"
@@ -356,49 +357,3 @@ def scaled_limits(axes_max_velocity, axes_max_acceleration, speed_ptp: float,
         raise ValueError(f"axes_max_velocity has {len(velocities)} axes, "
                          f"axes_max_acceleration has {len(accelerations)}")
     return velocities, accelerations
-
-
-#: Slower than this (deg/s or mm/s) is rest for a stop: no drive is ever commanded it.
-REST_VELOCITY = 1e-12
-
-
-class StopRamp:
-    """A controlled stop: from positions ``p0`` moving at ``v0``, every axis decelerates
-    uniformly to rest in the same time ``duration``, the shortest that keeps each axis
-    within its deceleration limit ``a_max``: ``T = max |v0_i| / a_max_i``.
-
-    The axes stop together, moving along the direction of motion at the moment of the
-    stop (the tangent of the path). That is exactly on the move's path when the move's
-    axes are proportional in time (every axis sharing one profile shape, as when they
-    have the same limits); the trapezoidal planner's non-leading axes accelerate at their
-    own limit, so in general the stop point is within a fraction of a degree of the path.
-    Not jerk-limited (the deceleration starts at once). Same sampling interface as
-    :class:`PtpTrajectory`. Real-time safe.
-    """
-
-    __slots__ = ("duration", "start_position", "target_position", "_v0", "_zeros")
-
-    def __init__(self, p0: tuple[float, ...], v0: tuple[float, ...], a_max: tuple[float, ...]):
-        # A velocity below REST_VELOCITY is rest: a subnormal one (2e-311) would give a
-        # subnormal duration, and the fractions t / duration would lose their precision.
-        v0 = tuple(v if abs(v) >= REST_VELOCITY else 0.0 for v in v0)
-        duration = 0.0
-        for v, a in zip(v0, a_max):
-            if a > 0.0 and abs(v) / a > duration:
-                duration = abs(v) / a
-        self.duration = duration
-        self.start_position = tuple(p0)
-        self._v0 = v0 if duration > 0.0 else (0.0,) * len(p0)
-        self.target_position = tuple(p + 0.5 * v * duration for p, v in zip(p0, self._v0))
-        self._zeros = (0.0,) * len(p0)
-
-    def sample(self, t: float) -> tuple[tuple[float, ...], tuple[float, ...]]:
-        if t >= self.duration:
-            return self.target_position, self._zeros
-        if not t > 0.0:
-            return self.start_position, self._v0
-        # every axis at the same fraction of its start velocity: (1 - t / T) v0
-        left = 1.0 - t / self.duration
-        travelled = t * (1.0 + left) * 0.5  # (t - t^2 / 2T)
-        return (tuple([p + v * travelled for p, v in zip(self.start_position, self._v0)]),
-                tuple([v * left for v in self._v0]))

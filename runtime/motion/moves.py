@@ -1,0 +1,188 @@
+"""Moves: what a program hands over (:class:`MoveRequest`), how one is planned into a
+trajectory (:class:`MovePlanner`), and what the timeline holds (:class:`Segment`,
+:class:`MoveRecord`).
+
+:meth:`MovePlanner.plan` is pure (it reads the robot's axes, kinematics and the
+previous segment's plan, and changes nothing), so it may run on the planning worker:
+
+* ``ptp`` -- to a joint value, to a pose (the inverse kinematics' configuration nearest
+  the start), or to the positions of every axis (the rest of an interrupted move), with
+  the axes' limits times the move's ``speed_ptp`` / ``acc_ptp`` (and the jerk limits
+  times ``acc_ptp`` for the jerk-limited profile): :func:`runtime.motion.jerk.plan_ptp_jerk`
+  or :func:`runtime.motion.planner.plan_ptp`;
+* ``lin`` / ``circ`` -- to poses (joint values are turned into poses by the forward
+  kinematics): :func:`runtime.motion.cartesian.plan_cartesian`, timed within every
+  joint's limits;
+* a move after one with ``approx`` gets its blend offset
+  (:func:`runtime.motion.blend.blend_offset`), checked within every axis's limits.
+
+A move that cannot be planned gives ``(None, problem)``: the problem says what and why,
+and the program stops at the move's line.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from compiler.values import Joint, Pose
+
+from .blend import Limits, blend_offset
+from .cartesian import CartesianInput, plan_cartesian
+from .jerk import plan_ptp_jerk
+from .kinematics import Kinematics, KinematicsError
+from .planner import PtpInput, plan_ptp, scaled_limits
+from .trajectory import Trajectory
+
+__all__ = ["MovePlanner", "MoveRecord", "MoveRequest", "Segment"]
+
+
+@dataclass
+class MoveRecord:
+    """A move as it ran, for the run's summary: its line, kind and target, its planned
+    duration (at the override of its start) and when its first and last setpoints were."""
+
+    line: int
+    kind: str
+    target: tuple
+    planned_duration: float
+    t_start: float
+    t_end: float | None = None
+    blended: bool = False  # the move blended into the next one (it did not stop at its target)
+
+    @property
+    def actual_duration(self) -> float | None:
+        return None if self.t_end is None else self.t_end - self.t_start
+
+
+class MoveRequest:
+    """A move the program handed over, not planned yet: ``kind`` (``"ptp"``, ``"lin"``,
+    ``"circ"``), ``targets`` (one target; a circ move's via pose first), ``speed`` and
+    ``acc`` (fractions for ptp, mm/s and mm/s^2 for lin/circ), ``approx``, the source
+    ``line``; ``rest_of``: the interrupted segment whose rest this is (planned from where
+    it stopped)."""
+
+    __slots__ = ("kind", "targets", "speed", "acc", "approx", "line", "rest_of")
+
+    def __init__(self, kind: str, targets: tuple, speed: float, acc: float, approx: float, line: int,
+                 rest_of: "Segment | None" = None):
+        self.kind, self.targets, self.speed, self.acc, self.approx, self.line = kind, targets, speed, acc, approx, line
+        self.rest_of = rest_of
+
+
+class Segment:
+    """A planned move on the timeline: ``trajectory`` from the previous move's end to
+    ``end``; ``offset``: when it starts after the previous segment's start if it is
+    blended into it (None: after the previous one has stopped); ``start``: its start on
+    the timeline once scheduled."""
+
+    __slots__ = ("request", "trajectory", "duration", "end", "limits", "offset", "start", "record",
+                 "blendable", "previous", "stop")
+
+    def __init__(self, request: MoveRequest, trajectory: Trajectory, end, limits: Limits):
+        self.request = request
+        self.trajectory = trajectory
+        self.duration = trajectory.duration
+        self.end = tuple(end)
+        self.limits = limits
+        self.offset: float | None = None
+        self.start: float | None = None
+        self.record: MoveRecord | None = None
+        self.blendable = True  # cleared when the move is interrupted (its blend is off)
+        self.previous: Segment | None = None  # the segment it was planned after (its blend partner)
+        self.stop: Trajectory | None = None  # the controlled stop that interrupted it
+
+    @property
+    def kind(self) -> str:
+        return self.request.kind
+
+
+class MovePlanner:
+    """Plans requests for one robot: its ``axes`` (the specification's, with ``min``,
+    ``max``, ``unit``, ``name``, ``max_velocity``, ``max_acceleration``, ``max_jerk``), its
+    ``main_axes`` (the arm's six, first; the rest are additional axes, held by lin/circ
+    moves), the PTP ``profile`` (``"jerk"`` or ``"trapezoid"``), and the arm's
+    ``kinematics`` (None: poses cannot be used, and ``kinematics_problem`` says why)."""
+
+    def __init__(self, axes, main_axes, profile: str, kinematics: Kinematics | None,
+                 kinematics_problem: str | None = None):
+        self.axes = tuple(axes)
+        self.main_axes = tuple(main_axes)
+        self.main = len(self.main_axes)
+        self.profile = profile
+        self.kinematics = kinematics
+        self.kinematics_problem = kinematics_problem
+        jerk = profile == "jerk"
+        # what a blend must keep: every axis's limits (no jerk limit for a trapezoid)
+        self.limits = Limits((a.max_velocity for a in self.axes), (a.max_acceleration for a in self.axes),
+                             (a.max_jerk if jerk else float("inf") for a in self.axes))
+        self.cartesian_limits = Limits(self.limits.velocity, self.limits.acceleration,
+                                       (a.max_jerk for a in self.axes))
+
+    def plan(self, request: MoveRequest, start: tuple, previous: Segment | None,
+             period: float) -> tuple[Segment | None, str | None]:
+        """Plan ``request`` from the joints ``start`` (blended after ``previous`` when
+        that one has ``approx``), for setpoints every ``period`` s: ``(segment, None)`` or
+        ``(None, problem)``. Pure: safe on the planning worker."""
+        if request.kind == "ptp":
+            segment, problem = self._plan_ptp(request, start)
+        else:
+            segment, problem = self._plan_cartesian(request, start, period)
+        if segment is None:
+            return None, problem
+        if previous is not None and previous.request.approx > 0.0 and previous.blendable:
+            overlap_before = (previous.previous.duration - previous.offset
+                              if previous.offset is not None and previous.previous is not None else 0.0)
+            cap = previous.duration - overlap_before
+            segment.offset = blend_offset(previous.kind, previous.trajectory, previous.request.approx,
+                                          request.kind, segment.trajectory, previous.end,
+                                          previous.limits.union(segment.limits), period, cap)
+            segment.previous = previous
+        return segment, None
+
+    def _plan_ptp(self, request: MoveRequest, start: tuple) -> tuple[Segment | None, str | None]:
+        target = request.targets[0]
+        if isinstance(target, Pose):
+            target, problem = self.joint_target(target, start)
+            if problem is not None:
+                return None, problem
+        values = target.axes if isinstance(target, Joint) else tuple(target)
+        for axis, v in zip(self.axes, values):
+            if not axis.min <= v <= axis.max:
+                return None, (f"axis {axis.name} target {v:g} {axis.unit} is outside its limits "
+                              f"{axis.min:g}..{axis.max:g} {axis.unit}")
+        speed, acc = request.speed, request.acc
+        vmax, amax = scaled_limits(tuple(a.max_velocity for a in self.axes),
+                                   tuple(a.max_acceleration for a in self.axes), speed, acc)
+        if self.profile == "jerk":  # the jerk limit scales with acc_ptp
+            jmax = tuple(a.max_jerk * acc for a in self.axes)
+            result, trajectory, message = plan_ptp_jerk(PtpInput(start, values, vmax, amax, max_jerk=jmax))
+        else:
+            result, trajectory, message = plan_ptp(PtpInput(start, values, vmax, amax))
+        if result < 0:
+            return None, message
+        return Segment(request, trajectory, values, self.limits), None
+
+    def _plan_cartesian(self, request: MoveRequest, start: tuple, period: float):
+        kinematics = self.kinematics
+        if kinematics is None:
+            return None, self.kinematics_problem
+        poses = tuple(kinematics.forward(t.axes[:self.main]) if isinstance(t, Joint) else t
+                      for t in request.targets)
+        via, target = (None, poses[0]) if request.kind == "lin" else poses
+        result, stream, message = plan_cartesian(CartesianInput(
+            kinematics, start, target, request.speed, request.acc, via=via,
+            axis_limits=self.main_axes, period=period))
+        if result < 0:
+            return None, f"move {request.kind} refused: {message}"
+        return Segment(request, stream, stream.target_position, self.cartesian_limits), None
+
+    def joint_target(self, pose: Pose, near: tuple) -> tuple[Joint | None, str | None]:
+        """The joint values that put the tool at ``pose``: the inverse kinematics'
+        configuration nearest the joints ``near`` (the additional axes stay)."""
+        if self.kinematics is None:
+            return None, self.kinematics_problem
+        main = self.main
+        try:
+            joints = self.kinematics.inverse(pose, near=near[:main])
+        except KinematicsError as exc:
+            return None, f"the target pose cannot be reached: {exc}"
+        return Joint(tuple(joints), tuple(near[main:])), None

@@ -1,0 +1,296 @@
+"""The motion queue alone (runtime.motion.motionqueue): no component, no port, no VM.
+
+A queue of the lola15 arm's moves is sampled every 5 ms as the trajectory generator does;
+the examples check what it records and where it ends, and a stateful property test drives
+it with random sequences of moves (ptp, lin, blends), pauses, resumes, overrides and
+aborts, and checks every setpoint against the axis limits.
+"""
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import pytest
+from hypothesis import HealthCheck, settings
+from hypothesis import strategies as st
+from hypothesis.stateful import RuleBasedStateMachine, invariant, precondition, rule
+
+from compiler.spec import load_spec
+from compiler.values import Joint
+from runtime.motion.kinematics import Kinematics
+from runtime.motion.motionqueue import MotionQueue, PlanningWorker
+from runtime.motion.moves import MovePlanner, MoveRequest
+from runtime.timing import SETPOINT_PERIOD
+
+ROOT = Path(__file__).resolve().parent.parent
+SPEC = load_spec(ROOT / "programs" / "lola15.spc")
+KIN = Kinematics(SPEC)
+START = (0.0, -30.0, 30.0, 0.0, 45.0, 0.0)
+VMAX = [a.max_velocity for a in SPEC.axes]
+AMAX = [a.max_acceleration for a in SPEC.axes]
+#: Sampling steps a test gives a queue before it must be done (about 5 simulated minutes).
+BUDGET = 60_000
+
+
+def make_queue(worker=None, profile: str = "jerk") -> MotionQueue:
+    planner = MovePlanner(SPEC.axes, SPEC.main_axes, profile, KIN)
+    queue = MotionQueue(planner, SPEC.axes, worker=worker)
+    queue.start(START, SETPOINT_PERIOD)
+    return queue
+
+
+def ptp(joints, line: int, speed: float = 0.5, acc: float = 0.5, approx: float = 0.0) -> MoveRequest:
+    return MoveRequest("ptp", (Joint(tuple(joints)),), speed, acc, approx, line)
+
+
+def lin(dx: float, dy: float, dz: float, line: int, speed: float = 250.0, acc: float = 1000.0,
+        approx: float = 0.0) -> MoveRequest:
+    x, y, z, r, p, w = KIN.forward(START)
+    return MoveRequest("lin", ((x + dx, y + dy, z + dz, r, p, w),), speed, acc, approx, line)
+
+
+class Run:
+    """Samples a queue every period, as the trajectory generator does, keeping the
+    setpoints."""
+
+    def __init__(self, queue: MotionQueue):
+        self.queue = queue
+        self.now = 0.0
+        self.setpoints = [(0.0, queue.positions, queue.velocities)]
+
+    def step(self, n: int = 1) -> None:
+        for _ in range(n):
+            self.now += SETPOINT_PERIOD
+            self.queue.sample(self.now)
+            self.setpoints.append((self.now, self.queue.positions, self.queue.velocities))
+
+    def until(self, condition, budget: int = BUDGET) -> None:
+        for _ in range(budget):
+            if condition():
+                return
+            self.step()
+        raise AssertionError("the queue did not get there")
+
+    def ratios(self) -> tuple[float, float]:
+        """The largest setpoint velocity and velocity change (per second) against the axis
+        limits: what tests/limits_watch.py measures of the whole runtime."""
+        velocity = acceleration = 0.0
+        for (t0, _p0, v0), (t1, _p1, v1) in zip(self.setpoints, self.setpoints[1:]):
+            for i, (a, b) in enumerate(zip(v0, v1)):
+                velocity = max(velocity, abs(b) / VMAX[i])
+                acceleration = max(acceleration, abs(b - a) / (t1 - t0) / AMAX[i])
+        return velocity, acceleration
+
+
+def test_moves_run_in_order_and_are_recorded():
+    queue = make_queue()
+    run = Run(queue)
+    a, b = (30.0, -20.0, 40.0, 10.0, 30.0, 5.0), (-10.0, -40.0, 60.0, 0.0, 60.0, -20.0)
+    assert queue.add(ptp(a, 1)) is None and queue.add(ptp(b, 2)) is None
+    assert queue.queued == 2 and not queue.done()
+    run.until(queue.done)
+    assert queue.positions == b and queue.velocities == (0.0,) * 6
+    assert [(m.line, m.kind, m.blended) for m in queue.moves] == [(1, "ptp", False), (2, "ptp", False)]
+    assert queue.completed == 2
+    for m in queue.moves:  # actual duration within a period of the planned one
+        assert abs(m.actual_duration - m.planned_duration) <= SETPOINT_PERIOD + 1e-9
+    assert max(run.ratios()) <= 1.0 + 1e-6
+
+
+def test_a_blend_does_not_stop_at_the_corner():
+    queue = make_queue()
+    run = Run(queue)
+    corner = (30.0, -20.0, 40.0, 10.0, 30.0, 5.0)
+    queue.add(ptp(corner, 1, approx=1.0))
+    queue.add(ptp((60.0, -40.0, 60.0, 20.0, 50.0, 10.0), 2))
+    run.until(queue.done)
+    assert queue.moves[0].blended
+    speeds = [max(abs(v) for v in s[2]) for s in run.setpoints]
+    first_move = [i for i, s in enumerate(speeds) if s > 0.0]
+    assert all(speeds[i] > 0.0 for i in range(first_move[0], first_move[-1]))  # never at rest on the way
+    assert max(run.ratios()) <= 1.0 + 1e-6
+
+
+def test_pause_inside_a_blend_stops_on_the_blend_and_resume_finishes_it():
+    queue = make_queue()
+    run = Run(queue)
+    queue.add(ptp((30.0, -20.0, 40.0, 10.0, 30.0, 5.0), 1, approx=1.0))
+    end = (60.0, -40.0, 60.0, 20.0, 50.0, 10.0)
+    queue.add(ptp(end, 2))
+    segs = queue._segments
+    run.until(lambda: len(segs) > 1 and segs[1].start is not None and queue.t_move > segs[1].start)
+    within = queue.pause()
+    assert within is not None and within > 0.0
+    run.until(queue.at_rest)
+    assert queue.rate == 0.0 and queue.velocities == (0.0,) * 6
+    assert queue.interrupted is None  # held on the timeline, not a stop of its own
+    held = queue.positions
+    run.step(50)
+    assert queue.positions == held  # stays at rest while paused
+    queue.resume()
+    run.until(queue.done)
+    assert queue.positions == end and max(run.ratios()) <= 1.0 + 1e-6
+
+
+def test_pause_of_a_lin_move_stops_on_the_line_and_resume_plans_the_rest():
+    queue = make_queue()
+    run = Run(queue)
+    queue.add(lin(0.0, 200.0, -100.0, 1))
+    run.step(40)
+    queue.pause()
+    run.until(lambda: queue.interrupted is not None and queue.current is None)
+    stopped = KIN.forward(queue.positions[:6])[:3]
+    a, b = KIN.forward(START)[:3], KIN.forward(queue.interrupted.end[:6])[:3]
+    d = [q - p for p, q in zip(a, b)]
+    u = sum((s - p) * di for s, p, di in zip(stopped, a, d)) / sum(di * di for di in d)
+    assert 0.0 < u < 1.0 and math.dist(stopped, [p + u * di for p, di in zip(a, d)]) < 1e-6  # on the line
+    queue.resume()
+    run.until(queue.done)
+    assert math.dist(KIN.forward(queue.positions[:6])[:3], b) < 1e-9
+    assert [m.line for m in queue.moves] == [1]  # the rest is the same move
+
+
+def test_abort_ends_at_rest_with_the_line():
+    queue = make_queue()
+    run = Run(queue)
+    queue.add(ptp((30.0, -20.0, 40.0, 10.0, 30.0, 5.0), 7))
+    queue.add(ptp((0.0, 0.0, 0.0, 0.0, 45.0, 0.0), 8))
+    run.step(30)
+    assert queue.abort("aborted by the operator") is not None
+    assert queue.abort("again") is None  # one abort at a time
+    run.until(lambda: queue.ended is not None)
+    assert queue.ended == "aborted by the operator at line 7"
+    assert queue.velocities == (0.0,) * 6 and queue.done()
+    assert max(run.ratios()) <= 1.0 + 1e-6
+
+
+def test_a_move_that_cannot_be_planned_is_refused_and_drops_the_moves_after_it():
+    queue = make_queue()
+    assert "outside its limits" in queue.add(ptp((0.0, 0.0, 0.0, 0.0, 130.0, 0.0), 3))
+    problem = queue.add(lin(2000.0, 0.0, 0.0, 4))
+    assert problem.startswith("move lin refused: ") and "reach" in problem
+    assert queue.done() and queue.moves == []
+
+
+def test_on_a_worker_a_failed_plan_is_reported_by_sample():
+    queue = make_queue(worker=PlanningWorker())
+    run = Run(queue)
+    assert queue.add(ptp((30.0, -20.0, 40.0, 10.0, 30.0, 5.0), 1)) is None
+    assert queue.add(lin(2000.0, 0.0, 0.0, 2)) is None
+    failed = None
+    for _ in range(BUDGET):
+        run.step()
+        failed = failed or queue.failed
+        queue.failed = None
+        if queue.plan_waiting() is not None:
+            pytest.fail("no problem is returned with a worker")
+        if queue.done():
+            break
+    assert failed is not None and failed[1] == 2 and "refused" in failed[0]
+    assert [m.line for m in queue.moves] == [1]
+
+
+def test_the_override_slows_the_moves_down():
+    def duration(percent: float) -> float:
+        queue = make_queue()
+        queue.override = percent
+        run = Run(queue)
+        queue.add(ptp((30.0, -20.0, 40.0, 10.0, 30.0, 5.0), 1))
+        run.until(queue.done)
+        return run.now
+
+    assert duration(50.0) == pytest.approx(2.0 * duration(100.0), rel=0.02)
+
+
+# ----------------------------------------------------------------------------- stateful
+
+JOINTS = st.tuples(*(st.floats(lo, hi) for lo, hi in ((-60, 60), (-60, 10), (0, 90), (-90, 90), (20, 90),
+                                                      (-90, 90))))
+OFFSETS = st.tuples(st.floats(-150, 150), st.floats(-150, 150), st.floats(-150, 150))
+
+
+class QueueMachine(RuleBasedStateMachine):
+    """Random moves, pauses, resumes, overrides and aborts: every setpoint within every
+    axis's velocity limit and acceleration limit (setpoint differences, as
+    tests/limits_watch.py measures them), inside the position limits, and the queue
+    always ends at rest."""
+
+    def __init__(self):
+        super().__init__()
+        self.queue = make_queue()
+        self.run = Run(self.queue)
+        self.line = 0
+        self.aborts = 0
+
+    def step(self, periods: int) -> None:
+        """Sample; an abort that ended starts a new program from where the robot is (as
+        the trajectory generator's host does)."""
+        for _ in range(periods):
+            self.run.step()
+            if self.queue.ended is not None:
+                self.aborts += 1
+                self.queue.start(self.queue.positions, SETPOINT_PERIOD)
+
+    @rule(joints=JOINTS, speed=st.floats(0.05, 1.0), acc=st.floats(0.05, 1.0), approx=st.floats(0.0, 1.0))
+    def move_ptp(self, joints, speed, acc, approx):
+        self.line += 1
+        self.queue.add(ptp(joints, self.line, speed, acc, approx))
+
+    @rule(offset=OFFSETS, speed=st.floats(20.0, 1000.0), acc=st.floats(200.0, 8000.0), approx=st.floats(0.0, 50.0))
+    def move_lin(self, offset, speed, acc, approx):
+        self.line += 1
+        self.queue.add(lin(*offset, self.line, speed, acc, approx))
+
+    @rule(periods=st.integers(1, 400))
+    def sample(self, periods):
+        self.step(periods)
+
+    @rule(periods=st.integers(0, 200))
+    def pause(self, periods):
+        self.step(periods)
+        queue = self.queue
+        for _ in range(2000):  # into the next move, if one is to start
+            if queue.current is not None or queue.done() or queue.paused or queue.interrupted is not None:
+                break
+            self.step(1)
+        queue.pause()
+
+    @precondition(lambda self: self.queue.abort_reason is None)
+    @rule(periods=st.integers(0, 200))
+    def resume(self, periods):
+        self.step(periods)
+        self.queue.resume()
+
+    @rule(periods=st.integers(0, 200), percent=st.floats(1.0, 100.0))
+    def override(self, periods, percent):
+        self.step(periods)
+        self.queue.override = percent
+
+    @rule(periods=st.integers(0, 400))
+    def abort(self, periods):
+        self.step(periods)
+        self.queue.abort("aborted")
+
+    @invariant()
+    def within_the_limits(self):
+        velocity, acceleration = self.run.ratios()
+        assert velocity <= 1.0 + 1e-9 and acceleration <= 1.0 + 1e-6, (velocity, acceleration)
+        for axis, p in zip(SPEC.axes, self.queue.positions):
+            assert axis.min - 1e-9 <= p <= axis.max + 1e-9
+        self.run.setpoints = self.run.setpoints[-1:]
+
+    def teardown(self):
+        queue = self.queue
+        queue.override = 100.0  # (at 1 %, the moves take a hundred times longer)
+        if queue.abort_reason is None:
+            queue.resume()
+        self.run.until(lambda: queue.done() or queue.ended is not None)
+        self.run.step(2)
+        assert queue.velocities == (0.0,) * 6 and queue.at_rest()
+        velocity, acceleration = self.run.ratios()
+        assert velocity <= 1.0 + 1e-9 and acceleration <= 1.0 + 1e-6, (velocity, acceleration)
+
+
+QueueMachine.TestCase.settings = settings(max_examples=100, stateful_step_count=25, deadline=None, derandomize=True,
+                                          database=None, suppress_health_check=list(HealthCheck))
+test_random_commands_keep_the_limits_and_end_at_rest = QueueMachine.TestCase

@@ -304,12 +304,12 @@ def validate_move_clauses(kind: object, clauses: object, spec) -> MoveClauses | 
     code is untrusted: never raises, whatever the values (NaN, infinities, huge
     integers, strings, anything)."""
     if not isinstance(kind, str) or kind not in MOTIONS:
-        return f"unknown motion {_show(kind)}: expected one of {', '.join(MOTIONS)}"
+        return f"unknown motion {describe(kind)}: expected one of {', '.join(MOTIONS)}"
     if not isinstance(clauses, dict):
-        return f"the move's clauses must be a table of names and values, not {_show(clauses)}"
+        return f"the move's clauses must be a table of names and values, not {describe(clauses)}"
     for name in clauses:
         if not isinstance(name, str) or name not in BY_NAME:
-            return f"unknown clause {_show(name)}: clauses are {', '.join(NAMES)}"
+            return f"unknown clause {describe(name)}: clauses are {', '.join(NAMES)}"
     values: dict[str, object] = {}
     for clause in CLAUSES:
         given = clause.name in clauses

@@ -618,9 +618,9 @@ class Checker:
 
     def check_joint_limits(self, target: ast.Expr, value: Joint) -> None:
         for axis, v in zip(self.spec.axes, value.axes):
-            if not axis.min <= v <= axis.max:
-                self.error(target.span, f"axis {axis.name} target {v:g} {axis.unit} is outside its limits "
-                                        f"{axis.min:g}..{axis.max:g} {axis.unit}")
+            problem = axis.target_problem(v)
+            if problem is not None:
+                self.error(target.span, problem)
 
     def check_reach(self, target: ast.Expr, value: Pose) -> None:
         p = value.position

@@ -73,6 +73,14 @@ class Axis:
     def unit(self) -> str:
         return "deg" if self.kind == "revolute" else "mm"
 
+    def target_problem(self, value: float) -> str | None:
+        """None when a move's target ``value`` lies within min..max, else what the checker
+        (a constant target) and the trajectory generator (any other) say."""
+        if self.min <= value <= self.max:
+            return None
+        return (f"axis {self.name} target {value:g} {self.unit} is outside its limits "
+                f"{self.min:g}..{self.max:g} {self.unit}")
+
 
 @dataclass(frozen=True)
 class Defaults:

@@ -43,11 +43,18 @@ class Problem:
         return self.message if self.hint is None else f"{self.message}; {self.hint}"
 
 
+def _number(x: float) -> str:
+    """``x`` as ``:g`` shows it (2500, 1.5, 1e+09), or in full where that would round it
+    to another number (1.0000001 is not "1": a message must not call 1 out of range)."""
+    text = f"{x:g}"
+    return text if float(text) == x or math.isnan(x) else repr(float(x))
+
+
 def _show(value: object) -> str:
-    """A value as a message shows it: numbers as ``:g`` (never fails)."""
+    """A value as a message shows it (never fails)."""
     if isinstance(value, float) or (isinstance(value, int) and not isinstance(value, bool)):
         try:
-            return f"{float(value):g}"
+            return _number(float(value))
         except OverflowError:
             return describe(value)
     return describe(value)
@@ -88,11 +95,11 @@ class Range:
         op = "<" if self.low_open else "<="
         shown_unit = f" {self.unit}" if unit and self.unit else ""
         if high is None:
-            return f"{name} {'>' if self.low_open else '>='} {low:g}{shown_unit}"
+            return f"{name} {'>' if self.low_open else '>='} {_number(low)}{shown_unit}"
         origin = ""
         if isinstance(self.high, str):
             origin = f" (robot.{self.high})" if key else " (the robot's maximum)"
-        return f"{low:g} {op} {name} <= {high:g}{shown_unit}{origin}"
+        return f"{_number(low)} {op} {name} <= {_number(high)}{shown_unit}{origin}"
 
     def allowed(self) -> str:
         """The range as the documentation gives it (a bound from the specification by its

@@ -215,6 +215,8 @@ def test_problems_say_what_which_value_and_which_range():
     cases = {
         ("ptp", "speed_ptp", 1.5): "speed_ptp = 1.5 is out of range: expected 0 < speed_ptp <= 1; "
                                    "it is a fraction of each axis's max_velocity",
+        ("ptp", "speed_ptp", 1.0000001): "speed_ptp = 1.0000001 is out of range: expected 0 < speed_ptp <= 1; "
+                                         "it is a fraction of each axis's max_velocity",  # not "= 1"
         ("ptp", "acc_ptp", float("nan")): "acc_ptp = nan is not a number: expected 0 < acc_ptp <= 1; "
                                           "it is a fraction of each axis's max_acceleration",
         ("lin", "speed", 2500): "speed = 2500 mm/s is out of range: expected 0 < speed <= 2000 (the robot's maximum)",

@@ -13,7 +13,11 @@ from grammar import keywords
 
 from . import ast
 from .diagnostics import Diagnostic, did_you_mean
-from .objcode import BUILTINS, CLAUSES, MAX_ARRAY_ELEMENTS, MAX_COUNT, MAX_STRING_LENGTH
+from .clauses import BY_NAME as CLAUSE_BY_NAME
+from .clauses import CLAUSES as CLAUSE_TABLE
+from .clauses import NAMES as CLAUSES
+from .clauses import Clause
+from .objcode import BUILTINS, MAX_ARRAY_ELEMENTS, MAX_COUNT, MAX_STRING_LENGTH
 from .semantics import (INT_MAX, INT_MIN, EvalError, binary, call_builtin, make_joint, make_pos, make_quat,
                         make_rpy, unary)
 from .spec import Spec
@@ -614,9 +618,9 @@ class Checker:
 
     def check_joint_limits(self, target: ast.Expr, value: Joint) -> None:
         for axis, v in zip(self.spec.axes, value.axes):
-            if not axis.min <= v <= axis.max:
-                self.error(target.span, f"axis {axis.name} target {v:g} {axis.unit} is outside its limits "
-                                        f"{axis.min:g}..{axis.max:g} {axis.unit}")
+            problem = axis.target_problem(v)
+            if problem is not None:
+                self.error(target.span, problem)
 
     def check_reach(self, target: ast.Expr, value: Pose) -> None:
         p = value.position
@@ -626,12 +630,15 @@ class Checker:
                                     f"but {self.spec.name}'s arm reaches at most {reach:.1f} mm")
 
     def clauses(self, node: ast.Move) -> None:
+        """The move's clauses against the clause table (compiler.clauses): known, given
+        once, applying to the motion, of the right type and, when constant, in range;
+        and the specification's defaults of those it leaves out in range for it."""
         seen: dict[str, ast.Clause] = {}
-        ptp = node.kind == "ptp"
-        spec = self.spec
+        kind = node.kind
         for clause in node.clauses:
             name = clause.name
-            if name not in CLAUSES:
+            entry = CLAUSE_BY_NAME.get(name)
+            if entry is None:
                 guess = did_you_mean(name, CLAUSES)
                 hint = f"did you mean '{guess}'?" if guess else f"clauses are {', '.join(CLAUSES)}"
                 if clause.span.line > node.span.line and not guess:
@@ -643,50 +650,39 @@ class Checker:
                 self.error(clause.name_span, f"clause '{name}' is given twice",
                            f"the first is at line {seen[name].span.line}, column {seen[name].span.col}")
             seen[name] = clause
-            if name in ("speed_ptp", "acc_ptp") and not ptp:
-                alt = name.replace("_ptp", "")
-                self.error(clause.name_span, f"clause '{name}' applies to ptp moves, not {node.kind}",
-                           f"use '{alt}' (mm/s{'^2' if alt == 'acc' else ''}) for a {node.kind} move")
-            if name in ("speed", "acc") and ptp:
-                self.error(clause.name_span, f"clause '{name}' applies to lin and circ moves, not ptp",
-                           f"use '{name}_ptp' (a fraction of each axis's maximum) for a ptp move")
-            if name == "act_rob":
-                self.act_rob(clause)
+            applies = kind in entry.motions
+            if not applies:
+                problem = entry.wrong_motion(kind)
+                self.error(clause.name_span, problem.message, problem.hint)
+            if entry.type == "robot":
+                self.act_rob(clause, entry, kind)
                 continue
-            if self.expect(clause.value, NUMERIC, f"clause '{name}'") == ERROR:
+            if self.expect(clause.value, NUMERIC, f"clause '{name}'") == ERROR or not applies:
                 continue
             v = self.value_of(clause.value)
             if v is _NO_VALUE:
                 continue
-            if name in ("speed_ptp", "acc_ptp") and not 0 < v <= 1:
-                self.error(clause.value.span, f"{name} = {v:g} is out of range: expected 0 < {name} <= 1",
-                           "it is a fraction of each axis's maximum")
-            elif name == "speed" and not 0 < v <= spec.max_speed:
-                self.error(clause.value.span, f"speed = {v:g} mm/s is out of range: expected "
-                                              f"0 < speed <= {spec.max_speed:g} (the robot's maximum)")
-            elif name == "acc" and not 0 < v <= spec.max_acceleration:
-                self.error(clause.value.span, f"acc = {v:g} mm/s^2 is out of range: expected "
-                                              f"0 < acc <= {spec.max_acceleration:g} (the robot's maximum)")
-            elif name == "approx" and v < 0:
-                self.error(clause.value.span, f"approx = {v:g} is out of range: expected approx >= 0")
-            elif name == "approx" and ptp and v > 1:
-                self.error(clause.value.span, f"approx = {v:g} is out of range for a ptp move: "
-                                              "expected a fraction 0..1 of the move")
+            _, problem = entry.check(kind, v, self.spec)
+            if problem is not None:
+                self.error(clause.value.span, problem.message, problem.hint)
+        for entry in CLAUSE_TABLE:  # a default the motion does not take (approx = 5 mm for a ptp move)
+            if entry.name not in seen and kind in entry.motions and entry.type == "real":
+                _, problem = entry.check(kind, entry.default_value(self.spec), self.spec, default=True)
+                if problem is not None:
+                    self.error(node.span, problem.message, problem.hint)
         if "act_rob" not in seen and self.spec.name not in self.robots:
             self.robots.append(self.spec.name)
 
-    def act_rob(self, clause: ast.Clause) -> None:
-        if self.expect(clause.value, STRING, "clause 'act_rob'") == ERROR:
+    def act_rob(self, clause: ast.Clause, entry: Clause, kind: str) -> None:
+        if self.expect(clause.value, STRING, f"clause '{entry.name}'") == ERROR:
             return
         robot = self.value_of(clause.value)
         if robot is _NO_VALUE:
-            self.error(clause.value.span, "act_rob must be a robot's name known at compile time")
+            self.error(clause.value.span, f"{entry.name} must be a robot's name known at compile time")
             return
-        if robot != self.spec.name:
-            guess = did_you_mean(robot, [self.spec.name], cutoff=0.5)
-            self.error(clause.value.span, f"act_rob names robot \"{robot}\", but the system specification "
-                                          f"describes \"{self.spec.name}\"",
-                       f"did you mean \"{guess}\"?" if guess else None)
+        _, problem = entry.check(kind, robot, self.spec)
+        if problem is not None:
+            self.error(clause.value.span, problem.message, problem.hint)
             return
         if robot not in self.robots:
             self.robots.append(robot)

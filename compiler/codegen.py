@@ -11,7 +11,8 @@ from pathlib import Path
 from . import ast
 from .check import (BOOL, INTEGER, JOINT, ORIENTATION, POSE, POSITION, REAL, STRING, ArrayT,
                     CheckedProgram, Symbol)
-from .objcode import BUILTIN_NAMES, CLAUSES, FIELDS, OP, ProcInfo, Program
+from .clauses import CLAUSES as CLAUSE_TABLE
+from .objcode import BUILTIN_NAMES, FIELDS, OP, ProcInfo, Program
 from .values import Joint, Pose, Position, Rpy
 
 _BINARY_OPS = {"+": OP.ADD, "-": OP.SUB, "*": OP.MUL, "/": OP.DIV, "div": OP.IDIV, "mod": OP.MOD,
@@ -222,10 +223,10 @@ class CodeGen:
             self.value(target)
         given = {c.name: c for c in node.clauses}
         mask = 0
-        for bit, name in enumerate(CLAUSES):
-            if name in given:
-                mask |= 1 << bit
-                self.value(given[name].value, None if name == "act_rob" else REAL)
+        for clause in CLAUSE_TABLE:  # in bit order
+            if clause.name in given:
+                mask |= 1 << clause.bit
+                self.value(given[clause.name].value, REAL if clause.type == "real" else None)
         self.emit({"ptp": OP.MOVE_PTP, "lin": OP.MOVE_LIN, "circ": OP.MOVE_CIRC}[node.kind], mask)
 
     def s_If(self, node: ast.If) -> None:

@@ -18,6 +18,8 @@ from typing import Callable
 
 import msgpack
 
+from .clauses import MOTIONS as _MOTIONS
+from .clauses import NAMES as _CLAUSE_NAMES
 from .semantics import MAX_STRING_LENGTH as _MAX_STRING_LENGTH
 from .values import from_plain, to_plain
 
@@ -73,10 +75,11 @@ BUILTIN_NAMES = tuple(BUILTINS)
 
 FIELDS = ("x", "y", "z")
 
-#: Move clauses, in bit order; the values of the present ones are pushed in this order.
-CLAUSES = ("speed_ptp", "acc_ptp", "speed", "acc", "approx", "act_rob")
+#: Move clauses, in bit order; the values of the present ones are pushed in this order
+#: (declared, with their motions and ranges, in compiler.clauses).
+CLAUSES = _CLAUSE_NAMES
 
-MOTION_KINDS = ("ptp", "lin", "circ")
+MOTION_KINDS = _MOTIONS
 
 
 def clause_names(mask: int) -> list[str]:

@@ -2,7 +2,7 @@
 
 Every table in the document comes from the object-code module itself: the instruction
 table (:data:`~compiler.objcode.INSTRUCTIONS`), the operand kinds, the built-in
-function numbers, the clause bits and the field numbers. Stack effects that depend on
+function numbers, the clause bits (from :mod:`compiler.clauses`) and the field numbers. Stack effects that depend on
 operands are worked out by evaluating each instruction's ``pops`` function over sample
 operands, so the document cannot drift from the code. The examples (the body of a small
 program, the constant encodings) are produced by encoding real values.
@@ -25,6 +25,7 @@ from pathlib import Path
 import msgpack
 
 from . import objcode
+from .clauses import CLAUSES as CLAUSE_TABLE
 from .objcode import (
     BUILTIN_NAMES,
     BUILTINS,
@@ -370,10 +371,15 @@ def _section_tables() -> list[str]:
         "",
         f"The `clauses` operand of {', '.join(f'`MOVE_{k.upper()}`' for k in MOTION_KINDS)} is a bit "
         "mask of the clauses the move gives. The values of the given clauses are on the stack "
-        "above the target(s), in bit order (lowest bit deepest): `act_rob` as a string, the "
-        "others as reals. A clause that is not given takes the system specification's default.",
+        "above the target(s), in bit order (lowest bit deepest). A clause that is not given takes "
+        "the system specification's default. The runtime checks every move's clauses as the "
+        "compiler does (`compiler/clauses.py`, the clause table this list comes from; ranges in "
+        "docs/language.md): a clause on a motion it does not apply to, a value of another type or "
+        "out of range stops the program at the move's line.",
         "",
-        *_table(["bit", "mask", "clause"], [[bit, 1 << bit, f"`{name}`"] for bit, name in enumerate(CLAUSES)]),
+        *_table(["bit", "mask", "clause", "applies to", "value"],
+                [[c.bit, 1 << c.bit, f"`{c.name}`", ", ".join(f"`MOVE_{k.upper()}`" for k in c.motions),
+                  "string" if c.type == "robot" else "real"] for c in CLAUSE_TABLE]),
         "",
         "## Fields",
         "",
@@ -476,8 +482,9 @@ def render() -> str:
         "",
         "The contract between the offline compiler (`irl compile`) and the runtime. Everything "
         "below is generated from `compiler/objcode.py` (the instruction table `INSTRUCTIONS`, "
-        "`OPERAND_KINDS`, `BUILTINS`, `CLAUSES`, `FIELDS`) by `compiler/objdoc.py`; after changing "
-        f"the table, run `{WRITE_COMMAND}` (`{CHECK_COMMAND}` and `tests/test_docs.py` fail while "
+        "`OPERAND_KINDS`, `BUILTINS`, `FIELDS`) and `compiler/clauses.py` (the clause table "
+        f"`CLAUSES`) by `compiler/objdoc.py`; after changing a table, run `{WRITE_COMMAND}` "
+        f"(`{CHECK_COMMAND}` and `tests/test_docs.py` fail while "
         "this file is stale). `irl dis FILE.irlo` (or `irl dis FILE.irl`) prints a program's "
         "code in the same terms.",
         "",

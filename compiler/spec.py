@@ -18,7 +18,7 @@ import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from . import params
+from . import clauses, params
 from .diagnostics import did_you_mean
 
 
@@ -73,16 +73,34 @@ class Axis:
     def unit(self) -> str:
         return "deg" if self.kind == "revolute" else "mm"
 
+    def target_problem(self, value: float) -> str | None:
+        """None when a move's target ``value`` lies within min..max, else what the checker
+        (a constant target) and the trajectory generator (any other) say."""
+        if self.min <= value <= self.max:
+            return None
+        return (f"axis {self.name} target {value:g} {self.unit} is outside its limits "
+                f"{self.min:g}..{self.max:g} {self.unit}")
+
 
 @dataclass(frozen=True)
 class Defaults:
-    """Values of the move clauses that a program leaves out."""
+    """Values of the move clauses that a program leaves out (``[defaults]``; the built-in
+    ones when it leaves them out are the clause table's, compiler.clauses)."""
 
-    speed_ptp: float = 0.5
-    acc_ptp: float = 0.5
-    speed: float = 250.0  # mm/s
-    acc: float = 1000.0  # mm/s^2
-    approx: float = 0.0
+    speed_ptp: float
+    acc_ptp: float
+    speed: float  # mm/s
+    acc: float  # mm/s^2
+    approx: float  # a fraction after ptp, mm after lin and circ
+
+
+@dataclass(frozen=True)
+class _Limits:
+    """The robot's tool limits, which bound the ``speed`` and ``acc`` clauses (read by
+    :mod:`compiler.clauses` like a :class:`Spec`'s) while the specification is loaded."""
+
+    max_speed: float
+    max_acceleration: float
 
 
 @dataclass(frozen=True)
@@ -258,22 +276,18 @@ def parse_spec(text: str, file: str = "<spec>") -> Spec:
     if "additional" in groups and "main" in groups[groups.index("additional"):]:
         raise SpecError(file, "axis", "main axes must come before additional axes")
 
-    defaults = Defaults(speed=min(250.0, max_speed), acc=min(1000.0, max_acc))
-    if "defaults" in data:
-        d = _Reader(file, "defaults", top.get("defaults", "table"))
-        fraction = lambda v: 0 < v <= 1  # noqa: E731
-        defaults = Defaults(
-            d.get("speed_ptp", "number", 0.5, check=fraction, expect="a fraction 0 < x <= 1"),
-            d.get("acc_ptp", "number", 0.5, check=fraction, expect="a fraction 0 < x <= 1"),
-            d.get("speed", "number", min(250.0, max_speed), check=lambda v: 0 < v <= max_speed,
-                  expect=f"a speed 0 < x <= robot.max_speed ({max_speed:g} mm/s)"),
-            d.get("acc", "number", min(1000.0, max_acc), check=lambda v: 0 < v <= max_acc,
-                  expect=f"an acceleration 0 < x <= robot.max_acceleration ({max_acc:g} mm/s^2)"),
-            d.get("approx", "number", 0.0, check=lambda v: v >= 0, expect="a number >= 0"),
-        )
-        d.finish()
-    else:
-        top.get("defaults", "table", None)
+    # [defaults]: what a move that leaves a clause out takes, checked as the clause table
+    # (compiler.clauses) says; a bound from [robot] caps the built-in default.
+    limits = _Limits(max_speed, max_acc)
+    d = _Reader(file, "defaults", top.get("defaults", "table", {}))
+    values = {}
+    for clause in clauses.CLAUSES:
+        if clause.default is not None:
+            values[clause.default] = d.get(clause.default, "number", clause.builtin_default(limits),
+                                           check=lambda v, c=clause: c.accepts_default(v, limits),
+                                           expect=clause.default_expect(limits))
+    d.finish()
+    defaults = Defaults(**values)
 
     inputs = outputs = 16
     if "io" in data:

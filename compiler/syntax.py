@@ -13,11 +13,12 @@ from lark.exceptions import UnexpectedCharacters, UnexpectedInput, UnexpectedTok
 from grammar import make_parser
 
 from . import ast
+from .clauses import NAMES as CLAUSE_NAMES
 from .diagnostics import CompileError, Diagnostic, did_you_mean
 from .semantics import INT_MAX
 
 #: Clause names that a move accepts (also used for "did you mean" on syntax errors).
-CLAUSES = ("speed_ptp", "acc_ptp", "speed", "acc", "approx", "act_rob")
+CLAUSES = CLAUSE_NAMES
 
 MAX_SYNTAX_ERRORS = 20
 

@@ -2,7 +2,8 @@
 
 Each table lives between ``<!-- generated: NAME -->`` and ``<!-- end generated -->`` in a
 page of ``docs/``, and is rendered from its one declaration: the parameters from
-:mod:`compiler.params`, the stop categories from :data:`runtime.components.safety.CATEGORIES`.
+:mod:`compiler.params`, the move clauses and the specification's ``[defaults]`` from
+:mod:`compiler.clauses`, the stop categories from :data:`runtime.components.safety.CATEGORIES`.
 A test fails while a page is stale. Not real-time; imports nothing the loop needs.
 """
 from __future__ import annotations
@@ -17,11 +18,13 @@ _BLOCK = re.compile(r"(<!-- generated: (?P<name>[a-z_]+) -->\n)(?P<body>.*?)(<!-
 
 
 def tables() -> dict[str, str]:
+    from compiler import clauses
     from compiler.params import COMPONENTS, markdown
 
     from .components.safety import categories_markdown
 
-    return {"params": markdown(), "config": markdown(COMPONENTS), "categories": categories_markdown()}
+    return {"params": markdown(), "config": markdown(COMPONENTS), "categories": categories_markdown(),
+            "clauses": clauses.markdown(), "defaults": clauses.defaults_markdown()}
 
 
 def render(text: str) -> str:

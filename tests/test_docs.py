@@ -254,12 +254,13 @@ def test_protocol_page_describes_every_operation_and_error_code():
 
 
 def test_generated_tables_are_up_to_date():
-    """docs/safety.md and docs/runtime.md hold tables rendered from their one declaration
-    (compiler.params, runtime.components.safety.CATEGORIES)."""
+    """docs/safety.md, docs/runtime.md and docs/language.md hold tables rendered from their
+    one declaration (compiler.params, runtime.components.safety.CATEGORIES,
+    compiler.clauses)."""
     from runtime import docgen
 
     pages = docgen.pages()
-    assert {p.name for p in pages} >= {"safety.md", "runtime.md"}
+    assert {p.name for p in pages} >= {"safety.md", "runtime.md", "language.md"}
     for page in pages:
         text = page.read_text(encoding="utf-8")
         assert docgen.render(text) == text, f"{page.name} is stale: python -m runtime.docgen --write"
@@ -271,6 +272,10 @@ def test_generated_tables_are_up_to_date():
         assert f"`{param.key}`" in text, param.key
     for cause in CATEGORIES:
         assert f"| {cause} |" in text, cause
+    language = _language_md()
+    assert "<!-- generated: clauses -->" in language and "<!-- generated: defaults -->" in language
+    for name in CLAUSES:
+        assert f"| `{name}` |" in language, name
 
 
 def test_docgen_check_and_write(tmp_path, monkeypatch):

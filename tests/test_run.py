@@ -394,6 +394,7 @@ def test_run_time_joint_target_outside_an_axis_limit_faults_naming_the_axis(work
     code, s, err = run_json(path)
     assert code == 1
     assert "A2" in s["fault"] and "line 8" in s["fault"], s["fault"]
+    assert s["fault"].endswith(AXES[1].target_problem(100.0))  # the checker's message for a constant target
     assert names(s)[-1] == "Stop Robot"
     assert s["moves"] == []
     assert abs(s["final_position"][1]) < 0.1  # A2 never went towards 100 deg

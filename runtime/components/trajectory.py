@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import time
 
+from compiler.clauses import MoveClauses, validate_move_clauses
 from compiler.objcode import Program
 from compiler.params import component_params
 from compiler.spec import DEFAULT_LOOKAHEAD
@@ -258,11 +259,9 @@ class TrajectoryGenerator(Component):
     def move(self, kind: str, targets: tuple, clauses: dict, line: int) -> str | None:
         """The VM's move instruction: check the move, hand it to the motion queue; the
         problem of a move that cannot be made (the program stops at its line)."""
-        robot = clauses.get("act_rob")
-        if robot is not None and robot != self.spec.name:
-            return f"act_rob names robot {robot!r}, but this runtime drives {self.spec.name!r}"
-        defaults = self.spec.defaults
-        approx = float(clauses.get("approx", defaults.approx))
+        checked = validate_move_clauses(kind, clauses, self.spec)  # the clause table's rules and defaults
+        if isinstance(checked, str):
+            return checked
         if kind == "ptp":
             target = targets[0]
             if isinstance(target, Pose):
@@ -270,15 +269,9 @@ class TrajectoryGenerator(Component):
                     return self.planner.kinematics_problem
             elif not isinstance(target, Joint) or len(target.axes) != self.n:
                 return f"the target must be a joint value with {self.n} axes"
-            speed = clauses.get("speed_ptp", defaults.speed_ptp)
-            acc = clauses.get("acc_ptp", defaults.acc_ptp)
-            if not (0 < speed <= 1 and 0 < acc <= 1):
-                return f"speed_ptp and acc_ptp must be fractions in (0, 1], got {speed:g} and {acc:g}"
-            if not 0.0 <= approx <= 1.0:
-                return f"approx for a ptp move must be a fraction in [0, 1], got {approx:g}"
-            request = MoveRequest(kind, (target,), speed, acc, approx, line)
+            request = MoveRequest(kind, (target,), checked.speed, checked.acc, checked.approx, line)
         else:
-            request, problem = self._cartesian_request(kind, targets, clauses, line, approx)
+            request, problem = self._cartesian_request(kind, targets, checked, line)
             if problem is not None:
                 return problem
         return self.motion.add(request)
@@ -290,7 +283,7 @@ class TrajectoryGenerator(Component):
             return self.motion_done()
         return self.motion.queued < self.lookahead
 
-    def _cartesian_request(self, kind: str, targets: tuple, clauses: dict, line: int, approx: float):
+    def _cartesian_request(self, kind: str, targets: tuple, clauses: MoveClauses, line: int):
         """``move lin TARGET`` / ``move circ VIA, TARGET``: the path is checked whole
         against the kinematics, the axis limits and velocities before it starts (a refused
         move leaves the robot where it is, and the program stops at its line with the
@@ -299,16 +292,7 @@ class TrajectoryGenerator(Component):
             return None, self.planner.kinematics_problem
         if not all(isinstance(target, (Joint, Pose)) for target in targets):
             return None, f"a {kind} target must be a pose or a joint value"
-        defaults = self.spec.defaults
-        speed = float(clauses.get("speed", defaults.speed))
-        acc = float(clauses.get("acc", defaults.acc))
-        if not (0 < speed <= self.spec.max_speed and 0 < acc <= self.spec.max_acceleration):
-            return None, (f"speed {speed:g} mm/s and acc {acc:g} mm/s^2 must be positive and within the robot's "
-                          f"max_speed {self.spec.max_speed:g} mm/s and max_acceleration "
-                          f"{self.spec.max_acceleration:g} mm/s^2")
-        if approx < 0.0:
-            return None, f"approx must be a distance >= 0 mm, got {approx:g}"
-        return MoveRequest(kind, tuple(targets), speed, acc, approx, line), None
+        return MoveRequest(kind, tuple(targets), clauses.speed, clauses.acc, clauses.approx, line), None
 
     def motion_done(self) -> bool:
         """Every move handed over has ended (and no stop is under way)."""

@@ -146,9 +146,9 @@ class MovePlanner:
                 return None, problem
         values = target.axes if isinstance(target, Joint) else tuple(target)
         for axis, v in zip(self.axes, values):
-            if not axis.min <= v <= axis.max:
-                return None, (f"axis {axis.name} target {v:g} {axis.unit} is outside its limits "
-                              f"{axis.min:g}..{axis.max:g} {axis.unit}")
+            problem = axis.target_problem(v)
+            if problem is not None:
+                return None, problem
         speed, acc = request.speed, request.acc
         vmax, amax = scaled_limits(tuple(a.max_velocity for a in self.axes),
                                    tuple(a.max_acceleration for a in self.axes), speed, acc)

@@ -11,7 +11,7 @@ import math
 from pathlib import Path
 
 import pytest
-from hypothesis import HealthCheck, settings
+from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from hypothesis.stateful import RuleBasedStateMachine, invariant, precondition, rule
 
@@ -294,3 +294,90 @@ class QueueMachine(RuleBasedStateMachine):
 QueueMachine.TestCase.settings = settings(max_examples=100, stateful_step_count=25, deadline=None, derandomize=True,
                                           database=None, suppress_health_check=list(HealthCheck))
 test_random_commands_keep_the_limits_and_end_at_rest = QueueMachine.TestCase
+
+
+# ----------------------------------------------------------------------------- programs
+
+
+@st.composite
+def programs(draw):
+    """A start (half of them with the wrist 2-8 deg from its singularity) and up to five
+    moves: ptp, lin and circ, random speeds, accelerations, tool orientations and approx."""
+    near_wrist = draw(st.booleans())
+    q0 = (draw(st.floats(-60, 60)), draw(st.floats(-50, 0)), draw(st.floats(10, 80)), draw(st.floats(-90, 90)),
+          draw(st.floats(2, 8)) if near_wrist else draw(st.floats(20, 90)), draw(st.floats(-90, 90)))
+    x, y, z, r, p, w = KIN.forward(q0)
+    moves = []
+    for line in range(1, draw(st.integers(1, 5)) + 1):
+        kind = draw(st.sampled_from(["ptp", "lin", "circ"]))
+        if kind == "ptp":
+            target = tuple(c + draw(st.floats(-20, 20)) for c in q0)
+            moves.append(MoveRequest("ptp", (Joint(target),), draw(st.floats(0.05, 1.0)), draw(st.floats(0.05, 1.0)),
+                                     draw(st.sampled_from([0.0, 0.5, 1.0])), line))
+            continue
+        d = [draw(st.floats(-150, 150)) for _ in range(3)]
+        end = (x + d[0], y + d[1], z + d[2], r + draw(st.floats(-20, 20)), p + draw(st.floats(-10, 10)),
+               w + draw(st.floats(-20, 20)))
+        targets = (end,)
+        if kind == "circ":
+            targets = ((x + d[0] / 2 + draw(st.floats(-60, 60)), y + d[1] / 2 + draw(st.floats(-60, 60)),
+                        z + d[2] / 2, r, p, w), end)
+        moves.append(MoveRequest(kind, targets, draw(st.floats(20.0, 1000.0)), draw(st.floats(200.0, 8000.0)),
+                                 draw(st.sampled_from([0.0, 5.0, 40.0])), line))
+    return q0, moves
+
+
+def run_program(q0, moves) -> tuple[list, list]:
+    """The setpoints of a program's moves (the ones before the first that cannot be
+    planned), and for each the requests whose segments run at it."""
+    queue = MotionQueue(MovePlanner(SPEC.axes, SPEC.main_axes, "jerk", KIN), SPEC.axes)
+    queue.start(q0, SETPOINT_PERIOD)
+    for move in moves:
+        if queue.add(move) is not None:
+            break
+    positions, running, now = [queue.positions], [()], 0.0
+    while not queue.done():
+        now += SETPOINT_PERIOD
+        queue.sample(now)
+        positions.append(queue.positions)
+        running.append(tuple(s.request for s in list(queue._segments)[:2]
+                             if s.start is not None and queue.t_move > s.start + 1e-9))
+    return positions, running
+
+
+LIMITS = ([a.max_velocity for a in SPEC.axes], [a.max_acceleration for a in SPEC.axes],
+          [a.max_jerk for a in SPEC.axes])
+
+
+def difference_ratios(positions, h: float) -> list[float]:
+    """The largest first, second and third difference of ``positions`` (every ``h`` s)
+    against each axis's velocity, acceleration and jerk limit."""
+    worst = [0.0, 0.0, 0.0]
+    for k in range(1, len(positions)):
+        for i in range(len(positions[k])):
+            diffs = (positions[k][i] - positions[k - 1][i],
+                     positions[k][i] - 2 * positions[k - 1][i] + positions[k - 2][i] if k >= 2 else 0.0,
+                     positions[k][i] - 3 * positions[k - 1][i] + 3 * positions[k - 2][i] - positions[k - 3][i]
+                     if k >= 3 else 0.0)
+            for order, (d, limit) in enumerate(zip(diffs, LIMITS)):
+                worst[order] = max(worst[order], abs(d) / h ** (order + 1) / limit[i])
+    return worst
+
+
+@settings(max_examples=60, deadline=None, derandomize=True, database=None, suppress_health_check=list(HealthCheck))
+@given(programs())
+def test_random_programs_keep_every_limit_and_the_programmed_speed(program):
+    """Issue 14: random programs mixing ptp, lin, circ and approx, near the wrist singularity
+    too: every 5 ms setpoint within every axis's velocity, acceleration and jerk limit, and
+    the tool never faster than the programmed speed (in a blend of two Cartesian moves, the
+    larger of the two)."""
+    positions, running = run_program(*program)
+    velocity, acceleration, jerk = difference_ratios(positions, SETPOINT_PERIOD)
+    assert velocity <= 1.0 + 1e-6 and acceleration <= 1.0 + 1e-6 and jerk <= 1.0 + 1e-6, (velocity, acceleration,
+                                                                                            jerk)
+    for k in range(1, len(positions)):
+        now = running[k]
+        if not now or any(r.kind == "ptp" for r in now + running[k - 1]):
+            continue
+        speed = math.dist(KIN.forward(positions[k][:6])[:3], KIN.forward(positions[k - 1][:6])[:3]) / SETPOINT_PERIOD
+        assert speed <= max(r.speed for r in now + running[k - 1]) * (1.0 + 1e-6)

@@ -178,6 +178,78 @@ class JointStream(Trajectory):
 JOINT_LIMIT_SHARE = 0.9
 
 
+def _ratios(q: np.ndarray, h: float, limits: Sequence[Sequence[float]]) -> list[float]:
+    """The largest ratio to its limit of the first, second and third differences of the
+    joint samples ``q`` (every ``h`` s), over all axes."""
+    out = []
+    derivative = q
+    for limit in limits:
+        derivative = np.diff(derivative, axis=0) / h if len(derivative) > 1 else derivative[:0]
+        out.append(float(np.max(np.abs(derivative) / np.asarray(limit, dtype=float))) if len(derivative) else 0.0)
+    return out
+
+
+#: Where the check's samples show a joint above this share of a limit, the setpoints
+#: around are solved and checked too (elsewhere the samples' differences are far enough
+#: from the limits that the setpoints', over windows of the same size, are too).
+HOT_SHARE = 0.5
+
+
+def setpoint_ratios(checked: CheckedPath, limits: Sequence[Sequence[float]], period: float) -> list[float]:
+    """The largest ratio of any joint's velocity, acceleration and jerk to ``limits`` at
+    the setpoints of the move (its joints every ``period`` s from the start, one inverse
+    kinematics each, as the stream makes them; the end from ``duration`` on; at rest
+    before and after): first, second and third differences, what the drives see. Solved
+    where the check's samples come above HOT_SHARE of a limit (the hot stretches), and 0
+    elsewhere."""
+    times, joints = checked.times, checked.joints
+    n = ceil(checked.duration / period - 1e-9)
+    if len(times) < 2 or n < 1:
+        return [0.0, 0.0, 0.0]
+    q = np.asarray(joints, dtype=float)
+    dt = times[1] - times[0]
+    hot = np.zeros(len(q), dtype=bool)
+    derivative = q
+    for limit in limits:
+        derivative = np.diff(derivative, axis=0) / dt
+        if not len(derivative):
+            break
+        over = np.max(np.abs(derivative) / np.asarray(limit, dtype=float), axis=1) > HOT_SHARE
+        hot[:len(over)] |= over
+        hot[len(hot) - len(over):] |= over
+    steps = set()
+    for i in np.flatnonzero(hot):  # the setpoints within four of a hot sample
+        c = int(times[i] / period)
+        steps.update(range(max(c - 4, -3), min(c + 6, n + 4)))
+    worst = [0.0, 0.0, 0.0]
+    run: list = []
+    for step in sorted(steps) + [None]:
+        if step is None or (run and step != run[-1][0] + 1):
+            if len(run) > 1:
+                ratios = _ratios(np.asarray([r[1] for r in run], dtype=float), period, limits)
+                worst = [max(a, b) for a, b in zip(worst, ratios)]
+            run = []
+        if step is None:
+            break
+        if step <= 0:
+            q_step = checked.start_joints
+        elif step >= n:
+            q_step = checked.end_joints
+        else:
+            t = step * period
+            q_step = checked.joints_at(t, run[-1][1] if run else checked.seed(t))
+        run.append((step, q_step))
+    return worst
+
+
+def _retimed(checked: CheckedPath, move: CartesianMove, k: float) -> CheckedPath:
+    """``checked`` for ``move``: the same path run k times slower (the same joints, at
+    their times / k; no inverse kinematics)."""
+    return CheckedPath(move, checked.kinematics, checked.start_joints, tuple([t / k for t in checked.times]),
+                       checked.fractions, checked.joints, tuple([v * k for v in checked.peak_velocities]),
+                       checked.min_margins)
+
+
 def joint_limit_scale(checked: CheckedPath, limits: Sequence[Sequence[float]],
                       share: float = JOINT_LIMIT_SHARE) -> float:
     """The largest k <= 1 such that the move of ``checked`` run k times slower in time
@@ -188,18 +260,20 @@ def joint_limit_scale(checked: CheckedPath, limits: Sequence[Sequence[float]],
     times, joints = checked.times, checked.joints
     if len(times) < 2 or not checked.duration > 0.0:
         return 1.0
-    dt = times[1] - times[0]
-    q = np.asarray(joints, dtype=float)
+    return _scale(_ratios(np.asarray(joints, dtype=float), times[1] - times[0], limits), share)
+
+
+def _scale(ratios: Sequence[float], share: float) -> float:
+    """The k <= 1 that brings velocity, acceleration and jerk ``ratios`` within ``share``."""
     k = 1.0
-    derivative = q
-    for order, limit in enumerate(limits, start=1):
-        if len(derivative) < 2:
-            break
-        derivative = np.diff(derivative, axis=0) / dt
-        ratio = float(np.max(np.abs(derivative) / np.asarray(limit, dtype=float)))
+    for order, ratio in enumerate(ratios, start=1):
         if ratio > share:
             k = min(k, (share / ratio) ** (1.0 / order))
     return k
+
+
+#: Times a lin/circ move is timed slower again when its setpoints still break a limit.
+RETIMINGS = 4
 
 
 @dataclass(frozen=True)
@@ -266,9 +340,14 @@ def plan_cartesian(inp: CartesianInput) -> tuple[Result, JointStream | None, str
             fine = dict(check, min_samples=max(check.get("min_samples", MIN_SAMPLES), ceil(move.duration / period)))
             checked = check_path(move, kinematics, main, axis_limits, check_velocity=False, **fine)
             k = joint_limit_scale(checked, limits)
-            if k < 1.0:
-                move = CartesianMove(path, move.speed * k, move.acc * k * k, move.jerk * k * k * k)
-                checked = check_path(move, kinematics, main, axis_limits, **check)
+            for _ in range(RETIMINGS):  # until the setpoints themselves keep every limit
+                if k < 1.0:  # the same path, k times slower: the same joints at times / k
+                    move = CartesianMove(path, move.speed * k, move.acc * k * k, move.jerk * k * k * k)
+                    checked = _retimed(checked, move, k)
+                ratios = setpoint_ratios(checked, limits, period)
+                if max(ratios) <= 1.0:
+                    break
+                k = _scale(ratios, JOINT_LIMIT_SHARE)
         return Result.WORKING, JointStream(checked, period, additional), ""
     except (PathError, KinematicsError) as exc:
         return Result.ERROR_PATH, None, str(exc)

@@ -28,12 +28,13 @@ Imports nothing from Lark, NumPy or ZeroMQ.
 """
 from __future__ import annotations
 
+import dataclasses
 import difflib
 import math
 from dataclasses import dataclass
 
-__all__ = ["COMPONENTS", "PARAMS", "SPEC_SECTIONS", "Param", "ParamError", "component_params", "describe",
-           "markdown", "section_params", "spec_section"]
+__all__ = ["COMPONENTS", "PARAMS", "SETTINGS", "SPEC_SECTIONS", "Param", "ParamError", "component_params",
+           "describe", "markdown", "section_params", "settings", "spec_section"]
 
 #: The specification's tables whose keys are parameters.
 SPEC_SECTIONS = ("controller", "simulation", "safety")
@@ -298,6 +299,37 @@ def spec_section(section: str) -> dict[str, Param]:
         if param.spec_key is not None and param.spec_key.split(".", 1)[0] == section:
             result[param.spec_key.split(".", 1)[1]] = param
     return result
+
+
+#: The Python type of each kind of parameter (the settings' field types).
+_TYPES = {"number": float, "integer": int, "choice": str, "period": float, "columns": list}
+
+
+def _settings_class(section: str) -> type:
+    """The typed settings of a specification table: a frozen dataclass with one field per
+    parameter the table accepts (:func:`spec_section`), its type from the parameter's kind
+    and its documentation from the table."""
+    accepted = spec_section(section)
+    cls = dataclasses.make_dataclass(
+        f"{section.title()}Settings", [(name, _TYPES[param.kind]) for name, param in accepted.items()],
+        frozen=True, slots=True)
+    cls.__module__ = __name__
+    cls.__doc__ = (f"The specification's [{section}], validated (compiler.params); one attribute per "
+                   "parameter:\n\n" + "\n".join(f"* ``{name}`` ({p.unit or p.kind}) -- {p.doc}"
+                                                   for name, p in accepted.items()))
+    return cls
+
+
+#: The typed settings of each specification table: ``spec.controller.kp``,
+#: ``spec.simulation.brake_time``, ``spec.safety.stop_time_margin``.
+SETTINGS: dict[str, type] = {section: _settings_class(section) for section in SPEC_SECTIONS}
+ControllerSettings, SimulationSettings, SafetySettings = (SETTINGS[s] for s in ("controller", "simulation", "safety"))
+
+
+def settings(section: str, values: dict):
+    """The typed settings of the table ``section`` from its validated ``values`` (every
+    parameter present; see :func:`spec_section`)."""
+    return SETTINGS[section](**values)
 
 
 def check_spec_rules(values: dict[str, dict[str, object]]) -> tuple[str, str] | None:

@@ -15,7 +15,7 @@ import math
 import os
 import stat
 import tomllib
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 
 from . import clauses, params
@@ -114,11 +114,11 @@ class Spec:
     inputs: int
     outputs: int
     tool: tuple[float, ...]  # x, y, z (mm), roll, pitch, yaw (deg) of the TCP in the flange frame
-    controller: dict  # [controller], every key of compiler.params with its value (defaults filled in)
+    controller: object  # [controller], typed (compiler.params.SETTINGS): spec.controller.kp
     hash: str
     description: str = ""
-    simulation: dict = field(default_factory=dict)  # [simulation], likewise
-    safety: dict = field(default_factory=dict)  # [safety], likewise
+    simulation: object = None  # [simulation], typed likewise: spec.simulation.brake_time
+    safety: object = None  # [safety], typed likewise: spec.safety.stop_time_margin
 
     @property
     def main_axes(self) -> tuple[Axis, ...]:
@@ -314,8 +314,9 @@ def parse_spec(text: str, file: str = "<spec>") -> Spec:
     if broken is not None:
         raise SpecError(file, *broken)
     top.finish()
-    return Spec(name, file, axes, defaults, max_speed, max_acc, inputs, outputs, tool, tables["controller"],
-                _canonical_hash(data), description, tables["simulation"], tables["safety"])
+    typed = {section: params.settings(section, values) for section, values in tables.items()}
+    return Spec(name, file, axes, defaults, max_speed, max_acc, inputs, outputs, tool, typed["controller"],
+                _canonical_hash(data), description, typed["simulation"], typed["safety"])
 
 
 def _parameters(file: str, section: str, table: dict) -> dict:

@@ -65,7 +65,7 @@ class RobotSystem:
         self.executive = Executive(self.clock, TICK)
         identity = {"robot": spec.name, "spec_hash": spec.hash,
                     "backend": f"sim-seed-{options.seed}" if backend is None else "hardware"}
-        drift = spec.safety["max_drive_drift"]
+        drift = spec.safety.max_drive_drift
         self.memory = memory or RobotMemory()
         self.state_file = StateFile(options.state_dir, identity, tuple(drift for _ in spec.axes))
         self.state_file.start()
@@ -74,8 +74,8 @@ class RobotSystem:
         self.supervisor.reconfigure = self.apply_settings
         ex, robot = self.executive, self.robot
         controller = spec.controller  # validated (compiler.params), every key present
-        servo_policy = MissPolicy(controller["servo_miss_policy"], limit=controller["servo_miss_limit"],
-                                  window=controller["servo_miss_window"])
+        servo_policy = MissPolicy(controller.servo_miss_policy, limit=controller.servo_miss_limit,
+                                  window=controller.servo_miss_window)
         ex.add("robot.read", robot.read, TICK, "sense", component=robot)
         ex.add("supervisor", self.supervisor.step, TICK, "decide")
         ex.add("initialization", self.init.update, SETPOINT_PERIOD, "plan", component=self.init)

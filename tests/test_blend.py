@@ -524,7 +524,7 @@ def test_a_move_that_cannot_be_planned_stops_the_program_after_the_moves_before_
     assert moves[1]["actual_duration"] > 0.2
     assert tg.motion.positions == pytest.approx((0, -30, 30, 0, 45, 0), abs=1e-9)  # commanded: there
     # the fault stops the robot at once: it is there within the following error
-    limit = SPEC.controller["following_error_limit"]
+    limit = SPEC.controller.following_error_limit
     assert summary["final_position"] == pytest.approx((0, -30, 30, 0, 45, 0), abs=0.1 * limit)
     ended = records(bench)[-1].t_end
     (state,) = [s for s in summary["states"] if s["name"] == MOVE]

@@ -762,3 +762,25 @@ def test_valid_configurations_load_and_read_back(configs, data):
                 assert got.get(component, key) == value
                 if SCHEMA[component][key].type == "number":
                     assert type(got.get(component, key)) is float
+
+
+def test_the_specification_tables_are_typed_settings_read_from_the_parameter_schema():
+    """spec.controller, spec.simulation and spec.safety are frozen values with one typed
+    attribute per parameter of compiler.params (no dicts with defaults of their own)."""
+    import dataclasses
+
+    from compiler import params
+    from compiler.spec import load_spec
+
+    spec = load_spec(ROOT / "programs" / "lola15.spc")
+    types = {"number": float, "integer": int, "choice": str}
+    for section in params.SPEC_SECTIONS:
+        settings = getattr(spec, section)
+        accepted = params.spec_section(section)
+        fields = {f.name: f.type for f in dataclasses.fields(settings)}
+        assert fields == {name: types[p.kind] for name, p in accepted.items()}
+        for name, param in accepted.items():
+            assert isinstance(getattr(settings, name), types[param.kind])
+        with pytest.raises(dataclasses.FrozenInstanceError):
+            setattr(settings, next(iter(accepted)), 0)
+    assert spec.controller.profile == "jerk" and spec.controller.kp == 40.0

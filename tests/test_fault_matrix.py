@@ -260,7 +260,7 @@ def test_fault_matrix(phase, fault, axis):
     # no limit exceeded, whatever the outcome
     if watch.velocity_ratio > 1.0 + 1e-9:
         problems.append(f"velocity ratio {watch.velocity_ratio:.4f} ({watch.worst.get('velocity_ratio')})")
-    if watch.acceleration_ratio > SPEC.safety["acceleration_factor"] + 1e-9:
+    if watch.acceleration_ratio > SPEC.safety.acceleration_factor + 1e-9:
         problems.append(f"acceleration ratio {watch.acceleration_ratio:.4f} "
                         f"({watch.worst.get('acceleration_ratio')})")
     if watch.planned_velocity_ratio > 1.0 + 1e-9 or watch.planned_acceleration_ratio > 1.0 + 1e-6:

@@ -149,7 +149,7 @@ def test_abort_stops_then_ends_with_the_operator_named(system):
     summary = finish(system)
     assert summary["fault"] == "Move Robot: aborted by the operator at line 4"
     assert states(summary)[-1] == STOP
-    assert summary["max_following_error"] < SPEC.controller["following_error_limit"]
+    assert summary["max_following_error"] < SPEC.controller.following_error_limit
 
 
 def test_emergency_stop_applies_the_brakes_and_ends_the_cycle(system):

@@ -201,7 +201,7 @@ def test_paper_program_first_move_starts_at_the_start_position(paper):
 def test_paper_program_ends_at_its_last_target_within_the_limits(paper):
     s = paper["summary"]
     assert within_counts(s["final_position"], PAPER_TARGETS[-1]), s["final_position"]
-    limit = SPEC.controller["following_error_limit"]
+    limit = SPEC.controller.following_error_limit
     assert 0 < s["max_following_error"] < limit
 
 
@@ -652,7 +652,7 @@ def test_the_trapezoidal_profile_stays_available(tmp_path):
     (tmp_path / "lola15.spc").write_text(text, encoding="utf-8")
     shutil.copy(TEST_IRL, tmp_path / "test.irl")
     result = compile_file(tmp_path / "test.irl")
-    assert result.ok and result.spec.controller["profile"] == "trapezoid"
+    assert result.ok and result.spec.controller.profile == "trapezoid"
     summary = RobotSystem(result.spec, RunOptions()).run(result.program)
     assert summary["fault"] is None
     moves = summary["moves"]

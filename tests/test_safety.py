@@ -95,7 +95,7 @@ def safe_end(system: RobotSystem, watch: LimitWatch, summary: dict | None = None
     assert not watch.at_end_stop
     assert watch.beyond <= STOP_TOLERANCE, (watch.beyond, watch.worst)
     assert watch.velocity_ratio <= 1.0 + 1e-9, (watch.velocity_ratio, watch.worst)
-    assert watch.acceleration_ratio <= SPEC.safety["acceleration_factor"] + 1e-9, (watch.acceleration_ratio,
+    assert watch.acceleration_ratio <= SPEC.safety.acceleration_factor + 1e-9, (watch.acceleration_ratio,
                                                                                      watch.worst)
 
 
@@ -494,7 +494,7 @@ def test_a_bad_calibration_file_is_not_used_and_status_says_why(tmp_path):
     path = state / "calibration.json"
     good = json.loads(path.read_text(encoding="utf-8"))
     assert good["spec_hash"] == SPEC.hash and good["backend"] == "sim-seed-0" and good["format"] == 2
-    limit = SPEC.safety["max_drive_drift"]
+    limit = SPEC.safety.max_drive_drift
     drift = [1.0] * len(AXES)
     files = StateFile(state, {"robot": SPEC.name, "spec_hash": SPEC.hash, "backend": "sim-seed-0"},
                       (limit,) * len(AXES))

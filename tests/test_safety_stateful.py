@@ -117,7 +117,7 @@ AXES = [a.name for a in SPEC.axes]
 #: the stopping tolerance that docs/safety.md documents.
 STOP_TOLERANCE = 0.5
 #: What the safety supervisor enforces on a command's change from one tick to the next.
-ACCELERATION_LIMIT = SPEC.safety["acceleration_factor"]
+ACCELERATION_LIMIT = SPEC.safety.acceleration_factor
 
 #: Examples (sequences of rules): about 1.3 s each on this 2-core machine (50: about 66 s).
 EXAMPLES = int(os.environ.get("IRL_STATEFUL_EXAMPLES", "50"))

@@ -73,7 +73,7 @@ def test_power_up_position_is_clipped_into_the_limits():
 
 def test_lag_response_reaches_63_percent_after_one_time_constant():
     robot = released()
-    tau = SPEC.simulation["drive_time_constant"]
+    tau = SPEC.simulation.drive_time_constant
     ticks = round(tau / DT)
     v0 = robot.true_velocities
     command = (50.0,) * N
@@ -185,7 +185,7 @@ def test_brake_commands_cancel_each_other():
 
 def test_hard_stops_beyond_the_software_limits():
     robot = released()
-    margin = SPEC.simulation["end_stop_margin"]
+    margin = SPEC.simulation.end_stop_margin
     hi = tuple(a.max + margin for a in SPEC.axes)
     lo = tuple(a.min - margin for a in SPEC.axes)
     assert robot.end_stops == tuple(zip(lo, hi))

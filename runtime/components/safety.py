@@ -100,22 +100,22 @@ class SafetySupervisor(Component):
         self.axes = axes
         self.n = n = len(axes)
         safety = spec.safety  # validated (compiler.params), every key present
-        self.reaction = safety["stop_reaction_time"]
-        self.tolerance = safety["limit_tolerance"]
-        self.standstill_tolerance = safety["standstill_tolerance"]
-        self.stop_time_margin = safety["stop_time_margin"]
+        self.reaction = safety.stop_reaction_time
+        self.tolerance = safety.limit_tolerance
+        self.standstill_tolerance = safety.standstill_tolerance
+        self.stop_time_margin = safety.stop_time_margin
         self.deceleration = tuple(a.max_acceleration for a in axes)
         self.braking = tuple(1.0 / (2.0 * a.max_acceleration) for a in axes)
-        self.step_limits = tuple(safety["acceleration_factor"] * a.max_acceleration * tick for a in axes)
-        self.plausible = tuple(safety["plausibility_distance"] for _ in axes)
-        self.leak = 1.0 - tick / safety["plausibility_time"]
+        self.step_limits = tuple(safety.acceleration_factor * a.max_acceleration * tick for a in axes)
+        self.plausible = tuple(safety.plausibility_distance for _ in axes)
+        self.leak = 1.0 - tick / safety.plausibility_time
         self.counts_per_unit = tuple(a.counts_per_unit for a in axes)
-        self.homing_limits = tuple(safety["homing_velocity_factor"] * a.search_velocity for a in axes)
+        self.homing_limits = tuple(safety.homing_velocity_factor * a.search_velocity for a in axes)
         self._zeros = (0.0,) * n
         self.velocity_limit_scale = 1.0
         self.velocity_limits = tuple(a.max_velocity for a in axes)
         self.referenced = [False] * n  # per axis: its encoder's zero is known (limits apply)
-        self.following_error_limit = spec.controller["following_error_limit"]
+        self.following_error_limit = spec.controller.following_error_limit
         self._refresh_limits()
         self.fault: str | None = None
         self.largest_ratio = 0.0  # diagnostics: nothing; see the tests' own measurements

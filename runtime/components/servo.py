@@ -26,9 +26,9 @@ class ServoController(Component):
                  interpolator_factory, tick: float = TICK):
         super().__init__("servo", tick)
         controller = spec.controller  # validated (compiler.params), every key present
-        self.kp = controller["kp"]
-        self.ki = controller["ki"]
-        self.following_error_limit = controller["following_error_limit"]
+        self.kp = controller.kp
+        self.ki = controller.ki
+        self.following_error_limit = controller.following_error_limit
         self.spec = spec
         self.n = len(spec.axes)
         self.names = tuple(a.name for a in spec.axes)

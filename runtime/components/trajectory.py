@@ -50,13 +50,13 @@ MAX_LOG_LINES = 10_000
 def motion_profile(spec) -> str:
     """The PTP velocity profile the specification asks for (``[controller] profile``,
     checked when the specification was loaded)."""
-    return spec.controller["profile"]
+    return spec.controller.profile
 
 
 def lookahead_depth(spec) -> int:
     """How many moves may be planned ahead of the robot (``[controller] lookahead``,
     0..16, default 4; 0: the program waits for each move to end)."""
-    return spec.controller["lookahead"]
+    return spec.controller.lookahead
 
 
 def _build_kinematics(spec) -> tuple[Kinematics | None, str | None]:

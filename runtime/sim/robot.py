@@ -7,7 +7,7 @@ inductive homing sensors come out (what ``sens_pos`` and the Initialization Sequ
 made from). The model, per axis:
 
 * **Drive**: velocity-commanded, a first-order lag with time constant ``tau``
-  (``spec.simulation['drive_time_constant']``, default 0.005 s) and an unknown constant
+  (``spec.simulation.drive_time_constant``, default 0.005 s) and an unknown constant
   velocity offset ``b`` (seeded, uniform in +-``max_drive_offset`` deg/s, default 0.5)::
 
       dv/dt = (u - v) / tau,   u = clip(cmd) + b,   dx/dt = v
@@ -30,7 +30,7 @@ made from). The model, per axis:
   :meth:`SimRobot.enable_drives`.
 * **Brakes** (all axes together): engaged at power-up. While engaged the axis does not
   move and its velocity is 0. :meth:`SimRobot.release_brakes` / :meth:`apply_brakes` take
-  ``spec.simulation['brake_time']`` (default 0.05 s) of simulated time before they are
+  ``spec.simulation.brake_time`` (default 0.05 s) of simulated time before they are
   effective; :meth:`brakes_released` / :meth:`brakes_applied` say when they are.
 * **Power-up position**: ``home`` + seeded uniform in +-``park_spread`` (default 3 deg),
   clipped into min..max.
@@ -85,12 +85,12 @@ class SimRobot:
         axes = spec.axes
         n = self.n_axes = len(axes)
         sim = spec.simulation  # validated (compiler.params), every key present
-        self.tau = sim["drive_time_constant"]
-        max_offset = sim["max_drive_offset"]
-        spread = sim["park_spread"]
-        self.brake_time = sim["brake_time"]
-        saturation = sim["drive_saturation"]
-        margin = sim["end_stop_margin"]
+        self.tau = sim.drive_time_constant
+        max_offset = sim.max_drive_offset
+        spread = sim.park_spread
+        self.brake_time = sim.brake_time
+        saturation = sim.drive_saturation
+        margin = sim.end_stop_margin
 
         rng = random.Random(seed)
         offsets, parks = [], []

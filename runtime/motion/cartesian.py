@@ -33,7 +33,7 @@ from ..timing import SETPOINT_PERIOD
 from .kinematics import Kinematics, KinematicsError
 from .stops import PathStop
 from .trajectory import Result, Trajectory
-from .pathcheck import MIN_SAMPLES, CheckedPath, PathError, _axis_limits, _percent, check_path
+from .pathcheck import MIN_SAMPLES, CheckedPath, PathError, _percent, check_path, joint_limits
 from .paths import CircPath, LinPath, CartesianMove, _positive
 
 __all__ = ["JOINT_LIMIT_SHARE", "CartesianInput", "JointStream", "joint_limit_scale", "plan_cartesian"]
@@ -329,8 +329,8 @@ def plan_cartesian(inp: CartesianInput) -> tuple[Result, JointStream | None, str
         start = kinematics.forward(main)
         path = LinPath(start, inp.target) if inp.via is None else CircPath(start, inp.via, inp.target)
         move = CartesianMove(path, inp.speed, inp.acc, inp.jerk)
-        axis_limits, period = inp.axis_limits, inp.period
-        _, *limits = _axis_limits(axis_limits)  # (velocities, accelerations, jerks)
+        axis_limits, period = joint_limits(inp.axis_limits), inp.period
+        limits = (axis_limits.velocity, axis_limits.acceleration, axis_limits.jerk)
         if None in limits:  # not a specification's axes: nothing to time the move within
             checked = check_path(move, kinematics, main, axis_limits, **check)
         else:

@@ -103,6 +103,7 @@ from __future__ import annotations
 from math import atan2, ceil, cos, inf, isfinite, pi, sin, sqrt
 from typing import Sequence
 
+from compiler.spec import DH, Spec
 from compiler.values import Joint, Pose, Position, Quat, Rpy
 
 __all__ = [
@@ -246,7 +247,7 @@ class Kinematics:
     def __init__(self, source, tool: Sequence[float] | None = None,
                  limits: Sequence[tuple[float, float]] | None = None,
                  names: Sequence[str] | None = None, home: Sequence[float] | None = None):
-        if hasattr(source, "main_axes"):  # a Spec
+        if isinstance(source, Spec):
             axes = source.main_axes
             if len(axes) != 6:
                 raise ValueError(f"the kinematics needs six main axes, the specification has {len(axes)}")
@@ -263,7 +264,7 @@ class Kinematics:
         else:
             rows = []
             for row in source:
-                if hasattr(row, "alpha"):
+                if isinstance(row, DH):
                     rows.append((row.a, row.alpha, row.d, row.theta_offset))
                 else:
                     row = tuple(float(v) for v in row)

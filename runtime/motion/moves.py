@@ -29,6 +29,7 @@ from .blend import Limits, blend_offset
 from .cartesian import CartesianInput, plan_cartesian
 from .jerk import plan_ptp_jerk
 from .kinematics import Kinematics, KinematicsError
+from .pathcheck import JointLimits
 from .planner import PtpInput, plan_ptp, scaled_limits
 from .trajectory import Trajectory
 
@@ -107,6 +108,7 @@ class MovePlanner:
         self.axes = tuple(axes)
         self.main_axes = tuple(main_axes)
         self.main = len(self.main_axes)
+        self.joint_limits = JointLimits.of(self.main_axes)  # what a lin/circ move is timed and checked within
         self.profile = profile
         self.kinematics = kinematics
         self.kinematics_problem = kinematics_problem
@@ -170,7 +172,7 @@ class MovePlanner:
         via, target = (None, poses[0]) if request.kind == "lin" else poses
         result, stream, message = plan_cartesian(CartesianInput(
             kinematics, start, target, request.speed, request.acc, via=via,
-            axis_limits=self.main_axes, period=period))
+            axis_limits=self.joint_limits, period=period))
         if result < 0:
             return None, f"move {request.kind} refused: {message}"
         return Segment(request, stream, stream.target_position, self.cartesian_limits), None

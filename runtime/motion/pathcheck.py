@@ -39,9 +39,11 @@ kinematics, about 22 us) is real-time safe.
 from __future__ import annotations
 
 from bisect import bisect_left
+from dataclasses import dataclass
 from math import atan2, ceil, floor, inf, log10, pi, sqrt
 from typing import Sequence
 
+from compiler.spec import Axis, Spec
 from compiler.values import Joint
 
 from .kinematics import (
@@ -55,7 +57,7 @@ from .kinematics import (
 from .paths import CartesianMove, _positive
 from .rotation import matrix_to_quat, quat_angle, rpy_to_quat
 
-__all__ = ["CheckedPath", "MAX_JOINT_STEP", "MIN_SAMPLES", "PathError", "START_TOL", "check_path"]
+__all__ = ["CheckedPath", "JointLimits", "joint_limits", "MAX_JOINT_STEP", "MIN_SAMPLES", "PathError", "START_TOL", "check_path"]
 
 #: deg: a joint moving more than this between two check samples is a jump
 MAX_JOINT_STEP = 10.0
@@ -106,29 +108,41 @@ def _start_joints(joints) -> tuple[float, ...]:
     return joints
 
 
-def _axis_limits(axis_limits):
-    """``(positions, velocities, accelerations, jerks)``: six ``(min, max)`` pairs or None,
-    six max velocities or None, six max accelerations or None, six max jerks or None."""
+@dataclass(frozen=True)
+class JointLimits:
+    """The six main axes' limits a path is checked (and a move timed) against: position
+    ranges ``(min, max)``, max velocities, accelerations and jerks; any may be None (not
+    checked). :meth:`of` takes them from the specification's axes."""
+
+    positions: tuple[tuple[float, float], ...] | None = None
+    velocity: tuple[float, ...] | None = None
+    acceleration: tuple[float, ...] | None = None
+    jerk: tuple[float, ...] | None = None
+
+    @classmethod
+    def of(cls, axes: Sequence[Axis]) -> "JointLimits":
+        return cls(tuple((float(a.min), float(a.max)) for a in axes), tuple(float(a.max_velocity) for a in axes),
+                   tuple(float(a.max_acceleration) for a in axes), tuple(float(a.max_jerk) for a in axes))
+
+
+def joint_limits(axis_limits) -> JointLimits:
+    """``axis_limits`` as :class:`JointLimits`: None (none), a :class:`JointLimits`, a
+    specification (its main axes), six of its axes, or six max velocities."""
     if axis_limits is None:
-        return None, None, None, None
-    if hasattr(axis_limits, "main_axes"):  # a Spec
-        axis_limits = axis_limits.main_axes
-    items = list(axis_limits)
-    if len(items) != 6:
-        raise ValueError(f"axis_limits: expected six axes, got {len(items)}")
-    if all(hasattr(a, "max_velocity") for a in items):
-        vel = tuple(float(a.max_velocity) for a in items)
-        acc = (tuple(float(a.max_acceleration) for a in items)
-               if all(hasattr(a, "max_acceleration") for a in items) else None)
-        jerk = tuple(float(a.max_jerk) for a in items) if all(hasattr(a, "max_jerk") for a in items) else None
-        pos = (tuple((float(a.min), float(a.max)) for a in items)
-               if all(hasattr(a, "min") and hasattr(a, "max") for a in items) else None)
+        return JointLimits()
+    if isinstance(axis_limits, JointLimits):
+        limits = axis_limits
     else:
-        vel = tuple(float(v) for v in items)
-        acc = pos = jerk = None
-    if not all(v > 0.0 for v in vel):
-        raise ValueError(f"axis_limits: every max_velocity must be positive, got {vel}")
-    return pos, vel, acc, jerk
+        items = tuple(axis_limits.main_axes if isinstance(axis_limits, Spec) else axis_limits)
+        if len(items) != 6:
+            raise ValueError(f"axis_limits: expected six axes, got {len(items)}")
+        if all(isinstance(a, Axis) for a in items):
+            limits = JointLimits.of(items)
+        else:
+            limits = JointLimits(velocity=tuple(float(v) for v in items))
+    if limits.velocity is not None and not all(v > 0.0 for v in limits.velocity):
+        raise ValueError(f"axis_limits: every max_velocity must be positive, got {limits.velocity}")
+    return limits
 
 
 def _nice_speed(speed: float) -> str:
@@ -199,10 +213,10 @@ def check_path(move: CartesianMove, kinematics: Kinematics, start_joints: Sequen
     """Check that the arm can follow ``move`` from ``start_joints`` (module docstring);
     return the :class:`CheckedPath` or raise :class:`PathError`.
 
-    ``axis_limits``: the six main axes' limits -- the specification's axes
-    (``spec.main_axes`` or the ``Spec`` itself: ``min``, ``max``, ``max_velocity``, and
-    ``max_acceleration`` for ``check_acceleration``), or six max velocities (deg/s);
-    ``None``: no velocity check (the position limits are the kinematics' own). ``step``
+    ``axis_limits``: the six main axes' limits (:func:`joint_limits`: a
+    :class:`JointLimits`, the specification's axes, the ``Spec`` itself, or six max
+    velocities in deg/s); ``None``: no velocity check (the position limits are the
+    kinematics' own). ``step``
     (mm) and ``step_deg`` (deg): the largest TCP and orientation motion between two
     samples; ``min_samples``: the fewest intervals; ``max_joint_step`` (deg): the largest
     joint motion between two samples; ``start_tolerance`` (mm and deg): how far the
@@ -212,7 +226,8 @@ def check_path(move: CartesianMove, kinematics: Kinematics, start_joints: Sequen
     ``ValueError`` (not ``PathError``) for arguments that make no sense.
     """
     q = _start_joints(start_joints)
-    pos_limits, vel_limits, acc_limits, _ = _axis_limits(axis_limits)
+    limits = joint_limits(axis_limits)
+    pos_limits, vel_limits, acc_limits = limits.positions, limits.velocity, limits.acceleration
     step = _positive("step", step)
     step_deg = _positive("step_deg", step_deg)
     max_joint_step = _positive("max_joint_step", max_joint_step)

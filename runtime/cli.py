@@ -13,8 +13,9 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TextIO
 
+from .faults import FAULTS
+
 EXIT_OK, EXIT_INVALID, EXIT_USAGE, EXIT_INTERNAL = 0, 1, 2, 70
-FAULTS = ("sensor_dead", "encoder_frozen", "drive_dead")  # what --inject can break in the simulated robot
 
 
 @dataclass

@@ -65,10 +65,10 @@ import math
 import random
 
 from ..accel import kernels
+from ..faults import FAULTS
 
 drive_step = kernels.drive_step
 
-FAULTS = ("sensor_dead", "encoder_frozen", "drive_dead")
 
 _floor = math.floor
 

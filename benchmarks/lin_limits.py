@@ -5,16 +5,23 @@ For random Cartesian moves of the Lola 15, planned as the runtime plans them
 
 * the largest ratio of any joint's velocity, acceleration and jerk to its limit, over
   - the 5 ms setpoints the trajectory generator gives the servo (velocities as sampled,
-    accelerations and jerks as differences of consecutive samples), and
-  - the 1 ms references the servo's interpolator makes of them (the velocity it feeds
-    forward, its differences);
+    accelerations and jerks as differences of consecutive samples),
+  - the 1 ms references the servo's interpolator makes of them, as a drive sees them:
+    first, second and third differences of successive references over 1 ms; with the
+    setpoints as the generator writes them for lin and circ now (positions and
+    velocities: cubic Hermite), and with exact velocities and accelerations in them
+    (central differences of the path over +-0.1 ms: what the generator is to provide;
+    runtime/motion/interpolator.py), beside the path itself sampled every 1 ms;
   goal: at most 1.0 everywhere;
 * how much slower than the programmed speed the moves are: each move's duration against
   the same path at constant programmed speed (``length / speed``: the reference, computed
   in the same run), median and largest ratio;
 * planning time per move (``perf_counter_ns`` around one call) for 500 mm lines: p50 and
   p99, goal p99 <= 20 ms (off the loop), against a jerk-limited PTP plan of the same
-  start and end joints measured in the same run.
+  start and end joints measured in the same run;
+* for comparison, PTP moves between random joints at the axes' full limits (jerk-limited,
+  "auto", and trapezoidal): the same ratios of their 5 ms setpoints and of the 1 ms
+  references without and with the setpoints' accelerations.
 
 Moves: a start within the axis limits (the main axes within +-150 deg), a random direction,
 50-500 mm, a random tool tilt, speeds 100-1000 mm/s, accelerations 500-5000 mm/s^2. Half
@@ -23,7 +30,7 @@ half away from every singularity. A circ passes through a via point off the chor
 that the path check refuses (out of reach, through a singularity) are counted, not timed.
 Deterministic for a seed.
 
-Run: .venv/bin/python benchmarks/lin_limits.py [--moves N] [--seed N]
+Run: .venv/bin/python benchmarks/lin_limits.py [--moves N] [--ptp-moves N] [--seed N]
 """
 from __future__ import annotations
 
@@ -44,10 +51,11 @@ from runtime.motion.cartesian import CartesianInput, plan_cartesian  # noqa: E40
 from runtime.motion.interpolator import Interpolator  # noqa: E402
 from runtime.motion.jerk import plan_ptp_jerk  # noqa: E402
 from runtime.motion.kinematics import Kinematics  # noqa: E402
-from runtime.motion.planner import PtpInput  # noqa: E402
+from runtime.motion.planner import PtpInput, plan_ptp  # noqa: E402
 
 PERIOD = 0.005  # the trajectory generator's
 TICK = 0.001  # the servo's
+PERIOD_TICKS = 5
 SPEEDS = (100.0, 250.0, 500.0, 1000.0)
 ACCELERATIONS = (500.0, 1500.0, 5000.0)
 
@@ -71,25 +79,97 @@ def derivative(samples, dt: float):
     return [tuple((b - a) / dt for a, b in zip(p, q)) for p, q in zip(samples, samples[1:])]
 
 
-def measure(stream, q0, name: str, setpoints: Ratios, references: Ratios) -> None:
+def note_differences(ratios: Ratios, positions, dt: float, name: str) -> None:
+    """The first, second and third differences of ``positions`` over ``dt`` (what a drive
+    sees of references every ``dt``)."""
+    values = positions
+    for order in range(3):
+        values = derivative(values, dt)
+        for v in values:
+            ratios.note(order, v, name)
+
+
+def exact_derivatives(stream, t: float, e: float = 1e-4):
+    """Velocities and accelerations of a lin/circ joint stream's main axes at ``t``: central
+    differences of its positions over +-0.1 ms (less near the ends); zero outside the move."""
+    if not 0.0 < t < stream.duration:
+        zeros = (0.0,) * 6
+        return zeros, zeros
+    e = min(e, 0.5 * t, 0.5 * (stream.duration - t))
+    before, now, after = (stream.position_at(x)[:6] for x in (t - e, t, t + e))
+    return (tuple((c - a) / (2 * e) for a, c in zip(before, after)),
+            tuple((a - 2 * b + c) / (e * e) for a, b, c in zip(before, now, after)))
+
+
+def references(q0, setpoints, limits=None) -> list:
+    """The 1 ms references of ``setpoints`` (every 5 ms: ``(t, positions, velocities[,
+    accelerations])``), as the servo takes them: one setpoint period behind."""
+    interp = Interpolator(tuple(q0), limits)
+    out = []
+    k = 0
+    for setpoint in setpoints:
+        interp.push(*setpoint)
+        t = setpoint[0]
+        while k * TICK < t + PERIOD - 1e-12:
+            out.append(interp.sample(k * TICK - PERIOD))
+            k += 1
+    return out
+
+
+def measure(stream, q0, name: str, setpoints: Ratios, plain: Ratios, exact: Ratios, path: Ratios,
+            limits) -> None:
     """Sample ``stream`` as the trajectory generator and the servo do; note the ratios."""
     steps = int(math.ceil(stream.duration / PERIOD)) + 2
-    interp = Interpolator(tuple(q0))
-    velocities5, velocities1 = [], []
-    k = 0
+    velocities5, now, wired = [], [], []
     for n in range(steps + 1):
         t = n * PERIOD
         positions, velocities = stream.sample(t)
         velocities5.append(velocities)
-        interp.push(t, positions, velocities)
-        while k * TICK < t + PERIOD - 1e-12:  # the servo samples one setpoint period behind
-            velocities1.append(interp.sample_velocity(k * TICK - PERIOD))
-            k += 1
-    for ratios, series, dt in ((setpoints, velocities5, PERIOD), (references, velocities1, TICK)):
-        accelerations = derivative(series, dt)
-        for order, values in enumerate((series, accelerations, derivative(accelerations, dt))):
-            for v in values:
-                ratios.note(order, v, name)
+        now.append((t, positions[:6], velocities[:6]))
+        v, a = exact_derivatives(stream, t)
+        wired.append((t, stream.position_at(t)[:6] if 0.0 < t < stream.duration else positions[:6], v, a))
+    accelerations = derivative(velocities5, PERIOD)
+    for order, values in enumerate((velocities5, accelerations, derivative(accelerations, PERIOD))):
+        for v in values:
+            setpoints.note(order, v, name)
+    note_differences(plain, references(q0, now), TICK, name)
+    note_differences(exact, references(q0, wired, limits), TICK, name)
+    own = [stream.position_at(k * TICK)[:6] for k in range(-PERIOD_TICKS, int(stream.duration / TICK) + 2 * PERIOD_TICKS)]
+    note_differences(path, own, TICK, name)
+
+
+def measure_ptp(rng, spec, moves: int) -> list[tuple[str, Ratios]]:
+    """Random PTP moves of the robot at its axes' full limits, jerk-limited and trapezoidal:
+    the ratios of their 5 ms setpoints and of the 1 ms references without and with the
+    setpoints' accelerations."""
+    axes = spec.axes
+    limits = ([a.max_velocity for a in axes], [a.max_acceleration for a in axes], [a.max_jerk for a in axes])
+    figures = []
+    for profile in ("jerk-limited", "trapezoidal"):
+        setpoints, plain, exact = Ratios(limits), Ratios(limits), Ratios(limits)
+        for m in range(moves):
+            q0 = [rng.uniform(a.min, a.max) for a in axes]
+            q1 = [rng.uniform(a.min, a.max) for a in axes] if m % 2 else [x + rng.uniform(-10, 10) for x in q0]
+            if profile == "jerk-limited":
+                _, trajectory, _ = plan_ptp_jerk(PtpInput(tuple(q0), tuple(q1), tuple(limits[0]), tuple(limits[1]),
+                                                          max_jerk=tuple(limits[2])))
+            else:
+                _, trajectory, _ = plan_ptp(PtpInput(tuple(q0), tuple(q1), tuple(limits[0]), tuple(limits[1])))
+            name = f"{profile} move {m + 1}"
+            steps = int(math.ceil(trajectory.duration / PERIOD)) + 2
+            samples = [(n * PERIOD, *trajectory.sample(n * PERIOD)) for n in range(steps + 1)]
+            velocities5 = [s[2] for s in samples]
+            accelerations = derivative(velocities5, PERIOD)
+            for order, values in enumerate((velocities5, accelerations, derivative(accelerations, PERIOD))):
+                for v in values:
+                    setpoints.note(order, v, name)
+            note_differences(plain, references(q0, samples), TICK, name)
+            wired = [s + (trajectory.sample_accelerations(s[0]),) for s in samples]
+            note_differences(exact, references(q0, wired, limits), TICK, name)
+        figures.append((f"{moves} {profile} PTP moves", [("5 ms setpoints", setpoints),
+                                                          ("1 ms, setpoints without accelerations", plain),
+                                                          ("1 ms, with accelerations", exact)]))
+    return figures
 
 
 def random_start(rng, kin, axes, near_wrist: bool = False):
@@ -148,13 +228,14 @@ def plan(kin, spec, q0, kind, args):
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--moves", type=int, default=300, help="moves planned (refused ones not counted)")
+    ap.add_argument("--ptp-moves", type=int, default=200, help="PTP moves of each profile for comparison")
     ap.add_argument("--seed", type=int, default=1)
     args = ap.parse_args()
     spec = load_spec(ROOT / "programs" / "lola15.spc")
     kin = Kinematics(spec)
     axes = spec.main_axes
     limits = ([a.max_velocity for a in axes], [a.max_acceleration for a in axes], [a.max_jerk for a in axes])
-    setpoints, references = Ratios(limits), Ratios(limits)
+    setpoints, plain, exact, itself = Ratios(limits), Ratios(limits), Ratios(limits), Ratios(limits)
     rng = random.Random(args.seed)
     planned = refused = 0
     slowdowns: list[float] = []
@@ -175,7 +256,7 @@ def main() -> int:
         path = stream.checked.move.path
         slowdowns.append(stream.duration / (path.length / speed))
         name = f"move {planned} ({kind}, {speed:g} mm/s, {move[-1]:g} mm/s^2{', near the wrist singularity' if near_wrist else ''})"
-        measure(stream, q0, name, setpoints, references)
+        measure(stream, q0, name, setpoints, plain, exact, itself, limits)
 
     # planning time: 500 mm lines, against a jerk-limited PTP between the same joints
     lin_ns, ptp_ns = [], []
@@ -199,13 +280,8 @@ def main() -> int:
 
     print(f"{planned} random lin/circ moves of the {spec.name} ({near} starting near the wrist singularity; "
           f"{refused} drawn moves refused by the path check)")
-    for title, ratios in (("5 ms setpoints", setpoints), ("1 ms references", references)):
-        figures = ", ".join(f"{name} {ratios.worst[i]:.2f}" for i, name in enumerate(("velocity", "acceleration",
-                                                                                      "jerk")))
-        met = "met" if max(ratios.worst) <= 1.0 + 1e-6 else "MISSED"
-        print(f"  {title:16s} largest ratio to the joint limits: {figures}  (goal <= 1.0: {met})")
-        for i, name in enumerate(("velocity", "acceleration", "jerk")):
-            print(f"      {name:12s} at {ratios.where[i]}")
+    report([("5 ms setpoints", setpoints), ("1 ms, setpoints as now (no accelerations)", plain),
+            ("1 ms, exact velocities and accelerations", exact), ("the path itself, every 1 ms (reference)", itself)])
     print(f"  duration against the same path at the programmed speed (reference): median "
           f"{percentile(slowdowns, 0.5):.2f}x, largest {max(slowdowns):.2f}x")
     lin50, lin99 = percentile(lin_ns, 0.5) / 1e6, percentile(lin_ns, 0.99) / 1e6
@@ -213,7 +289,21 @@ def main() -> int:
     print(f"  planning a 500 mm lin: p50 {lin50:.2f} ms, p99 {lin99:.2f} ms (goal p99 <= 20 ms: "
           f"{'met' if lin99 <= 20.0 else 'MISSED'}); a jerk-limited PTP between the same joints "
           f"(reference): p50 {ptp50:.3f} ms ({lin50 / ptp50:.0f}x)")
+    for title, rows in measure_ptp(rng, spec, args.ptp_moves):
+        print(f"{title} of the {spec.name} at the axes' full limits (for comparison)")
+        report(rows, trapezoid=title.endswith("trapezoidal PTP moves"))
     return 0
+
+
+def report(rows, trapezoid: bool = False) -> None:
+    for title, ratios in rows:
+        figures = ", ".join(f"{name} {ratios.worst[i]:.{2 if ratios.worst[i] > 2 else 6}f}"
+                            for i, name in enumerate(("velocity", "acceleration", "jerk")))
+        kept = ratios.worst[:2] if trapezoid else ratios.worst  # a trapezoid has no jerk limit
+        met = "met" if max(kept) <= 1.0 + 1e-6 else "MISSED"
+        print(f"  {title:42s} largest ratio to the joint limits: {figures}  (goal <= 1.0{' but the jerk' if trapezoid else ''}: {met})")
+        for i, name in enumerate(("velocity", "acceleration", "jerk")):
+            print(f"      {name:12s} at {ratios.where[i]}")
 
 
 if __name__ == "__main__":

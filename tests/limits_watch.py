@@ -83,7 +83,7 @@ class LimitWatch:
         if value is None or self.system.servo.source is not port:
             self._previous_setpoints[k] = None
             return
-        t, _positions, velocities = value
+        t, _positions, velocities = value[:3]  # (accelerations may follow)
         scale = self.system.robot.velocity_limit_scale
         for i, v in enumerate(velocities):
             self._note("planned_velocity_ratio", abs(v) / (self.vmax[i] * scale), i)

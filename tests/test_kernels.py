@@ -133,23 +133,32 @@ def test_drive_step_compiled_equals_source(case):
 
 @st.composite
 def servo_cases(draw):
-    """Servo-like magnitudes (so that most commands are not saturated), some axes still."""
+    """Servo-like magnitudes (so that most commands are not saturated), some axes still,
+    segments with and without breakpoints."""
     n = draw(st.integers(1, 6))
     reals = lambda lo, hi: draw(st.lists(st.floats(lo, hi), min_size=n, max_size=n))  # noqa: E731
     still = draw(st.lists(st.booleans(), min_size=n, max_size=n))
-    coeffs = tuple((p, 0.0, 0.0, 0.0) if s else (p, dp, a, b)
-                   for s, p, dp, a, b in zip(still, reals(-180, 180), reals(-5, 5), reals(-1, 1), reals(-1, 1)))
-    weights = [draw(st.floats(-0.2, 1.2)) for _ in range(3)] + [draw(st.floats(-1e3, 1e3)) for _ in range(3)]
-    position = tuple(c[0] + e for c, e in zip(coeffs, reals(-3, 3)))
+    segments = []
+    for s, p in zip(still, reals(-180, 180)):
+        if s:
+            segments.append((p, 0.0, 0.0, 0.0, 0.0, 0.0, source.NO_BREAK, 0.0, 0.0, source.NO_BREAK, 0.0, 0.0))
+        else:
+            c = [draw(st.floats(-5, 5)) for _ in range(5)]
+            s1, s2 = sorted(draw(st.sampled_from([source.NO_BREAK, 0.0, 0.3, 0.7, 1.0])) for _ in range(2))
+            segments.append((p, *c, s1, draw(st.floats(-1, 1)), draw(st.floats(-1, 1)), s2, draw(st.floats(-1, 1)),
+                             draw(st.floats(-1, 1))))
+    s = draw(st.floats(-0.2, 1.2))
+    inv_h = draw(st.sampled_from([0.0, 200.0, 1000.0]))
+    position = tuple(c[0] + e for c, e in zip(segments, reals(-3, 3)))
     vmax = tuple(reals(1.0, 500.0))
-    return (coeffs, *weights, position, reals(-1, 1), vmax, tuple(-v for v in vmax), draw(st.floats(0, 100)),
+    return (tuple(segments), s, inv_h, position, reals(-1, 1), vmax, tuple(-v for v in vmax), draw(st.floats(0, 100)),
             draw(st.floats(0, 10)), draw(st.sampled_from([0.001, 0.0005])))
 
 
 def run_servo(module, case):
-    coeffs, h01, h10, h11, d01, d10, d11, position, integral, vmax, vmin, kp, ki, dt = case
-    integral, out = list(integral), [0.0] * len(coeffs)
-    worst = module.servo_law(coeffs, h01, h10, h11, d01, d10, d11, position, integral, vmax, vmin, kp, ki, dt, out)
+    segments, s, inv_h, position, integral, vmax, vmin, kp, ki, dt = case
+    integral, out = list(integral), [0.0] * len(segments)
+    worst = module.servo_law(segments, s, inv_h, position, integral, vmax, vmin, kp, ki, dt, out)
     return bits([worst]), bits(integral), bits(out)
 
 
@@ -158,6 +167,55 @@ def run_servo(module, case):
 @given(servo_cases())
 def test_servo_law_compiled_equals_source(case):
     assert run_servo(COMPILED, case) == run_servo(source, case)
+
+
+@SETTINGS
+@given(servo_cases())
+def test_servo_law_evaluates_the_segments_as_the_interpolator_does(case):
+    """The reference inside servo_law is segment_position / segment_velocity, bit for bit
+    (the interpolator's sample() and the servo's reference property use those)."""
+    segments, s, inv_h, position, integral, vmax, vmin, kp, ki, dt = case
+    module = accel.kernels
+    out = [0.0] * len(segments)
+    integral = list(integral)
+    before = list(integral)
+    module.servo_law(segments, s, inv_h, position, integral, (math.inf,) * len(out), (-math.inf,) * len(out), 1.0,
+                     0.0, dt, out)
+    for c, x, u, i0, i1 in zip(segments, position, out, before, integral):
+        e = module.segment_position(c, s) - x
+        assert bits([u]) == bits([module.segment_velocity(c, s, inv_h) + 1.0 * e + 0.0 * i0])
+        assert bits([i1]) == bits([i0 + e * dt])
+
+
+@st.composite
+def setpoint_pairs(draw):
+    """Two setpoints of one axis (positions, velocities, accelerations), the period and
+    the limits: from a motion-like scale to extremes (NaN, infinities, zeros)."""
+    h = draw(st.sampled_from([0.005, 0.001, 0.01]))
+    p0 = draw(st.floats(-360, 360))
+    v0, v1 = draw(st.floats(-200, 200)), draw(st.floats(-200, 200))
+    a0, a1 = draw(st.floats(-2000, 2000)), draw(st.floats(-2000, 2000))
+    p1 = p0 + h * 0.5 * (v0 + v1) + draw(st.floats(-1e-3, 1e-3))
+    values = [p0, v0, a0, p1, v1, a1]
+    if draw(st.booleans()):
+        values[draw(st.integers(0, 5))] = draw(anything)
+    limits = draw(st.sampled_from([(156.0, 400.0, 4000.0), (math.inf,) * 3, (1.0, 1.0, 1.0)]))
+    return (*values, h, *limits)
+
+
+@needs_build
+@SETTINGS
+@given(setpoint_pairs())
+def test_segment_compiled_equals_source(case):
+    assert bits(COMPILED.segment(*case)) == bits(source.segment(*case))
+    p0, v0, a0, p1, v1, a1, h = case[:7]
+    assert bits(COMPILED.hermite_segment(p0, v0, p1, v1, h)) == bits(source.hermite_segment(p0, v0, p1, v1, h))
+    c = source.segment(*case)
+    for s in (0.0, 0.25, 0.999, 1.0):
+        assert bits([COMPILED.segment_position(c, s), COMPILED.segment_velocity(c, s, 1 / h),
+                     COMPILED.segment_acceleration(c, s, 1 / h)]) == \
+            bits([source.segment_position(c, s), source.segment_velocity(c, s, 1 / h),
+                  source.segment_acceleration(c, s, 1 / h)])
 
 
 @st.composite

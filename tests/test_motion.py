@@ -660,27 +660,31 @@ def test_subnormal_distances_are_no_motion_and_end_exactly_at_the_target():
     assert traj.sample(traj.duration)[0] == (0.0, 0.0, 0.0, 0.0, 0.0, 25.0)
 
 
-def _hermite_eval(interp: Interpolator, t: float):
-    coeffs, h01, h10, h11, d01, d10, d11 = interp.hermite(t)
-    return (tuple(p0 + h01 * dp + h10 * hv0 + h11 * hv1 for p0, dp, hv0, hv1 in coeffs),
-            tuple(d01 * dp + d10 * hv0 + d11 * hv1 for _p0, dp, hv0, hv1 in coeffs))
+def _servo_eval(interp: Interpolator, t: float):
+    """The reference as the servo evaluates it: its kernel's arithmetic on segment()."""
+    from runtime.accel import kernels
+    segments, s, inv_h = interp.segment(t)
+    return (tuple(kernels.segment_position(c, s) for c in segments),
+            tuple(kernels.segment_velocity(c, s, inv_h) for c in segments))
 
 
 finite = st.floats(-1e3, 1e3, allow_nan=False)
 
 
 @settings(max_examples=200, deadline=None)
-@given(st.lists(st.tuples(st.floats(1e-3, 0.02), finite, finite, finite, finite), min_size=0, max_size=4),
+@given(st.lists(st.tuples(st.floats(1e-3, 0.02), finite, finite, finite, finite, st.none() | st.tuples(finite, finite)),
+                min_size=0, max_size=4),
        st.lists(st.floats(-0.05, 0.1), min_size=1, max_size=8))
-def test_property_hermite_weights_reproduce_sample_bit_for_bit(setpoints, times):
-    """The servo evaluates the reference from hermite(); it must equal sample() and
-    sample_velocity() exactly: holding, before t0, between the setpoints, after them."""
-    interp = Interpolator((1.5, -2.0))
+def test_property_servo_evaluation_reproduces_sample_bit_for_bit(setpoints, times):
+    """The servo evaluates the reference from segment(); it must equal sample() and
+    sample_velocity() exactly: holding, before t0, between the setpoints, after them; with
+    and without accelerations."""
+    interp = Interpolator((1.5, -2.0), ((100.0, 100.0), (400.0, 400.0), (4000.0, 4000.0)))
     t = 0.0
-    for dt, p0, p1, v0, v1 in setpoints:
+    for dt, p0, p1, v0, v1, acc in setpoints:
         t += dt
-        interp.push(t, (p0, p1), (v0, v1))
+        interp.push(t, (p0, p1), (v0, v1), acc)
         for q in times:
-            position, velocity = _hermite_eval(interp, t + q)
+            position, velocity = _servo_eval(interp, t + q)
             assert position == interp.sample(t + q)
             assert velocity == interp.sample_velocity(t + q)

@@ -3,9 +3,10 @@ measured position: feed-forward velocity plus a PI law on the position error, wi
 anti-windup, and a following-error limit.
 
 The reference comes from the Trajectory Generator (``desi_pos``) or the Initialization
-(``init_pos``), each writing a setpoint (time, positions, velocities) every 5 ms; an
-interpolator turns those into 1 ms references (one 5 ms period of delay). Mode "zero"
-commands nothing (calibration); mode "hold" holds the position where it was entered.
+(``init_pos``), each writing a setpoint (time, positions, velocities[, accelerations])
+every 5 ms; an interpolator turns those into 1 ms references within the axes' limits
+(one 5 ms period of delay; runtime/motion/interpolator.py). Mode "zero" commands nothing
+(calibration); mode "hold" holds the position where it was entered.
 """
 from __future__ import annotations
 
@@ -16,6 +17,8 @@ from ..component import Component, DataPort
 from ..timing import SETPOINT_PERIOD, TICK
 
 servo_law = kernels.servo_law
+segment_position = kernels.segment_position
+_NO_BREAK = kernels.NO_BREAK
 
 
 class ServoController(Component):
@@ -36,9 +39,12 @@ class ServoController(Component):
         self.sens_pos, self.desi_pos, self.init_pos, self.out_vel = sens_pos, desi_pos, init_pos, out_vel
         self.tick = tick
         self.setpoint_period = SETPOINT_PERIOD  # the Trajectory Generator's and Initialization's period
-        self.interpolator_factory = interpolator_factory  # called with the start positions
+        # called with the start positions and the axes' limits, which the references keep
+        self.interpolator_factory = interpolator_factory
+        self.limits = (tuple(a.max_velocity for a in spec.axes), tuple(a.max_acceleration for a in spec.axes),
+                       tuple(a.max_jerk for a in spec.axes))
         self.measured_velocity = lambda: None  # the robot interface's velocity estimate, when wired
-        self.interpolator = interpolator_factory((0.0,) * self.n)
+        self.interpolator = interpolator_factory((0.0,) * self.n, self.limits)
         self.mode = "zero"  # "zero", "hold", "trajectory", "initialization"
         self.source: DataPort | None = None
         self.last_stamp = -1.0
@@ -60,7 +66,7 @@ class ServoController(Component):
         position = tuple(self.sens_pos.read() or (0.0,) * self.n)
         self.mode = mode
         self.source = {"trajectory": self.desi_pos, "initialization": self.init_pos}.get(mode)
-        self.interpolator = self.interpolator_factory(position)
+        self.interpolator = self.interpolator_factory(position, self.limits)
         self.last_stamp = -1.0
         self.integral = [0.0] * self.n
         self._hold(position)
@@ -69,7 +75,8 @@ class ServoController(Component):
 
     def _hold(self, position) -> None:
         self.hold_position = tuple(position)
-        self._held = (tuple([(p, 0.0, 0.0, 0.0) for p in self.hold_position]), 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
+        self._held = (tuple([(float(p), 0.0, 0.0, 0.0, 0.0, 0.0, _NO_BREAK, 0.0, 0.0, _NO_BREAK, 0.0, 0.0)
+                             for p in self.hold_position]), 0.0, 0.0)
         self._reference = self._held
 
     def rebase(self, axis: int, delta: float) -> None:
@@ -103,8 +110,8 @@ class ServoController(Component):
     @property
     def reference(self) -> tuple[float, ...]:
         """The position reference of the last update (deg per axis)."""
-        coeffs, h01, h10, h11 = self._reference[:4]
-        return tuple([p0 + h01 * dp + h10 * hv0 + h11 * hv1 for p0, dp, hv0, hv1 in coeffs])
+        segments, s, _ = self._reference
+        return tuple([segment_position(c, s) for c in segments])
 
     @property
     def following_error(self) -> tuple[float, ...]:
@@ -117,8 +124,9 @@ class ServoController(Component):
 
     def update(self, now: float) -> None:
         """Real-time: one servo period. The reference and its velocity (feed-forward) are
-        evaluated inside the per-axis loop (:func:`runtime.kernels.servo_law`) from the
-        interpolator's Hermite weights."""
+        evaluated inside the per-axis loop (:func:`runtime.kernels.servo_law`) on the
+        interpolator's segments. A setpoint is ``(t, positions, velocities)`` or ``(t,
+        positions, velocities, accelerations)``."""
         position = self.sens_pos.value
         mode = self.mode
         if mode == "zero" or position is None:
@@ -129,18 +137,17 @@ class ServoController(Component):
         else:
             port = self.source
             if port.stamp != self.last_stamp and port.value is not None:
-                t, pos, vel = port.value
-                self.interpolator.push(t, pos, vel)
+                self.interpolator.push(*port.value)
                 self.last_stamp = port.stamp
             # The reference runs one setpoint period behind, so that there are always two
             # setpoints to interpolate between (the interpolator's documented delay).
-            reference = self.interpolator.hermite(now - self.setpoint_period)
+            reference = self.interpolator.segment(now - self.setpoint_period)
         self._reference = reference
         self.position = position
-        coeffs, h01, h10, h11, d01, d10, d11 = reference
+        segments, s, inv_h = reference
         out = [0.0] * self.n
-        worst = servo_law(coeffs, h01, h10, h11, d01, d10, d11, position, self.integral, self.max_velocity,
-                          self._min_velocity, self.kp, self.ki, self.tick, out)
+        worst = servo_law(segments, s, inv_h, position, self.integral, self.max_velocity, self._min_velocity,
+                          self.kp, self.ki, self.tick, out)
         self.worst_error = worst
         if worst > self.max_following_error:
             self.max_following_error = worst

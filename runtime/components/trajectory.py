@@ -189,7 +189,9 @@ class TrajectoryGenerator(Component):
         motion = self.motion
         motion.sample(now)
         self._take_motion_events()
-        self.desi_pos.write((now, motion.positions, motion.velocities), now)
+        accelerations = motion.accelerations
+        self.desi_pos.write((now, motion.positions, motion.velocities) if accelerations is None
+                            else (now, motion.positions, motion.velocities, accelerations), now)
         safety = self.safety
         if safety is not None:
             safety.expect_standstill(motion.at_rest())

@@ -23,7 +23,7 @@
   planned into segments, and the timeline that runs them (look-ahead, blending, the
   override, pause/resume/abort), independent of components, ports and the VM.
 * :mod:`runtime.motion.interpolator` -- turns the trajectory generator's 5 ms
-  setpoints into the servo's 1 ms references by cubic Hermite interpolation.
+  setpoints into the servo's 1 ms references, within every axis's limits.
 
 Units: positions in deg (revolute axes) or mm (prismatic), velocities per second,
 accelerations per second squared, times in seconds. No NumPy in what a tick runs: per-axis arithmetic

@@ -502,6 +502,10 @@ class JerkPtpTrajectory(Trajectory):
         """Accelerations (unit/s^2) of all axes at time ``t`` (s); 0 outside the move."""
         return tuple([p.sample(t)[2] for p in self.profiles])
 
+    def accelerations_at(self, t: float) -> tuple[float, ...]:
+        """Exact: :meth:`sample_accelerations`."""
+        return self.sample_accelerations(t)
+
     def at_time(self, t: float) -> tuple[tuple[float, ...], tuple[float, ...], tuple[float, ...]]:
         """Exact positions, velocities and accelerations at ``t``."""
         positions, velocities = self.sample(t)

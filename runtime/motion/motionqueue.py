@@ -133,6 +133,7 @@ class MotionQueue:
         self.t_move = 0.0  # the timeline (trajectory seconds)
         self.positions: tuple = (0.0,) * self.n
         self.velocities: tuple = (0.0,) * self.n
+        self.accelerations: tuple | None = (0.0,) * self.n  # exact ones, or None (the setpoint goes without)
         self.rate = 1.0  # trajectory seconds per real second: the override, now
         self._override = 1.0  # the override's rate (what the rate goes to)
         self._percent = 100.0  # the override as the operator set it
@@ -171,6 +172,7 @@ class MotionQueue:
         self.period = period
         self.positions = tuple(positions)
         self.velocities = (0.0,) * self.n
+        self.accelerations = (0.0,) * self.n
         self.t_move = 0.0
 
     # ---- what is moving ----
@@ -315,6 +317,7 @@ class MotionQueue:
         stop = self._stop
         self.t_stop += self.period
         self.positions, self.velocities = stop.sample(self.t_stop)
+        self.accelerations = None
         if self.t_stop >= stop.duration - 1e-12:
             self._stop = None
             self.velocities = (0.0,) * self.n
@@ -352,6 +355,9 @@ class MotionQueue:
             corner = first.end
             positions = tuple([a + b - c for a, b, c in zip(positions, p2, corner)])
             velocities = tuple([a + b for a, b in zip(velocities, v2)])
+            self.accelerations = self._exact_accelerations((first, second), tm, rate)
+        else:
+            self.accelerations = self._exact_accelerations((first,), tm, rate)
         self.positions = positions
         if step > 1e-9:  # the path's acceleration, for the next change of rate
             self._path_acceleration = tuple([(v - w) / step for v, w in zip(velocities, self._path_velocity)])
@@ -375,6 +381,20 @@ class MotionQueue:
                     self._rate_T = 0.0
                 if self._hold:
                     self._held()
+
+    def _exact_accelerations(self, running: tuple, tm: float, rate: float) -> tuple | None:
+        """The timeline's accelerations at ``tm`` (per real second squared) when every move
+        running has exact ones (:meth:`Trajectory.accelerations_at`) and the rate is steady;
+        else None: the setpoint goes without, and the servo interpolates it C1 as before."""
+        if self._rate_T:
+            return None
+        total = None
+        for segment in running:
+            a = segment.trajectory.accelerations_at(tm - segment.start)
+            if a is None:
+                return None
+            total = a if total is None else tuple([x + y for x, y in zip(total, a)])
+        return total if rate == 1.0 else tuple([x * rate * rate for x in total])
 
     def _started(self, segment: Segment, now: float) -> None:
         request = segment.request

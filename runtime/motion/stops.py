@@ -91,7 +91,8 @@ class JerkStop:
     __slots__ = ("duration", "distance", "_segments")
 
     def __init__(self, v0: float, a0: float, a_max: float, j_max: float):
-        v0 = max(v0, 0.0)
+        # below REST_VELOCITY is rest: a subnormal v0 (5e-324) would make a stop of 1e-163 s
+        v0 = v0 if v0 >= REST_VELOCITY else 0.0
         big_v = v0 + a0 * a0 / (2.0 * j_max)
         a_p = a_max
         hold = (big_v - a_p * a_p / j_max) / a_p

@@ -108,6 +108,13 @@ class Trajectory:
         return (p, tuple([(b - a) / (2.0 * h) for a, b in zip(before, after)]),
                 tuple([(b - 2.0 * x + a) / (h * h) for a, x, b in zip(before, p, after)]))
 
+    def accelerations_at(self, t: float) -> tuple[float, ...] | None:
+        """The exact accelerations at ``t`` when the trajectory knows them in closed form
+        (the PTP profiles; the setpoints then carry them and the servo's references keep
+        every limit exactly), else None (a Cartesian move's, from differences, are too
+        rough for that)."""
+        return None
+
     @property
     def ramp_time(self) -> float:
         """How long the move accelerates (= decelerates), s: the blend's overlap never

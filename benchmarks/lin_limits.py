@@ -8,10 +8,10 @@ For random Cartesian moves of the Lola 15, planned as the runtime plans them
     accelerations and jerks as differences of consecutive samples),
   - the 1 ms references the servo's interpolator makes of them, as a drive sees them:
     first, second and third differences of successive references over 1 ms; with the
-    setpoints as the generator writes them for lin and circ now (positions and
-    velocities: cubic Hermite), and with exact velocities and accelerations in them
-    (central differences of the path over +-0.1 ms: what the generator is to provide;
-    runtime/motion/interpolator.py), beside the path itself sampled every 1 ms;
+    setpoints as the generator writes them for lin and circ (positions, velocities and
+    accelerations: the stream's central differences over +-0.1 ms), and with the same
+    derivatives taken from the path afresh at every setpoint, beside the path itself
+    sampled every 1 ms;
   goal: at most 1.0 everywhere;
 * how much slower than the programmed speed the moves are: each move's duration against
   the same path at constant programmed speed (``length / speed``: the reference, computed
@@ -125,14 +125,14 @@ def measure(stream, q0, name: str, setpoints: Ratios, plain: Ratios, exact: Rati
         t = n * PERIOD
         positions, velocities = stream.sample(t)
         velocities5.append(velocities)
-        now.append((t, positions[:6], velocities[:6]))
+        now.append((t, positions[:6], velocities[:6], stream.accelerations_at(t)[:6]))  # as the runtime
         v, a = exact_derivatives(stream, t)
         wired.append((t, stream.position_at(t)[:6] if 0.0 < t < stream.duration else positions[:6], v, a))
     accelerations = derivative(velocities5, PERIOD)
     for order, values in enumerate((velocities5, accelerations, derivative(accelerations, PERIOD))):
         for v in values:
             setpoints.note(order, v, name)
-    note_differences(plain, references(q0, now), TICK, name)
+    note_differences(plain, references(q0, now, limits), TICK, name)
     note_differences(exact, references(q0, wired, limits), TICK, name)
     own = [stream.position_at(k * TICK)[:6] for k in range(-PERIOD_TICKS, int(stream.duration / TICK) + 2 * PERIOD_TICKS)]
     note_differences(path, own, TICK, name)
@@ -280,7 +280,7 @@ def main() -> int:
 
     print(f"{planned} random lin/circ moves of the {spec.name} ({near} starting near the wrist singularity; "
           f"{refused} drawn moves refused by the path check)")
-    report([("5 ms setpoints", setpoints), ("1 ms, setpoints as now (no accelerations)", plain),
+    report([("5 ms setpoints", setpoints), ("1 ms references (the runtime's setpoints)", plain),
             ("1 ms, exact velocities and accelerations", exact), ("the path itself, every 1 ms (reference)", itself)])
     print(f"  duration against the same path at the programmed speed (reference): median "
           f"{percentile(slowdowns, 0.5):.2f}x, largest {max(slowdowns):.2f}x")

@@ -39,6 +39,7 @@ from math import ceil
 import numpy as np
 
 from ..timing import TICK
+from .interpolator import Interpolator
 from .trajectory import Trajectory
 
 #: The verification grid (s): the servo's tick, where the 1 ms references are made.
@@ -113,14 +114,48 @@ def limit_ratios(positions: np.ndarray, step: float, limits: Limits) -> tuple[fl
     return out[0], out[1], out[2]
 
 
-def check_blend(first, second, offset: float, corner, limits: Limits, step: float = STEP) -> tuple[float, float, float]:
+def check_blend(first, second, offset: float, corner, limits: Limits, step: float = STEP,
+                period: float | None = None) -> tuple[float, float, float]:
     """The limit ratios (velocity, acceleration, jerk) of the superposition of ``first``
     and ``second`` started ``offset`` s after ``first``, over the overlap and three steps
-    either side of it. All three <= 1 means the blend keeps every limit."""
+    either side of it; with ``period``, also of the servo's 1 ms references made of its
+    setpoints every ``period`` s (:func:`servo_ratios`). All three <= 1 means the blend
+    keeps every limit."""
     k0 = int(round(offset / step)) - 3
     k1 = int(ceil(first.duration / step)) + 3
     times = [k * step for k in range(k0, k1 + 1)]
-    return limit_ratios(composite(first, second, offset, corner, times), step, limits)
+    ratios = limit_ratios(composite(first, second, offset, corner, times), step, limits)
+    if period is None:
+        return ratios
+    return tuple(max(a, b) for a, b in zip(ratios, servo_ratios(first, second, offset, corner, limits, period)))
+
+
+def servo_ratios(first, second, offset: float, corner, limits: Limits, period: float) -> tuple[float, float, float]:
+    """The limit ratios of the servo's 1 ms references (its interpolator, from the blend's
+    setpoints every ``period`` s with their positions, velocities and accelerations: what
+    the trajectory generator writes) over the overlap and two setpoints either side. The
+    interpolator keeps the limits wherever the setpoints allow a segment within them; a
+    short blend of short moves may put more switches of the jerk into one period than it
+    can follow, and then this says so."""
+    k0 = int(offset / period) - 2
+    k1 = int(ceil(first.duration / period)) + 2
+    interpolator = None
+    references = []
+    for k in range(k0, k1 + 1):
+        t = k * period
+        p, v, a = first.at_time(t)
+        if t > offset:
+            p2, v2, a2 = second.at_time(t - offset)
+            p = tuple([x + y - c for x, y, c in zip(p, p2, corner)])
+            v = tuple([x + y for x, y in zip(v, v2)])
+            a = tuple([x + y for x, y in zip(a, a2)])
+        if interpolator is None:
+            interpolator = Interpolator(p, (limits.velocity, limits.acceleration, limits.jerk))
+        interpolator.push(t, p, v, a)
+        if k > k0:
+            references.extend(interpolator.sample(t - period + i * STEP) for i in range(int(round(period / STEP))))
+    references.append(interpolator.sample(k1 * period))
+    return limit_ratios(np.asarray(references, dtype=float), STEP, limits)
 
 
 def blend_offset(first_kind: str, first, approx: float, second_kind: str, second, corner,
@@ -141,7 +176,7 @@ def blend_offset(first_kind: str, first, approx: float, second_kind: str, second
         offset = k * period
         if offset >= duration:
             break
-        ratios = check_blend(first, second, offset, corner, limits)
+        ratios = check_blend(first, second, offset, corner, limits, period=period)
         if max(ratios) <= 1.0 + _SLACK:
             return offset
         wanted *= 0.5

@@ -29,7 +29,7 @@ import numpy as np
 
 from compiler.values import Joint
 
-from ..timing import SETPOINT_PERIOD
+from ..timing import SETPOINT_PERIOD, TICK
 from .kinematics import Kinematics, KinematicsError
 from .stops import PathStop
 from .trajectory import Result, Trajectory
@@ -42,20 +42,24 @@ __all__ = ["JOINT_LIMIT_SHARE", "CartesianInput", "JointStream", "joint_limit_sc
 # ============================================================================ per tick
 
 
+#: The half-width (s) of the central differences that give a lin/circ move's joint
+#: velocities and accelerations at a setpoint.
+DERIVATIVE_STEP = 1e-4
+
+
 class JointStream(Trajectory):
     """The joint trajectory of a :class:`CheckedPath` for the trajectory generator (a
     :class:`~runtime.motion.trajectory.Trajectory`): ``duration`` and
     ``sample(t) -> (positions, velocities)`` over the six main axes followed by the
-    held ``additional`` axes.
+    held ``additional`` axes, and :meth:`accelerations_at` (what the servo's references
+    need to keep every limit between the setpoints).
 
     The positions are one inverse kinematics of the commanded pose, ``near`` the joint
-    values of the previous call (extrapolated linearly); the velocities are central
-    differences ``(q(t + period) - q(t - period)) / (2 period)`` of the joint path
-    (second-order accurate; the profile holds still outside the move, so they are 0 at
-    both ends). Called at ``t, t + period, t + 2 period, ...`` (the generator's ticks),
-    each call solves one inverse kinematics, one period ahead; any other ``t`` costs
-    three (from the check's nearest sample). Before 0 the start joints, from
-    ``duration`` on the end joints, both with zero velocity.
+    values of the previous call (extrapolated linearly) when called at ``t, t + period,
+    ...`` (the generator's ticks), else near the check's nearest sample; the velocities and
+    accelerations are central differences of the joint path over +-DERIVATIVE_STEP
+    (0.1 ms; less near the ends): two more inverse kinematics, near the first. Before 0 the
+    start joints, from ``duration`` on the end joints, both at rest.
 
     Never raises for a number ``t``: should an inverse kinematics fail after all
     (impossible after the check but for rounding), ``fault`` gets the message and the
@@ -63,7 +67,7 @@ class JointStream(Trajectory):
     """
 
     __slots__ = ("checked", "period", "duration", "fault", "_additional", "_zeros",
-                 "_start", "_end", "_tp", "_qp", "_tc", "_qc", "_tn", "_qn")
+                 "_start", "_end", "_tp", "_qp", "_tc", "_qc", "_ac")
 
     def __init__(self, checked: CheckedPath, period: float = SETPOINT_PERIOD, additional: Sequence[float] = ()):
         self.checked = checked
@@ -74,8 +78,8 @@ class JointStream(Trajectory):
         self._zeros = (0.0,) * (6 + len(add))
         self._start = tuple(checked.start_joints) + add
         self._end = tuple(checked.end_joints) + add
-        self._tc = self._tn = None
-        self._qp = self._qc = self._qn = None
+        self._tp = self._tc = None
+        self._qp = self._qc = self._ac = None
 
     def joints_at(self, t: float, near: Sequence[float] | None = None) -> tuple[float, ...]:
         """The six main axes at ``t`` (:meth:`CheckedPath.joints_at`); may raise
@@ -132,38 +136,77 @@ class JointStream(Trajectory):
         move's ``acc`` and jerk (:class:`runtime.motion.stops.PathStop`)."""
         return PathStop(self, t, positions, rate=rate)
 
+    def _derivatives(self, t: float, q: tuple, near_ok: bool = True) -> tuple[tuple, tuple]:
+        """Velocities and accelerations of the six main axes at ``t`` (q: the joints at
+        ``t``): central differences over +-DERIVATIVE_STEP; may raise KinematicsError."""
+        e = min(DERIVATIVE_STEP, 0.5 * t, 0.5 * (self.duration - t))
+        joints_at = self.checked.joints_at
+        before, after = joints_at(t - e, q), joints_at(t + e, q)
+        k1, k2 = 0.5 / e, 1.0 / (e * e)
+        return (tuple([(c - a) * k1 for a, c in zip(before, after)]),
+                tuple([(a - 2.0 * b + c) * k2 for a, b, c in zip(before, q, after)]))
+
     def sample(self, t: float) -> tuple[tuple[float, ...], tuple[float, ...]]:
         duration = self.duration
         if t >= duration:
+            self._tc, self._ac = t, self._zeros
             return self._end, self._zeros
         if not t > 0.0:
+            self._tc, self._ac = t, self._zeros
             return self._start, self._zeros
         if self.fault is not None:
             return (self._qc or self.checked.start_joints) + self._additional, self._zeros
         h = self.period
-        joints_at = self.checked.joints_at
+        tc = self._tc
         try:
-            tn = self._tn
-            if tn is not None and abs(t - tn) <= 1e-9 * h:
-                qp, qc = self._qc, self._qn
-                near = tuple([2.0 * b - a for a, b in zip(qp, qc)])
-                qn = joints_at(t + h, near)
+            if tc is not None and self._qc is not None and abs(t - tc - h) <= 1e-9 * h and self._qp is not None:
+                near = tuple([2.0 * b - a for a, b in zip(self._qp, self._qc)])  # the last two, extrapolated
+                q = self.checked.joints_at(t, near)
             else:
-                qc = joints_at(t)  # near: the check's nearest sample
-                qp = joints_at(t - h, qc)
-                qn = joints_at(t + h, qc)
+                q = self.checked.joints_at(t)  # near: the check's nearest sample
+            velocities, accelerations = self._derivatives(t, q)
         except KinematicsError as exc:
             self.fault = (f"the arm cannot follow the path at {_percent(self.checked.move.fraction(t))} "
                           f"of its length: {exc}")
+            self._ac = None
             return (self._qc or self.checked.start_joints) + self._additional, self._zeros
-        self._qp, self._qc, self._qn = qp, qc, qn
-        self._tc, self._tn = t, t + h
-        k = 0.5 / h
-        velocities = tuple([(b - a) * k for a, b in zip(qp, qn)])
+        self._qp, self._qc = self._qc, q
+        self._tp, self._tc = tc, t
         add = self._additional
+        self._ac = accelerations + (0.0,) * len(add)
         if add:
-            return qc + add, velocities + (0.0,) * len(add)
-        return qc, velocities
+            return q + add, velocities + (0.0,) * len(add)
+        return q, velocities
+
+    def at_time(self, t: float) -> tuple[tuple[float, ...], tuple[float, ...], tuple[float, ...]]:
+        """Positions, velocities and accelerations at ``t`` as :meth:`sample` and
+        :meth:`accelerations_at` give them, keeping no state (three inverse kinematics).
+        May raise ``KinematicsError``."""
+        if t >= self.duration:
+            return self._end, self._zeros, self._zeros
+        if not t > 0.0:
+            return self._start, self._zeros, self._zeros
+        q = self.checked.joints_at(t)
+        velocities, accelerations = self._derivatives(t, q)
+        add = self._additional
+        zeros = (0.0,) * len(add)
+        return q + add, velocities + zeros, accelerations + zeros
+
+    def accelerations_at(self, t: float) -> tuple[float, ...] | None:
+        """The accelerations of the last :meth:`sample` when ``t`` is its time (central
+        differences over +-0.1 ms of the joint path, consistent with its velocities);
+        else from three inverse kinematics; None after a fault."""
+        if t == self._tc:
+            return self._ac
+        if t >= self.duration or not t > 0.0:
+            return self._zeros
+        if self.fault is not None:
+            return None
+        try:
+            q = self.checked.joints_at(t)
+            return self._derivatives(t, q)[1] + (0.0,) * len(self._additional)
+        except KinematicsError:
+            return None
 
     def __repr__(self) -> str:
         return f"JointStream(duration={self.duration!r}, period={self.period!r})"
@@ -192,7 +235,7 @@ def _ratios(q: np.ndarray, h: float, limits: Sequence[Sequence[float]]) -> list[
 #: Where the check's samples show a joint above this share of a limit, the setpoints
 #: around are solved and checked too (elsewhere the samples' differences are far enough
 #: from the limits that the setpoints', over windows of the same size, are too).
-HOT_SHARE = 0.5
+HOT_SHARE = 0.7
 
 
 def setpoint_ratios(checked: CheckedPath, limits: Sequence[Sequence[float]], period: float) -> list[float]:
@@ -200,8 +243,8 @@ def setpoint_ratios(checked: CheckedPath, limits: Sequence[Sequence[float]], per
     the setpoints of the move (its joints every ``period`` s from the start, one inverse
     kinematics each, as the stream makes them; the end from ``duration`` on; at rest
     before and after): first, second and third differences, what the drives see. Solved
-    where the check's samples come above HOT_SHARE of a limit (the hot stretches), and 0
-    elsewhere."""
+    between the check's samples around those above HOT_SHARE of a limit (the hot
+    stretches); 0 elsewhere."""
     times, joints = checked.times, checked.joints
     n = ceil(checked.duration / period - 1e-9)
     if len(times) < 2 or n < 1:
@@ -218,9 +261,10 @@ def setpoint_ratios(checked: CheckedPath, limits: Sequence[Sequence[float]], per
         hot[:len(over)] |= over
         hot[len(hot) - len(over):] |= over
     steps = set()
-    for i in np.flatnonzero(hot):  # the setpoints within four of a hot sample
-        c = int(times[i] / period)
-        steps.update(range(max(c - 4, -3), min(c + 6, n + 4)))
+    last = len(times) - 1
+    for i in np.flatnonzero(hot):  # the setpoints from the sample before a hot one to the one after, and four more
+        lo, hi = int(times[max(i - 1, 0)] / period), int(times[min(i + 1, last)] / period)
+        steps.update(range(max(lo - 4, -3), min(hi + 6, n + 4)))
     worst = [0.0, 0.0, 0.0]
     run: list = []
     for step in sorted(steps) + [None]:
@@ -344,7 +388,7 @@ def plan_cartesian(inp: CartesianInput) -> tuple[Result, JointStream | None, str
                 if k < 1.0:  # the same path, k times slower: the same joints at times / k
                     move = CartesianMove(path, move.speed * k, move.acc * k * k, move.jerk * k * k * k)
                     checked = _retimed(checked, move, k)
-                ratios = setpoint_ratios(checked, limits, period)
+                ratios = setpoint_ratios(checked, limits, TICK)  # (its 5 ms differences average these)
                 if max(ratios) <= 1.0:
                     break
                 k = _scale(ratios, JOINT_LIMIT_SHARE)

@@ -68,6 +68,10 @@ class MoveRequest:
         self.kind, self.targets, self.speed, self.acc, self.approx, self.line = kind, targets, speed, acc, approx, line
         self.rest_of = rest_of
 
+    def __repr__(self) -> str:
+        return (f"MoveRequest({self.kind!r}, {self.targets!r}, {self.speed!r}, {self.acc!r}, {self.approx!r}, "
+                f"{self.line!r})")
+
 
 class Segment:
     """A planned move on the timeline: ``trajectory`` from the previous move's end to

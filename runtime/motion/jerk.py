@@ -113,7 +113,7 @@ from __future__ import annotations
 from math import cbrt, isfinite, sqrt
 from numbers import Real
 
-from .planner import DISTANCE_EPSILON, MAX_DURATION, PtpInput, _fmt
+from .planner import DISTANCE_EPSILON, MAX_DURATION, PtpInput, SynchronizedTrajectory, _fmt
 from .stops import LineStop, StopRamp
 from .trajectory import Result, Trajectory
 
@@ -344,7 +344,7 @@ def profile_with_duration(start: float, distance: float, max_velocity: float,
 # ----------------------------------------------------------------------------- trajectory
 
 
-class JerkPtpTrajectory(Trajectory):
+class JerkPtpTrajectory(SynchronizedTrajectory):
     """A planned, synchronised, jerk-limited PTP move: every axis starts at ``t = 0`` and
     stops at ``t = duration`` (a :class:`~runtime.motion.trajectory.Trajectory`); made by
     :func:`plan_ptp_jerk`.
@@ -497,24 +497,6 @@ class JerkPtpTrajectory(Trajectory):
             put_position((start + q) if first else (end - q))
             put_velocity(v)
         return tuple(positions), tuple(velocities)
-
-    def sample_accelerations(self, t: float) -> tuple[float, ...]:
-        """Accelerations (unit/s^2) of all axes at time ``t`` (s); 0 outside the move."""
-        return tuple([p.sample(t)[2] for p in self.profiles])
-
-    def accelerations_at(self, t: float) -> tuple[float, ...]:
-        """Exact: :meth:`sample_accelerations`."""
-        return self.sample_accelerations(t)
-
-    def at_time(self, t: float) -> tuple[tuple[float, ...], tuple[float, ...], tuple[float, ...]]:
-        """Exact positions, velocities and accelerations at ``t``."""
-        positions, velocities = self.sample(t)
-        return positions, velocities, self.sample_accelerations(t)
-
-    @property
-    def ramp_time(self) -> float:
-        """The longest acceleration phase of any moving axis."""
-        return max((p.t_acc for p in self.profiles if p.distance != 0.0), default=0.0)
 
     def stop(self, t: float, positions: tuple, velocities: tuple, rate: float = 1.0) -> Trajectory:
         """On the joint-space line (``"line"``): a jerk-limited :class:`LineStop` on it;

@@ -97,7 +97,32 @@ class PtpInput:
         return len(self.current_position)
 
 
-class PtpTrajectory(Trajectory):
+class SynchronizedTrajectory(Trajectory):
+    """What the PTP trajectories share: one profile per axis (``profiles``), all of the
+    move's duration, whose accelerations are exact."""
+
+    __slots__ = ()
+
+    def sample_accelerations(self, t: float) -> tuple[float, ...]:
+        """Accelerations (unit/s^2) of all axes at time ``t`` (s); 0 outside the move."""
+        return tuple([p.sample(t)[2] for p in self.profiles])
+
+    def accelerations_at(self, t: float) -> tuple[float, ...]:
+        """Exact: :meth:`sample_accelerations`."""
+        return self.sample_accelerations(t)
+
+    def at_time(self, t: float) -> tuple[tuple[float, ...], tuple[float, ...], tuple[float, ...]]:
+        """Exact positions, velocities and accelerations at ``t``."""
+        positions, velocities = self.sample(t)
+        return positions, velocities, self.sample_accelerations(t)
+
+    @property
+    def ramp_time(self) -> float:
+        """The longest acceleration phase of any moving axis."""
+        return max((p.t_acc for p in self.profiles if p.distance != 0.0), default=0.0)
+
+
+class PtpTrajectory(SynchronizedTrajectory):
     """A planned, synchronised PTP move: every axis starts at ``t = 0`` and stops at
     ``t = duration`` (a :class:`~runtime.motion.trajectory.Trajectory`).
 
@@ -160,24 +185,6 @@ class PtpTrajectory(Trajectory):
                 positions.append(end - 0.5 * a * r * r)
                 velocities.append(a * r)
         return tuple(positions), tuple(velocities)
-
-    def sample_accelerations(self, t: float) -> tuple[float, ...]:
-        """Accelerations (unit/s^2) of all axes at time ``t`` (s); 0 outside the move."""
-        return tuple(p.sample(t)[2] for p in self.profiles)
-
-    def accelerations_at(self, t: float) -> tuple[float, ...]:
-        """Exact: :meth:`sample_accelerations`."""
-        return self.sample_accelerations(t)
-
-    def at_time(self, t: float) -> tuple[tuple[float, ...], tuple[float, ...], tuple[float, ...]]:
-        """Exact positions, velocities and accelerations at ``t``."""
-        positions, velocities = self.sample(t)
-        return positions, velocities, self.sample_accelerations(t)
-
-    @property
-    def ramp_time(self) -> float:
-        """The longest acceleration phase of any moving axis."""
-        return max((p.t_acc for p in self.profiles if p.distance != 0.0), default=0.0)
 
     def stop(self, t: float, positions: tuple, velocities: tuple, rate: float = 1.0) -> StopRamp:
         """Every axis to rest in the same time, within this move's acceleration limits

@@ -415,3 +415,27 @@ def test_random_programs_keep_every_limit_and_the_programmed_speed(program):
             continue
         speed = math.dist(KIN.forward(positions[k][:6])[:3], KIN.forward(positions[k - 1][:6])[:3]) / SETPOINT_PERIOD
         assert speed <= max(r.speed for r in now + running[k - 1]) * (1.0 + 1e-6)
+
+
+@pytest.mark.parametrize("profile", ["jerk", "trapezoid"])
+def test_a_pause_keeps_the_limits_at_the_servos_references(profile):
+    """A controlled stop's setpoints carry its exact accelerations (LineStop, StopRamp), so
+    the servo's 1 ms references keep the limits through the stop: velocity, acceleration,
+    and the jerk of a jerk-limited move (a trapezoid has none to keep)."""
+    for pause_at in (20, 37, 55, 80):  # accelerating, cruising, decelerating
+        queue = make_queue(profile=profile)
+        queue.add(ptp((60.0, -40.0, 60.0, 40.0, 80.0, 90.0), 1, 1.0, 1.0))
+        run = Run(queue)
+        setpoints = [(0.0, queue.positions, queue.velocities, queue.accelerations)]
+        for i in range(2000):
+            if i == pause_at:
+                assert queue.pause() is not None
+            run.step()
+            a = queue.accelerations
+            setpoints.append((run.now, queue.positions, queue.velocities) + ((a,) if a is not None else ()))
+            if queue.interrupted is not None and queue.current is None:
+                break
+        velocity, acceleration, jerk = difference_ratios(servo_references(START, setpoints), TICK)
+        assert velocity <= 1.0 + 1e-6 and acceleration <= 1.0 + 1e-6, (pause_at, velocity, acceleration)
+        if profile == "jerk":
+            assert jerk <= 1.0 + 1e-6, (pause_at, jerk)

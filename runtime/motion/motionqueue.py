@@ -317,7 +317,7 @@ class MotionQueue:
         stop = self._stop
         self.t_stop += self.period
         self.positions, self.velocities = stop.sample(self.t_stop)
-        self.accelerations = None
+        self.accelerations = stop.accelerations_at(self.t_stop)  # exact for a StopRamp and a LineStop
         if self.t_stop >= stop.duration - 1e-12:
             self._stop = None
             self.velocities = (0.0,) * self.n

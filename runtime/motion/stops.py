@@ -74,6 +74,13 @@ class StopRamp(Trajectory):
         return (tuple([p + v * travelled for p, v in zip(self.start_position, self._v0)]),
                 tuple([v * left for v in self._v0]))
 
+    def accelerations_at(self, t: float) -> tuple[float, ...]:
+        """Exact: ``-v0 / duration`` on every axis while it stops, 0 before and after."""
+        if not 0.0 < t < self.duration:
+            return self._zeros
+        k = -1.0 / self.duration
+        return tuple([v * k for v in self._v0])
+
 
 class JerkStop:
     """A jerk-limited stop of one coordinate (a path parameter): from velocity ``v0 >= 0``
@@ -173,6 +180,13 @@ class LineStop(Trajectory):
         ds, v, _a = self._stop.sample(t)
         s = self._s0 + ds
         return (tuple([b + di * s for b, di in zip(self._base, self._d)]), tuple([di * v for di in self._d]))
+
+    def accelerations_at(self, t: float) -> tuple[float, ...]:
+        """Exact: every axis's distance times the path parameter's acceleration."""
+        if t >= self.duration:
+            return self._zeros
+        a = self._stop.sample(t)[2]
+        return tuple([di * a for di in self._d])
 
 
 class PathStop(Trajectory):

@@ -67,7 +67,7 @@ class JointStream(Trajectory):
     """
 
     __slots__ = ("checked", "period", "duration", "fault", "_additional", "_zeros",
-                 "_start", "_end", "_tp", "_qp", "_tc", "_qc", "_ac")
+                 "_start", "_end", "_qp", "_tc", "_qc", "_ac")
 
     def __init__(self, checked: CheckedPath, period: float = SETPOINT_PERIOD, additional: Sequence[float] = ()):
         self.checked = checked
@@ -78,7 +78,7 @@ class JointStream(Trajectory):
         self._zeros = (0.0,) * (6 + len(add))
         self._start = tuple(checked.start_joints) + add
         self._end = tuple(checked.end_joints) + add
-        self._tp = self._tc = None
+        self._tc = None
         self._qp = self._qc = self._ac = None
 
     def joints_at(self, t: float, near: Sequence[float] | None = None) -> tuple[float, ...]:
@@ -136,7 +136,7 @@ class JointStream(Trajectory):
         move's ``acc`` and jerk (:class:`runtime.motion.stops.PathStop`)."""
         return PathStop(self, t, positions, rate=rate)
 
-    def _derivatives(self, t: float, q: tuple, near_ok: bool = True) -> tuple[tuple, tuple]:
+    def _derivatives(self, t: float, q: tuple) -> tuple[tuple, tuple]:
         """Velocities and accelerations of the six main axes at ``t`` (q: the joints at
         ``t``): central differences over +-DERIVATIVE_STEP; may raise KinematicsError."""
         e = min(DERIVATIVE_STEP, 0.5 * t, 0.5 * (self.duration - t))
@@ -171,7 +171,7 @@ class JointStream(Trajectory):
             self._ac = None
             return (self._qc or self.checked.start_joints) + self._additional, self._zeros
         self._qp, self._qc = self._qc, q
-        self._tp, self._tc = tc, t
+        self._tc = t
         add = self._additional
         self._ac = accelerations + (0.0,) * len(add)
         if add:

@@ -12,7 +12,8 @@ from runtime import timing
 RUNTIME = Path(__file__).resolve().parent.parent / "runtime"
 PERIODS = {0.001, 0.005, 0.01}
 #: Numbers of the same value that are no period: (file, the name on their line).
-NOT_PERIODS = {("motion/paths.py", "POINT_TOL"), ("motion/pathcheck.py", "START_TOL")}
+NOT_PERIODS = {("motion/paths.py", "POINT_TOL"), ("motion/pathcheck.py", "START_TOL"),
+               ("motion/pathtiming.py", "SETTLED")}
 
 
 def period_literals(path: Path) -> list[tuple[int, str]]:

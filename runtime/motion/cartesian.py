@@ -9,11 +9,14 @@ In one call that never raises, shaped like the PTP planners::
     result, stream, message = plan_cartesian(CartesianInput(
         kinematics, joints, target_pose, speed, acc, via=via_pose, axis_limits=spec.main_axes))
 
-With a specification's axes, a move is never refused for its joint velocities: it is
-timed within every joint's velocity, acceleration and jerk limit first
-(:func:`joint_limit_scale`: the move run k times slower, the one factor that brings every
-joint within JOINT_LIMIT_SHARE of its limits at samples at least as fine as the
-setpoints), then checked.
+With a specification's axes, a move is never refused for its joint velocities: its path
+is checked at uniform steps along it, then timed within JOINT_LIMIT_SHARE of every
+joint's velocity, acceleration and jerk limit (:func:`timed_path`): slower only where
+the joints need it (:func:`runtime.motion.pathtiming.path_profile`), or, when the joints
+limit the whole path alike and that is faster, the programmed profile run k times slower
+(:func:`runtime.motion.pathtiming.uniform_scale`). The setpoints are then solved on the
+servo's 1 ms grid wherever the joints come above HOT_SHARE of a limit and the move is
+slowed down again (uniformly) should they break one (:func:`setpoint_ratios`).
 
 Per tick: :meth:`JointStream.sample` (about 29 us: one inverse kinematics per call when
 called at successive ticks ``t, t + period, ...``; it solves one period ahead and returns
@@ -33,8 +36,10 @@ from ..timing import SETPOINT_PERIOD, TICK
 from .kinematics import Kinematics, KinematicsError
 from .stops import PathStop
 from .trajectory import Result, Trajectory
-from .pathcheck import MIN_SAMPLES, CheckedPath, PathError, _percent, check_path, joint_limits
+from .pathcheck import CheckedPath, PathError, _percent, check_path, joint_limits
 from .paths import CircPath, LinPath, CartesianMove, _positive
+from .pathtiming import (ConstantSpeed, PathProfile, nominal_profile, path_derivatives, path_profile,
+                         predicted_ratios, uniform_scale)
 
 __all__ = ["JOINT_LIMIT_SHARE", "CartesianInput", "JointStream", "joint_limit_scale", "plan_cartesian"]
 
@@ -148,11 +153,11 @@ class JointStream(Trajectory):
 
     def sample(self, t: float) -> tuple[tuple[float, ...], tuple[float, ...]]:
         duration = self.duration
-        if t >= duration:
-            self._tc, self._ac = t, self._zeros
+        if t >= duration:  # (at rest: the next call near the check's samples, not these joints)
+            self._tc, self._ac, self._qp, self._qc = t, self._zeros, None, None
             return self._end, self._zeros
         if not t > 0.0:
-            self._tc, self._ac = t, self._zeros
+            self._tc, self._ac, self._qp, self._qc = t, self._zeros, None, None
             return self._start, self._zeros
         if self.fault is not None:
             return (self._qc or self.checked.start_joints) + self._additional, self._zeros
@@ -238,25 +243,32 @@ def _ratios(q: np.ndarray, h: float, limits: Sequence[Sequence[float]]) -> list[
 HOT_SHARE = 0.7
 
 
-def setpoint_ratios(checked: CheckedPath, limits: Sequence[Sequence[float]], period: float) -> list[float]:
+def setpoint_ratios(checked: CheckedPath, limits: Sequence[Sequence[float]], period: float,
+                    hot_times: np.ndarray | None = None) -> list[float]:
     """The largest ratio of any joint's velocity, acceleration and jerk to ``limits`` at
     the setpoints of the move (its joints every ``period`` s from the start, one inverse
     kinematics each, as the stream makes them; the end from ``duration`` on; at rest
     before and after): first, second and third differences, what the drives see. Solved
-    between the check's samples around those above HOT_SHARE of a limit (the hot
-    stretches); 0 elsewhere."""
+    around ``hot_times`` (s), or, without them, between the check's samples around those
+    above HOT_SHARE of a limit (the hot stretches); 0 elsewhere."""
     times, joints = checked.times, checked.joints
     n = ceil(checked.duration / period - 1e-9)
     if len(times) < 2 or n < 1:
         return [0.0, 0.0, 0.0]
+    if hot_times is not None:
+        steps = set()
+        for step in np.unique((np.asarray(hot_times) / period).astype(int)).tolist():
+            steps.update(range(max(step - 4, -3), min(step + 6, n + 4)))
+        return _solved_ratios(checked, limits, period, n, steps)
     q = np.asarray(joints, dtype=float)
-    dt = times[1] - times[0]
+    at = np.asarray(times, dtype=float)
     hot = np.zeros(len(q), dtype=bool)
     derivative = q
-    for limit in limits:
-        derivative = np.diff(derivative, axis=0) / dt
-        if not len(derivative):
+    for limit in limits:  # divided differences (the samples need not be uniform in time)
+        if len(derivative) < 2:
             break
+        derivative = np.diff(derivative, axis=0) / np.maximum(np.diff(at), 1e-12)[:, None]
+        at = 0.5 * (at[1:] + at[:-1])
         over = np.max(np.abs(derivative) / np.asarray(limit, dtype=float), axis=1) > HOT_SHARE
         hot[:len(over)] |= over
         hot[len(hot) - len(over):] |= over
@@ -265,6 +277,11 @@ def setpoint_ratios(checked: CheckedPath, limits: Sequence[Sequence[float]], per
     for i in np.flatnonzero(hot):  # the setpoints from the sample before a hot one to the one after, and four more
         lo, hi = int(times[max(i - 1, 0)] / period), int(times[min(i + 1, last)] / period)
         steps.update(range(max(lo - 4, -3), min(hi + 6, n + 4)))
+    return _solved_ratios(checked, limits, period, n, steps)
+
+
+def _solved_ratios(checked: CheckedPath, limits, period: float, n: int, steps: set) -> list[float]:
+    """:func:`setpoint_ratios` over the setpoints ``steps`` (runs of consecutive ones)."""
     worst = [0.0, 0.0, 0.0]
     run: list = []
     for step in sorted(steps) + [None]:
@@ -286,6 +303,48 @@ def setpoint_ratios(checked: CheckedPath, limits: Sequence[Sequence[float]], per
     return worst
 
 
+def timed_path(move: CartesianMove, kinematics: Kinematics, start_joints: Sequence[float], axis_limits,
+               limits: Sequence[Sequence[float]], check: Mapping) -> tuple[CheckedPath, np.ndarray | None]:
+    """``move``'s path checked (:func:`check_path`, at uniform steps along it) and timed
+    within every joint's ``limits`` (:func:`runtime.motion.pathtiming.path_profile`, at
+    JOINT_LIMIT_SHARE of them): the programmed profile where no joint limits it, else one
+    that slows down only where the joints need it. Also returns the times at which the
+    joints are predicted above HOT_SHARE of a limit (every 1 ms; None: not predicted, a
+    path too short to tell). Raises ``PathError``."""
+    path = move.path
+    along = check_path(CartesianMove(path, move.speed, move.acc, move.jerk, profile=ConstantSpeed(path.length)),
+                       kinematics, start_joints, axis_limits, check_velocity=False, **check)
+    s = np.asarray(along.times, dtype=float)  # (at unit speed, the times are the path lengths)
+    joints = np.asarray(along.joints, dtype=float)
+    profile = k = None
+    if len(s) >= 4 and s[-1] > 0.0:
+        derivatives = path_derivatives(s, joints)
+        profile = path_profile(s, joints, limits, move.speed, move.acc, move.jerk, JOINT_LIMIT_SHARE, derivatives)
+        k = uniform_scale(s, derivatives, limits, move.speed, move.acc, move.jerk, JOINT_LIMIT_SHARE)
+    if profile is not None and profile.duration < move.duration / k:  # slower only where the joints need it
+        move = CartesianMove(path, move.speed, move.acc, move.jerk, profile=profile)
+    else:  # the joints limit the whole path alike: the programmed profile, k times slower
+        if k is not None and k < 1.0:
+            move = CartesianMove(path, move.speed * k, move.acc * k * k, move.jerk * k * k * k)
+        profile = nominal_profile(path.length, move.speed, move.acc, move.jerk)  # (the same, vectorised)
+    hot = None
+    if k is not None:
+        at, ratios = predicted_ratios(profile, s, derivatives, limits)
+        hot = profile.times_at(at[np.max(ratios, axis=0) > HOT_SHARE])
+    times = profile.times_at(s)
+    dt = np.diff(times)[:, None]
+    moved = np.abs(np.diff(joints, axis=0))
+    peaks = np.max(np.divide(moved, dt, out=np.zeros_like(moved), where=dt > 0.0), axis=0, initial=0.0)
+    return CheckedPath(move, kinematics, along.start_joints, tuple(times.tolist()), along.fractions, along.joints,
+                       tuple(peaks.tolist()), along.min_margins), hot
+
+
+def _slower(move: CartesianMove, k: float) -> CartesianMove:
+    """``move`` run k times slower (its profile scaled in time)."""
+    profile = move.profile.scaled(k) if isinstance(move.profile, PathProfile) else None
+    return CartesianMove(move.path, move.speed * k, move.acc * k * k, move.jerk * k * k * k, profile=profile)
+
+
 def _retimed(checked: CheckedPath, move: CartesianMove, k: float) -> CheckedPath:
     """``checked`` for ``move``: the same path run k times slower (the same joints, at
     their times / k; no inverse kinematics)."""
@@ -296,7 +355,8 @@ def _retimed(checked: CheckedPath, move: CartesianMove, k: float) -> CheckedPath
 
 def joint_limit_scale(checked: CheckedPath, limits: Sequence[Sequence[float]],
                       share: float = JOINT_LIMIT_SHARE) -> float:
-    """The largest k <= 1 such that the move of ``checked`` run k times slower in time
+    """(What the planner before the local slowdown timed moves by; ``benchmarks/lin_limits.py``
+    measures against it.) The largest k <= 1 such that the move of ``checked`` run k times slower in time
     (path speed x k, acceleration x k^2, jerk x k^3: the time-optimal profile scales so)
     keeps every joint's velocity, acceleration and jerk within ``share`` of ``limits``
     (three sequences of six: max velocity, max acceleration, max jerk), measured by finite
@@ -378,17 +438,18 @@ def plan_cartesian(inp: CartesianInput) -> tuple[Result, JointStream | None, str
         if None in limits:  # not a specification's axes: nothing to time the move within
             checked = check_path(move, kinematics, main, axis_limits, **check)
         else:
-            # timed within every joint's limits: slower (uniformly) where the programmed
-            # speed, acc and jerk would ask more of a joint than it can give; measured at
-            # least as finely as the setpoints will be made
-            fine = dict(check, min_samples=max(check.get("min_samples", MIN_SAMPLES), ceil(move.duration / period)))
-            checked = check_path(move, kinematics, main, axis_limits, check_velocity=False, **fine)
-            k = joint_limit_scale(checked, limits)
+            # timed within every joint's limits: slower where the programmed speed, acc
+            # and jerk would ask more of a joint than it can give (pathtiming), from the
+            # joints at uniform steps along the path
+            checked, hot = timed_path(move, kinematics, main, axis_limits, limits, check)
+            move = checked.move
+            k = 1.0
             for _ in range(RETIMINGS):  # until the setpoints themselves keep every limit
                 if k < 1.0:  # the same path, k times slower: the same joints at times / k
-                    move = CartesianMove(path, move.speed * k, move.acc * k * k, move.jerk * k * k * k)
+                    move = _slower(move, k)
                     checked = _retimed(checked, move, k)
-                ratios = setpoint_ratios(checked, limits, TICK)  # (its 5 ms differences average these)
+                    hot = None if hot is None else hot / k
+                ratios = setpoint_ratios(checked, limits, TICK, hot)  # (its 5 ms differences average these)
                 if max(ratios) <= 1.0:
                     break
                 k = _scale(ratios, JOINT_LIMIT_SHARE)

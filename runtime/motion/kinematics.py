@@ -490,6 +490,20 @@ class Kinematics:
             cid |= WRIST_FLIP
         return cid
 
+    def configuration_and_margins(self, joints: Sequence[float]) -> tuple[int, tuple[float, float, float]]:
+        """:meth:`configuration` and :meth:`singularity_margins` of joint values at once."""
+        q = _main(joints)
+        offs = self._offs
+        x, v = self._arm_plane(q)
+        sb = 1 if x < 0.0 else 0
+        cid = sb
+        if v * self._vsign[sb][0] < 0.0:
+            cid |= ELBOW_DOWN
+        s5 = sin((q[4] + offs[4]) * _D2R)
+        if s5 < 0.0:
+            cid |= WRIST_FLIP
+        return cid, (abs(x), abs(sin((q[2] + offs[2]) * _D2R - self._phi)), abs(s5))
+
     # ---- inverse ---------------------------------------------------------------------
     def inverse(self, pose, near: Sequence[float] | None = None, configuration: int | None = None) -> tuple:
         """Joint values (deg) that put the TCP at ``pose``: the solution nearest ``near``

@@ -257,8 +257,8 @@ def check_path(move: CartesianMove, kinematics: Kinematics, start_joints: Sequen
     else:
         n, dt = 0, 0.0
 
-    inverse, configuration, margins = (kinematics.inverse, kinematics.configuration,
-                                       kinematics.singularity_margins)
+    inverse, configuration_and_margins, margins = (kinematics.inverse, kinematics.configuration_and_margins,
+                                                   kinematics.singularity_margins)
     sample = profile.sample
     pose_at = path.pose_at
     times, fractions, joints = [], [], []
@@ -285,8 +285,7 @@ def check_path(move: CartesianMove, kinematics: Kinematics, start_joints: Sequen
                     raise PathError(f"the path leaves the axis limits at {_percent(fraction)} of its "
                                     f"length ({names[j]} would be {v:.2f} deg, limit {lo:g}..{hi:g})",
                                     fraction, "limit", names[j])
-        c = configuration(qi)
-        m = margins(qi)
+        c, m = configuration_and_margins(qi)
         for k in range(3):
             if m[k] < min_margins[k]:
                 min_margins[k] = m[k]
@@ -294,8 +293,8 @@ def check_path(move: CartesianMove, kinematics: Kinematics, start_joints: Sequen
             config = c
         else:
             dq = [b - a for a, b in zip(q, qi)]
-            big = max(range(6), key=lambda j: abs(dq[j]))
-            if abs(dq[big]) > max_joint_step:
+            if max(map(abs, dq)) > max_joint_step:
+                big = max(range(6), key=lambda j: abs(dq[j]))
                 raise _jump_failure(kinematics, pose, q, qi, config, c, big, s - prev_s, path,
                                     fraction, max_joint_step, margins(q), m)
             if c != config:

@@ -51,6 +51,7 @@ from compiler.values import Pose, Quat
 
 from .jerk import time_optimal_profile
 from .kinematics import matrix_to_rpy
+from .pathtiming import PathProfile
 from .rotation import _R2D, _Slerp, _rpy_of_quat, quat_to_rpy, rpy_to_quat
 
 __all__ = ["CartesianMove", "CircPath", "DEFAULT_JERK_FACTOR", "LinPath", "ORIENTATION_RADIUS", "POINT_TOL",
@@ -330,8 +331,11 @@ class CartesianMove:
     """A path with a jerk-limited rest-to-rest timing: ``s(t)`` is the time-optimal
     double-S profile from 0 to ``path.length`` with path speed ``<= speed`` (mm/s),
     acceleration ``<= acc`` (mm/s^2) and jerk ``<= jerk`` (mm/s^3; default
-    ``DEFAULT_JERK_FACTOR * acc``). Raises ``ValueError`` for a limit that is not
-    positive and finite.
+    ``DEFAULT_JERK_FACTOR * acc``), or the ``profile`` given (any with ``sample(t) ->
+    (s, v, a)``, ``duration``, ``peak_velocity`` and ``t_acc`` from 0 to
+    ``path.length``, within those limits: a
+    :class:`runtime.motion.pathtiming.PathProfile` that slows down where the joints need
+    it). Raises ``ValueError`` for a limit that is not positive and finite.
 
     Attributes: ``path``, ``speed``, ``acc``, ``jerk``, ``profile`` (the
     :class:`runtime.motion.jerk.JerkProfile` of ``s``), ``duration`` (s).
@@ -339,14 +343,23 @@ class CartesianMove:
 
     __slots__ = ("path", "speed", "acc", "jerk", "profile", "duration", "_tcp_ratio")
 
-    def __init__(self, path: _Path, speed: float, acc: float, jerk: float | None = None):
+    def __init__(self, path: _Path, speed: float, acc: float, jerk: float | None = None, profile=None):
         self.speed = speed = _positive("speed", speed)
         self.acc = acc = _positive("acc", acc)
         self.jerk = jerk = _positive("jerk", DEFAULT_JERK_FACTOR * acc if jerk is None else jerk)
         self.path = path
-        self.profile = time_optimal_profile(0.0, path.length, speed, acc, jerk)
+        self.profile = time_optimal_profile(0.0, path.length, speed, acc, jerk) if profile is None else profile
         self.duration = self.profile.duration
         self._tcp_ratio = path.position_length / path.length if path.length > 0.0 else 0.0
+
+    def stop_limits(self, s: float, v: float) -> tuple[float, float]:
+        """The path acceleration and jerk a stop from ``s`` at path speed ``v`` may use:
+        the move's ``acc`` and ``jerk``, or, when its profile slows down where the joints
+        need it (:class:`runtime.motion.pathtiming.PathProfile`), those of the stretch
+        the stop runs through."""
+        if isinstance(self.profile, PathProfile):
+            return self.profile.stop_limits(s, v)
+        return self.acc, self.jerk
 
     def progress(self, t: float) -> tuple[float, float, float]:
         """``(s, ds/dt, d2s/dt2)`` at time ``t`` (clamped to the move)."""

@@ -207,12 +207,15 @@ class PathStop(Trajectory):
                  rate: float = 1.0):
         """``rate``: the stream was sampled at ``rate`` seconds of its time per real second
         (a speed override): the real path speed is the profile's times ``rate``; the stop
-        itself is in real time, decelerating at the move's ``acc`` times ``rate^2``."""
+        itself is in real time, within the path acceleration and jerk of the stretch it
+        runs through (:meth:`runtime.motion.paths.CartesianMove.stop_limits`: the move's
+        ``acc`` and jerk, or less where the joints slowed the move down)."""
         move = stream.checked.move
         s0, v0, a0 = move.profile.sample(t)
-        dec = move.acc if deceleration is None else deceleration
+        acc, jerk = move.stop_limits(s0, v0 * rate)
+        dec = acc if deceleration is None else deceleration
         self.path, self.kinematics = move.path, stream.checked.kinematics
-        self._stop = JerkStop(v0 * rate, a0 * rate * rate, dec, move.jerk)
+        self._stop = JerkStop(v0 * rate, a0 * rate * rate, dec, jerk)
         self._s0 = s0
         self.duration = self._stop.duration
         self.s_end = min(s0 + self._stop.distance, move.path.length)

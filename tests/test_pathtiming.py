@@ -1,0 +1,187 @@
+"""Local slowdown of Cartesian moves (runtime/motion/pathtiming.py, issue 14): the
+profile along a path with a speed limit that varies along it, and lin moves that slow
+down only where the joints need it."""
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from compiler.spec import load_spec
+from runtime.motion.cartesian import CartesianInput, JOINT_LIMIT_SHARE, plan_cartesian
+from runtime.motion.kinematics import Kinematics
+from runtime.motion.pathcheck import check_path
+from runtime.motion.paths import CartesianMove, LinPath
+from runtime.motion.pathtiming import (
+    ConstantSpeed,
+    PathProfile,
+    _build,
+    nominal_profile,
+    path_derivatives,
+    uniform_scale,
+)
+from runtime.motion.jerk import time_optimal_profile
+
+ROOT = Path(__file__).resolve().parents[1]
+SPEC = load_spec(ROOT / "programs" / "lola15.spc")
+KIN = Kinematics(SPEC)
+AXES = SPEC.main_axes
+LIMITS = ([a.max_velocity for a in AXES], [a.max_acceleration for a in AXES], [a.max_jerk for a in AXES])
+
+
+@st.composite
+def segments(draw):
+    """(length, bounds, tops, accs, jerks): 1-8 segments of 0.5-200 mm, each with its own
+    speed limit, path acceleration and jerk."""
+    m = draw(st.integers(1, 8))
+    lengths = [draw(st.floats(0.5, 200.0)) for _ in range(m)]
+    bounds = [0.0]
+    for x in lengths[:-1]:
+        bounds.append(bounds[-1] + x)
+    tops = [draw(st.floats(1.0, 1000.0)) for _ in range(m)]
+    accs = [draw(st.floats(10.0, 5000.0)) for _ in range(m)]
+    jerks = [draw(st.floats(100.0, 50000.0)) for _ in range(m)]
+    return sum(lengths), bounds, tops, accs, jerks
+
+
+@settings(max_examples=300, deadline=None, derandomize=True, database=None, suppress_health_check=list(HealthCheck))
+@given(segments())
+def test_property_the_profile_keeps_each_segments_limits_from_rest_to_rest(drawn):
+    """Whatever the segments, the profile runs from rest at 0 to rest at the length, never
+    backwards, continuous in speed and acceleration, and within every segment's speed
+    limit, acceleration and jerk wherever it is (a change of speed never crosses into a
+    slower segment)."""
+    length, bounds, tops, accs, jerks = drawn
+    profile = _build(length, bounds, tops, accs, jerks)
+    assert profile.duration > 0.0
+    times = np.concatenate([np.linspace(0.0, profile.duration, 4001), np.asarray(profile._t) + 1e-12,
+                            np.asarray(profile._t) - 1e-12])
+    times = np.sort(np.clip(times, 0.0, profile.duration))
+    s, v, a, j = profile.states(times)
+    assert s[0] == 0.0 and s[-1] == length and v[-1] == 0.0
+    assert np.all(np.diff(s) >= -1e-9 * length)
+    assert np.all(v >= -1e-9 * max(tops))
+    # the state at the end of the last piece is rest at the length
+    end = profile.sample(profile.duration * (1.0 - 1e-12))
+    assert abs(end[0] - length) <= 1e-6 * length + 1e-9 and abs(end[1]) <= 1e-6 * max(tops)
+    segment = np.clip(np.searchsorted(bounds, s, side="right") - 1, 0, len(bounds) - 1)
+    assert np.all(v <= np.asarray(tops)[segment] * (1.0 + 1e-9) + 1e-9)
+    # acceleration and jerk: each piece lies in one segment and keeps its limits (at both ends)
+    starts, ends = np.asarray(profile._s), np.append(np.asarray(profile._s)[1:], length)
+    durations = np.diff(np.append(profile._t, profile.duration))
+    for s0, s1, a0, j0, dt in zip(starts, ends, profile._a, profile._j, durations):
+        first = min(max(int(np.searchsorted(bounds, 0.5 * (s0 + s1), side="right")) - 1, 0), len(bounds) - 1)
+        end = bounds[first + 1] if first + 1 < len(bounds) else length
+        assert bounds[first] - 1e-7 * length <= s0 and s1 <= end + 1e-7 * length, (s0, s1, bounds)
+        for acc in (a0, a0 + j0 * dt):
+            assert abs(acc) <= accs[first] * (1.0 + 1e-9) + 1e-9
+        assert abs(j0) <= jerks[first] * (1.0 + 1e-9)
+    # continuity: speed and acceleration at every piece boundary
+    for i in range(1, len(profile._t)):
+        before = profile.states(np.asarray([profile._t[i] - 1e-9]))
+        after = profile.states(np.asarray([profile._t[i]]))
+        assert abs(before[1][0] - after[1][0]) <= 1e-6 * max(tops) + 1e-9
+        assert abs(before[2][0] - after[2][0]) <= 1e-4 * max(accs) + 1e-6 * max(jerks)
+
+
+@settings(max_examples=100, deadline=None, derandomize=True, database=None, suppress_health_check=list(HealthCheck))
+@given(segments(), st.floats(0.05, 1.0))
+def test_property_times_at_inverts_the_profile_and_scaling_slows_it_down(drawn, k):
+    length, bounds, tops, accs, jerks = drawn
+    profile = _build(length, bounds, tops, accs, jerks)
+    s = np.linspace(0.0, length, 257)
+    times = profile.times_at(s)
+    assert np.all(np.diff(times) >= 0.0)
+    assert np.max(np.abs(profile.sample_many(times) - s)) <= 1e-6 * length
+    slow = profile.scaled(k)
+    assert math.isclose(slow.duration, profile.duration / k, rel_tol=1e-12)
+    for t in np.linspace(0.0, profile.duration, 37):
+        fast_s, fast_v, fast_a = profile.sample(t)
+        slow_s, slow_v, slow_a = slow.sample(t / k)
+        assert math.isclose(slow_s, fast_s, rel_tol=1e-9, abs_tol=1e-9)
+        assert math.isclose(slow_v, fast_v * k, rel_tol=1e-9, abs_tol=1e-9)
+        assert math.isclose(slow_a, fast_a * k * k, rel_tol=1e-9, abs_tol=1e-6)
+
+
+def test_one_segment_at_the_programmed_limits_is_the_time_optimal_double_s():
+    for length, speed, acc, jerk in ((300.0, 250.0, 1500.0, 15000.0), (2.0, 1000.0, 5000.0, 50000.0),
+                                     (80.0, 100.0, 500.0, 5000.0)):
+        ours, theirs = nominal_profile(length, speed, acc, jerk), time_optimal_profile(0.0, length, speed, acc, jerk)
+        assert math.isclose(ours.duration, theirs.duration, rel_tol=1e-9)
+        for t in np.linspace(0.0, ours.duration, 101):
+            assert np.allclose(ours.sample(t), theirs.sample(t), rtol=1e-7, atol=1e-7)
+
+
+# a lin that starts 7 deg from the wrist singularity and runs away from it (found by
+# benchmarks/lin_limits.py: 3x faster than the move slowed down as a whole)
+NEAR_WRIST = (8.935, 34.423, -65.86, 9.993, 7.213, -84.805)
+AWAY = (1347.193, 492.812, 1365.021, 55.56, 4.094, 87.277)
+
+
+def test_a_lin_move_slows_down_only_where_the_joints_need_it():
+    _, stream, message = plan_cartesian(CartesianInput(KIN, NEAR_WRIST, AWAY, 500.0, 1500.0, axis_limits=SPEC))
+    assert stream is not None, message
+    move = stream.checked.move
+    assert isinstance(move.profile, PathProfile)
+    # the same path slowed down as a whole: the one factor from the same samples
+    along = check_path(CartesianMove(move.path, 500.0, 1500.0, profile=ConstantSpeed(move.path.length)),
+                       KIN, NEAR_WRIST, SPEC, check_velocity=False)
+    s, joints = np.asarray(along.times), np.asarray(along.joints)
+    k = uniform_scale(s, path_derivatives(s, joints), LIMITS, 500.0, 1500.0, 15000.0, JOINT_LIMIT_SHARE)
+    uniform = time_optimal_profile(0.0, move.path.length, 500.0 * k, 1500.0 * k * k, 15000.0 * k ** 3).duration
+    assert stream.duration < 0.5 * uniform, (stream.duration, uniform)
+    # slow near the singularity, at the programmed speed away from it; every joint within its limits
+    speeds = [move.sample_with_speed(t)[1] for t in np.linspace(0.0, stream.duration, 400)]
+    fractions = [move.fraction(t) for t in np.linspace(0.0, stream.duration, 400)]
+    near = max(v for v, f in zip(speeds, fractions) if f < 0.05)
+    assert max(speeds) > 5.0 * near and max(speeds) <= 500.0 * (1.0 + 1e-9), (near, max(speeds))
+    from test_cartesian import setpoint_ratios
+    assert max(setpoint_ratios(stream)) <= 1.0
+
+
+def test_a_move_the_joints_do_not_limit_keeps_the_programmed_profile():
+    q0 = (0.0, -20.0, 30.0, 0.0, 60.0, 0.0)
+    start = KIN.forward(q0)
+    target = (start[0] + 50.0,) + start[1:]
+    _, stream, message = plan_cartesian(CartesianInput(KIN, q0, target, 100.0, 500.0, axis_limits=SPEC))
+    assert stream is not None, message
+    assert not isinstance(stream.checked.move.profile, PathProfile)
+    assert math.isclose(stream.duration, CartesianMove(LinPath(start, target), 100.0, 500.0).duration, rel_tol=1e-12)
+
+
+def _ratios(positions, period: float) -> list[float]:
+    out, d = [], np.asarray(positions, dtype=float)
+    for limit in LIMITS:
+        d = np.diff(d, axis=0) / period
+        out.append(float(np.max(np.abs(d) / np.asarray(limit))))
+    return out
+
+
+def test_a_stop_on_a_locally_slowed_path_keeps_every_limit_and_sampling_again_starts_afresh():
+    """A pause anywhere along a move slowed near the wrist singularity stops on the path
+    within the limits of the stretch it runs through; the stream, sampled again from its
+    start after a stop, gives the same joints as a fresh one (it once extrapolated from
+    the joints of the last run: a 360 deg jump of A4)."""
+    _, stream, message = plan_cartesian(CartesianInput(KIN, NEAR_WRIST, AWAY, 500.0, 1500.0, axis_limits=SPEC))
+    assert stream is not None, message
+    _, fresh, _ = plan_cartesian(CartesianInput(KIN, NEAR_WRIST, AWAY, 500.0, 1500.0, axis_limits=SPEC))
+    period = 0.005
+    for fraction in (0.05, 0.2, 0.5, 0.7, 0.85):
+        steps = int(fraction * stream.duration / period)
+        setpoints = [stream.sample(i * period)[0][:6] for i in range(steps + 1)]
+        assert setpoints[-1] == fresh.sample(steps * period)[0][:6] or np.allclose(
+            setpoints[-1], fresh.position_at(steps * period)[:6], atol=1e-9)
+        q, v = stream.sample(steps * period)
+        stop = stream.stop(steps * period, q, v)
+        i = 1
+        while True:
+            setpoints.append(stop.sample(i * period)[0][:6])
+            if i * period >= stop.duration:
+                break
+            i += 1
+        setpoints += [setpoints[-1]] * 3
+        assert stop.fault is None
+        assert max(_ratios(setpoints, period)) <= 1.0, (fraction, _ratios(setpoints, period))

@@ -18,10 +18,13 @@ from runtime.motion.paths import CartesianMove, LinPath
 from runtime.motion.pathtiming import (
     ConstantSpeed,
     PathProfile,
+    WarpedProfile,
     _build,
+    joint_ratios,
     nominal_profile,
     path_derivatives,
     uniform_scale,
+    warped_profile,
 )
 from runtime.motion.jerk import time_optimal_profile
 
@@ -130,7 +133,7 @@ def test_a_lin_move_slows_down_only_where_the_joints_need_it():
     along = check_path(CartesianMove(move.path, 500.0, 1500.0, profile=ConstantSpeed(move.path.length)),
                        KIN, NEAR_WRIST, SPEC, check_velocity=False)
     s, joints = np.asarray(along.times), np.asarray(along.joints)
-    k = uniform_scale(s, path_derivatives(s, joints), LIMITS, 500.0, 1500.0, 15000.0, JOINT_LIMIT_SHARE)
+    k, _fastest = uniform_scale(s, path_derivatives(s, joints), LIMITS, 500.0, 1500.0, 15000.0, JOINT_LIMIT_SHARE)
     uniform = time_optimal_profile(0.0, move.path.length, 500.0 * k, 1500.0 * k * k, 15000.0 * k ** 3).duration
     assert stream.duration < 0.5 * uniform, (stream.duration, uniform)
     # slow near the singularity, at the programmed speed away from it; every joint within its limits
@@ -160,6 +163,21 @@ def _ratios(positions, period: float) -> list[float]:
     return out
 
 
+def _stopped(stream, steps: int, period: float, setpoints: list):
+    """Stop ``stream`` at its setpoint ``steps`` (sampled up to it into ``setpoints``):
+    the stop's setpoints every ``period`` appended, then three more at rest; the stop."""
+    q, v = stream.sample(steps * period)
+    stop = stream.stop(steps * period, q, v)
+    i = 1
+    while True:
+        setpoints.append(stop.sample(i * period)[0][:6])
+        if i * period >= stop.duration:
+            break
+        i += 1
+    setpoints += [setpoints[-1]] * 3
+    return stop
+
+
 def test_a_stop_on_a_locally_slowed_path_keeps_every_limit_and_sampling_again_starts_afresh():
     """A pause anywhere along a move slowed near the wrist singularity stops on the path
     within the limits of the stretch it runs through; the stream, sampled again from its
@@ -174,14 +192,127 @@ def test_a_stop_on_a_locally_slowed_path_keeps_every_limit_and_sampling_again_st
         setpoints = [stream.sample(i * period)[0][:6] for i in range(steps + 1)]
         assert setpoints[-1] == fresh.sample(steps * period)[0][:6] or np.allclose(
             setpoints[-1], fresh.position_at(steps * period)[:6], atol=1e-9)
-        q, v = stream.sample(steps * period)
-        stop = stream.stop(steps * period, q, v)
-        i = 1
-        while True:
-            setpoints.append(stop.sample(i * period)[0][:6])
-            if i * period >= stop.duration:
-                break
-            i += 1
-        setpoints += [setpoints[-1]] * 3
+        stop = _stopped(stream, steps, period, setpoints)
         assert stop.fault is None
         assert max(_ratios(setpoints, period)) <= 1.0, (fraction, _ratios(setpoints, period))
+
+
+# ---- the time warp --------------------------------------------------------------------------
+
+
+def _drawn_path(seed: int):
+    """A lin/circ move as benchmarks/lin_limits.py draws them (half near the wrist
+    singularity), checked at uniform steps: (move, s, joints), or None."""
+    import random
+    import sys
+    sys.path.insert(0, str(ROOT / "benchmarks"))
+    import lin_limits
+    from runtime.motion.paths import CircPath
+
+    rng = random.Random(seed)
+    for _ in range(50):
+        drawn = lin_limits.random_move(rng, KIN, SPEC, rng.random() < 0.5)
+        if drawn is None:
+            continue
+        q0, kind, args = drawn
+        start = KIN.forward(q0)
+        path = LinPath(start, args[0]) if kind == "lin" else CircPath(start, args[0], args[1])
+        speed, acc = args[-2], args[-1]
+        try:
+            along = check_path(CartesianMove(path, speed, acc, profile=ConstantSpeed(path.length)), KIN, q0, SPEC,
+                               check_velocity=False)
+        except ValueError:
+            continue
+        return CartesianMove(path, speed, acc), np.asarray(along.times), np.asarray(along.joints)
+    return None
+
+
+@settings(max_examples=25, deadline=None, derandomize=True, database=None, suppress_health_check=list(HealthCheck))
+@given(st.integers(0, 10 ** 6))
+def test_property_a_warped_profile_keeps_the_joints_and_the_programmed_limits(seed):
+    """Wherever the joints slow a drawn move down, its warped profile runs from rest to
+    rest along the whole path, never faster than the programmed speed, never above the
+    programmed acceleration and jerk, smooth (speed and acceleration continuous), and every
+    joint within its limits every 0.25 ms; the scalar sample agrees with the vectorised."""
+    drawn = _drawn_path(seed)
+    if drawn is None:
+        return
+    move, s, joints = drawn
+    derivatives = path_derivatives(s, joints)
+    profile = warped_profile(s, derivatives, LIMITS, move.speed, move.acc, move.jerk, JOINT_LIMIT_SHARE)
+    if profile is None:  # the joints limit it nowhere, or no correction kept them within their share
+        return
+    assert isinstance(profile, WarpedProfile)
+    times = np.arange(0.0, profile.duration + 0.00025, 0.00025)
+    at, v, a, j = profile.states(times)
+    assert at[0] == 0.0 and at[-1] == move.path.length and v[-1] == 0.0
+    assert np.all(np.diff(at) >= -1e-9)
+    assert np.max(v) <= move.speed * (1.0 + 1e-6)
+    assert np.max(np.abs(a)) <= move.acc * (1.0 + 1e-6)
+    assert np.max(np.abs(j)) <= move.jerk * (1.0 + 1e-6)
+    # smooth: the speed's differences give the acceleration, the acceleration's the jerk's size
+    assert np.max(np.abs(np.diff(v) / 0.00025 - 0.5 * (a[1:] + a[:-1]))) <= 1e-3 * move.acc + 1e-6 * move.jerk
+    assert np.max(np.abs(np.diff(a))) / 0.00025 <= move.jerk * (1.0 + 1e-3)
+    ratios = joint_ratios(at, v, a, j, s, derivatives, LIMITS)
+    assert np.max(ratios) <= 1.0, np.max(ratios, axis=1)
+    for t in times[::97]:
+        assert np.allclose(profile.sample(t), [x[0] for x in profile.states(np.asarray([t]))[:3]], atol=1e-9)
+
+
+def test_the_warp_is_chosen_where_it_is_the_fastest_and_its_setpoints_keep_every_limit():
+    """A circ drawn by the benchmark that the warp times fastest: planned through
+    plan_cartesian, its 5 ms setpoints keep every joint's limits."""
+    for seed in range(40):
+        drawn = _drawn_path(seed)
+        if drawn is None:
+            continue
+        move, s, joints = drawn
+        _, stream, _ = plan_cartesian(CartesianInput(KIN, joints[0], move.path.end, move.speed, move.acc,
+                                                     via=getattr(move.path, "via", None), axis_limits=SPEC))
+        if stream is not None and isinstance(stream.checked.move.profile, WarpedProfile):
+            break
+    else:
+        raise AssertionError("no drawn move was timed by the warp")
+    from test_cartesian import setpoint_ratios
+    assert max(setpoint_ratios(stream)) <= 1.0
+
+
+def test_midpoints_are_exact_for_cubics_on_any_grid():
+    from runtime.motion.pathtiming import _midpoints
+    for x in (np.array([0.0, 1.0, 2.0, 2.5, 3.5, 4.5, 5.0]), np.linspace(-1.0, 3.0, 9), np.array([0.0, 1.0, 2.0]),
+              np.array([0.0, 1.0])):
+        y = x ** 3 - 2.0 * x if len(x) >= 4 else x ** (len(x) - 1)
+        middle = 0.5 * (x[:-1] + x[1:])
+        want = middle ** 3 - 2.0 * middle if len(x) >= 4 else middle ** (len(x) - 1)
+        assert np.allclose(_midpoints(x, y), want, atol=1e-12)
+
+
+def test_stops_anywhere_on_locally_timed_moves_keep_every_limit_and_end_at_rest():
+    """Drawn moves the joints slow down locally (segments or warp), paused at fractions of
+    their duration: every stop's 5 ms setpoints keep every joint's limits and end at rest
+    on the path (before its end, or at it when no sooner stop keeps the limits: then the
+    stop is the rest of the move). Before: a stop could take the segments' smallest
+    deceleration while the move was still speeding up, run past the end of the path and
+    jump there (350x the jerk limit), or end while still braking."""
+    period = 0.005
+    checked = 0
+    for seed in range(0, 60, 3):
+        drawn = _drawn_path(seed)
+        if drawn is None:
+            continue
+        move, s, joints = drawn
+        via = getattr(move.path, "via", None)
+        plan = CartesianInput(KIN, joints[0], move.path.end, move.speed, move.acc, via=via, axis_limits=SPEC)
+        _, stream, _ = plan_cartesian(plan)
+        if stream is None or not isinstance(stream.checked.move.profile, PathProfile):
+            continue
+        checked += 1
+        for fraction in (0.03, 0.2, 0.45, 0.7, 0.88):
+            _, stream, _ = plan_cartesian(plan)
+            steps = int(fraction * stream.duration / period)
+            setpoints = [stream.sample(i * period)[0][:6] for i in range(steps + 1)]
+            stop = _stopped(stream, steps, period, setpoints)
+            assert stop.fault is None and stop.s_end <= move.path.length + 1e-9
+            assert stop.sample(stop.duration)[1] == (0.0,) * 6
+            assert max(_ratios(setpoints, period)) <= 1.0, (seed, fraction, _ratios(setpoints, period))
+    assert checked >= 5

@@ -13,7 +13,7 @@ RUNTIME = Path(__file__).resolve().parent.parent / "runtime"
 PERIODS = {0.001, 0.005, 0.01}
 #: Numbers of the same value that are no period: (file, the name on their line).
 NOT_PERIODS = {("motion/paths.py", "POINT_TOL"), ("motion/pathcheck.py", "START_TOL"),
-               ("motion/pathtiming.py", "SETTLED")}
+               ("motion/pathtiming.py", "SETTLED"), ("motion/pathtiming.py", "STOP_LOWEST")}
 
 
 def period_literals(path: Path) -> list[tuple[int, str]]:

@@ -15,7 +15,7 @@ joint's velocity, acceleration and jerk limit (:func:`timed_path`): slower only 
 the joints need it (:func:`runtime.motion.pathtiming.path_profile`), or, when the joints
 limit the whole path alike and that is faster, the programmed profile run k times slower
 (:func:`runtime.motion.pathtiming.uniform_scale`). The setpoints are then solved on the
-servo's 1 ms grid wherever the joints come above HOT_SHARE of a limit and the move is
+servo's 1 ms grid wherever the joints come above PREDICTED_HOT_SHARE of a limit and the move is
 slowed down again (uniformly) should they break one (:func:`setpoint_ratios`).
 
 Per tick: :meth:`JointStream.sample` (about 29 us: one inverse kinematics per call when
@@ -39,7 +39,7 @@ from .trajectory import Result, Trajectory
 from .pathcheck import CheckedPath, PathError, _percent, check_path, joint_limits
 from .paths import CircPath, LinPath, CartesianMove, _positive
 from .pathtiming import (ConstantSpeed, PathProfile, nominal_profile, path_derivatives, path_profile,
-                         predicted_ratios, uniform_scale)
+                         predicted_ratios, uniform_scale, warped_profile)
 
 __all__ = ["JOINT_LIMIT_SHARE", "CartesianInput", "JointStream", "joint_limit_scale", "plan_cartesian"]
 
@@ -241,6 +241,10 @@ def _ratios(q: np.ndarray, h: float, limits: Sequence[Sequence[float]]) -> list[
 #: around are solved and checked too (elsewhere the samples' differences are far enough
 #: from the limits that the setpoints', over windows of the same size, are too).
 HOT_SHARE = 0.7
+#: Where the joints are predicted (pathtiming's chain rule, every 1 ms) above this share of
+#: a limit, the setpoints around are solved and checked (the prediction is close to what
+#: the setpoints do: the samples' differences, which average the peaks, need HOT_SHARE).
+PREDICTED_HOT_SHARE = 0.8
 
 
 def setpoint_ratios(checked: CheckedPath, limits: Sequence[Sequence[float]], period: float,
@@ -309,7 +313,7 @@ def timed_path(move: CartesianMove, kinematics: Kinematics, start_joints: Sequen
     within every joint's ``limits`` (:func:`runtime.motion.pathtiming.path_profile`, at
     JOINT_LIMIT_SHARE of them): the programmed profile where no joint limits it, else one
     that slows down only where the joints need it. Also returns the times at which the
-    joints are predicted above HOT_SHARE of a limit (every 1 ms; None: not predicted, a
+    joints are predicted above PREDICTED_HOT_SHARE of a limit (every 1 ms; None: not predicted, a
     path too short to tell). Raises ``PathError``."""
     path = move.path
     along = check_path(CartesianMove(path, move.speed, move.acc, move.jerk, profile=ConstantSpeed(path.length)),
@@ -317,10 +321,18 @@ def timed_path(move: CartesianMove, kinematics: Kinematics, start_joints: Sequen
     s = np.asarray(along.times, dtype=float)  # (at unit speed, the times are the path lengths)
     joints = np.asarray(along.joints, dtype=float)
     profile = k = None
-    if len(s) >= 4 and s[-1] > 0.0:
+    if len(s) >= 4 and s[-1] > 0.0:  # the shortest of: slowed down as a whole, by segments, by a warp
         derivatives = path_derivatives(s, joints)
-        profile = path_profile(s, joints, limits, move.speed, move.acc, move.jerk, JOINT_LIMIT_SHARE, derivatives)
-        k = uniform_scale(s, derivatives, limits, move.speed, move.acc, move.jerk, JOINT_LIMIT_SHARE)
+        k, fastest = uniform_scale(s, derivatives, limits, move.speed, move.acc, move.jerk, JOINT_LIMIT_SHARE)
+        beat = move.duration / k
+        if fastest < LOCAL_GAIN * beat:  # slowing down locally may gain something
+            segments = path_profile(s, joints, limits, move.speed, move.acc, move.jerk, JOINT_LIMIT_SHARE,
+                                    derivatives)
+            if segments is not None:
+                beat = min(beat, segments.duration)
+            warped = (warped_profile(s, derivatives, limits, move.speed, move.acc, move.jerk, JOINT_LIMIT_SHARE, beat)
+                      if fastest < LOCAL_GAIN * beat else None)  # (unless the segments are about as short as can be)
+            profile = warped or segments
     if profile is not None and profile.duration < move.duration / k:  # slower only where the joints need it
         move = CartesianMove(path, move.speed, move.acc, move.jerk, profile=profile)
     else:  # the joints limit the whole path alike: the programmed profile, k times slower
@@ -330,7 +342,7 @@ def timed_path(move: CartesianMove, kinematics: Kinematics, start_joints: Sequen
     hot = None
     if k is not None:
         at, ratios = predicted_ratios(profile, s, derivatives, limits)
-        hot = profile.times_at(at[np.max(ratios, axis=0) > HOT_SHARE])
+        hot = profile.times_at(at[np.max(ratios, axis=0) > PREDICTED_HOT_SHARE])
     times = profile.times_at(s)
     dt = np.diff(times)[:, None]
     moved = np.abs(np.diff(joints, axis=0))
@@ -376,6 +388,9 @@ def _scale(ratios: Sequence[float], share: float) -> float:
     return k
 
 
+#: A move is timed locally (pathtiming's segments and warp) only when the lower bound of
+#: what that could give is below this share of the uniform slowdown's duration.
+LOCAL_GAIN = 0.97
 #: Times a lin/circ move is timed slower again when its setpoints still break a limit.
 RETIMINGS = 4
 

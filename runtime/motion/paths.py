@@ -352,13 +352,14 @@ class CartesianMove:
         self.duration = self.profile.duration
         self._tcp_ratio = path.position_length / path.length if path.length > 0.0 else 0.0
 
-    def stop_limits(self, s: float, v: float) -> tuple[float, float]:
-        """The path acceleration and jerk a stop from ``s`` at path speed ``v`` may use:
+    def stop_limits(self, s: float, v: float, a: float = 0.0) -> tuple[float, float] | None:
+        """The path acceleration and jerk a stop from ``s`` at path speed ``v`` and
+        acceleration ``a`` may use:
         the move's ``acc`` and ``jerk``, or, when its profile slows down where the joints
         need it (:class:`runtime.motion.pathtiming.PathProfile`), those of the stretch
         the stop runs through."""
         if isinstance(self.profile, PathProfile):
-            return self.profile.stop_limits(s, v)
+            return self.profile.stop_limits(s, v, a)
         return self.acc, self.jerk
 
     def progress(self, t: float) -> tuple[float, float, float]:

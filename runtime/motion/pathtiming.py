@@ -1,6 +1,5 @@
 """Timing a Cartesian path within every joint's limits, slower only where the joints
-need it (issue 14): a jerk-limited path-speed profile with a speed limit that varies
-along the path.
+need it (issue 14).
 
 The idea is the one of time-optimal path parameterisation (TOPP): along a path ``s``
 (mm), a joint's motion is ``q(s)``, so at path speed ``v``, acceleration ``a`` and jerk
@@ -11,51 +10,72 @@ The idea is the one of time-optimal path parameterisation (TOPP): along a path `
     d3q/dt3 = q''' v^3 + 3 q'' v a + q' j
 
 (primes: derivatives along ``s``, finite differences of the joints at uniform ``s``
-steps of at most 1 mm, taken as their largest magnitude over the neighbouring samples).
-Where the joints are far from their limits, the programmed ``speed``, ``acc`` and
-``jerk`` bound the path; near a singularity ``q'`` and its derivatives grow and the
-joints bound it. So:
+steps of at most 1 mm: :func:`path_derivatives`; :func:`joint_ratios` is this chain
+rule, as ratios to the limits). Where the joints are far from their limits, the
+programmed ``speed``, ``acc`` and ``jerk`` bound the path; near a singularity ``q'`` and
+its derivatives grow and the joints bound it. Three timings, each within ``share`` of
+every joint's limits and within the programmed ``speed``, ``acc`` and ``jerk``; the
+planner (:func:`runtime.motion.cartesian.timed_path`) takes the shortest:
 
-1. **A speed limit per sample**: the largest cruise speed ``c`` (no ``a``, no ``j``) at
-   which every joint keeps ``share`` of its velocity limit and :data:`CRUISE_SHARE` of
-   that share of its acceleration and jerk limits (the rest is left for speeding up and
-   slowing down), and at most the programmed ``speed``.
-2. **Segments**: consecutive samples whose limits are within a factor
-   :data:`GROUP` of each other form one segment, with speed limit ``V`` (their
-   smallest), and the path acceleration ``A`` and jerk ``J`` that keep every joint within
-   ``share`` of its limits at any speed up to ``V`` (from the gains' bounds above, by the
-   segment's largest gains), at most the programmed ``acc`` and ``jerk``.
-3. **The profile**: at each boundary the speed is at most both segments' ``V``, and
-   reachable from the previous boundary and to the next within each segment's ``A`` and
-   ``J`` (a forward and a backward pass, as a controller's look-ahead does); in each
-   segment the speed rises to the highest peak that fits (at most ``V``), cruises, and
-   falls, each change a jerk-limited S-curve with zero acceleration at both ends (so the
-   transitions never cross a boundary: a slow stretch is entered at its speed).
+* **Uniform** (:func:`uniform_scale`): the programmed double-S profile run k times
+  slower (speed x k, acceleration x k^2, jerk x k^3), k the smallest room over the move.
+  It also gives a lower bound of what any local slowdown could reach: when that is not
+  clearly shorter, the two below are not tried.
+* **Segments** (:func:`path_profile`, a :class:`PathProfile`): best where the joints
+  need a short stretch slowed a lot (a move that starts next to the wrist singularity).
 
-:func:`path_profile` returns a :class:`PathProfile` (``sample(t) -> (s, v, a)``, the
-same interface as :class:`runtime.motion.jerk.JerkProfile`), or None when no joint limits
-the move anywhere (the time-optimal double-S profile with the programmed limits is then
-the move's). The bounds are conservative (sums of magnitudes); the caller still checks
-the setpoints on the servo's 1 ms grid (:func:`runtime.motion.cartesian.setpoint_ratios`)
+  1. *A speed limit per sample*: the largest cruise speed ``c`` (no ``a``, no ``j``) at
+     which every joint keeps ``share`` of its velocity limit and :data:`CRUISE_SHARE` of
+     that share of its acceleration and jerk limits (the rest is left for speeding up
+     and slowing down), and at most the programmed ``speed``.
+  2. *Segments*: consecutive samples whose limits are within a factor :data:`GROUP` of
+     each other form one segment, with speed limit ``V`` (their smallest), and the path
+     acceleration ``A`` and jerk ``J`` that keep every joint within ``share`` of its
+     limits at any speed up to ``V`` (from the magnitudes of the derivatives, the
+     segment's largest), at most the programmed ``acc`` and ``jerk``.
+  3. *The profile*: at each boundary the speed is at most both segments' ``V``, and
+     reachable from the previous boundary and to the next within each segment's ``A``
+     and ``J`` (a forward and a backward pass, as a controller's look-ahead does); in
+     each segment the speed rises to the highest peak that fits (at most ``V``),
+     cruises, and falls, each change a jerk-limited S-curve with zero acceleration at
+     both ends (so the transitions never cross a boundary: a slow stretch is entered at
+     its speed). Each segment's limits are then corrected (REFINEMENTS times) by the
+     room the joints really have in it, predicted every 2 ms.
+
+* **Warp** (:func:`warped_profile`, a :class:`WarpedProfile`): best where the joints
+  limit much of the move by different amounts. The programmed profile's time runs
+  slower by a factor ``kappa(tau) <= 1`` that varies smoothly: at most, at each instant,
+  the room the joints have there (``kappa`` constant is the uniform timing), changing
+  slowly enough that the path's acceleration stays within ``acc`` (a forward and a
+  backward pass on ``kappa^2``), smoothed (SMOOTHINGS times: a minimum, then a mean,
+  over WARP_SMOOTHING), and lowered where the joints or the path would still break
+  their share (WARP_ROUNDS times), judged at the knots (every WARP_KNOTS of programmed
+  time and on every switch of its jerk) and halfway between them.
+
+Each profile has ``sample(t) -> (s, v, a)``, the interface of
+:class:`runtime.motion.jerk.JerkProfile`, plus vectorised :meth:`PathProfile.states`,
+:meth:`PathProfile.times_at`, :meth:`PathProfile.stop_limits` (what a stop on the path
+may use where it runs) and :meth:`PathProfile.scaled`. The caller still checks the
+setpoints on the servo's 1 ms grid (:func:`runtime.motion.cartesian.setpoint_ratios`)
 and slows the whole move down should they break a limit after all (rounding, the path
 between samples).
 
-Runs once per move when it is planned (NumPy for the samples, a few hundred segments at
-most), never in a tick; :meth:`PathProfile.sample` is real-time safe (a bisection over
-the pieces and a cubic).
+Runs once per move when it is planned (NumPy over the samples and knots), never in a
+tick; ``sample`` is real-time safe (a bisection and a polynomial in plain floats).
 """
 from __future__ import annotations
 
 from bisect import bisect_right
-from math import ceil, log, sqrt
+from math import ceil, inf, log, sqrt
 from typing import Sequence
 
 import numpy as np
 
 from ..timing import TICK
 
-__all__ = ["CRUISE_SHARE", "GROUP", "ConstantSpeed", "PathProfile", "nominal_profile", "path_derivatives", "path_gains",
-           "path_profile", "predicted_ratios", "uniform_scale"]
+__all__ = ["CRUISE_SHARE", "GROUP", "ConstantSpeed", "PathDerivatives", "PathProfile", "WarpedProfile", "joint_ratios",
+           "nominal_profile", "path_derivatives", "path_gains", "path_profile", "predicted_ratios", "uniform_scale",
+           "warped_profile"]
 
 #: The share of a joint's (share of its) acceleration and jerk limit a segment's cruise
 #: speed may use; the rest is for speeding up and slowing down within the segment.
@@ -67,8 +87,12 @@ SETTLED = 0.01
 #: Times a profile's segment limits are corrected by what the joints would really do
 #: (:func:`predicted_ratios`: the bounds that built it add magnitudes, conservatively).
 REFINEMENTS = 3
+#: Decelerations a stop on a timed path tries, from the programmed one down to
+#: STOP_LOWEST of it (geometrically spaced), for the largest that keeps every joint's share.
+STOP_SCAN = 24
+STOP_LOWEST = 0.01
 #: Bisection steps (each halves the interval) for the peaks and boundary speeds.
-_BISECT = 60
+_BISECT = 40
 
 
 class ConstantSpeed:
@@ -148,10 +172,24 @@ def _change_pieces(v0: float, v1: float, a: float, j: float) -> list[tuple[float
 
 def _reach(v0: float, cap: float, length: float, a: float, j: float) -> float:
     """The highest speed up to ``cap`` that a change from ``v0`` reaches within
-    ``length`` (``cap`` itself when it is at most ``v0`` or fits)."""
+    ``length`` (``cap`` itself when it is at most ``v0`` or fits). Closed form: with ``x``
+    the gain, ``(2 v0 + x) sqrt(x / j) = length`` (a cubic in ``sqrt(x)``) while the
+    acceleration does not reach ``a``, else ``(2 v0 + x) (x / a + a / j) = 2 length``
+    (a quadratic)."""
     if cap <= v0 or _change_distance(v0, cap, a, j) <= length:
         return cap
-    lo, hi = v0, cap
+    p, q = 2.0 * v0, -length * sqrt(j)  # y^3 + p y + q = 0, y = sqrt(x): one real root (p >= 0)
+    d = sqrt(q * q / 4.0 + p * p * p / 27.0)
+    y = _cbrt(-q / 2.0 + d) + _cbrt(-q / 2.0 - d)
+    x = y * y
+    if x * j > a * a:
+        b = 2.0 * v0 / a + a / j
+        c = 2.0 * v0 * a / j - 2.0 * length
+        x = 2.0 * -c / (b + sqrt(b * b - 4.0 * c / a))  # (the root of x^2 / a + b x + c, without cancellation)
+    out = min(v0 + max(x, 0.0) * (1.0 - 1e-6), cap)  # (to stay within ``length`` despite rounding)
+    if _change_distance(v0, out, a, j) <= length:
+        return out
+    lo, hi = v0, out  # (not expected: a bisection)
     for _ in range(_BISECT):
         mid = 0.5 * (lo + hi)
         if _change_distance(v0, mid, a, j) <= length:
@@ -159,6 +197,10 @@ def _reach(v0: float, cap: float, length: float, a: float, j: float) -> float:
         else:
             hi = mid
     return lo
+
+
+def _cbrt(x: float) -> float:
+    return x ** (1.0 / 3.0) if x >= 0.0 else -((-x) ** (1.0 / 3.0))
 
 
 def _peak(v0: float, v1: float, top: float, length: float, a: float, j: float) -> float:
@@ -193,7 +235,7 @@ class PathProfile:
     slower in time."""
 
     __slots__ = ("length", "duration", "peak_velocity", "t_acc", "_t", "_s", "_v", "_a", "_j",
-                 "_bounds", "_acc", "_jerk")
+                 "_bounds", "_acc", "_jerk", "_envelope")
 
     def __init__(self, length: float, pieces: Sequence[tuple[float, float]], bounds: Sequence[float],
                  acc: Sequence[float], jerk: Sequence[float], t_acc: float):
@@ -215,6 +257,7 @@ class PathProfile:
         self.peak_velocity = peak
         self.t_acc = t_acc
         self._bounds, self._acc, self._jerk = list(bounds), list(acc), list(jerk)
+        self._envelope = None
 
     def sample(self, t: float) -> tuple[float, float, float]:
         """Path length, speed and acceleration at ``t``: 0 at rest before the start,
@@ -264,7 +307,64 @@ class PathProfile:
         out[s >= self.length] = self.duration
         return out
 
-    def stop_limits(self, s: float, v: float) -> tuple[float, float]:
+    def stop_limits(self, s: float, v: float, a: float = 0.0) -> tuple[float, float] | None:
+        """The path deceleration and jerk a stop from ``s`` at speed ``v`` and acceleration
+        ``a`` may use, or None when no stop sooner than the profile's own end keeps every
+        joint within its share (the stop is then the rest of the move). Without the
+        joints' derivatives along the path (an envelope): the segments' own limits
+        (:meth:`_segment_stop_limits`). With them: the largest deceleration from the
+        programmed ``acc`` down to STOP_LOWEST of it such that, all along the stretch the
+        stop runs through, every joint keeps its share of its acceleration limit (signed
+        q'' v(x)^2 + q' a, with v(x) the stop's own speed there: a harder stop asks more
+        here but reaches the stretch ahead slower), with the largest jerk (at most the
+        programmed) that keeps the joints' jerks within their share, large enough to turn
+        the acceleration round before the speed is gone, and stopping before the path's
+        end. Runs when a stop is made (a pause, an abort): vectorised passes over the
+        samples of the stretch."""
+        floor_acc, floor_jerk = self._segment_stop_limits(s, v)
+        if self._envelope is None or not v > 0.0:
+            return floor_acc, floor_jerk
+        at, g1, g2, g3, amax, jmax, acc, jerk = self._envelope
+        lo = max(bisect_right(at, s) - 1, 0)
+        hi = min(bisect_right(at, s + v * (v / (acc * STOP_LOWEST) + 2.0 * acc / jerk)) + 2, len(at))
+        x = np.asarray(at[lo:hi]) - s
+        G1, G2, G3 = g1[lo:hi], g2[lo:hi], g3[lo:hi]
+
+        rising = max(a, 0.0)
+
+        def speed2(dec: float, j: float) -> np.ndarray:  # the stop's speed squared along the stretch
+            top = v + rising * rising / (2.0 * j)  # (still speeding up while its acceleration ramps down)
+            ramp = top * (rising + dec) / j
+            return np.maximum(top * top - 2.0 * dec * np.maximum(x - ramp, 0.0), 0.0)[:, None]
+
+        def excess(dec: float, j: float) -> float:  # the largest share of a joint's acceleration share
+            v2 = G2 * speed2(dec, j)  # (signed: q'' v^2 and q' a, the stop's a from ``a`` to -dec)
+            return float(max(np.max(np.abs(v2 - G1 * dec) / amax), np.max(np.abs(v2 + G1 * rising) / amax)))
+
+        remaining = self.length - s
+        for step in range(STOP_SCAN + 1):  # from the programmed deceleration down
+            dec = acc * STOP_LOWEST ** (step / STOP_SCAN)
+            j = jerk
+            for _ in range(2):  # the jerk this deceleration leaves, and the stretch it then runs
+                speed = np.sqrt(speed2(dec, j))
+                cubic = G3 * speed ** 3
+                worst = np.maximum(np.abs(cubic - 3.0 * G2 * speed * dec), np.abs(cubic + 3.0 * G2 * speed * rising))
+                with np.errstate(divide="ignore", invalid="ignore"):
+                    j = min(jerk, float(np.min(np.where(G1 != 0.0, (jmax - worst) / np.abs(G1), np.inf))))
+                if not j > 0.0:
+                    break
+            if not j > 0.0:
+                continue
+            if v * v / (2.0 * dec) + 2.0 * v * dec / j > remaining:
+                break  # (softer ones stop even later)
+            # a jerk too small to turn the acceleration round before the speed is gone
+            # would end the stop still braking
+            if j * v < max(abs(a), dec) ** 2 or excess(dec, j) > 1.0:
+                continue
+            return dec, j
+        return None
+
+    def _segment_stop_limits(self, s: float, v: float) -> tuple[float, float]:
         """The path acceleration and jerk a stop from ``s`` at speed ``v`` may use: the
         smallest of the segments it may run through (those within the stop's length at
         the current segment's limits, again with the smaller limits)."""
@@ -296,6 +396,7 @@ class PathProfile:
         out._bounds = self._bounds
         out._acc = [a * k * k for a in self._acc]
         out._jerk = [j * k * k * k for j in self._jerk]
+        out._envelope = _scaled_envelope(self._envelope, k)
         return out
 
     def __repr__(self) -> str:
@@ -303,31 +404,64 @@ class PathProfile:
                 f"segments={len(self._bounds)}, pieces={len(self._t)})")
 
 
-def path_derivatives(s: np.ndarray, joints: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+class PathDerivatives:
     """The joints' first, second and third derivatives along the path (signed; (n, 6)
-    arrays) from their values ``joints`` at the uniform path lengths ``s``."""
+    arrays ``d1``, ``d2``, ``d3``; unpacks as the three) at the path lengths ``s``, with
+    :meth:`at`: all three anywhere along it, interpolated linearly."""
+
+    __slots__ = ("s", "d1", "d2", "d3", "_base", "_slope")
+
+    def __init__(self, s: np.ndarray, d1: np.ndarray, d2: np.ndarray, d3: np.ndarray):
+        self.s, self.d1, self.d2, self.d3 = s, d1, d2, d3
+        stacked = np.concatenate([d1, d2, d3], axis=1)
+        self._base = stacked[:-1]
+        self._slope = np.diff(stacked, axis=0) / np.diff(s)[:, None]
+
+    def __iter__(self):
+        return iter((self.d1, self.d2, self.d3))
+
+    def at(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The three at the path lengths ``x`` (an array): (len(x), 6) arrays."""
+        s = self.s
+        i = np.clip(np.searchsorted(s, x, side="right") - 1, 0, len(s) - 2)
+        g = self._base[i] + (np.clip(x, s[0], s[-1]) - s[i])[:, None] * self._slope[i]
+        return g[:, :6], g[:, 6:12], g[:, 12:]
+
+
+def path_derivatives(s: np.ndarray, joints: np.ndarray) -> PathDerivatives:
+    """The joints' first, second and third derivatives along the path from their values
+    ``joints`` at the uniform path lengths ``s``."""
     h = float(s[1] - s[0])
     d1 = np.gradient(np.asarray(joints, dtype=float), h, axis=0)
     d2 = np.gradient(d1, h, axis=0)
-    return d1, d2, np.gradient(d2, h, axis=0)
+    return PathDerivatives(np.asarray(s, dtype=float), d1, d2, np.gradient(d2, h, axis=0))
 
 
-def predicted_ratios(profile: PathProfile, s: np.ndarray, derivatives, limits) -> tuple[np.ndarray, np.ndarray]:
-    """How close the joints come to their ``limits`` along ``profile``, every 1 ms: the
+def predicted_ratios(profile: PathProfile, s: np.ndarray, derivatives, limits,
+                     step: float = TICK) -> tuple[np.ndarray, np.ndarray]:
+    """How close the joints come to their ``limits`` along ``profile``, every ``step`` s: the
     path length at each instant and a (3, n) array of the largest ratio of any joint's
     velocity, acceleration and jerk to its limit (the chain rule of the module
     docstring with the joints' signed ``derivatives`` along the path, interpolated)."""
-    times = np.linspace(0.0, profile.duration, int(profile.duration / TICK) + 2)
+    times = np.linspace(0.0, profile.duration, int(profile.duration / step) + 2)
     at, v, a, j = profile.states(times)
+    return at, joint_ratios(at, v, a, j, s, derivatives, limits)
+
+
+def joint_ratios(at: np.ndarray, v: np.ndarray, a: np.ndarray, j: np.ndarray, s: np.ndarray, derivatives,
+                 limits) -> np.ndarray:
+    """The (3, n) array of :func:`predicted_ratios` for path states: lengths ``at``,
+    speeds ``v``, accelerations ``a`` and jerks ``j`` (arrays)."""
     vmax, amax, jmax = (np.asarray(limit, dtype=float) for limit in limits)
-    d1, d2, d3 = derivatives
-    ratios = np.zeros((3, len(times)))
-    for axis in range(6):
-        g1, g2, g3 = (np.interp(at, s, d[:, axis]) for d in (d1, d2, d3))
-        ratios[0] = np.maximum(ratios[0], np.abs(g1 * v) / vmax[axis])
-        ratios[1] = np.maximum(ratios[1], np.abs(g2 * v * v + g1 * a) / amax[axis])
-        ratios[2] = np.maximum(ratios[2], np.abs(g3 * v * v * v + 3.0 * g2 * v * a + g1 * j) / jmax[axis])
-    return at, ratios
+    if not isinstance(derivatives, PathDerivatives):
+        derivatives = PathDerivatives(np.asarray(s, dtype=float), *derivatives)
+    g1, g2, g3 = derivatives.at(at)  # (interpolated linearly between the samples)
+    v, a, j = v[:, None], a[:, None], j[:, None]
+    ratios = np.empty((3, len(at)))
+    ratios[0] = np.max(np.abs(g1 * v) / vmax, axis=1)
+    ratios[1] = np.max(np.abs(g2 * v * v + g1 * a) / amax, axis=1)
+    ratios[2] = np.max(np.abs(g3 * v * v * v + 3.0 * g2 * v * a + g1 * j) / jmax, axis=1)
+    return ratios
 
 
 def _room(ratios: np.ndarray, share: float) -> np.ndarray:
@@ -345,12 +479,18 @@ def nominal_profile(length: float, speed: float, acc: float, jerk: float) -> Pat
 
 
 def uniform_scale(s: np.ndarray, derivatives, limits, speed: float, acc: float, jerk: float,
-                  share: float) -> float:
-    """The largest k <= 1 such that the programmed double-S profile run k times slower
-    keeps every joint within ``share`` of its ``limits`` (predicted every 1 ms)."""
+                  share: float) -> tuple[float, float]:
+    """``(k, fastest)``: the largest k <= 1 such that the programmed double-S profile run
+    k times slower keeps every joint within ``share`` of its ``limits`` (predicted every
+    1 ms), and a lower bound of the duration of any slowdown that keeps them there at
+    every instant (each instant slowed down by its own factor only: what slowing down
+    locally could gain at most)."""
     length = float(s[-1])
-    _at, ratios = predicted_ratios(nominal_profile(length, speed, acc, jerk), s, derivatives, limits)
-    return min(1.0, float(np.min(_room(ratios, share))))
+    nominal = nominal_profile(length, speed, acc, jerk)
+    _at, ratios = predicted_ratios(nominal, s, derivatives, limits)
+    room = np.minimum(_room(ratios, share), 1.0)
+    step = nominal.duration / max(len(room) - 1, 1)
+    return float(np.min(room)), float(np.sum(step / np.maximum(0.5 * (room[1:] + room[:-1]), 1e-300)))
 
 
 def path_profile(s: np.ndarray, joints: np.ndarray, limits: Sequence[Sequence[float]], speed: float,
@@ -377,35 +517,37 @@ def path_profile(s: np.ndarray, joints: np.ndarray, limits: Sequence[Sequence[fl
     if not np.all(cruise > 0.0):
         return None  # (a joint's gain is not finite: the check refuses such a path)
     levels = np.floor(np.log(speed / cruise) / -log(GROUP) + 1e-9).astype(int)
-    starts = [0] + [int(i) for i in np.flatnonzero(np.diff(levels)) + 1]
-    bounds, tops, accs, jerks = [], [], [], []
-    for k, a in enumerate(starts):
-        b = starts[k + 1] if k + 1 < len(starts) else n - 1  # its samples: a..b (b is the next one's first)
-        span = slice(a, b + 1)
-        top = float(np.min(cruise[span]))
-        G1, G2, G3 = (np.max(g[span], axis=0) for g in (g1, g2, g3))
-        with np.errstate(divide="ignore", invalid="ignore"):
-            room_a = amax - G2 * top * top
-            room_j = jmax - G3 * top ** 3
-            seg_acc = min(acc, float(np.min(np.where(G1 > 0.0, room_a / G1, np.inf))),
-                          float(np.min(np.where(G2 > 0.0, room_j / (6.0 * G2 * top), np.inf))))
-            seg_jerk = min(jerk, float(np.min(np.where(G1 > 0.0, (room_j - 3.0 * G2 * top * seg_acc) / G1, np.inf))))
-        if not (seg_acc > 0.0 and seg_jerk > 0.0):
-            return None
-        bounds.append(float(s[a]))
-        tops.append(top)
-        accs.append(seg_acc)
-        jerks.append(seg_jerk)
+    starts = np.concatenate([[0], np.flatnonzero(np.diff(levels)) + 1])
+    nxt = np.append(starts[1:], n - 1)  # each segment's samples: its start .. the next one's start
+
+    def spans(x: np.ndarray, reduce) -> np.ndarray:  # per segment, over its samples
+        return reduce(reduce.reduceat(x, starts, axis=0), x[nxt])
+
+    top = spans(cruise, np.minimum)
+    G1, G2, G3 = (spans(g, np.maximum) for g in (g1, g2, g3))  # (segments, 6)
+    t1 = top[:, None]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        room_a = amax - G2 * t1 * t1
+        room_j = jmax - G3 * t1 ** 3
+        seg_acc = np.minimum.reduce([np.full(len(top), acc),
+                                     np.min(np.where(G1 > 0.0, room_a / G1, np.inf), axis=1),
+                                     np.min(np.where(G2 > 0.0, room_j / (6.0 * G2 * t1), np.inf), axis=1)])
+        seg_jerk = np.minimum(jerk, np.min(np.where(G1 > 0.0, (room_j - 3.0 * G2 * t1 * seg_acc[:, None]) / G1,
+                                                    np.inf), axis=1))
+    if not (np.all(seg_acc > 0.0) and np.all(seg_jerk > 0.0)):
+        return None
+    bounds, tops, accs, jerks = s[starts].tolist(), top.tolist(), seg_acc.tolist(), seg_jerk.tolist()
     if all(t >= speed for t in tops) and all(x >= acc for x in accs) and all(x >= jerk for x in jerks):
         return None
     if derivatives is None:
         derivatives = path_derivatives(s, joints)
-    profile = _build(length, bounds, tops, accs, jerks)
-    best = profile
-    for _ in range(REFINEMENTS):  # each segment corrected by how close its joints really come
-        at, ratios = predicted_ratios(profile, s, derivatives, limits)
+    best = profile = _build(length, bounds, tops, accs, jerks)  # (within the bounds: conservative)
+    for rounds in range(REFINEMENTS + 1):  # each segment corrected by how close its joints really come
+        at, ratios = predicted_ratios(profile, s, derivatives, limits, 2 * TICK)
         if float(np.max(ratios)) <= share * (1.0 + 1e-9) and profile.duration < best.duration:
             best = profile
+        if rounds == REFINEMENTS:
+            break
         factors = np.full(len(bounds), 2.0)
         np.minimum.at(factors, np.clip(np.searchsorted(bounds, at, side="right") - 1, 0, len(bounds) - 1),
                       _room(ratios, share))
@@ -416,6 +558,7 @@ def path_profile(s: np.ndarray, joints: np.ndarray, limits: Sequence[Sequence[fl
         accs = [min(acc, x * f * f) for x, f in zip(accs, factors)]
         jerks = [min(jerk, x * f * f * f) for x, f in zip(jerks, factors)]
         profile = _build(length, bounds, tops, accs, jerks)
+    best._envelope = _envelope(s, derivatives, limits, share, acc, jerk)
     return best
 
 
@@ -447,3 +590,265 @@ def _build(length: float, bounds: list, tops: list, accs: list, jerks: list) -> 
         if k == m - 1:
             ramps.append(sum(d for d, _ in down))
     return PathProfile(length, pieces, bounds, accs, jerks, min(ramps))
+
+
+# ---------------------------------------------------------------------------- time warp
+
+
+#: Nominal time (s) over which a warp's slowdown is smoothed (twice: a minimum, then a
+#: mean over this window), so that its rate of change is continuous.
+WARP_SMOOTHING = 0.04
+#: The largest interval (s of nominal time) between a warp's knots: s(t) between them is
+#: one quintic (the joints are judged at the knots and halfway between them).
+WARP_KNOTS = 4 * TICK
+#: Times the slowdown is smoothed: each time it gains a continuous derivative.
+SMOOTHINGS = 3
+#: Times a warp is corrected where the joints would still come above their share.
+WARP_ROUNDS = 4
+
+
+class WarpedProfile(PathProfile):
+    """The programmed double-S profile run slower by a factor that varies smoothly along
+    it: ``s(t) = s_n(tau(t))`` with ``dtau/dt = kappa(tau) <= 1`` (``kappa`` constant is the
+    uniform slowdown). Known at knots (every WARP_KNOTS of nominal time: real time, path length,
+    speed, acceleration), quintic between them (continuous acceleration, jerk piecewise
+    quadratic). Same interface as :class:`PathProfile`; the path acceleration and jerk a
+    stop may use are the programmed ones times ``kappa^2`` and ``kappa^3`` at each knot.
+    :meth:`sample` is real-time safe (a bisection and plain floats)."""
+
+    __slots__ = ("_knots",)
+
+    def __init__(self, length: float, t, s, v, a, kappa, acc: float, jerk: float, t_acc: float, envelope=None):
+        self.length = length
+        self._t, self._s, self._v, self._a = (np.asarray(x, dtype=float) for x in (t, s, v, a))
+        self._j = None
+        self._knots = tuple(x.tolist() for x in (self._t, self._s, self._v, self._a))
+        self.duration = float(self._t[-1])
+        self.peak_velocity = float(np.max(self._v))
+        self.t_acc = t_acc
+        k = np.asarray(kappa, dtype=float)
+        self._bounds, self._acc, self._jerk = self._knots[1], (acc * k * k).tolist(), (jerk * k * k * k).tolist()
+        self._envelope = envelope
+
+    @staticmethod
+    def _quintic(h, s0, s1, v0, v1, a0, a1):
+        """The quintic from (s0, v0, a0) to (s1, v1, a1) over ``h`` s, in ``u = (t - t0) / h``:
+        its coefficients of u^1 .. u^5 (floats or arrays)."""
+        d, v0, v1, a0, a1 = s1 - s0, v0 * h, v1 * h, a0 * h * h, a1 * h * h
+        return (v0, 0.5 * a0, 10.0 * d - 6.0 * v0 - 4.0 * v1 - 1.5 * a0 + 0.5 * a1,
+                -15.0 * d + 8.0 * v0 + 7.0 * v1 + 1.5 * a0 - a1, 6.0 * d - 3.0 * (v0 + v1) - 0.5 * (a0 - a1))
+
+    def sample(self, t: float) -> tuple[float, float, float]:
+        if t >= self.duration:
+            return (self.length, 0.0, 0.0)
+        if not t > 0.0:
+            return (0.0, 0.0, 0.0)
+        ts, ss, vs, as_ = self._knots
+        i = min(bisect_right(ts, t) - 1, len(ts) - 2)
+        h = ts[i + 1] - ts[i]
+        b1, b2, c3, c4, c5 = self._quintic(h, ss[i], ss[i + 1], vs[i], vs[i + 1], as_[i], as_[i + 1])
+        u = (t - ts[i]) / h
+        s = ss[i] + u * (b1 + u * (b2 + u * (c3 + u * (c4 + u * c5))))
+        v = (b1 + u * (2.0 * b2 + u * (3.0 * c3 + u * (4.0 * c4 + u * 5.0 * c5)))) / h
+        a = (2.0 * b2 + u * (6.0 * c3 + u * (12.0 * c4 + u * 20.0 * c5))) / (h * h)
+        return (min(s, self.length), v, a)
+
+    def states(self, times: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        times = np.asarray(times, dtype=float)
+        ts, ss, vs, as_ = self._t, self._s, self._v, self._a
+        i = np.clip(np.searchsorted(ts, times, side="right") - 1, 0, len(ts) - 2)
+        h = ts[i + 1] - ts[i]
+        b1, b2, c3, c4, c5 = self._quintic(h, ss[i], ss[i + 1], vs[i], vs[i + 1], as_[i], as_[i + 1])
+        u = (np.clip(times, 0.0, self.duration) - ts[i]) / h
+        s = ss[i] + u * (b1 + u * (b2 + u * (c3 + u * (c4 + u * c5))))
+        v = (b1 + u * (2.0 * b2 + u * (3.0 * c3 + u * (4.0 * c4 + u * 5.0 * c5)))) / h
+        a = (2.0 * b2 + u * (6.0 * c3 + u * (12.0 * c4 + u * 20.0 * c5))) / (h * h)
+        j = (6.0 * c3 + u * (24.0 * c4 + u * 60.0 * c5)) / (h * h * h)
+        inside = (times > 0.0) & (times < self.duration)
+        s = np.where(times >= self.duration, self.length, np.where(inside, np.minimum(s, self.length), 0.0))
+        return s, np.where(inside, v, 0.0), np.where(inside, a, 0.0), np.where(inside, j, 0.0)
+
+    def scaled(self, k: float) -> "WarpedProfile":
+        out = WarpedProfile.__new__(WarpedProfile)
+        out.length = self.length
+        out._t, out._s, out._v, out._a, out._j = self._t / k, self._s, self._v * k, self._a * k * k, None
+        out._knots = tuple(x.tolist() for x in (out._t, out._s, out._v, out._a))
+        out._envelope = _scaled_envelope(self._envelope, k)
+        out.duration, out.peak_velocity, out.t_acc = self.duration / k, self.peak_velocity * k, self.t_acc / k
+        out._bounds = self._bounds
+        out._acc = [x * k * k for x in self._acc]
+        out._jerk = [x * k * k * k for x in self._jerk]
+        return out
+
+    def __repr__(self) -> str:
+        return f"WarpedProfile(length={self.length!r}, duration={self.duration!r}, knots={len(self._t)})"
+
+
+def _envelope(s: np.ndarray, derivatives, limits, share: float, acc: float, jerk: float) -> tuple:
+    """What :meth:`PathProfile.stop_limits` needs: the samples' path lengths, the joints'
+    (signed) derivatives along the path, the joints' shares of their acceleration and jerk
+    limits, and the programmed acceleration and jerk."""
+    return (s.tolist(),) + tuple(derivatives) + tuple(
+        share * np.asarray(limit, dtype=float) for limit in limits[1:]) + (acc, jerk)
+
+
+def _scaled_envelope(envelope, k: float):
+    """``envelope`` for the profile run k times slower (the programmed limits scale)."""
+    if envelope is None:
+        return None
+    return envelope[:6] + (envelope[6] * k * k, envelope[7] * k * k * k)
+
+
+def _eroded(x: np.ndarray, width: int) -> np.ndarray:
+    """Each value: the smallest within ``width`` samples either side."""
+    padded = np.pad(x, width, mode="edge")
+    return np.min(np.lib.stride_tricks.sliding_window_view(padded, 2 * width + 1), axis=1)
+
+
+def _mean(x: np.ndarray, width: int) -> np.ndarray:
+    """Each value: the mean of those within ``width`` samples either side."""
+    padded = np.pad(x, width, mode="edge")
+    c = np.concatenate([[0.0], np.cumsum(padded)])
+    return (c[2 * width + 1:] - c[:-2 * width - 1]) / (2 * width + 1)
+
+
+def _slope_limited(ceiling: np.ndarray, rise: np.ndarray) -> np.ndarray:
+    """The largest sequence under ``ceiling`` whose neighbours differ by at most ``rise``
+    (per interval): a forward and a backward pass, vectorised."""
+    c = np.concatenate([[0.0], np.cumsum(rise)])
+    w = c + np.minimum.accumulate(ceiling - c)
+    r = c[-1] - c  # the backward pass, on the reversed sequence
+    return np.minimum(w, (r + np.minimum.accumulate((w - r)[::-1])[::-1]))
+
+
+def _midpoints(x: np.ndarray, y: np.ndarray) -> np.ndarray:
+    """``y`` at the middle of each interval of ``x``: the cubic through the four samples
+    around it (three at the ends)."""
+    n = len(x)
+    if n >= 4:  # where the four are evenly spaced, the cubic's midpoint in closed form
+        h = np.diff(x)
+        out = np.empty(n - 1)
+        out[1:-1] = (9.0 * (y[1:-2] + y[2:-1]) - y[:-3] - y[3:]) / 16.0
+        even = np.zeros(n - 1, dtype=bool)
+        even[1:-1] = (np.abs(h[:-2] - h[1:-1]) <= 1e-9 * h[1:-1]) & (np.abs(h[2:] - h[1:-1]) <= 1e-9 * h[1:-1])
+        for i in np.flatnonzero(~even).tolist():  # (the ends, and a few switches between)
+            lo = min(max(i - 1, 0), n - 4)
+            xs, ys, xm = x[lo:lo + 4].tolist(), y[lo:lo + 4].tolist(), 0.5 * float(x[i] + x[i + 1])
+            out[i] = sum(yk * _lagrange(xs, k, xm) for k, yk in enumerate(ys))
+        return out
+    return _midpoints_at(x, y, np.arange(n - 1))
+
+
+def _lagrange(xs: list, k: int, x: float) -> float:
+    """The Lagrange basis polynomial of node ``k`` of ``xs`` at ``x``."""
+    out = 1.0
+    for m, xm in enumerate(xs):
+        if m != k:
+            out *= (x - xm) / (xs[k] - xm)
+    return out
+
+
+def _midpoints_at(x: np.ndarray, y: np.ndarray, i: np.ndarray) -> np.ndarray:
+    """:func:`_midpoints` of the intervals ``i`` (any spacing; fewer than four samples)."""
+    n = len(x)
+    m = len(i)
+    lo = np.clip(i - 1, 0, max(n - 4, 0))
+    idx = [np.minimum(lo + k, n - 1) for k in range(4)]
+    xm = 0.5 * (x[i] + x[i + 1])
+    first = [np.ones(m, dtype=bool)]  # whether each of the four is not a repeat of an earlier one
+    for k in range(1, 4):
+        fresh = np.ones(m, dtype=bool)
+        for q in range(k):
+            fresh &= idx[q] != idx[k]
+        first.append(fresh)
+    out = np.zeros(m)
+    for k in range(4):
+        weight = np.ones(m)
+        for q in range(4):
+            if q != k:
+                use = first[q] & (idx[q] != idx[k])
+                weight = np.where(use, weight * (xm - x[idx[q]]) / np.where(use, x[idx[k]] - x[idx[q]], 1.0), weight)
+        out += np.where(first[k], weight * y[idx[k]], 0.0)
+    return out
+
+
+def warped_profile(s: np.ndarray, derivatives, limits, speed: float, acc: float, jerk: float,
+                   share: float, beat: float = inf) -> WarpedProfile | None:
+    """The programmed profile slowed down by a smooth factor ``kappa`` that is, at each
+    instant, at most what keeps every joint within ``share`` of its ``limits`` there (the
+    room of :func:`predicted_ratios` at that instant of the programmed profile), and that
+    changes slowly enough that the path's acceleration stays within ``acc``; corrected
+    (WARP_ROUNDS times) where the joints, or the path's speed, acceleration and jerk,
+    would still come above their share (judged at the knots and between them). None when
+    the joints limit the path nowhere, or no correction keeps them within it, or none
+    would be shorter than ``beat`` (s: each correction only slows it down)."""
+    length = float(s[-1])
+    nominal = nominal_profile(length, speed, acc, jerk)
+    # knots every WARP_KNOTS of nominal time or less, and on every switch of the nominal jerk
+    # (a quintic cannot follow a step of the jerk inside an interval)
+    switches = sorted(set(nominal._t + [nominal.duration]))
+    tau = np.concatenate([np.linspace(a, b, max(ceil((b - a) / WARP_KNOTS), 1) + 1)[:-1]
+                          for a, b in zip(switches, switches[1:])] + [[nominal.duration]])
+    if len(tau) < 16:
+        tau = np.linspace(0.0, nominal.duration, 17)
+    dtau = np.diff(tau)
+    s_n, v_n, a_n, j_n = nominal.states(tau)
+    s_n[-1], v_n[-1], a_n[-1], j_n[-1] = length, 0.0, 0.0, 0.0
+    room = _room(joint_ratios(s_n, v_n, a_n, j_n, s, derivatives, limits), share)
+    ceiling = np.minimum(room, 1.0) ** 2  # of w = kappa^2
+    if np.all(ceiling >= 1.0):
+        return None
+    width = max(1, round(WARP_SMOOTHING / WARP_KNOTS))
+    envelope = _envelope(s, derivatives, limits, share, acc, jerk)
+    for _ in range(WARP_ROUNDS):
+        # |path acceleration| = |w a_n + v_n w' / 2| <= acc, with w <= ceiling: the slope
+        # of w per interval
+        top = np.maximum(ceiling[:-1], ceiling[1:])
+        with np.errstate(divide="ignore", invalid="ignore"):
+            rise = np.where(v_n[:-1] > 0.0, 2.0 * np.maximum(acc - top * np.abs(a_n[:-1]), 0.0) / v_n[:-1], np.inf)
+        w = _slope_limited(ceiling, np.minimum(rise * dtau, 1.0))
+        for _ in range(SMOOTHINGS):
+            w = _mean(_eroded(w, width), width)
+        w = np.clip(w, 1e-12, 1.0)
+        kappa = np.sqrt(w)
+        lam = np.log(kappa)
+        d1 = np.gradient(lam, tau)
+        # real time: dt = dtau / kappa, by Simpson's rule with kappa at the midpoints from a
+        # cubic through the knots around: the knots' times must agree with their speeds
+        # and accelerations to far better than 1e-5 (the quintics between them turn a
+        # mismatch of 1e-5 into jerks of 1e5 mm/s^3 at 1 ms)
+        step = dtau / 6.0 * (1.0 / kappa[:-1] + 4.0 / _midpoints(tau, kappa) + 1.0 / kappa[1:])
+        t = np.concatenate([[0.0], np.cumsum(step)])
+        v = v_n * kappa
+        a = w * (a_n + v_n * d1)
+        ramp = float(np.interp(nominal.t_acc, tau, t))
+        profile = WarpedProfile(length, t, s_n, v, a, kappa, acc, jerk, min(ramp, float(t[-1]) - ramp), envelope)
+        if profile.duration >= beat:
+            return None
+        # judged where it runs: at the knots, and when they pass, halfway between them too
+        knots = _warp_ratios(profile, t, s, derivatives, limits, share, speed, acc, jerk)
+        over = np.minimum(_room(knots, share), 1.0)
+        if float(np.max(knots)) <= share * (1.0 + 1e-6):  # (the quintics' rounding at a limit)
+            middle = _warp_ratios(profile, 0.5 * (t[:-1] + t[1:]), s, derivatives, limits, share, speed, acc,
+                                  jerk)
+            if float(np.max(middle)) <= share * (1.0 + 1e-6):
+                return profile
+            room = np.minimum(_room(middle, share), 1.0)
+            over[:-1] = np.minimum(over[:-1], room)
+            over[1:] = np.minimum(over[1:], room)
+        over = _eroded(over, 2 * width)  # (and around: the smoothing's reach)
+        ceiling = np.minimum(ceiling, over * over * w)
+    return None
+
+
+def _warp_ratios(profile: WarpedProfile, times: np.ndarray, s: np.ndarray, derivatives, limits, share: float,
+                 speed: float, acc: float, jerk: float) -> np.ndarray:
+    """The joints' ratios to their limits along ``profile`` at ``times`` (a (3, n) array,
+    as :func:`joint_ratios`), and the path's speed, acceleration and jerk to the
+    programmed ones, times ``share``."""
+    at, v, a, j = profile.states(times)
+    ratios = joint_ratios(at, v, a, j, s, derivatives, limits)
+    ratios[0] = np.maximum(ratios[0], share * v / speed)  # the path's: within the programmed
+    ratios[1] = np.maximum(ratios[1], share * np.abs(a) / acc)
+    ratios[2] = np.maximum(ratios[2], share * np.abs(j) / jerk)
+    return ratios

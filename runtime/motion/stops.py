@@ -91,7 +91,9 @@ class JerkStop:
     that ends exactly at rest (``a_p = sqrt(V j_max)`` with ``V = v0 + a0^2 / (2 j_max)``).
     When the coordinate is already braking harder than that (``a0 < -a_p``), the
     acceleration only ramps up to 0; should the velocity reach 0 first, the stop ends
-    there (the last step of acceleration is then at most ``|a0|``). ``sample(t)`` gives the
+    there (the last step of acceleration is then at most ``|a0|``). When it brakes harder
+    than ``a_max`` and that ramp would not reach rest, the acceleration ramps up to
+    ``-a_max``, holds it and ramps to 0 at rest. ``sample(t)`` gives the
     displacement from the start, the velocity and the acceleration; ``distance`` is where
     it stops. Real-time safe (plain floats; a handful of segments)."""
 
@@ -106,7 +108,12 @@ class JerkStop:
         if hold < 0.0:
             hold = 0.0
             a_p = sqrt(max(big_v * j_max, 0.0))
-        if a0 < -a_p:  # already braking harder: only ramp the acceleration up to 0
+        if a0 < -a_max and v0 > a0 * a0 / (2.0 * j_max):
+            # braking harder than allowed, and ramping the acceleration up to 0 would not
+            # reach rest: up to -a_max, hold it, then up to 0 (the hold ends at rest)
+            plan = [((-a0 - a_max) / j_max, j_max), ((v0 - a0 * a0 / (2.0 * j_max)) / a_max, 0.0),
+                    (a_max / j_max, j_max)]
+        elif a0 < -a_p:  # already braking harder: only ramp the acceleration up to 0
             plan = [(-a0 / j_max, j_max)]
         else:
             plan = [((a0 + a_p) / j_max, -j_max), (hold, 0.0), (a_p / j_max, j_max)]
@@ -189,6 +196,26 @@ class LineStop(Trajectory):
         return tuple([di * a for di in self._d])
 
 
+class _ProfileRest:
+    """The rest of a path's profile from its time ``t``, run at ``rate``: what a stop on
+    the path does when stopping sooner within the limits of the stretch ahead would take
+    it past the path's end (the profile itself comes to rest there within every limit).
+    ``sample(t)`` gives the distance from the start, the speed and the acceleration, like
+    :class:`JerkStop`."""
+
+    __slots__ = ("duration", "distance", "_profile", "_t", "_rate", "_s0")
+
+    def __init__(self, profile, t: float, rate: float):
+        self._profile, self._t, self._rate = profile, t, rate
+        self._s0 = profile.sample(t)[0]
+        self.duration = max(profile.duration - t, 0.0) / rate
+        self.distance = profile.sample(profile.duration)[0] - self._s0
+
+    def sample(self, t: float) -> tuple[float, float, float]:
+        s, v, a = self._profile.sample(self._t + self._rate * max(t, 0.0))
+        return s - self._s0, v * self._rate, a * self._rate * self._rate
+
+
 class PathStop(Trajectory):
     """A controlled stop **on** a Cartesian path (pause, abort): from the path parameter,
     speed and acceleration of ``stream`` at its time ``t``, the path speed falls to rest
@@ -212,10 +239,13 @@ class PathStop(Trajectory):
         ``acc`` and jerk, or less where the joints slowed the move down)."""
         move = stream.checked.move
         s0, v0, a0 = move.profile.sample(t)
-        acc, jerk = move.stop_limits(s0, v0 * rate)
-        dec = acc if deceleration is None else deceleration
+        limits = move.stop_limits(s0, v0 * rate, a0 * rate * rate)
         self.path, self.kinematics = move.path, stream.checked.kinematics
-        self._stop = JerkStop(v0 * rate, a0 * rate * rate, dec, jerk)
+        if limits is not None:
+            acc, jerk = limits
+            self._stop = JerkStop(v0 * rate, a0 * rate * rate, acc if deceleration is None else deceleration, jerk)
+        if limits is None or s0 + self._stop.distance >= move.path.length:
+            self._stop = _ProfileRest(move.profile, t, rate)  # (no sooner stop keeps the limits: the move's own end)
         self._s0 = s0
         self.duration = self._stop.duration
         self.s_end = min(s0 + self._stop.distance, move.path.length)

@@ -439,3 +439,49 @@ def test_a_pause_keeps_the_limits_at_the_servos_references(profile):
         assert velocity <= 1.0 + 1e-6 and acceleration <= 1.0 + 1e-6, (pause_at, velocity, acceleration)
         if profile == "jerk":
             assert jerk <= 1.0 + 1e-6, (pause_at, jerk)
+
+
+def test_a_pause_on_a_lin_or_circ_move_keeps_every_limit_at_the_servo():
+    """A pause during lin and circ moves (timed as a whole and slower only where the
+    joints need it), then a resume: the 5 ms setpoints and the servo's 1 ms references
+    within every axis's velocity, acceleration and jerk limit. Before, a stop on the path
+    gave backward-difference velocities and no accelerations: the references reached 2x
+    the acceleration and 130x the jerk limit."""
+    import sys
+    sys.path.insert(0, str(ROOT / "tests"))
+    from test_pathtiming import _drawn_path
+
+    runs = 0
+    for seed in (0, 6, 9, 21, 36):
+        drawn = _drawn_path(seed)
+        if drawn is None:
+            continue
+        move, _s, joints = drawn
+        via = getattr(move.path, "via", None)
+        kind, targets = ("lin", (move.path.end,)) if via is None else (
+            "circ", (tuple(via) + tuple(move.path.end[3:]), move.path.end))
+        for fraction in (0.05, 0.3, 0.6):
+            queue = MotionQueue(MovePlanner(SPEC.axes, SPEC.main_axes, "jerk", KIN), SPEC.axes)
+            queue.start(tuple(joints[0]), SETPOINT_PERIOD)
+            assert queue.add(MoveRequest(kind, targets, move.speed, move.acc, 0.0, 1)) is None
+            now, paused, resumed = 0.0, None, False
+            positions, setpoints = [queue.positions], [(0.0, queue.positions, queue.velocities, queue.accelerations)]
+            while not queue.done():
+                now += SETPOINT_PERIOD
+                if paused is None and queue.current is not None and queue.t_move > fraction * queue.current.duration:
+                    queue.pause()
+                    paused = now
+                if paused is not None and not resumed and queue.at_rest() and now > paused + 0.05:
+                    queue.resume()
+                    resumed = True
+                queue.sample(now)
+                positions.append(queue.positions)
+                a = queue.accelerations
+                setpoints.append((now, queue.positions, queue.velocities) + ((a,) if a is not None else ()))
+                assert now < 60.0
+            assert paused is not None and resumed
+            runs += 1
+            for series, h in ((positions, SETPOINT_PERIOD), (servo_references(joints[0], setpoints), TICK)):
+                assert max(difference_ratios(series, h)) <= 1.0 + 1e-6, (seed, fraction, h,
+                                                                         difference_ratios(series, h))
+    assert runs >= 9

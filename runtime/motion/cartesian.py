@@ -34,7 +34,7 @@ from compiler.values import Joint
 
 from ..timing import SETPOINT_PERIOD, TICK
 from .kinematics import Kinematics, KinematicsError
-from .stops import PathStop
+from .stops import DERIVATIVE_STEP, PathStop
 from .trajectory import Result, Trajectory
 from .pathcheck import CheckedPath, PathError, _percent, check_path, joint_limits
 from .paths import CircPath, LinPath, CartesianMove, _positive
@@ -46,10 +46,6 @@ __all__ = ["JOINT_LIMIT_SHARE", "CartesianInput", "JointStream", "joint_limit_sc
 
 # ============================================================================ per tick
 
-
-#: The half-width (s) of the central differences that give a lin/circ move's joint
-#: velocities and accelerations at a setpoint.
-DERIVATIVE_STEP = 1e-4
 
 
 class JointStream(Trajectory):

@@ -89,8 +89,8 @@ SETTLED = 0.01
 REFINEMENTS = 3
 #: Decelerations a stop on a timed path tries, from the programmed one down to
 #: STOP_LOWEST of it (geometrically spaced), for the largest that keeps every joint's share.
-STOP_SCAN = 24
-STOP_LOWEST = 0.01
+STOP_SCAN = 12
+STOP_LOWEST = 0.05
 #: Bisection steps (each halves the interval) for the peaks and boundary speeds.
 _BISECT = 40
 
@@ -331,38 +331,38 @@ class PathProfile:
         G1, G2, G3 = g1[lo:hi], g2[lo:hi], g3[lo:hi]
 
         rising = max(a, 0.0)
+        # every candidate deceleration at once: (candidates, samples, axes) arrays
+        decs = acc * STOP_LOWEST ** (np.arange(STOP_SCAN + 1) / STOP_SCAN)
+        dec = decs[:, None, None]
+        G1, G2, G3 = G1[None], G2[None], G3[None]
 
-        def speed2(dec: float, j: float) -> np.ndarray:  # the stop's speed squared along the stretch
+        def speed(j: np.ndarray) -> np.ndarray:  # the stop's speed along the stretch, per candidate
             top = v + rising * rising / (2.0 * j)  # (still speeding up while its acceleration ramps down)
             ramp = top * (rising + dec) / j
-            return np.maximum(top * top - 2.0 * dec * np.maximum(x - ramp, 0.0), 0.0)[:, None]
+            return np.sqrt(np.maximum(top * top - 2.0 * dec * np.maximum(x[None, :, None] - ramp, 0.0), 0.0))
 
-        def excess(dec: float, j: float) -> float:  # the largest share of a joint's acceleration share
-            v2 = G2 * speed2(dec, j)  # (signed: q'' v^2 and q' a, the stop's a from ``a`` to -dec)
-            return float(max(np.max(np.abs(v2 - G1 * dec) / amax), np.max(np.abs(v2 + G1 * rising) / amax)))
-
-        remaining = self.length - s
-        for step in range(STOP_SCAN + 1):  # from the programmed deceleration down
-            dec = acc * STOP_LOWEST ** (step / STOP_SCAN)
-            j = jerk
-            for _ in range(2):  # the jerk this deceleration leaves, and the stretch it then runs
-                speed = np.sqrt(speed2(dec, j))
-                cubic = G3 * speed ** 3
-                worst = np.maximum(np.abs(cubic - 3.0 * G2 * speed * dec), np.abs(cubic + 3.0 * G2 * speed * rising))
-                with np.errstate(divide="ignore", invalid="ignore"):
-                    j = min(jerk, float(np.min(np.where(G1 != 0.0, (jmax - worst) / np.abs(G1), np.inf))))
-                if not j > 0.0:
-                    break
-            if not j > 0.0:
-                continue
-            if v * v / (2.0 * dec) + 2.0 * v * dec / j > remaining:
-                break  # (softer ones stop even later)
-            # a jerk too small to turn the acceleration round before the speed is gone
-            # would end the stop still braking
-            if j * v < max(abs(a), dec) ** 2 or excess(dec, j) > 1.0:
-                continue
-            return dec, j
-        return None
+        j = np.full((len(decs), 1, 1), jerk)
+        for _ in range(2):  # the jerk each deceleration leaves, and the stretch it then runs
+            w = speed(j)
+            cubic = G3 * w ** 3
+            worst = np.maximum(np.abs(cubic - 3.0 * G2 * w * dec), np.abs(cubic + 3.0 * G2 * w * rising))
+            with np.errstate(divide="ignore", invalid="ignore"):
+                room = np.where(G1 != 0.0, (jmax - worst) / np.abs(G1), np.inf)
+            j = np.minimum(jerk, np.min(room, axis=(1, 2)))[:, None, None]
+            j = np.where(j > 0.0, j, jerk * STOP_LOWEST)
+        jerks = j[:, 0, 0]
+        w2 = G2 * speed(j) ** 2  # (signed: q'' v^2 and q' a, the stop's a from ``a`` to -dec)
+        over = np.maximum(np.max(np.abs(w2 - G1 * dec) / amax, axis=(1, 2)),
+                          np.max(np.abs(w2 + G1 * rising) / amax, axis=(1, 2)))
+        ok = ((room.min(axis=(1, 2)) > 0.0) & (over <= 1.0)
+              # a jerk too small to turn the acceleration round before the speed is gone
+              # would end the stop still braking
+              & (jerks * v >= np.maximum(abs(a), decs) ** 2)
+              & (v * v / (2.0 * decs) + 2.0 * v * decs / jerks <= self.length - s))
+        if not np.any(ok):
+            return None
+        k = int(np.argmax(ok))  # the largest deceleration that fits
+        return float(decs[k]), float(jerks[k])
 
     def _segment_stop_limits(self, s: float, v: float) -> tuple[float, float]:
         """The path acceleration and jerk a stop from ``s`` at speed ``v`` may use: the

@@ -23,6 +23,10 @@ from typing import TYPE_CHECKING, Sequence
 from .kinematics import KinematicsError
 from .trajectory import Trajectory
 
+#: The half-width (s) of the central differences that give the joint velocities and
+#: accelerations of a move along a path (lin, circ, and their stops) at a setpoint.
+DERIVATIVE_STEP = 1e-4
+
 if TYPE_CHECKING:
     from .cartesian import JointStream
 
@@ -221,14 +225,15 @@ class PathStop(Trajectory):
     speed and acceleration of ``stream`` at its time ``t``, the path speed falls to rest
     jerk-limited (:class:`runtime.motion.jerk.JerkStop` within the move's ``acc`` and
     jerk); every sample is one inverse kinematics of the path's pose
-    at ``s(t)`` near the last joints, so the tool stays on the line or arc. Velocities are
-    the backward differences of the samples (0 at rest). Same interface as
+    at ``s(t)`` near the last joints, so the tool stays on the line or arc. Velocities and
+    accelerations are central differences over +-DERIVATIVE_STEP of the path's joints
+    (two more inverse kinematics), as a move's stream gives them (0 at rest). Same interface as
     :class:`JointStream`; ``s_end`` is where it stops (resume plans the rest from there).
     Never raises: should an inverse kinematics fail, ``fault`` says why and the joints hold.
     """
 
     __slots__ = ("path", "kinematics", "duration", "s_end", "fault", "_s0", "_stop", "_last", "_last_t",
-                 "_add", "_zeros", "_end")
+                 "_add", "_zeros", "_end", "_acc")
 
     def __init__(self, stream: "JointStream", t: float, joints: Sequence[float], deceleration: float | None = None,
                  rate: float = 1.0):
@@ -255,26 +260,52 @@ class PathStop(Trajectory):
         self._last_t = 0.0
         self._zeros = (0.0,) * len(joints)
         self._end = None
+        self._acc = (None, None)  # (time, accelerations) of the last sample
 
     def sample(self, t: float) -> tuple[tuple[float, ...], tuple[float, ...]]:
         if t >= self.duration:
             if self._end is None:
-                self._end = self._solve(self.s_end)
+                self._end = self._solve(self.s_end, self._last)
+            self._acc = (t, self._zeros)
             return self._end + self._add, self._zeros
         if not t > 0.0:
             return self._last + self._add, self._zeros
-        q = self._solve(min(self._s0 + self._stop.sample(t)[0], self.s_end))
-        h = t - self._last_t
-        velocities = tuple([(b - a) / h for a, b in zip(self._last, q)]) if h > 0.0 else self._zeros[:6]
-        self._last, self._last_t = q, t
+        q, velocities, accelerations = self._state(t, self._last)
+        self._last, self._last_t, self._acc = q, t, (t, accelerations + self._zeros[6:])
         return q + self._add, velocities + self._zeros[6:]
 
-    def _solve(self, s: float) -> tuple[float, ...]:
+    def accelerations_at(self, t: float) -> tuple[float, ...]:
+        """The joints' accelerations at ``t`` (central differences of the path's joints
+        over +-DERIVATIVE_STEP, as the velocities :meth:`sample` gives): what the servo's
+        interpolator needs to keep the limits between the setpoints of a stop."""
+        if t == self._acc[0]:
+            return self._acc[1]
+        if t >= self.duration or not t > 0.0:
+            return self._zeros
+        return self._state(t, self._last)[2] + self._zeros[6:]
+
+    def _state(self, t: float, near: tuple) -> tuple[tuple, tuple, tuple]:
+        """The six main axes' positions, velocities and accelerations at ``t`` (0 <
+        ``t`` < duration): one inverse kinematics at ``t`` and two at +-DERIVATIVE_STEP
+        (less near the ends), central differences."""
+        q = self._solve(self._s_at(t), near)
+        e = min(DERIVATIVE_STEP, 0.5 * t, 0.5 * (self.duration - t))
+        if not e > 0.0:
+            return q, self._zeros[:6], self._zeros[:6]
+        before, after = self._solve(self._s_at(t - e), q), self._solve(self._s_at(t + e), q)
+        k1, k2 = 0.5 / e, 1.0 / (e * e)
+        return (q, tuple([(c - a) * k1 for a, c in zip(before, after)]),
+                tuple([(a - 2.0 * b + c) * k2 for a, b, c in zip(before, q, after)]))
+
+    def _s_at(self, t: float) -> float:
+        return min(self._s0 + self._stop.sample(t)[0], self.s_end)
+
+    def _solve(self, s: float, near: tuple) -> tuple[float, ...]:
         try:
-            return tuple(self.kinematics.inverse(self.path.pose_at(s), near=self._last))
+            return tuple(self.kinematics.inverse(self.path.pose_at(s), near=near))
         except KinematicsError as exc:
             self.fault = self.fault or f"the stop left the arm's reach ({exc})"
-            return self._last
+            return near
 
     def rest(self, end: tuple = ()) -> tuple[str, tuple]:
         """What is left of the path after the stop: ``("lin", (end,))`` or

@@ -14,6 +14,7 @@ from pathlib import Path
 from typing import TextIO
 
 from .faults import FAULTS
+from .timing import TICK
 
 EXIT_OK, EXIT_INVALID, EXIT_USAGE, EXIT_INTERNAL = 0, 1, 2, 70
 
@@ -221,8 +222,19 @@ def cmd_run(args, env: Environment) -> int:
         faults.append((fault, names.index(axis.lower())))
     if not 1.0 <= args.override <= 100.0:
         raise UsageError(f"--override {args.override:g}: expected a percentage from 1 to 100")
+    from runtime import realtime
+
+    try:
+        wanted = realtime.scheduling(args)
+    except ValueError as exc:
+        raise UsageError(str(exc)) from None
+    if wanted.requested and not args.realtime:
+        raise UsageError("--rt-priority, --lock-memory and --cpu are for the wall clock: add --realtime")
     options = RunOptions(seed=args.seed, realtime=args.realtime, report=args.report, state_dir=args.state_dir,
-                         max_time=args.max_time, faults=faults, override=args.override)
+                         max_time=args.max_time, faults=faults, override=args.override,
+                         deadline_policy=args.deadline_policy)
+    if args.realtime:
+        _err(env, f"irl run: {realtime.apply(wanted)}")
     try:
         summary = RobotSystem(spec, options).run(program)
     except ValueError as exc:  # refused at load time (e.g. a move kind not supported yet)
@@ -255,6 +267,65 @@ def _plot(report: str, out: str, env: Environment) -> int:
 
 def cmd_plot(args, env: Environment) -> int:
     return _plot(args.report, args.output, env)
+
+
+def add_deadline_policy(p) -> None:
+    """``--deadline-policy`` (irl run, irl serve): the servo's miss policy, the choices as
+    compiler.params declares them."""
+    from compiler.params import section_params
+
+    param = section_params("controller")["servo_miss_policy"]
+    p.add_argument("--deadline-policy", choices=param.choices, default=None,
+                   help=f"what missed 1 ms deadlines do on the wall clock: hard (one faults), firm (too many "
+                        f"within a window fault), soft (counted only); default: the specification's "
+                        f"controller.servo_miss_policy ({param.default})")
+
+
+def cmd_latency(args, env: Environment) -> int:
+    import json
+
+    from compiler.params import section_params
+    from runtime import realtime
+
+    try:
+        wanted = realtime.scheduling(args)
+    except ValueError as exc:
+        raise UsageError(str(exc)) from None
+    if not (0.05 <= args.period <= 1000.0):
+        raise UsageError(f"--period {args.period:g}: expected 0.05 to 1000 ms")
+    if not (0.0 < args.duration <= 3600.0):
+        raise UsageError(f"--duration {args.duration:g}: expected more than 0 and at most 3600 s")
+    controller = section_params("controller")
+    limit, window = controller["servo_miss_limit"].default, controller["servo_miss_window"].default
+    if args.spec:
+        from compiler.spec import SpecError, load_spec
+
+        try:
+            spec = load_spec(args.spec)
+        except SpecError as exc:
+            raise UsageError(str(exc)) from None
+        limit, window = spec.controller.servo_miss_limit, spec.controller.servo_miss_window
+    got = realtime.apply(wanted)
+    result = realtime.measure(args.period / 1000.0, args.duration)
+    policy, why = realtime.verdict(result, limit, window)
+    ms = 1000.0
+    figures = {"period_ms": args.period, "duration_s": args.duration, "scheduling": got,
+               "wakeups": len(result.late), "max_ms": max(result.late) * ms, "p50_ms": result.percentile(0.5) * ms,
+               "p99_ms": result.percentile(0.99) * ms, "p999_ms": result.percentile(0.999) * ms,
+               "misses": len(result.misses), "policy": policy, "why": why,
+               "histogram": [{"from_ms": a * ms, "to_ms": b * ms, "count": c} for a, b, c in result.histogram()]}
+    if args.json:
+        _print(env, json.dumps(figures, indent=2))
+        return EXIT_OK
+    _print(env, f"{len(result.late)} wake-ups every {args.period:g} ms for {args.duration:g} s ({got})")
+    _print(env, f"  late by: max {figures['max_ms']:.3f} ms, p50 {figures['p50_ms']:.3f}, p99 "
+                f"{figures['p99_ms']:.3f}, p99.9 {figures['p999_ms']:.3f}; {figures['misses']} too late for a tick's "
+                f"work (more than {(1 - realtime.WORK_SHARE) * args.period:g} ms)")
+    top = max((c for _a, _b, c in result.histogram()), default=1) or 1
+    for a, b, c in result.histogram():
+        _print(env, f"  {a * ms:7.3f}-{b * ms:7.3f} ms {c:8d} {'#' * max(1 if c else 0, round(40 * c / top))}")
+    _print(env, f"this host can hold: {policy} ({why})")
+    return EXIT_OK
 
 
 def cmd_fsm(args, env: Environment) -> int:
@@ -302,7 +373,22 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--inject", action="append", metavar="FAULT:AXIS",
                    help=f"break the simulated robot: {', '.join(FAULTS)} on an axis (e.g. sensor_dead:A3)")
     p.add_argument("--json", action="store_true", help="the summary as one JSON object")
+    add_deadline_policy(p)
+    from runtime.realtime import add_arguments
+
+    add_arguments(p)
     p.set_defaults(run=cmd_run)
+
+    p = sub.add_parser("latency", help="measure this host's wake-up latency: which deadline policy a 1 ms servo "
+                                       "can hold here")
+    p.add_argument("--period", type=float, default=TICK * 1000.0, metavar="MS",
+                   help="the period to wake up at, ms (default: the servo's, %(default)g)")
+    p.add_argument("--duration", type=float, default=10.0, metavar="S", help="how long to measure (default %(default)g s)")
+    p.add_argument("--spec", metavar="FILE.spc",
+                   help="take the firm policy's limit and window from this specification (default: the defaults)")
+    p.add_argument("--json", action="store_true", help="the figures as one JSON object")
+    add_arguments(p)
+    p.set_defaults(run=cmd_latency)
 
     p = sub.add_parser("plot", help="draw a report: position over time per axis, phases shaded")
     p.add_argument("report", metavar="REPORT.csv")

@@ -38,6 +38,11 @@ SIM_SAMPLE_EVERY = 8
 #: The largest schedule table (ticks of the periods' least common multiple) precomputed.
 MAX_HYPERPERIOD = 10_000
 
+#: What a deadline fault's message adds: how to find out what this host can hold, and what
+#: to do about it.
+DEADLINE_HINT = ("; measure what this host can hold with 'irl latency', ask for real-time scheduling "
+                 "(--rt-priority N), or count misses only (--deadline-policy soft)")
+
 #: Lateness histogram: 10 us bins up to 20 ms (the last bin holds everything later).
 _BIN = 10e-6
 _BINS = 2000
@@ -327,7 +332,7 @@ class Executive:
         policy = task.policy
         if policy.kind == "hard":
             self.fault = self.fault or (f"deadline: {task.name} missed its {task.period * self.tick * 1000:g} ms "
-                                        "deadline (hard)")
+                                        f"deadline (hard){DEADLINE_HINT}")
         elif policy.kind == "firm":
             recent = stats.recent
             recent.append(k)
@@ -335,7 +340,7 @@ class Executive:
                 recent.pop(0)
             if len(recent) > policy.limit:
                 self.fault = self.fault or (f"deadline: {task.name} missed {len(recent)} deadlines "
-                                            f"within {policy.window} ticks (firm)")
+                                            f"within {policy.window} ticks (firm){DEADLINE_HINT}")
 
     def reset_statistics(self) -> None:
         """Not real-time: start counting afresh (a new cycle): forget a deadline fault,

@@ -59,9 +59,18 @@ def cmd_serve(args, env) -> int:
     from compiler.spec import SpecError, load_spec
     from runtime.server import InsecureEndpoint, ServeOptions, check_endpoints, serve
 
+    from runtime.realtime import scheduling
+
+    try:
+        wanted = scheduling(args)
+    except ValueError as exc:
+        raise cli.UsageError(str(exc)) from None
+    if wanted.requested and args.sim_clock:
+        raise cli.UsageError("--rt-priority, --lock-memory and --cpu are for the wall clock: drop --sim-clock")
     options = ServeOptions(endpoint=args.endpoint, telemetry=args.telemetry, state_dir=args.state_dir,
                            sim_clock=args.sim_clock, seed=args.seed, keys=args.keys,
-                           allow_insecure_remote=args.insecure_allow_remote_without_encryption)
+                           allow_insecure_remote=args.insecure_allow_remote_without_encryption,
+                           deadline_policy=args.deadline_policy, scheduling=wanted)
     try:
         check_endpoints(options)  # before anything is loaded or bound
     except InsecureEndpoint as exc:
@@ -412,6 +421,11 @@ def add_commands(sub) -> None:
     p.add_argument("--insecure-allow-remote-without-encryption", action="store_true",
                    help="allow endpoints other machines can reach without --keys: anyone on the network could "
                         "then move the robot (without it, such endpoints are refused)")
+    from runtime.cli import add_deadline_policy
+    from runtime.realtime import add_arguments
+
+    add_deadline_policy(p)
+    add_arguments(p)
     p.set_defaults(run=cmd_serve)
 
     p = sub.add_parser("submit", help="send a program to a server's queue")

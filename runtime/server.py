@@ -56,6 +56,10 @@ class ServeOptions:
     keys: str | Path | None = None  # CURVE key directory (see runtime.keys)
     #: Bind endpoints other machines can reach without CURVE keys (see check_endpoints).
     allow_insecure_remote: bool = False
+    #: The servo's deadline policy ("hard", "firm", "soft"); None: the specification's.
+    deadline_policy: str | None = None
+    #: Real-time scheduling for the loop's thread (wall clock only): runtime.realtime.Scheduling.
+    scheduling: object = None
 
 
 INSECURE_FLAG = "--insecure-allow-remote-without-encryption"
@@ -174,7 +178,7 @@ class Server:
         session = time.strftime("%Y%m%d-%H%M%S") + f"-{os.getpid()}"
         self.report_dir = state_dir / "reports" / session
         self.system = RobotSystem(spec, RunOptions(seed=options.seed, realtime=not options.sim_clock,
-                                                   state_dir=state_dir))
+                                                   state_dir=state_dir, deadline_policy=options.deadline_policy))
         self.configurations = configurations
         self.configuration = None
         self.baseline = self.system.settings()  # what a configuration's missing keys fall back to
@@ -246,6 +250,10 @@ class Server:
         rest; returns the exit status."""
         self.io_thread = threading.Thread(target=self._io_main, name="irl-io", daemon=True)
         self.io_thread.start()
+        if not self.options.sim_clock:  # the loop's thread only (the I/O thread stays at normal priority)
+            from .realtime import Scheduling, apply
+
+            log.info("loop: %s", apply(self.options.scheduling or Scheduling()))
         while self.turn():
             pass
         self._publish({"kind": "event", "event": "shutdown", "reason": self.stop_reason})

@@ -38,6 +38,7 @@ class RunOptions:
     max_time: float = 3600.0  # simulated (or wall) seconds before the run is stopped
     faults: list = field(default_factory=list)  # [(fault, axis)] injected into the simulated robot
     override: float = 100.0  # speed override (percent, 1-100) of every move
+    deadline_policy: str | None = None  # the servo's miss policy ("hard", "firm", "soft"); None: the spec's
 
 
 class RobotSystem:
@@ -74,7 +75,8 @@ class RobotSystem:
         self.supervisor.reconfigure = self.apply_settings
         ex, robot = self.executive, self.robot
         controller = spec.controller  # validated (compiler.params), every key present
-        servo_policy = MissPolicy(controller.servo_miss_policy, limit=controller.servo_miss_limit,
+        servo_policy = MissPolicy(options.deadline_policy or controller.servo_miss_policy,
+                                  limit=controller.servo_miss_limit,
                                   window=controller.servo_miss_window)
         ex.add("robot.read", robot.read, TICK, "sense", component=robot)
         ex.add("supervisor", self.supervisor.step, TICK, "decide")

@@ -110,8 +110,9 @@ class ServerProcess:
     """One ``irl serve`` subprocess on free loopback ports."""
 
     def __init__(self, directory: Path, state_dir: Path, sim_clock: bool = True, keys: Path | None = None,
-                 telemetry: str | None = None, spec: Path | None = None):
+                 telemetry: str | None = None, spec: Path | None = None, extra: tuple = ()):
         self.spec = spec  # None: programs/lola15.spc
+        self.extra = tuple(extra)  # more arguments of irl serve
         self.directory = directory
         self.state_dir = state_dir
         self.sim_clock = sim_clock
@@ -130,6 +131,7 @@ class ServerProcess:
             cmd.append("--sim-clock")
         if self.keys is not None:
             cmd += ["--keys", self.keys]
+        cmd += list(self.extra)
         with open(self.log_path, "wb") as log:
             self.proc = subprocess.Popen(list(map(str, cmd)), cwd=ROOT, stdin=subprocess.DEVNULL,
                                          stdout=log, stderr=subprocess.STDOUT)

@@ -9,12 +9,19 @@ ticks later than 1 ms for each, and the ratio executive / bare for p99 and misse
 host (10+ ms seen on a shared machine) makes 10+ late ticks in whichever loop it hits,
 so a single round's ratio swings either way: the rounds are repeated (a fresh system each)
 and the median ratio is the figure.
-Run: .venv/bin/python benchmarks/wall_clock.py [--seconds S] [--blocks N] [--rounds N]
+Loads (issue 15): ``--load N`` starts N CPU-bound processes beside both loops for the
+whole measurement; ``--rt-priority N`` / ``--lock-memory`` / ``--cpu N`` put both loops'
+thread under the same real-time scheduling (``runtime/realtime.py``; the line printed says
+what the host granted). Compare, for example, ``--load 2`` with and without
+``--rt-priority 50``.
+Run: .venv/bin/python benchmarks/wall_clock.py [--seconds S] [--blocks N] [--rounds N] [--load N]
+     [--rt-priority N] [--lock-memory] [--cpu N]
 """
 from __future__ import annotations
 
 import argparse
 import gc
+import subprocess
 import sys
 import time
 from pathlib import Path
@@ -25,6 +32,7 @@ sys.path.insert(0, str(ROOT))
 import numpy as np  # noqa: E402
 
 from compiler.driver import compile_file  # noqa: E402
+from runtime import realtime  # noqa: E402
 from runtime.executive import MissPolicy, WallClock  # noqa: E402
 from runtime.system import RobotSystem, RunOptions  # noqa: E402
 
@@ -44,11 +52,7 @@ def one_round(result, seconds: float, blocks: int) -> tuple[np.ndarray, np.ndarr
     """Lateness (us) of the bare loop and of the executive, interleaved in blocks, and
     where the supervisor ended."""
     system = RobotSystem(result.spec, RunOptions(realtime=True))
-    system.trajectory.load(result.program)
-    system.report.open(None)
-    system.robot.configure()
-    system.robot.start()
-    system.supervisor.fsm.start()
+    system.begin(result.program)  # one cycle, power-up to Stop Robot, as RobotSystem.run starts it
     ex, clock = system.executive, system.clock
     for task in ex.tasks:  # measure lateness; a firm policy would end the run on a noisy host
         task.policy = MissPolicy("soft")
@@ -87,8 +91,21 @@ def main() -> int:
     ap.add_argument("--seconds", type=float, default=20.0, help="wall seconds per loop and round")
     ap.add_argument("--blocks", type=int, default=80)
     ap.add_argument("--rounds", type=int, default=3)
+    ap.add_argument("--load", type=int, default=0, metavar="N", help="CPU-bound processes running beside the loops")
+    realtime.add_arguments(ap)
     args = ap.parse_args()
     result = compile_file(ROOT / "programs" / "test.irl")
+    load = [subprocess.Popen([sys.executable, "-c", "while True: pass"]) for _ in range(args.load)]
+    try:
+        print(f"load: {args.load} CPU-bound processes; both loops: {realtime.apply(realtime.scheduling(args))}")
+        return rounds(result, args)
+    finally:
+        for process in load:
+            process.kill()
+            process.wait()
+
+
+def rounds(result, args) -> int:
     p99_ratios, miss_ratios = [], []
     for r in range(args.rounds):
         bare_a, ours_a, where = one_round(result, args.seconds, args.blocks)

@@ -66,7 +66,7 @@ tick; ``sample`` is real-time safe (a bisection and a polynomial in plain floats
 from __future__ import annotations
 
 from bisect import bisect_right
-from math import ceil, inf, log, sqrt
+from math import cbrt, ceil, inf, log, sqrt
 from typing import Sequence
 
 import numpy as np
@@ -180,7 +180,7 @@ def _reach(v0: float, cap: float, length: float, a: float, j: float) -> float:
         return cap
     p, q = 2.0 * v0, -length * sqrt(j)  # y^3 + p y + q = 0, y = sqrt(x): one real root (p >= 0)
     d = sqrt(q * q / 4.0 + p * p * p / 27.0)
-    y = _cbrt(-q / 2.0 + d) + _cbrt(-q / 2.0 - d)
+    y = cbrt(-q / 2.0 + d) + cbrt(-q / 2.0 - d)
     x = y * y
     if x * j > a * a:
         b = 2.0 * v0 / a + a / j
@@ -189,18 +189,19 @@ def _reach(v0: float, cap: float, length: float, a: float, j: float) -> float:
     out = min(v0 + max(x, 0.0) * (1.0 - 1e-6), cap)  # (to stay within ``length`` despite rounding)
     if _change_distance(v0, out, a, j) <= length:
         return out
-    lo, hi = v0, out  # (not expected: a bisection)
+    return _largest(v0, out, lambda u: _change_distance(v0, u, a, j) <= length)  # (not expected)
+
+
+def _largest(lo: float, hi: float, fits) -> float:
+    """The largest value in ``lo .. hi`` that ``fits`` (true at ``lo``, monotone), to
+    _BISECT halvings."""
     for _ in range(_BISECT):
         mid = 0.5 * (lo + hi)
-        if _change_distance(v0, mid, a, j) <= length:
+        if fits(mid):
             lo = mid
         else:
             hi = mid
     return lo
-
-
-def _cbrt(x: float) -> float:
-    return x ** (1.0 / 3.0) if x >= 0.0 else -((-x) ** (1.0 / 3.0))
 
 
 def _peak(v0: float, v1: float, top: float, length: float, a: float, j: float) -> float:
@@ -211,14 +212,7 @@ def _peak(v0: float, v1: float, top: float, length: float, a: float, j: float) -
 
     if need(top) <= length:
         return top
-    lo, hi = max(v0, v1), top
-    for _ in range(_BISECT):
-        mid = 0.5 * (lo + hi)
-        if need(mid) <= length:
-            lo = mid
-        else:
-            hi = mid
-    return lo
+    return _largest(max(v0, v1), top, lambda u: need(u) <= length)
 
 
 # ---------------------------------------------------------------------------- the profile
@@ -321,9 +315,8 @@ class PathProfile:
         the acceleration round before the speed is gone, and stopping before the path's
         end. Runs when a stop is made (a pause, an abort): vectorised passes over the
         samples of the stretch."""
-        floor_acc, floor_jerk = self._segment_stop_limits(s, v)
         if self._envelope is None or not v > 0.0:
-            return floor_acc, floor_jerk
+            return self._segment_stop_limits(s, v)
         at, g1, g2, g3, amax, jmax, acc, jerk = self._envelope
         lo = max(bisect_right(at, s) - 1, 0)
         hi = min(bisect_right(at, s + v * (v / (acc * STOP_LOWEST) + 2.0 * acc / jerk)) + 2, len(at))
@@ -613,12 +606,12 @@ class WarpedProfile(PathProfile):
     uniform slowdown). Known at knots (every WARP_KNOTS of nominal time: real time, path length,
     speed, acceleration), quintic between them (continuous acceleration, jerk piecewise
     quadratic). Same interface as :class:`PathProfile`; the path acceleration and jerk a
-    stop may use are the programmed ones times ``kappa^2`` and ``kappa^3`` at each knot.
+    stop may use come from ``envelope`` (:meth:`PathProfile.stop_limits`).
     :meth:`sample` is real-time safe (a bisection and plain floats)."""
 
     __slots__ = ("_knots",)
 
-    def __init__(self, length: float, t, s, v, a, kappa, acc: float, jerk: float, t_acc: float, envelope=None):
+    def __init__(self, length: float, t, s, v, a, acc: float, jerk: float, t_acc: float, envelope: tuple):
         self.length = length
         self._t, self._s, self._v, self._a = (np.asarray(x, dtype=float) for x in (t, s, v, a))
         self._j = None
@@ -626,8 +619,7 @@ class WarpedProfile(PathProfile):
         self.duration = float(self._t[-1])
         self.peak_velocity = float(np.max(self._v))
         self.t_acc = t_acc
-        k = np.asarray(kappa, dtype=float)
-        self._bounds, self._acc, self._jerk = self._knots[1], (acc * k * k).tolist(), (jerk * k * k * k).tolist()
+        self._bounds, self._acc, self._jerk = [0.0], [acc], [jerk]  # (one segment: the programmed limits)
         self._envelope = envelope
 
     @staticmethod
@@ -822,7 +814,7 @@ def warped_profile(s: np.ndarray, derivatives, limits, speed: float, acc: float,
         v = v_n * kappa
         a = w * (a_n + v_n * d1)
         ramp = float(np.interp(nominal.t_acc, tau, t))
-        profile = WarpedProfile(length, t, s_n, v, a, kappa, acc, jerk, min(ramp, float(t[-1]) - ramp), envelope)
+        profile = WarpedProfile(length, t, s_n, v, a, acc, jerk, min(ramp, float(t[-1]) - ramp), envelope)
         if profile.duration >= beat:
             return None
         # judged where it runs: at the knots, and when they pass, halfway between them too

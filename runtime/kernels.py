@@ -324,6 +324,28 @@ def _piece(nu: float, ua: float, aa: float, ub: float, ab: float, vl: float, rv:
     return nu, rv, rj
 
 
+def _largest_abs(a: float, b: float, c: float, d: float, e: float, f: float) -> float:
+    """The largest magnitude of six values (plain floats and comparisons: compiled, no
+    tuple)."""
+    m = abs(a)
+    x = abs(b)
+    if x > m:
+        m = x
+    x = abs(c)
+    if x > m:
+        m = x
+    x = abs(d)
+    if x > m:
+        m = x
+    x = abs(e)
+    if x > m:
+        m = x
+    x = abs(f)
+    if x > m:
+        m = x
+    return m
+
+
 def _linear_ratios(nu0: float, a0: float, x1: float, l1: float, r1: float, x2: float, l2: float, r2: float,
                    a1: float, vl: float, al: float, jl: float) -> tuple[float, float, float]:
     """Velocity, acceleration and jerk ratios (to ``vl``, ``al``, ``jl``) of a segment
@@ -333,17 +355,7 @@ def _linear_ratios(nu0: float, a0: float, x1: float, l1: float, r1: float, x2: f
     are at its ends, or where its acceleration crosses 0."""
     rv = abs(nu0) / vl
     rj = _INF if (l1 != r1 or l2 != r2) and jl < _INF else 0.0
-    ra = abs(a0)
-    if abs(l1) > ra:
-        ra = abs(l1)
-    if abs(r1) > ra:
-        ra = abs(r1)
-    if abs(l2) > ra:
-        ra = abs(l2)
-    if abs(r2) > ra:
-        ra = abs(r2)
-    if abs(a1) > ra:
-        ra = abs(a1)
+    ra = _largest_abs(a0, l1, r1, l2, r2, a1)
     nu, rv, rj = _piece(nu0, 0.0, a0, x1, l1, vl, rv, jl, rj)
     nu, rv, rj = _piece(nu, x1, r1, x2, l2, vl, rv, jl, rj)
     nu, rv, rj = _piece(nu, x2, r2, 1.0, a1, vl, rv, jl, rj)
@@ -387,15 +399,7 @@ def _quintic_ratios(c1: float, c2: float, c3: float, c4: float, c5: float, vl: f
     b2 = c1 + c2 + 0.5 * c3
     b3 = c1 + 1.5 * c2 + 1.5 * c3 + c4
     b4 = c1 + 2.0 * c2 + 3.0 * c3 + 4.0 * c4 + 5.0 * c5
-    mv = abs(c1)
-    if abs(b1) > mv:
-        mv = abs(b1)
-    if abs(b2) > mv:
-        mv = abs(b2)
-    if abs(b3) > mv:
-        mv = abs(b3)
-    if abs(b4) > mv:
-        mv = abs(b4)
+    mv = _largest_abs(c1, b1, b2, b3, b4, 0.0)
     return mv / vl, ma / al, mj / jl
 
 

@@ -24,6 +24,7 @@ import math
 import os
 from array import array
 from dataclasses import dataclass
+from functools import cached_property
 
 from .executive import WallClock
 from .timing import TICK
@@ -139,13 +140,17 @@ class Latency:
     duration: float
     late: array
 
+    @cached_property
+    def _ordered(self) -> list[float]:
+        return sorted(self.late)
+
     def percentile(self, q: float) -> float:
-        ordered = sorted(self.late)
+        ordered = self._ordered
         if not ordered:
             return 0.0
         return ordered[min(len(ordered) - 1, max(0, math.ceil(q * len(ordered)) - 1))]
 
-    @property
+    @cached_property
     def misses(self) -> list[int]:
         """The wake-ups (indices) too late for a tick's work to finish within its period."""
         budget = self.period * (1.0 - WORK_SHARE)

@@ -165,7 +165,7 @@ class Executive:
         self.ticks = 0
         self.tasks: list[Task] = []
         self.fault: str | None = None
-        self.tick_late_max = 0.0
+        self.wakeups = TaskStats()  # how late each tick started (wall clock): the host's part
         self._last_tick_late = 0.0  # how late the last tick started (wall clock)
         self._hyper = 1  # ticks in the schedule table (0: no table)
         self._due: list[tuple[Task, ...]] = [()]  # tasks due on each tick of the table
@@ -277,8 +277,10 @@ class Executive:
         if not simulated:
             start_late = clock.now() - scheduled
             self._last_tick_late = start_late
-            if start_late > self.tick_late_max:
-                self.tick_late_max = start_late
+            wakeups = self.wakeups
+            if start_late > wakeups.late_max:
+                wakeups.late_max = start_late
+            wakeups.histogram[min(int(start_late / _BIN), _BINS - 1)] += 1
         t1 = perf() if timed else 0.0
         due = self._due[k % self._hyper] if self._hyper else [t for t in self.tasks if k % t.period == 0]
         for task in due:
@@ -346,7 +348,7 @@ class Executive:
         """Not real-time: start counting afresh (a new cycle): forget a deadline fault,
         the misses and the execution-time and lateness statistics."""
         self.fault = None
-        self.tick_late_max = 0.0
+        self.wakeups = TaskStats()
         self._runnable_ticks = [0] * len(self._runnable_ticks)
         for task in self.tasks:
             task.stats = TaskStats()
@@ -366,3 +368,10 @@ class Executive:
     def statistics(self) -> dict:
         self._count_short_runs()
         return {task.name: task.stats.summary() for task in self.tasks}
+
+    def wakeup_statistics(self) -> dict:
+        """How late the ticks started (wall clock; zeros on the simulated clock): what the
+        host's scheduling gave the loop, before any task's work (compare ``irl latency``)."""
+        w = self.wakeups
+        return {"late_max_us": 1e6 * w.late_max, "late_p99_us": 1e6 * w.percentile(0.99),
+                "late_p999_us": 1e6 * w.percentile(0.999)}

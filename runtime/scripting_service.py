@@ -2,9 +2,10 @@
 carried out against the robot's components, as the paper's task browser does.
 
 Only what a target declares is reachable: its ``PROPERTIES`` (declared in
-:mod:`compiler.params`), ``READ_ONLY`` properties, and whitelisted ``OPERATIONS``. Reads
-are answered by the I/O thread at once; writes and operations run in the real-time loop
-between ticks. What the network may change is limited (docs/safety.md):
+:mod:`compiler.params`), ``READ_ONLY`` properties, and whitelisted ``OPERATIONS``. The
+server parses a command; an operation of the server itself (``server.reconfigure``) runs
+there, everything else in the real-time loop between ticks (runtime/robotloop.py), against
+the loop's components. What the network may change is limited (docs/safety.md):
 
 * a property is written only if its declaration says ``live``; a safety-relevant
   parameter (or any other that changes by configuration) is refused: it changes only
@@ -33,16 +34,16 @@ class FsmTarget:
                  "mode": "'automatic' (guards fire); fixed while the supervisor drives the robot"}
     OPERATIONS = ("request_state", "post")
 
-    def __init__(self, server):
-        self.server = server
+    def __init__(self, loop):
+        self.loop = loop
 
     @property
     def _fsm(self):
-        return self.server.system.supervisor.fsm
+        return self.loop.system.supervisor.fsm
 
     @property
     def state(self) -> str:
-        return self._fsm.path() if self.server.current is not None else "Idle"
+        return self._fsm.path() if self.loop.job is not None else "Idle"
 
     @property
     def mode(self) -> str:
@@ -54,7 +55,7 @@ class FsmTarget:
 
     def request_state(self, name: str) -> bool:
         """Ask for a transition to ``name`` at the next step (if one leads there)."""
-        if self.server.current is None:
+        if self.loop.job is None:
             raise ValueError("no program is running: the supervisor is idle")
         return self._fsm.request_state(name)
 
@@ -64,8 +65,9 @@ class FsmTarget:
 
 
 class ServerTarget:
-    """The server itself (``server``): its configuration. Its operations run in the I/O
-    thread (they queue work; they never touch the robot directly)."""
+    """The server itself (``server``): its configuration. Its operations run in the
+    server (they queue work; they never touch the robot directly); the loop reads the
+    values the server sent with the command (``front``)."""
 
     name = "server"
     PROPERTIES: dict = {}
@@ -75,27 +77,19 @@ class ServerTarget:
     IMMEDIATE = True
     lifecycle = None
 
-    def __init__(self, server):
-        self.server = server
-
-    @property
-    def configuration(self):
-        return self.server.configuration
-
-    @property
-    def configurations(self):
-        c = self.server.configurations
-        return c.names() if c is not None else []
-
-    @property
-    def override(self):
-        return self.server.override
+    def __init__(self, front: dict, reconfigure=None):
+        self.configuration = front.get("configuration")
+        self.configurations = list(front.get("configurations") or [])
+        self.override = front.get("override", 100.0)
+        self._reconfigure = reconfigure
 
     def reconfigure(self, name: str) -> str:
         """Queue a Robot Reconfiguration with the named configuration."""
         if not isinstance(name, str):
             raise TypeError("reconfigure() takes the configuration's name, a string")
-        result = self.server.op_reconfigure({"name": name})
+        if self._reconfigure is None:
+            raise ValueError("reconfigure() runs in the server, not in the loop")
+        result = self._reconfigure(name)
         return f"reconfiguration to {result['requested']!r} queued as {result['program']}"
 
 
@@ -104,29 +98,40 @@ class ServerTarget:
 NEVER = {("robot", "release_brakes"): "the brakes are released only by Start Robot, when a program begins"}
 
 
-def _operation_refused(server, component: str, name: str, target) -> str | None:
+def _operation_refused(job: int | None, component: str, name: str, target) -> str | None:
     """Why the operation may not run now (None: it may). Runs in the loop."""
     if (component, name) in NEVER:
         return NEVER[(component, name)]
-    if getattr(target, "lifecycle", None) is not None and server.current is not None:
-        return (f"program {server.current.id} is running: a component's operations could move the robot or "
+    if getattr(target, "lifecycle", None) is not None and job is not None:
+        return (f"program {job} is running: a component's operations could move the robot or "
                 "lose data (call it when the robot is idle; to stop the robot: irl abort or irl estop)")
     return None
 
 
-def targets(server) -> dict:
-    s = server.system
+def loop_targets(loop) -> dict:
+    """What a script reaches in the loop (runtime.robotloop.RobotLoop)."""
+    s = loop.system
     return {"robot": s.robot, "servo": s.servo, "initialization": s.init, "trajectory": s.trajectory,
-            "report": s.report, "fsm": FsmTarget(server), "server": ServerTarget(server)}
+            "report": s.report, "fsm": FsmTarget(loop), "server": ServerTarget(loop.front)}
 
 
-def call(server, text: str):
-    """The result of a ``call`` request (a dict), or a callable for the loop to run."""
+def parse_call(text: str):
+    """The parsed command, or ProtocolError (``script_error``)."""
     try:
-        command = parse(text)
+        return parse(text)
     except ScriptError as exc:
         raise ProtocolError("script_error", f"{exc} in {text[:80]!r}") from None
-    table = targets(server)
+
+
+def runs_in_server(command) -> bool:
+    """Whether a parsed command is an operation of the server itself (it queues work)."""
+    return isinstance(command, CallOperation) and command.component == ServerTarget.name
+
+
+def call(table: dict, job: int | None, text: str):
+    """The result of a ``call`` request (a dict), or a callable to run between ticks;
+    ``table``: the targets (``loop_targets``), ``job``: the running program's id."""
+    command = parse_call(text)
     if isinstance(command, Components):
         lines = [f"{name:15s} {_lifecycle(t)}" for name, t in table.items()]
         return {"output": "\n".join(lines), "value": list(table)}
@@ -169,7 +174,7 @@ def call(server, text: str):
                                             f"(operations: {', '.join(target.OPERATIONS)})")
 
     def operation():
-        refused = _operation_refused(server, command.component, command.name, target)
+        refused = _operation_refused(job, command.component, command.name, target)
         if refused is not None:
             raise ProtocolError("refused", f"{where}: {refused}")
         try:

@@ -1,20 +1,26 @@
 """``irl serve``: one robot on the network (see docs/protocol.md).
 
-Two threads. The **real-time loop** (the main thread) owns the robot: the executive, the
-components, the supervisor and the telemetry PUB socket. Between programs it waits for
-work; when a program is queued it runs one cycle of the supervisor (Start Robot ...
-Stop Robot; calibration and initialization are remembered) and then takes the next.
-Each tick it first applies the operator commands queued for it (a bounded number), then
-steps the executive, then publishes telemetry every 10 ms (non-blocking sends on a PUB
-socket with a bounded queue: a subscriber that stops reading loses messages, never
-slows the loop).
+Two processes (docs/runtime.md, "Process layout"). The **loop process**
+(runtime/robotloop.py) owns the robot: the executive, the components, the supervisor, the
+robot interface, the report files. It runs one cycle of the supervisor at a time (Start
+Robot ... Stop Robot; calibration and initialization are remembered) when the server
+says ``start``, applies the operator commands forwarded to it between ticks (a bounded
+number per tick), and sends back replies, telemetry events, a snapshot of the robot
+every 10 ms and each cycle's summary. It asks for real-time scheduling for itself.
 
-The **I/O thread** owns the ROUTER socket. It decodes and checks every request, answers
-the ones that only read (hello, status, property reads, report chunks) itself, verifies
-submitted object code before queuing it, and hands everything that changes the robot to
-the loop as a command; the loop's reply comes back through a deque and an inproc socket
-that wakes the I/O thread. Nothing a client sends can raise into the loop: a bad request
-gets an error reply and the server keeps serving.
+The **server** process owns the network and everything that is not real-time: the ROUTER
+socket (it decodes and checks every request, answers the ones that only read, hello,
+status, report chunks, from the loop's latest snapshot and its own job table, and
+verifies submitted object code), the program queue, the configuration file, and the
+telemetry PUB socket (it encodes and publishes what the loop sent; non-blocking sends
+with a bounded queue: a subscriber that stops reading loses messages, never slows
+anything). The two exchange messages through a :class:`~runtime.channel.Channel` that the
+loop never waits on. Nothing a client sends can raise into the loop: a bad request gets
+an error reply and the server keeps serving; a flood of requests costs the server's
+time, not the loop's.
+
+Tests drive the same server with the loop in-process (``ServeOptions(loop_process=False)``),
+turn by turn: one turn is one tick.
 """
 from __future__ import annotations
 
@@ -23,7 +29,6 @@ import logging
 import os
 import signal
 import sys
-import threading
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -34,16 +39,14 @@ from compiler.objcode import OP, ObjectCodeError, Program, load
 
 from . import protocol
 from .protocol import ProtocolError
-from .supervisor import MOVE
-from .system import RobotSystem, RunOptions
+from .robotloop import EXIT_TIMEOUT
+from .system import RunOptions
 
 log = logging.getLogger("irl.serve")
 
-TELEMETRY_EVERY = 10  # ticks between telemetry samples while a program runs (10 ms)
-IDLE_TELEMETRY_PERIOD = 0.5  # s between samples while idle
-COMMANDS_PER_TICK = 8  # operator commands applied at most per tick
 HISTORY = 200  # finished programs kept for status
-SHUTDOWN_TIMEOUT = 15.0  # s the loop waits for the robot to come to rest on shutdown
+SHUTDOWN_TIMEOUT = 15.0  # s the server waits for the robot to come to rest on shutdown (then: estop)
+LOOP_START_TIMEOUT = 30.0  # s the server waits for the loop process to be ready
 
 
 @dataclass
@@ -58,8 +61,10 @@ class ServeOptions:
     allow_insecure_remote: bool = False
     #: The servo's deadline policy ("hard", "firm", "soft"); None: the specification's.
     deadline_policy: str | None = None
-    #: Real-time scheduling for the loop's thread (wall clock only): runtime.realtime.Scheduling.
+    #: Real-time scheduling for the loop (wall clock only): runtime.realtime.Scheduling.
     scheduling: object = None
+    #: The loop in a process of its own (False: in this one, driven by ``Server.turn``: tests).
+    loop_process: bool = True
 
 
 INSECURE_FLAG = "--insecure-allow-remote-without-encryption"
@@ -138,18 +143,14 @@ class Job:
         self.ended: float | None = None
         self.summary: dict | None = None
         self.moves_total = moves_total(program) if program is not None else 0
-        self.abort_reason: str | None = None
+        self.object: bytes | None = None  # the verified object code, for the loop
 
-    def as_dict(self, system: RobotSystem | None = None, summary: bool = True) -> dict:
+    def as_dict(self, summary: bool = True) -> dict:
         d = {"id": self.id, "name": self.name, "state": self.state, "fault": self.fault,
              "submitted": self.submitted, "started": self.started, "ended": self.ended,
              "report": str(self.report) if self.report else None, "moves_total": self.moves_total,
              "kind": "program" if self.settings is None else "reconfiguration"}
-        if system is not None and self.state == "running":
-            t = system.trajectory
-            d.update(line=t.line, moves_done=t.motion.completed, paused=t.paused,
-                     fsm=system.supervisor.fsm.path())
-        elif self.summary is not None:
+        if self.summary is not None:
             d.update(line=None, moves_done=sum(1 for m in self.summary["moves"] if m["actual_duration"] is not None))
             if summary:
                 d["summary"] = self.summary
@@ -169,6 +170,24 @@ def moves_total(program: Program) -> int | None:
     return moves
 
 
+class LoopCommand:
+    """What an ``op_*`` handler returns for a request the loop must carry out: the
+    command's name and arguments (runtime.robotloop.COMMANDS); the loop's reply becomes
+    the client's (through ``finish``, when given, for what the server adds to it)."""
+
+    __slots__ = ("op", "args", "finish", "failed")
+
+    def __init__(self, op: str, finish=None, failed=None, **args):
+        self.op = op
+        self.args = args
+        self.finish = finish  # result -> the client's result (may raise ProtocolError)
+        self.failed = failed  # called with the loop's refusal
+
+
+class LoopGone(Exception):
+    """The loop process ended, or never became ready."""
+
+
 class Server:
     def __init__(self, spec, options: ServeOptions, configurations=None):
         self.spec = spec
@@ -177,41 +196,301 @@ class Server:
         self.state_dir = state_dir
         session = time.strftime("%Y%m%d-%H%M%S") + f"-{os.getpid()}"
         self.report_dir = state_dir / "reports" / session
-        self.system = RobotSystem(spec, RunOptions(seed=options.seed, realtime=not options.sim_clock,
-                                                   state_dir=state_dir, deadline_policy=options.deadline_policy))
-        self.configurations = configurations
-        self.configuration = None
-        self.baseline = self.system.settings()  # what a configuration's missing keys fall back to
-        if configurations is not None:
-            from .config import validate_settings
-
-            self.configuration = configurations.default
-            self.system.apply_settings(validate_settings(
-                merge_settings(self.baseline, configurations[configurations.default].settings),
-                f"configuration {configurations.default!r} over the start-up settings"))
         self.jobs: dict[int, Job] = {}
         self.queue: collections.deque[Job] = collections.deque()
         self.finished: collections.deque[int] = collections.deque()
         self.current: Job | None = None
         self.next_id = 1
         self.override = 100.0
-        self.commands: collections.deque = collections.deque()  # (identity, request id, fn) for the loop
-        self.outbox: collections.deque = collections.deque()  # (identity, reply bytes) for the I/O thread
-        self.work = threading.Event()  # set when the loop has something to do
+        self.commands: collections.deque = collections.deque()  # (identity, request id, LoopCommand) to forward
+        self.outbox: collections.deque = collections.deque()  # (identity, reply bytes) when no socket is bound
+        self.inbox: collections.deque = collections.deque()  # messages of an in-process loop
+        self.pending: dict[int, tuple] = {}  # ref -> (identity, request id, LoopCommand) awaiting the loop
+        self._ref = 0
+        self.snapshot: dict = {}  # the loop's latest
         self.stop_reason: str | None = None
+        self._stopping = False  # the running program was told to stop for the shutdown
         self._shutdown_deadline: float | None = None
         self.telemetry_seq = 0
         self.telemetry_sent = 0
-        self._seen_states = 0
-        self._seen_log = 0
-        self._last_idle_sample = 0.0
-        self._submit_lock = threading.Lock()
-        self.ctx = zmq.Context()
-        self.router = self.pub = self._wake_tx = self._wake_rx = None
-        self.io_thread: threading.Thread | None = None
-        self.authenticator = None
+        self.loop_scheduling: str | None = None
+        self.loop_gone: str | None = None  # why the loop process ended (then no program runs)
+        self.loop = self.process = self.channel = None
+        self.router = self.pub = self.authenticator = None
+        run_options = RunOptions(seed=options.seed, realtime=not options.sim_clock, state_dir=state_dir,
+                                 deadline_policy=options.deadline_policy)
+        # the loop first: the fork copies only this thread, before any ZeroMQ context exists
+        if options.loop_process:
+            from .robotloop import start_process
 
-    # ---- sockets --------------------------------------------------------------------
+            self.process, self.channel = start_process(spec, run_options, options.scheduling)
+            ready = self._await("ready", LOOP_START_TIMEOUT)
+        else:
+            from .robotloop import RobotLoop
+
+            self.loop = RobotLoop(spec, run_options, self._from_loop)
+            ready = self.loop.ready()
+        self.snapshot = ready["snapshot"]
+        self.loop_scheduling = ready["scheduling"]
+        self.loop_pid = ready["pid"]
+        self.baseline = ready["baseline"]  # what a configuration's missing keys fall back to
+        self.configurations = configurations
+        self.configuration = None
+        if configurations is not None:
+            from .config import validate_settings
+
+            self.configuration = configurations.default
+            try:
+                settings = validate_settings(merge_settings(self.baseline,
+                                                            configurations[configurations.default].settings),
+                                             f"configuration {configurations.default!r} over the start-up settings")
+                self._ask(LoopCommand("settings", settings=settings))
+            except BaseException:
+                self._stop_loop()
+                raise
+        self.ctx = zmq.Context()
+
+    @property
+    def system(self):
+        """The robot, when the loop runs in this process (tests); else AttributeError."""
+        if self.loop is None:
+            raise AttributeError("the loop runs in its own process: its system is not here")
+        return self.loop.system
+
+    # ---- the loop -------------------------------------------------------------------------
+    def _from_loop(self, message: dict, droppable: bool = False) -> bool:
+        self.inbox.append(message)
+        return True
+
+    def _send_loop(self, command: LoopCommand, identity=None, request_id=None) -> None:
+        self._ref += 1
+        self.pending[self._ref] = (identity, request_id, command)
+        message = {"op": command.op, "ref": self._ref, **command.args}
+        if self.loop is not None:
+            self.loop.commands.append(message)
+        else:
+            self.channel.send(message)
+
+    def _forward(self) -> None:
+        while self.commands:
+            identity, request_id, command = self.commands.popleft()
+            self._send_loop(command, identity, request_id)
+
+    def _receive(self) -> list:
+        if self.loop is not None:
+            messages = list(self.inbox)
+            self.inbox.clear()
+            return messages
+        from .channel import ChannelClosed
+
+        try:
+            return self.channel.receive()
+        except ChannelClosed:
+            raise LoopGone(self._loop_gone()) from None
+
+    def _loop_gone(self) -> str:
+        process = self.process
+        process.join(1.0)
+        code = process.exitcode
+        how = "still running" if code is None else (f"killed by signal {-code}" if code < 0 else f"exit status {code}")
+        return f"the real-time loop process ({process.pid}) ended unexpectedly ({how})"
+
+    def _await(self, kind: str, timeout: float) -> dict:
+        """Not real-time: wait for the loop's next message of ``kind`` (handling the others)."""
+        deadline = time.monotonic() + timeout
+        while True:
+            for message in self._receive():
+                if message["kind"] == "failed":
+                    raise LoopGone(f"the real-time loop could not start: {message['error']}")
+                if message["kind"] == kind:
+                    return message
+                self._on_loop(message)
+            remaining = deadline - time.monotonic()
+            if remaining <= 0:
+                raise LoopGone(f"the real-time loop sent no {kind!r} within {timeout:g} s")
+            if self.loop is not None:
+                self.loop.turn()
+            else:
+                self.channel.wait(min(remaining, 0.1))
+
+    def request(self, op: str, args: dict | None = None):
+        """Not real-time (tests, tools): one request's result, a loop command carried out
+        and waited for; raises ProtocolError when refused."""
+        result = getattr(self, f"op_{op}")(args or {})
+        return self._ask(result) if isinstance(result, LoopCommand) else result
+
+    def _ask(self, command: LoopCommand, timeout: float = LOOP_START_TIMEOUT):
+        """Not real-time: one command and its result (ProtocolError when refused)."""
+        self._send_loop(command)
+        ref = self._ref
+        deadline = time.monotonic() + timeout
+        while ref in self.pending:
+            for message in self._receive():
+                if message["kind"] == "reply" and message["ref"] == ref:
+                    self.pending.pop(ref)
+                    if not message["ok"]:
+                        if command.failed is not None:
+                            command.failed(message)
+                        raise ProtocolError(message["code"], message["message"])
+                    result = message["result"]
+                    return command.finish(result) if command.finish is not None else result
+                self._on_loop(message)
+            if time.monotonic() > deadline:
+                raise LoopGone(f"the real-time loop did not answer {command.op!r} within {timeout:g} s")
+            if self.loop is not None:
+                self.loop.turn()
+            else:
+                self.channel.wait(0.1)
+
+    def _on_loop(self, message: dict) -> None:
+        kind = message["kind"]
+        if kind == "snapshot":
+            self.snapshot = message
+            self._publish_sample()
+        elif kind == "reply":
+            self._on_reply(message)
+        elif kind == "event":
+            del message["kind"]
+            self._publish({"kind": "event", **message})
+        elif kind == "finished":
+            self._finish_current(message)
+
+    def _on_reply(self, message: dict) -> None:
+        entry = self.pending.pop(message["ref"], None)
+        if entry is None:
+            return
+        identity, request_id, command = entry
+        if message["ok"]:
+            result = message["result"]
+            try:
+                if command.finish is not None:
+                    result = command.finish(result)
+                reply = protocol.ok(request_id, result)
+            except ProtocolError as exc:
+                reply = protocol.error(request_id, exc.code, exc.message)
+        else:
+            if command.failed is not None:
+                command.failed(message)
+            reply = protocol.error(request_id, message["code"], message["message"])
+        if identity is not None:
+            self._reply(identity, reply)
+
+    def _dispatch(self) -> bool:
+        """Start the next program when the loop is free; bring the shutdown along. False
+        once a shutdown is done (the robot at rest, no program running)."""
+        if self.current is None:
+            if self.stop_reason is not None:
+                return False
+            if self.queue and self.loop_gone is None:
+                self._start_next()
+        elif self.stop_reason is not None and not self._stopping:
+            self._stopping = True
+            self._shutdown_deadline = time.monotonic() + SHUTDOWN_TIMEOUT
+            self._send_loop(LoopCommand("abort", reason=self.stop_reason))
+        return True
+
+    def turn(self, idle_wait: bool = True) -> bool:
+        """With the loop in this process: one turn of it (the forwarded commands, then one
+        tick of the running program, or of the next one started), and what it sent
+        handled. False once a shutdown is done. Tests drive the server turn by turn (no
+        sockets: they call the ``op_*`` handlers and read ``outbox``)."""
+        if not self._dispatch():
+            return False
+        self._forward()
+        self.loop.turn()
+        for message in self._receive():
+            self._on_loop(message)
+        return True
+
+    def request_shutdown(self, reason: str = "the server is shutting down") -> None:
+        """Safe from a signal handler: stop after bringing the robot to rest."""
+        if self.stop_reason is None:
+            self.stop_reason = reason
+
+    def _start_next(self) -> None:
+        job = self.queue.popleft()
+        try:
+            self.report_dir.mkdir(parents=True, exist_ok=True)
+        except OSError as exc:
+            job.state, job.fault, job.ended = "faulted", f"cannot make {self.report_dir}: {exc.strerror or exc}", \
+                time.time()
+            self._retire(job)
+            return
+        job.state, job.started = "running", time.time()
+        self.current = job
+        log.info("program %d (%s) started", job.id, job.name)
+
+        def started(result: dict) -> dict:
+            self._publish({"kind": "event", "event": "program", "program": job.id, "state": "running",
+                           "t": result["t"]})
+            return result
+
+        def refused(reply: dict) -> None:  # the program cannot run here
+            job.state, job.fault, job.ended = "faulted", reply["message"], time.time()
+            self.current = None
+            self._retire(job)
+            log.info("program %d faulted: %s", job.id, job.fault)
+
+        self._send_loop(LoopCommand("start", finish=started, failed=refused, job=job.id, object=job.object,
+                                    report=str(job.report) if job.report else None,
+                                    settings=job.settings, override=self.override))
+
+    def _finish_current(self, message: dict) -> None:
+        job = self.current
+        if job is None or job.id != message["job"]:
+            return
+        summary = message["summary"]
+        job.summary = summary
+        job.ended = time.time()
+        job.fault = summary["fault"]
+        if job.fault is None:
+            job.state = "completed"
+            if job.configuration is not None:
+                self.configuration = job.configuration
+        elif message["aborted"]:
+            job.state = "aborted"
+        else:
+            job.state = "faulted"
+        self.current = None
+        self._shutdown_deadline = None
+        self._retire(job)
+        log.info("program %d %s%s", job.id, job.state, f": {job.fault}" if job.fault else "")
+        self._publish({"kind": "event", "event": "program", "program": job.id, "state": job.state,
+                       "fault": job.fault})
+
+    def _retire(self, job: Job) -> None:
+        job.program = job.object = None  # the code is not needed any more
+        self.finished.append(job.id)
+        while len(self.finished) > HISTORY:
+            self.jobs.pop(self.finished.popleft(), None)
+
+    # ---- telemetry --------------------------------------------------------------------------
+    def _publish(self, message: dict) -> None:
+        self.telemetry_seq += 1
+        message["v"] = protocol.VERSION
+        message["seq"] = self.telemetry_seq
+        message.setdefault("t", self.snapshot.get("t", 0.0))
+        if self.pub is None:  # not bound (driven turn by turn, in-process)
+            return
+        try:
+            self.pub.send_multipart((protocol.TELEMETRY_TOPIC, protocol.pack(message)), zmq.NOBLOCK)
+            self.telemetry_sent += 1
+        except zmq.Again:
+            pass
+
+    def _publish_sample(self) -> None:
+        snap = self.snapshot
+        job = self.current
+        running = job is not None and snap.get("job") == job.id
+        sample = {"kind": "sample", "state": snap["state"] if running else "Idle",
+                  "program": job.id if running else None, "queued": len(self.queue),
+                  "override": self.override, "position": snap["position"], "t": snap["t"]}
+        if running and "line" in snap:
+            sample.update(line=snap["line"], moves_done=snap["moves_done"], moves_total=job.moves_total,
+                          paused=snap["paused"], following_error=snap["following_error"])
+        self._publish(sample)
+
+    # ---- sockets and the server's own loop ------------------------------------------------
     def bind(self) -> None:
         """Bind the request and telemetry sockets (raises zmq.ZMQError when taken)."""
         check_endpoints(self.options)
@@ -230,240 +509,106 @@ class Server:
         self.pub.setsockopt(zmq.SNDHWM, 1000)  # bounded: a slow subscriber loses messages
         self.pub.setsockopt(zmq.LINGER, 0)
         self.pub.bind(self.options.telemetry)
-        self._wake_rx = ctx.socket(zmq.PAIR)
-        self._wake_rx.bind(f"inproc://wake-{id(self)}")
-        self._wake_tx = ctx.socket(zmq.PAIR)
-        self._wake_tx.connect(f"inproc://wake-{id(self)}")
-        self._wake_tx.setsockopt(zmq.SNDHWM, 1)
 
     def close(self) -> None:
-        for sock in (self.router, self.pub, self._wake_tx, self._wake_rx):
+        self._stop_loop()
+        for sock in (self.router, self.pub):
             if sock is not None:
                 sock.close(linger=0)
         if self.authenticator is not None:
             self.authenticator.stop()
         self.ctx.term()
 
-    # ---- the real-time loop (main thread) ---------------------------------------------
+    def _stop_loop(self) -> None:
+        """End the loop process (it brings the robot to rest first)."""
+        process, self.process = self.process, None
+        if process is None:
+            return
+        if process.is_alive():
+            try:
+                self._ask(LoopCommand("exit", reason=self.stop_reason or "the server is closing"), timeout=5.0)
+            except (LoopGone, ProtocolError):
+                pass
+            process.join(EXIT_TIMEOUT + 5.0)
+            if process.is_alive():
+                log.error("the loop process %d did not end: terminated", process.pid)
+                process.kill()
+                process.join(1.0)
+        self.channel.close()
+
     def serve(self) -> int:
         """Run until a shutdown is requested (``request_shutdown``) and the robot is at
         rest; returns the exit status."""
-        self.io_thread = threading.Thread(target=self._io_main, name="irl-io", daemon=True)
-        self.io_thread.start()
-        if not self.options.sim_clock:  # the loop's thread only (the I/O thread stays at normal priority)
-            from .realtime import Scheduling, apply
-
-            log.info("loop: %s", apply(self.options.scheduling or Scheduling()))
-        while self.turn():
-            pass
-        self._publish({"kind": "event", "event": "shutdown", "reason": self.stop_reason})
-        return 0
-
-    def turn(self, idle_wait: bool = True) -> bool:
-        """One turn of the real-time loop: the queued operator commands, then one tick of
-        the running program (or the next program started, or an idle wait when there is
-        none and ``idle_wait``). False once a shutdown is done. Tests drive the server
-        turn by turn (no sockets, no I/O thread: they call the ``op_*`` handlers)."""
-        if self.commands:
-            self._apply_commands()
-        if self.current is None:
-            if self.stop_reason is not None:
-                return False
-            if self.queue:
-                self._start_next()
-            elif idle_wait:
-                self._idle()
-                return True
-            else:
-                return True
-        if self.stop_reason is not None and self._shutdown_deadline is None:
-            self._shutdown_deadline = time.monotonic() + SHUTDOWN_TIMEOUT
-            self._stop_current(self.stop_reason)
-        ex = self.system.executive
-        ex.step()
-        if ex.ticks % TELEMETRY_EVERY == 0:
-            self._publish_progress()
-        if self.system.supervisor.done:
-            self._finish_current()
-        elif self._shutdown_deadline is not None and time.monotonic() > self._shutdown_deadline:
-            log.error("the robot did not come to rest within %g s of the shutdown", SHUTDOWN_TIMEOUT)
-            self._finish_current()
-        return True
-
-    def request_shutdown(self, reason: str = "the server is shutting down") -> None:
-        """Safe from a signal handler or another thread: stop after bringing the robot to rest."""
-        if self.stop_reason is None:
-            self.stop_reason = reason
-        self.work.set()
-
-    def _idle(self) -> None:
-        """Between programs: wait (not a real-time state: nothing is moving, brakes on)."""
-        self.work.wait(0.05)
-        self.work.clear()
-        now = time.monotonic()
-        if now - self._last_idle_sample >= IDLE_TELEMETRY_PERIOD:
-            self._last_idle_sample = now
-            self._publish_sample()
-
-    def _start_next(self) -> None:
-        job = self.queue.popleft()
-        system = self.system
-        if not self.options.sim_clock:
-            system.executive.resync()
-        try:
-            self.report_dir.mkdir(parents=True, exist_ok=True)
-            if job.settings is not None:
-                system.begin(None, None, settings=job.settings)
-            else:
-                system.begin(job.program, job.report)
-        except (ValueError, OSError) as exc:
-            job.state, job.fault, job.ended = "faulted", str(exc), time.time()
-            self._retire(job)
-            return
-        system.trajectory.override = self.override
-        job.state, job.started = "running", time.time()
-        self.current = job
-        self._seen_states = 0
-        self._seen_log = 0
-        log.info("program %d (%s) started", job.id, job.name)
-        self._publish({"kind": "event", "event": "program", "program": job.id, "state": "running"})
-
-    def _finish_current(self) -> None:
-        job = self.current
-        summary = self.system.finish()
-        self._publish_progress()
-        job.summary = summary
-        job.ended = time.time()
-        job.fault = summary["fault"]
-        if job.fault is None:
-            job.state = "completed"
-            if job.configuration is not None:
-                self.configuration = job.configuration
-        elif job.abort_reason is not None:
-            job.state = "aborted"
-        else:
-            job.state = "faulted"
-        self.current = None
-        self._retire(job)
-        log.info("program %d %s%s", job.id, job.state, f": {job.fault}" if job.fault else "")
-        self._publish({"kind": "event", "event": "program", "program": job.id, "state": job.state,
-                       "fault": job.fault})
-
-    def _retire(self, job: Job) -> None:
-        job.program = None  # the code is not needed any more
-        self.finished.append(job.id)
-        while len(self.finished) > HISTORY:
-            self.jobs.pop(self.finished.popleft(), None)
-
-    def _stop_current(self, reason: str) -> None:
-        """Bring the running program to an end: a controlled stop while moving, else at once."""
-        job = self.current
-        if job is None:
-            return
-        job.abort_reason = job.abort_reason or reason
-        system = self.system
-        if system.supervisor.fsm.state == MOVE and system.trajectory.running:
-            system.trajectory.abort(reason)
-        else:
-            system.supervisor.request_stop(reason)
-
-    def _apply_commands(self) -> None:
-        for _ in range(COMMANDS_PER_TICK):
-            if not self.commands:
-                break
-            identity, request_id, fn = self.commands.popleft()
-            try:
-                reply = protocol.ok(request_id, fn())
-            except ProtocolError as exc:
-                reply = protocol.error(request_id, exc.code, exc.message)
-            except Exception as exc:  # a bug: the client hears of it, the loop goes on
-                log.exception("command failed")
-                reply = protocol.error(request_id, "internal", f"{type(exc).__name__}: {exc}")
-            self.outbox.append((identity, reply))
-        if self._wake_tx is None:  # not bound: the caller reads the outbox itself
-            return
-        try:
-            self._wake_tx.send(b"", zmq.NOBLOCK)
-        except zmq.Again:
-            pass  # the I/O thread has a wake-up pending already
-
-    # ---- telemetry (real-time loop) -----------------------------------------------------
-    def _publish(self, message: dict) -> None:
-        self.telemetry_seq += 1
-        message["v"] = protocol.VERSION
-        message["seq"] = self.telemetry_seq
-        message["t"] = self.system.clock.now()
-        if self.pub is None:  # not bound (driven turn by turn, in-process)
-            return
-        try:
-            self.pub.send_multipart((protocol.TELEMETRY_TOPIC, protocol.pack(message)), zmq.NOBLOCK)
-            self.telemetry_sent += 1
-        except zmq.Again:
-            pass
-
-    def _publish_progress(self) -> None:
-        history = self.system.supervisor.fsm.history
-        while self._seen_states < len(history):
-            t, source, target = history[self._seen_states]
-            self._seen_states += 1
-            self._publish({"kind": "event", "event": "state", "from": source, "to": target, "at": t})
-        lines = self.system.trajectory.log_lines
-        while self._seen_log < len(lines):
-            t, line, text = lines[self._seen_log]
-            self._seen_log += 1
-            self._publish({"kind": "event", "event": "log", "line": line, "text": text, "at": t})
-        self._publish_sample()
-
-    def _publish_sample(self) -> None:
-        system = self.system
-        job = self.current
-        sample = {"kind": "sample", "state": system.supervisor.fsm.path() if job else "Idle",
-                  "program": job.id if job else None, "queued": len(self.queue),
-                  "override": self.override, "position": list(system.robot.positions)}
-        if job is not None:
-            t = system.trajectory
-            sample.update(line=t.line, moves_done=t.motion.completed, moves_total=job.moves_total, paused=t.paused,
-                          following_error=max((abs(e) for e in system.servo.following_error), default=0.0))
-        self._publish(sample)
-
-    # ---- the I/O thread -----------------------------------------------------------------
-    def _io_main(self) -> None:
+        if self.loop is not None:  # the loop in this process (a debugging layout): one thread does all
+            while self.turn():
+                self._poll_requests(0)
+            self._publish({"kind": "event", "event": "shutdown", "reason": self.stop_reason})
+            return 0
+        log.info("loop: %s (process %d)", self.loop_scheduling or "simulated clock", self.loop_pid)
         poller = zmq.Poller()
         poller.register(self.router, zmq.POLLIN)
-        poller.register(self._wake_rx, zmq.POLLIN)
-        router = self.router
-        while True:
+        poller.register(self.channel.fileno(), zmq.POLLIN)
+        while self._dispatch():
+            if self.loop_gone is not None:  # keep answering (status says why), refuse work
+                self._poll_requests(200, poller)
+                continue
             try:
-                events = dict(poller.poll(200))
-            except zmq.ZMQError:
-                return  # the context is closing
-            if self._wake_rx in events:
-                try:
-                    while True:
-                        self._wake_rx.recv(zmq.NOBLOCK)
-                except zmq.Again:
-                    pass
-            while self.outbox:
-                identity, reply = self.outbox.popleft()
-                self._send(identity, reply)
-            if router in events:
-                for _ in range(100):
-                    try:
-                        frames = router.recv_multipart(zmq.NOBLOCK, copy=True)
-                    except zmq.Again:
-                        break
-                    except zmq.ZMQError:
-                        return
-                    self._handle(frames)
+                self._forward()
+                if self._shutdown_deadline is not None and time.monotonic() > self._shutdown_deadline:
+                    self._shutdown_deadline = None  # once: the emergency stop's ramp ends the cycle
+                    log.error("the robot did not come to rest within %g s of the shutdown: emergency stop",
+                              SHUTDOWN_TIMEOUT)
+                    self._send_loop(LoopCommand("estop"))
+                self._poll_requests(5 if self.channel.pending else 200, poller)
+                for message in self._receive():
+                    self._on_loop(message)
+                self.channel.flush()
+            except LoopGone as exc:
+                log.error("%s: the server answers requests but runs no program; restart it", exc)
+                poller.unregister(self.channel.fileno())
+                self._fail_all(str(exc))
+        self._publish({"kind": "event", "event": "shutdown", "reason": self.stop_reason})
+        return 1 if self.loop_gone is not None else 0
 
-    def _send(self, identity: list, reply: bytes) -> None:
+    def _poll_requests(self, timeout: int, poller=None) -> None:
+        if poller is not None:
+            events = dict(poller.poll(timeout))
+            if self.router not in events:
+                return
+        for _ in range(100):
+            try:
+                frames = self.router.recv_multipart(zmq.NOBLOCK, copy=True)
+            except zmq.Again:
+                return
+            except zmq.ZMQError:
+                return
+            self._handle(frames)
+
+    def _fail_all(self, reason: str) -> None:
+        """The loop is gone: the running program faulted, the waiting ones cancelled."""
+        self.loop_gone = reason
+        job = self.current
+        if job is not None:
+            job.state, job.fault, job.ended = "faulted", reason, time.time()
+            self.current = None
+            self._retire(job)
+        self._cancel_queue(reason)
+        for identity, request_id, _command in self.pending.values():
+            if identity is not None:
+                self._reply(identity, protocol.error(request_id, "internal", reason))
+        self.pending.clear()
+
+    def _reply(self, identity: list, reply: bytes) -> None:
+        if self.router is None:  # not bound: the caller reads the outbox itself
+            self.outbox.append((identity, reply))
+            return
         try:
             self.router.send_multipart([*identity, reply], zmq.NOBLOCK)
         except zmq.ZMQError:
             pass  # the client went away or its queue is full: the reply is dropped
 
     def _handle(self, frames: list[bytes]) -> None:
-        """One request: reply now, or queue a command whose reply the loop makes."""
+        """One request: reply now, or forward a command whose reply the loop makes."""
         # ROUTER frames: identity, [empty delimiter (REQ clients)], payload
         if len(frames) < 2:
             return
@@ -476,9 +621,10 @@ class Server:
             request_id, op, args = protocol.decode_request(payload)
             handler = getattr(self, f"op_{op}")
             result = handler(args)
-            if callable(result):  # to be carried out by the loop
+            if isinstance(result, LoopCommand):  # to be carried out by the loop
+                if self.loop_gone is not None:
+                    raise ProtocolError("refused", f"{self.loop_gone}: restart irl serve")
                 self.commands.append((identity, request_id, result))
-                self.work.set()
                 return
             reply = protocol.ok(request_id, result)
         except ProtocolError as exc:
@@ -487,16 +633,26 @@ class Server:
         except Exception as exc:  # a bug: answer and keep serving
             log.exception("request failed")
             reply = protocol.error(request_id, "internal", f"{type(exc).__name__}: {exc}")
-        self._send(identity, reply)
+        self._reply(identity, reply)
 
-    # ---- operations (I/O thread; a callable result runs in the loop) ----------------------
+    # ---- operations (a LoopCommand result is carried out by the loop) ----------------------------
     def op_hello(self, args: dict) -> dict:
         return {"protocol": protocol.VERSION, "robot": self.spec.name, "spec_hash": self.spec.hash,
                 "axes": [a.name for a in self.spec.axes],
                 "clock": "simulated" if self.options.sim_clock else "wall",
                 "configuration": self.configuration,
                 "configurations": list(self.configurations.names()) if self.configurations else [],
-                "pid": os.getpid()}
+                "pid": os.getpid(), "loop_pid": self.loop_pid, "loop_scheduling": self.loop_scheduling}
+
+    def _running(self, job: Job) -> dict:
+        """A running job as status shows it (from the loop's latest snapshot)."""
+        snap = self.snapshot
+        d = job.as_dict()
+        if snap.get("job") == job.id and "line" in snap:
+            d.update(line=snap["line"], moves_done=snap["moves_done"], paused=snap["paused"], fsm=snap["state"])
+        else:  # started, the loop's first snapshot of it not yet here
+            d.update(line=None, moves_done=0, paused=False, fsm="Start Robot")
+        return d
 
     def op_status(self, args: dict) -> dict:
         current = self.current
@@ -505,29 +661,36 @@ class Server:
             if job is None:
                 raise ProtocolError("not_found", f"no program {args['program']} (ids start at 1; finished "
                                                  f"programs are kept for the last {HISTORY})")
-            return job.as_dict(self.system if job is current else None)
-        system = self.system
-        return {"state": system.supervisor.fsm.path() if current else "Idle",
-                "running": current.as_dict(system) if current else None,
-                "queue": [job.id for job in list(self.queue)],
-                "programs": [job.as_dict(None, summary=False) for job in list(self.jobs.values())[-21:]
+            return self._running(job) if job is current else job.as_dict()
+        snap = self.snapshot
+        running = self._running(current) if current else None
+        return {"state": running["fsm"] if running else "Idle",
+                "running": running,
+                "queue": [job.id for job in self.queue],
+                "programs": [job.as_dict(summary=False) for job in list(self.jobs.values())[-21:]
                              if job.state != "running"][-20:],
                 "override": self.override, "configuration": self.configuration,
-                "calibrated": system.memory.calibrated, "initialized": system.memory.initialized,
-                "calibration": system.memory.calibration_why, "initialization": system.memory.initialization_why,
-                "position": list(system.robot.positions), "shutting_down": self.stop_reason is not None}
+                "calibrated": snap.get("calibrated"), "initialized": snap.get("initialized"),
+                "calibration": snap.get("calibration"), "initialization": snap.get("initialization"),
+                "position": snap.get("position"), "shutting_down": self.stop_reason is not None,
+                "loop_gone": self.loop_gone}
 
     def _check_queue_room(self) -> None:
         """Refuse (``queue_full``) a program or reconfiguration beyond MAX_QUEUED waiting
-        ones (the running one does not count). Call with ``_submit_lock`` held."""
+        ones (the running one does not count)."""
         if len(self.queue) >= protocol.MAX_QUEUED:
             raise ProtocolError("queue_full", f"the queue is full: it holds {len(self.queue)} programs waiting to "
                                               f"run, at most {protocol.MAX_QUEUED} may wait; submit again when "
                                               "one has started (or abort queued ones)")
 
+    def _check_accepting(self) -> None:
+        if self.stop_reason is not None:
+            raise ProtocolError("refused", "the server is shutting down")
+        if self.loop_gone is not None:
+            raise ProtocolError("refused", f"{self.loop_gone}: restart irl serve")
+
     def op_submit(self, args: dict) -> dict:
-        with self._submit_lock:
-            self._check_queue_room()  # before verifying: a full queue costs no verification
+        self._check_queue_room()  # before verifying: a full queue costs no verification
         data = args["object"]
         try:
             program = load(data, None)
@@ -542,63 +705,40 @@ class Server:
         if others:
             raise ProtocolError("wrong_robot", f"the program moves robot {others[0]!r}, but this runtime drives "
                                                f"{self.spec.name!r}")
-        if self.stop_reason is not None:
-            raise ProtocolError("refused", "the server is shutting down")
+        self._check_accepting()
         name = str(args.get("name") or program.name or "program")[:200]
-        with self._submit_lock:  # ids in the order programs are queued
-            self._check_queue_room()
-            job = Job(self.next_id, name, program, self.report_dir / f"program-{self.next_id}.csv")
-            self.next_id += 1
-            self.jobs[job.id] = job
-            self.queue.append(job)
-        self.work.set()
+        job = Job(self.next_id, name, program, self.report_dir / f"program-{self.next_id}.csv")
+        job.object = bytes(data)
+        self.next_id += 1
+        self.jobs[job.id] = job
+        self.queue.append(job)
         log.info("program %d (%s) queued", job.id, name)
         return {"program": job.id, "queued": len(self.queue)}
 
-    def op_pause(self, args: dict):
-        def pause():
-            if self.current is None or self.system.supervisor.fsm.state != MOVE:
-                raise ProtocolError("refused", "no program is moving the robot")
-            if not self.system.trajectory.pause():
-                raise ProtocolError("refused", "the program cannot be paused now (it is ending)")
-            return {"program": self.current.id, "paused": True}
-        return pause
+    def op_pause(self, args: dict) -> LoopCommand:
+        return LoopCommand("pause")
 
-    def op_resume(self, args: dict):
-        def resume():
-            if self.current is None or not self.system.trajectory.resume():
-                raise ProtocolError("refused", "no program is paused")
-            return {"program": self.current.id, "paused": False}
-        return resume
+    def op_resume(self, args: dict) -> LoopCommand:
+        return LoopCommand("resume")
 
     def op_abort(self, args: dict):
         wanted = args.get("program")
+        if wanted is not None and (self.current is None or self.current.id != wanted):
+            for job in self.queue:
+                if job.id == wanted:
+                    self.queue.remove(job)
+                    job.state, job.fault, job.ended = "cancelled", "removed from the queue by the operator", \
+                        time.time()
+                    self._retire(job)
+                    return {"program": wanted, "state": "cancelled"}
+            raise ProtocolError("not_found", f"program {wanted} is neither running nor queued")
+        if self.current is None:
+            raise ProtocolError("refused", "no program is running")
+        return LoopCommand("abort", program=self.current.id, reason="aborted by the operator")
 
-        def abort():
-            if wanted is not None and (self.current is None or self.current.id != wanted):
-                for job in list(self.queue):
-                    if job.id == wanted:
-                        self.queue.remove(job)
-                        job.state, job.fault, job.ended = "cancelled", "removed from the queue by the operator", \
-                            time.time()
-                        self._retire(job)
-                        return {"program": wanted, "state": "cancelled"}
-                raise ProtocolError("not_found", f"program {wanted} is neither running nor queued")
-            if self.current is None:
-                raise ProtocolError("refused", "no program is running")
-            self._stop_current("aborted by the operator")
-            return {"program": self.current.id, "state": "aborting"}
-        return abort
-
-    def op_estop(self, args: dict):
-        def estop():
-            cancelled = self._cancel_queue("cancelled by an emergency stop")
-            job = self.current
-            if job is not None:
-                job.abort_reason = "emergency stop"
-                self.system.emergency_stop()
-            return {"program": job.id if job else None, "cancelled": cancelled}
-        return estop
+    def op_estop(self, args: dict) -> LoopCommand:
+        cancelled = self._cancel_queue("cancelled by an emergency stop")
+        return LoopCommand("estop", finish=lambda result: {**result, "cancelled": cancelled})
 
     def _cancel_queue(self, reason: str) -> list[int]:
         cancelled = []
@@ -609,21 +749,26 @@ class Server:
             cancelled.append(job.id)
         return cancelled
 
-    def op_override(self, args: dict):
+    def op_override(self, args: dict) -> LoopCommand:
         percent = float(args["percent"])
         if not 1.0 <= percent <= 100.0:
             raise ProtocolError("bad_request", f"override: percent must be within 1..100, got {percent:g}")
 
-        def override():
-            self.override = percent
-            self.system.trajectory.override = percent
-            return {"override": percent}
-        return override
+        def applied(result: dict) -> dict:
+            self.override = result["override"]
+            return result
+        return LoopCommand("override", finish=applied, percent=percent)
 
     def op_call(self, args: dict):
-        from .scripting_service import call
+        from .scripting_service import ServerTarget, call, parse_call, runs_in_server
 
-        return call(self, args["text"])
+        text = args["text"]
+        front = {"configuration": self.configuration, "override": self.override,
+                 "configurations": list(self.configurations.names()) if self.configurations else []}
+        if runs_in_server(parse_call(text)):
+            target = ServerTarget(front, reconfigure=lambda name: self.op_reconfigure({"name": name}))
+            return call({ServerTarget.name: target}, None, text)
+        return LoopCommand("call", text=text, front=front)
 
     def op_reconfigure(self, args: dict) -> dict:
         """Re-read the configuration file and queue a Robot Reconfiguration cycle with the
@@ -641,17 +786,13 @@ class Server:
         except ConfigError as exc:
             raise ProtocolError("refused", f"{exc} (the configuration in force, {self.configuration!r}, stays)") \
                 from None
-        if self.stop_reason is not None:
-            raise ProtocolError("refused", "the server is shutting down")
-        with self._submit_lock:
-            self._check_queue_room()
-            job = Job(self.next_id, f"reconfigure {name}", None, None,
-                      settings=settings, configuration=name)
-            self.next_id += 1
-            self.jobs[job.id] = job
-            self.queue.append(job)
+        self._check_accepting()
+        self._check_queue_room()
+        job = Job(self.next_id, f"reconfigure {name}", None, None, settings=settings, configuration=name)
+        self.next_id += 1
+        self.jobs[job.id] = job
+        self.queue.append(job)
         self.configurations = configurations
-        self.work.set()
         return {"requested": name, "program": job.id}
 
     def op_report(self, args: dict) -> dict:
@@ -714,7 +855,7 @@ def serve(spec, options: ServeOptions, configurations=None, stderr=None) -> int:
                     "network can control the robot", INSECURE_FLAG)
     try:
         server = Server(spec, options, configurations)
-    except ConfigError as exc:
+    except (ConfigError, LoopGone) as exc:
         log.error("%s", exc)
         log.removeHandler(handler)
         return 2
@@ -726,7 +867,6 @@ def serve(spec, options: ServeOptions, configurations=None, stderr=None) -> int:
         return 2
     for sig in (signal.SIGINT, signal.SIGTERM):
         signal.signal(sig, lambda *_: server.request_shutdown())
-    sys.setswitchinterval(0.0005)  # the I/O thread yields the interpreter to the loop quickly
     log.info("robot %s (%d axes), %s clock; requests on %s, telemetry on %s, state in %s", spec.name,
              len(spec.axes), "simulated" if options.sim_clock else "wall", options.endpoint, options.telemetry,
              server.state_dir)

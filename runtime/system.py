@@ -241,4 +241,5 @@ class RobotSystem:
             "ticks": self.executive.ticks,
             "deadline_misses": sum(s["misses"] for s in stats.values()),
             "deadlines": stats,
+            "wakeups": self.executive.wakeup_statistics(),
         }

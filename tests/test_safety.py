@@ -147,7 +147,7 @@ def test_any_cycle_that_ends_early_forgets_the_homing_and_a_completed_one_keeps_
 
 
 def test_status_says_why_over_the_protocol(tmp_path):
-    server = Server(SPEC, ServeOptions(sim_clock=True, state_dir=tmp_path / "state"))
+    server = Server(SPEC, ServeOptions(sim_clock=True, state_dir=tmp_path / "state", loop_process=False))
     status = server.op_status({})
     assert status["initialized"] is False and "no homing sequence has completed" in status["initialization"]
     assert status["calibration"].startswith("not calibrated")
@@ -156,14 +156,13 @@ def test_status_says_why_over_the_protocol(tmp_path):
 # ---- 2. the servo stopped while a move runs: the command watchdog -----------------------------------
 
 def test_servo_stop_while_moving_is_refused_over_the_network_and_caught_by_the_watchdog_in_process(tmp_path):
-    server = Server(SPEC, ServeOptions(sim_clock=True, state_dir=tmp_path / "state"))
+    server = Server(SPEC, ServeOptions(sim_clock=True, state_dir=tmp_path / "state", loop_process=False))
     server.op_submit({"object": encode(LONG)})
     while not (server.current is not None and server.system.supervisor.fsm.state == MOVE):
         server.turn(idle_wait=False)
     for text in ("servo.stop()", "report.stop()", "robot.release_brakes()", "trajectory.stop()", "servo.hold()"):
-        operation = server.op_call({"text": text})
         with pytest.raises(ProtocolError) as refused:
-            operation()
+            server.request("call", {"text": text})
         assert refused.value.code == "refused" and "could move the robot" in refused.value.message \
             or "Start Robot" in refused.value.message, refused.value.message
     assert server.system.servo.running
@@ -199,24 +198,22 @@ def test_servo_stop_while_moving_is_refused_over_the_network_and_caught_by_the_w
     ('fsm.mode = "reactive"', "script_error", "read-only"),
 ])
 def test_scripting_writes_are_validated_and_safety_parameters_refused(tmp_path, text, code, words):
-    server = Server(SPEC, ServeOptions(sim_clock=True, state_dir=tmp_path / "state"))
+    server = Server(SPEC, ServeOptions(sim_clock=True, state_dir=tmp_path / "state", loop_process=False))
     before = server.system.settings()
     with pytest.raises(ProtocolError) as refused:
-        result = server.op_call({"text": text})
-        if callable(result):
-            result()
+        server.request("call", {"text": text})
     assert refused.value.code == code and words in refused.value.message, refused.value.message
     assert server.system.settings() == before  # nothing stored
     assert server.system.supervisor.fsm.mode == "automatic"
 
 
 def test_a_live_parameter_is_written_and_lifecycle_operations_run_only_while_idle(tmp_path):
-    server = Server(SPEC, ServeOptions(sim_clock=True, state_dir=tmp_path / "state"))
-    assert server.op_call({"text": "trajectory.budget = 500"})()["value"] == 500
+    server = Server(SPEC, ServeOptions(sim_clock=True, state_dir=tmp_path / "state", loop_process=False))
+    assert server.request("call", {"text": "trajectory.budget = 500"})["value"] == 500
     assert server.system.trajectory.budget == 500
-    assert server.op_call({"text": "report.stop()"})()["value"] is False  # idle: allowed (nothing to stop)
+    assert server.request("call", {"text": "report.stop()"})["value"] is False  # idle: allowed (nothing to stop)
     with pytest.raises(ProtocolError, match="released only by Start Robot"):
-        server.op_call({"text": "robot.release_brakes()"})()
+        server.request("call", {"text": "robot.release_brakes()"})
     assert server.system.backend.brakes_applied()
 
 
@@ -575,12 +572,10 @@ def test_the_interpreter_time_per_update_is_bounded_on_the_wall_clock():
 
 
 def test_protocol_requests_with_huge_values_are_answered_not_crashed(tmp_path):
-    server = Server(SPEC, ServeOptions(sim_clock=True, state_dir=tmp_path / "state"))
+    server = Server(SPEC, ServeOptions(sim_clock=True, state_dir=tmp_path / "state", loop_process=False))
     for request in ({"text": "trajectory.budget = " + "9" * 4000}, {"text": "servo.kp = 1" + "0" * 400 + ".0"}):
         with pytest.raises(ProtocolError) as error:
-            result = server.op_call(request)
-            if callable(result):
-                result()
+            server.request("call", request)
         assert error.value.code in ("bad_request", "refused", "script_error")
     assert protocol.decode_reply(protocol.ok(1, {"x": 1}))["ok"]
 
@@ -598,7 +593,7 @@ def test_a_string_literal_longer_than_the_limit_is_a_diagnostic(tmp_path):
 # ---- the same, through the CLI and the protocol ------------------------------------------------------
 
 def test_an_estop_during_homing_then_the_next_program_homes_again_over_the_protocol(tmp_path):
-    server = Server(SPEC, ServeOptions(sim_clock=True, state_dir=tmp_path / "state"))
+    server = Server(SPEC, ServeOptions(sim_clock=True, state_dir=tmp_path / "state", loop_process=False))
     watch = LimitWatch(server.system)
     first = server.op_submit({"object": encode(SHORT)})["program"]
     while not (server.current is not None and "Find Index" in server.system.supervisor.fsm.path()):

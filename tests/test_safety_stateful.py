@@ -4,7 +4,7 @@ searches for counter-examples to the safety supervisor's guarantees.
 A hypothesis ``RuleBasedStateMachine`` builds a ``runtime.server.Server`` in-process
 (simulated clock, its own state directory, never bound: no sockets) and plays the I/O
 thread: it encodes each request with ``runtime.protocol``, decodes it as the server does,
-calls the ``op_*`` handler, queues a callable result for the loop (``server.commands``,
+calls the ``op_*`` handler, queues a loop command for the loop (``server.commands``,
 carried out by the next ``server.turn(idle_wait=False)``) and reads the loop's replies
 from ``server.outbox``. Time advances only by turns of the loop (one 1 ms tick each).
 
@@ -104,7 +104,7 @@ from compiler.spec import load_spec
 from limits_watch import LimitWatch, at_rest_and_safe
 from runtime import protocol
 from runtime.protocol import ProtocolError
-from runtime.server import ServeOptions, Server
+from runtime.server import LoopCommand, ServeOptions, Server
 from runtime.sim.robot import FAULTS
 from runtime.supervisor import INITIALIZE, MOVE
 
@@ -270,7 +270,7 @@ class SafetyMachine(RuleBasedStateMachine):
 
     # ---- the server, built and discarded ---------------------------------------------------
     def _new_server(self) -> None:
-        self.server = Server(SPEC, ServeOptions(sim_clock=True, state_dir=self.directory / "state"))
+        self.server = Server(SPEC, ServeOptions(sim_clock=True, state_dir=self.directory / "state", loop_process=False))
         self.watch = LimitWatch(self.server.system)
         self.running = None  # the job the loop ran at the last tick
         self.faulty = False  # a fault injected into this arm, not repaired yet
@@ -343,7 +343,7 @@ class SafetyMachine(RuleBasedStateMachine):
             result = getattr(server, f"op_{op}")(args)
         except ProtocolError as exc:
             return self._decode(protocol.error(rid, exc.code, exc.message))
-        if not callable(result):
+        if not isinstance(result, LoopCommand):
             return self._decode(protocol.ok(rid, result))
         FIGURES["commands where"][self._phase()] += 1
         server.commands.append(([b"stateful"], rid, result))

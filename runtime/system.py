@@ -95,6 +95,7 @@ class RobotSystem:
         With ``settings`` instead of a program, the cycle is a reconfiguration: Start
         Robot -> Robot Reconfiguration -> Stop Robot, brakes kept on."""
         self._wall0 = time.perf_counter()
+        self._ticks0 = self.executive.ticks  # (a server's executive counts on across cycles)
         self._report_path = report
         self.supervisor.reset()
         self.supervisor.pending_settings = settings
@@ -109,6 +110,10 @@ class RobotSystem:
         self.trajectory.load(program)
         self.trajectory.override = self.options.override
         self.report.open(report)
+        if self.options.realtime:  # the threads beside the loop (now all started) one below it
+            from .realtime import rank_helpers
+
+            rank_helpers()
         self.robot.configure()
         self.robot.start()
         self.safety.start()
@@ -238,7 +243,7 @@ class RobotSystem:
             "sim_time": round(end, 6),
             "wall_time": wall_time,
             "kernels": accel.DESCRIPTION,
-            "ticks": self.executive.ticks,
+            "ticks": self.executive.ticks - self._ticks0,
             "deadline_misses": sum(s["misses"] for s in stats.values()),
             "deadlines": stats,
             "wakeups": self.executive.wakeup_statistics(),

@@ -225,13 +225,15 @@ def _wait_gone(pid: int, seconds: float) -> bool:
 def test_a_loop_process_that_dies_faults_its_program_and_the_server_says_why(tmp_path):
     import signal
 
-    from test_server import ServerProcess, wait_end
+    from test_server import ServerProcess, wait_end, wait_for
 
-    server = ServerProcess(tmp_path / "server", tmp_path / "state", sim_clock=True).start()
+    server = ServerProcess(tmp_path / "server", tmp_path / "state", sim_clock=False,  # (a run that lasts)
+                           extra=("--deadline-policy", "soft")).start()
     try:
         client = server.client()
         loop_pid = client.request("hello")["loop_pid"]
         job = client.request("submit", {"object": _paper_object()})["program"]
+        wait_for(client, job, lambda s: s["state"] == "running", "running", server)
         os.kill(loop_pid, signal.SIGKILL)
         final = wait_end(client, job, server)
         assert final["state"] == "faulted" and "loop process" in final["fault"] \

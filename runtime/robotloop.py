@@ -96,8 +96,6 @@ class RobotLoop:
             program = load(m["object"], None) if m.get("object") is not None else None
         except ObjectCodeError as exc:
             raise ProtocolError("invalid_program", f"the object code is invalid: {exc}") from None
-        if not system.clock.simulated:
-            system.executive.resync()
         try:
             system.begin(program, m.get("report"), settings=m.get("settings"))
         except (ValueError, OSError) as exc:

@@ -95,7 +95,6 @@ class RobotSystem:
         With ``settings`` instead of a program, the cycle is a reconfiguration: Start
         Robot -> Robot Reconfiguration -> Stop Robot, brakes kept on."""
         self._wall0 = time.perf_counter()
-        self._ticks0 = self.executive.ticks  # (a server's executive counts on across cycles)
         self._report_path = report
         self.supervisor.reset()
         self.supervisor.pending_settings = settings
@@ -118,6 +117,9 @@ class RobotSystem:
         self.robot.start()
         self.safety.start()
         self.supervisor.fsm.start()
+        if self.options.realtime:  # the wall clock ran on while this set-up (or a server's idle time) took
+            self.executive.resync()  # its time: the first tick is the next one due, not a burst of late ones
+        self._ticks0 = self.executive.ticks  # (a server's executive counts on across cycles)
 
     def _encoder_reset(self, axis: int, delta: float) -> None:
         """Homing reset the encoder of ``axis``: the servo follows, the axis is referenced."""

@@ -279,14 +279,10 @@ def test_the_paper_program_completes_on_the_wall_clock_while_a_client_floods_sta
     policy of the specification, the loop at SCHED_FIFO: the paper's program completes
     while another client sends status requests as fast as it can and a subscriber reads
     the telemetry."""
-    import threading
+    import sys
     import time
 
-    import zmq
-
     from test_server import ServerProcess, wait_end
-
-    from runtime import protocol
 
     server = ServerProcess(tmp_path / "server", tmp_path / "state", sim_clock=False,
                            extra=("--rt-priority", "50", "--lock-memory")).start()
@@ -298,59 +294,26 @@ def test_the_paper_program_completes_on_the_wall_clock_while_a_client_floods_sta
         server.stop()
         pytest.skip(f"SCHED_FIFO is not permitted on this host ({got}); at normal scheduling another "
                     "process's load, not the server, decides whether a firm 1 ms servo holds")
-    stop = threading.Event()
-    counts = {"status": 0, "telemetry": 0}
+    sys.path.insert(0, str(ROOT / "benchmarks"))
+    from _loads import start_load, stop_load
 
-    def flood() -> None:
-        ctx = zmq.Context.instance()
-        sock = ctx.socket(zmq.DEALER)
-        sock.connect(server.endpoint)
-        request = protocol.request("status", {}, 1)
-        outstanding = 0
-        while not stop.is_set():
-            while outstanding < 32:  # as fast as the server answers, 32 in flight
-                sock.send_multipart([b"", request])
-                outstanding += 1
-            if sock.poll(100):
-                while True:
-                    try:
-                        sock.recv_multipart(zmq.NOBLOCK)
-                    except zmq.Again:
-                        break
-                    outstanding -= 1
-                    counts["status"] += 1
-        sock.close(linger=0)
-
-    def subscribe() -> None:
-        sock = zmq.Context.instance().socket(zmq.SUB)
-        sock.setsockopt(zmq.SUBSCRIBE, protocol.TELEMETRY_TOPIC)
-        sock.connect(server.telemetry)
-        while not stop.is_set():
-            if sock.poll(100):
-                sock.recv_multipart()
-                counts["telemetry"] += 1
-        sock.close(linger=0)
-
-    threads = [threading.Thread(target=flood), threading.Thread(target=subscribe)]
+    load = []
     try:
         client = server.client(timeout=30.0)
-        for thread in threads:
-            thread.start()
+        load = start_load("flood", server.endpoint, server.telemetry)
         job = client.request("submit", {"object": _paper_object()})["program"]
         started = time.monotonic()
         final = wait_end(client, job, server)
         elapsed = time.monotonic() - started
     finally:
-        stop.set()
-        for thread in threads:
-            thread.join(5.0)
+        replies, messages = stop_load(load) if load else (0, 0)
         code = server.stop()
     summary = final.get("summary") or {}
     print(f"paper program on the wall clock under a status flood: {final['state']}, "
-          f"{summary.get('deadline_misses')} misses in {summary.get('ticks')} ticks, {counts['status']} status "
-          f"replies ({counts['status'] / elapsed:.0f}/s), {counts['telemetry']} telemetry messages")
+          f"{summary.get('deadline_misses')} misses in {summary.get('ticks')} ticks, {replies} status "
+          f"replies ({replies / elapsed:.0f}/s), {messages} telemetry messages")
     assert final["state"] == "completed", (final, server.log())
-    assert counts["status"] > 1000 and counts["telemetry"] > 100, counts
+    assert replies > 1000 and messages > 100, (replies, messages)
     assert code == 0, server.log()
 
 

@@ -45,6 +45,8 @@ CHANGES = ("specification", "configuration", "live")
 TICK = 0.001  # s: every period is a whole multiple of the executive's tick
 PERIOD_MIN, PERIOD_MAX = 0.001, 1.0
 REPORT_COLUMNS = ("sens_pos", "desi_pos", "out_vel", "following_error", "tcp")
+#: Columns a report may also have (not by default): io, every digital input then output (0/1).
+REPORT_COLUMNS_OPTIONAL = ("io",)
 
 
 class ParamError(ValueError):
@@ -271,8 +273,10 @@ PARAMS: tuple[Param, ...] = (
     _p("trajectory", "period", "period", 0.005, "s", change="configuration",
        doc="time between setpoints of the program's motion; must equal initialization.period"),
     _p("report", "period", "period", 0.01, "s", change="configuration", doc="time between two logged rows"),
-    _p("report", "columns", "columns", list(REPORT_COLUMNS), choices=REPORT_COLUMNS, change="configuration",
-       doc="signals logged in each row, in this order (tcp: x, y, z, roll, pitch, yaw of the tool)"),
+    _p("report", "columns", "columns", list(REPORT_COLUMNS), choices=REPORT_COLUMNS + REPORT_COLUMNS_OPTIONAL,
+       change="configuration",
+       doc="signals logged in each row, in this order (tcp: x, y, z, roll, pitch, yaw of the tool; io: every "
+           "digital input, then output, 0 or 1; added by a cell scenario)"),
 )
 
 _BY_SECTION: dict[str, dict[str, Param]] = {}

@@ -230,9 +230,17 @@ def cmd_run(args, env: Environment) -> int:
         raise UsageError(str(exc)) from None
     if wanted.requested and not args.realtime:
         raise UsageError("--rt-priority, --lock-memory and --cpu are for the wall clock: add --realtime")
+    cell = None
+    if args.cell_scenario:
+        from runtime.sim.cell import ScenarioError, load_scenario
+
+        try:
+            cell = load_scenario(args.cell_scenario, spec)
+        except ScenarioError as exc:
+            raise UsageError(f"--cell-scenario: {exc}") from None
     options = RunOptions(seed=args.seed, realtime=args.realtime, report=args.report, state_dir=args.state_dir,
                          max_time=args.max_time, faults=faults, override=args.override,
-                         deadline_policy=args.deadline_policy)
+                         deadline_policy=args.deadline_policy, cell=cell)
     if args.realtime:
         _err(env, f"irl run: {realtime.apply(wanted)}")
     try:
@@ -365,6 +373,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--report", metavar="OUT.csv", help="write the report (and OUT.states.csv)")
     p.add_argument("--plot", metavar="OUT.png", help="draw the report (needs --report and matplotlib)")
     p.add_argument("--realtime", action="store_true", help="run on the wall clock (default: simulated clock)")
+    p.add_argument("--cell-scenario", metavar="FILE.toml",
+                   help="what the simulated cell does with the digital I/O: inputs that follow outputs, latch or "
+                        "toggle on a timeline (see docs/runtime.md); the report gains the io columns")
     p.add_argument("--seed", type=int, default=0, help="the simulated robot's seed (power-up position, offsets)")
     p.add_argument("--state-dir", metavar="DIR", help="remember the calibration in DIR across runs")
     p.add_argument("--max-time", type=float, default=3600.0, metavar="S", help="stop the run after S seconds")

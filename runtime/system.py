@@ -39,6 +39,7 @@ class RunOptions:
     faults: list = field(default_factory=list)  # [(fault, axis)] injected into the simulated robot
     override: float = 100.0  # speed override (percent, 1-100) of every move
     deadline_policy: str | None = None  # the servo's miss policy ("hard", "firm", "soft"); None: the spec's
+    cell: object = None  # a runtime.sim.cell.Scenario: what the simulated cell does with the I/O
 
 
 class RobotSystem:
@@ -61,8 +62,20 @@ class RobotSystem:
         self.servo.measured_velocity = lambda: self.robot.velocities
         self.trajectory = TrajectoryGenerator(spec, self.robot, p["desi_pos"], p["sens_pos"], self.clock)
         self.trajectory.safety = self.safety
+        backend_io = self.backend
         self.report = Report(spec, p["sens_pos"], p["drive_cmd"], self.servo, lambda: self.supervisor.fsm.path(),
-                             history=lambda: self.supervisor.fsm.history)
+                             history=lambda: self.supervisor.fsm.history,
+                             io=lambda: (*backend_io.inputs, *backend_io.outputs))
+        self.cell = None
+        if options.cell is not None:
+            if backend is not None:
+                raise ValueError("a cell scenario drives the simulated robot's inputs: it cannot be used with "
+                                 "hardware (its inputs come from the cell itself)")
+            from .sim.cell import Cell
+
+            self.cell = Cell(options.cell, self.backend)
+            if "io" not in self.report.columns:
+                self.report.columns.append("io")
         self.executive = Executive(self.clock, TICK)
         identity = {"robot": spec.name, "spec_hash": spec.hash,
                     "backend": f"sim-seed-{options.seed}" if backend is None else "hardware"}
@@ -78,6 +91,8 @@ class RobotSystem:
         servo_policy = MissPolicy(options.deadline_policy or controller.servo_miss_policy,
                                   limit=controller.servo_miss_limit,
                                   window=controller.servo_miss_window)
+        if self.cell is not None:  # the world first: the inputs as the cell set them this tick
+            ex.add("cell", self.cell.update, TICK, "sense")
         ex.add("robot.read", robot.read, TICK, "sense", component=robot)
         ex.add("supervisor", self.supervisor.step, TICK, "decide")
         ex.add("initialization", self.init.update, SETPOINT_PERIOD, "plan", component=self.init)
@@ -109,6 +124,8 @@ class RobotSystem:
         self.trajectory.load(program)
         self.trajectory.override = self.options.override
         self.report.open(report)
+        if self.cell is not None:
+            self.cell.reset(self.clock.now())
         if self.options.realtime:  # the threads beside the loop (now all started) one below it
             from .realtime import rank_helpers
 

@@ -27,6 +27,13 @@ FLUSH_PERIOD = 0.1  # s of rows per batch handed to the writer (10 rows at the d
 COLUMNS = ["sens_pos", "desi_pos", "out_vel", "following_error"]  # the per-axis quantities
 TCP = "tcp"  # the tool centre point: x, y, z (mm), roll, pitch, yaw (deg), from the measured joints
 TCP_FIELDS = ("x", "y", "z", "roll", "pitch", "yaw")
+IO = "io"  # every digital input, then every output: in_1.., out_1.. (0 or 1)
+
+
+def is_io(name: str) -> bool:
+    """Whether a report column is a digital input or output (``in_3``, ``out_12``)."""
+    kind, _, number = name.partition("_")
+    return kind in ("in", "out") and number.isdigit()
 
 
 class ReportWriter(threading.Thread):
@@ -41,8 +48,8 @@ class ReportWriter(threading.Thread):
         self.tcp = tcp  # (start, count, forward): row[start:start + count] are joints -> the TCP
         self.error: str | None = None
         self.rows_written = 0
-        # one C-level format per row (time to the ms, the state, every value to 1e-6)
-        self.row_format = "%.3f,%s," + ",".join(["%.6f"] * (len(header) - 2)) + "\n"
+        # one C-level format per row (time to the ms, the state, every value to 1e-6, I/O 0 or 1)
+        self.row_format = "%.3f,%s," + ",".join(["%d" if is_io(name) else "%.6f" for name in header[2:]]) + "\n"
 
     def run(self) -> None:
         try:
@@ -82,12 +89,13 @@ class Report(Component):
     PROPERTIES = component_params("report")
 
     def __init__(self, spec, sens_pos: DataPort, out_vel: DataPort, servo, state_of, period: float = REPORT_PERIOD,
-                 history=lambda: ()):
+                 history=lambda: (), io=lambda: ()):
         super().__init__("report", period)
         self.spec = spec
         self.sens_pos, self.out_vel, self.servo = sens_pos, out_vel, servo
         self.state_of = state_of  # callable -> the FSM's current state path
         self.history = history  # callable -> the FSM's transitions so far: (time, from, to)
+        self.io = io  # callable -> every digital input, then output (the io columns)
         self._transitions_sent = 0
         self.names = [a.name for a in spec.axes]
         self._zeros = (0.0,) * len(self.names)
@@ -100,10 +108,18 @@ class Report(Component):
         # which quantities the rows hold, in this order (the TCP when the kinematics allow)
         self.columns = list(COLUMNS) + ([TCP] if self.forward is not None else [])
 
+    def _names_of(self, kind: str) -> list[str]:
+        if kind == TCP:
+            return [f"tcp_{f}" for f in TCP_FIELDS]
+        if kind == IO:
+            return [f"in_{n}" for n in range(1, self.spec.inputs + 1)] + \
+                [f"out_{n}" for n in range(1, self.spec.outputs + 1)]
+        return [f"{kind}_{n}" for n in self.names]
+
     def header(self) -> list[str]:
         cols = ["time", "state"]
         for kind in self.columns:
-            cols += [f"tcp_{f}" for f in TCP_FIELDS] if kind == TCP else [f"{kind}_{n}" for n in self.names]
+            cols += self._names_of(kind)
         return cols
 
     def open(self, path: str | Path | None) -> None:
@@ -120,7 +136,7 @@ class Report(Component):
                 pass  # the writer reports the problem when it cannot open the file
             tcp = None
             if TCP in self.columns:
-                start = 2 + sum(len(self.names) for kind in self.columns[:self.columns.index(TCP)])
+                start = 2 + sum(len(self._names_of(kind)) for kind in self.columns[:self.columns.index(TCP)])
                 tcp = (start, self.main, self.forward)
             self.writer = ReportWriter(self.path, self.header(), tcp)
             self.writer.start()
@@ -134,6 +150,8 @@ class Report(Component):
         values = {"sens_pos": pos, "desi_pos": reference, "out_vel": self.out_vel.value or zeros,
                   "following_error": tuple(map(_sub, reference, servo.position)),
                   TCP: pos[:self.main]}  # the writer turns these joints into the TCP
+        if IO in self.columns:
+            values[IO] = self.io()
         row = (now, self.state_of())
         for kind in self.columns:
             row += values[kind]

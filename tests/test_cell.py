@@ -1,0 +1,151 @@
+"""The simulated cell (issue 16, first step): a scenario file drives the digital inputs,
+so a program that talks to its cell runs to completion under `irl run`, with its I/O in
+the report."""
+from __future__ import annotations
+
+import csv
+import io
+from pathlib import Path
+
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from compiler.spec import load_spec
+from runtime.cli import Environment, main
+from runtime.sim.cell import RULES, Cell, ScenarioError, load_scenario, parse_scenario
+from runtime.timing import TICK
+
+ROOT = Path(__file__).resolve().parents[1]
+SPEC = load_spec(ROOT / "programs" / "lola15.spc")
+PICK = ROOT / "programs" / "pick_place.irl"
+SCENARIO = ROOT / "programs" / "pick_place.cell.toml"
+
+
+def run(*argv) -> tuple[int, str, str]:
+    out, err = io.StringIO(), io.StringIO()
+    code = main([str(a) for a in argv], Environment(stdout=out, stderr=err))
+    return code, out.getvalue(), err.getvalue()
+
+
+def test_pick_and_place_runs_to_completion_against_its_cell_with_the_io_in_the_report(tmp_path):
+    code, out, err = run("run", PICK, "--cell-scenario", SCENARIO, "--report", tmp_path / "a.csv")
+    assert code == 0, err
+    assert "part 10 of 10 loaded" in out and "timed out" not in out
+    rows = list(csv.reader((tmp_path / "a.csv").open()))
+    header = rows[0]
+    assert header[-32:] == [f"in_{n}" for n in range(1, 17)] + [f"out_{n}" for n in range(1, 17)]
+    out1, in2 = header.index("out_1"), header.index("in_2")
+    vel = header.index("out_vel_A1")  # (not an output: still a number to 1e-6)
+    assert all(r[out1] in ("0", "1") and "." in r[vel] for r in rows[1:])
+    rises = [float(r[0]) for prev, r in zip(rows[1:], rows[2:]) if r[out1] == "1" and prev[out1] == "0"]
+    closed = [float(r[0]) for prev, r in zip(rows[1:], rows[2:]) if r[in2] == "1" and prev[in2] == "0"]
+    assert len(rises) == len(closed) == 10  # one grip per part, each sensed 0.3 s later
+    assert all(abs(c - r - 0.3) < 0.011 for r, c in zip(rises, closed)), list(zip(rises, closed))
+    # deterministic: the same program, seed and scenario give the same bytes
+    code, _, err = run("run", PICK, "--cell-scenario", SCENARIO, "--report", tmp_path / "b.csv")
+    assert code == 0, err
+    assert (tmp_path / "a.csv").read_bytes() == (tmp_path / "b.csv").read_bytes()
+
+
+def test_without_a_scenario_nothing_answers_and_every_wait_times_out():
+    import json
+
+    code, out, err = run("run", PICK, "--json")
+    log = [entry["text"] for entry in json.loads(out)["log"]]
+    assert code == 0 and sum("timed out" in text for text in log) >= 20, log[:5]
+
+
+@pytest.mark.parametrize("text, words", [
+    ("[[latch]]\ninput = 2\nset = 1\nreset = 2\ndelay = -1\n",
+     "[[latch]] #1 delay: expected a number of seconds 0..86400, got -1"),
+    ("[[latch]]\ninput = 17\nset = 1\nreset = 2\n", "[[latch]] #1 input: expected an input number 1..16, got 17"),
+    ("[[folow]]\ninput = 2\noutput = 1\n", "unknown 'folow' (did you mean 'follow'?)"),
+    ("[[follow]]\ninput = 2\noutput = 1\ndealy = 0.3\n", "unknown 'dealy' (did you mean 'delay'?)"),
+    ("[[follow]]\ninput = 2\n", "[[follow]] #1: output is missing"),
+    ("[[follow]]\ninput = 2\noutput = 1\n[[follow]]\ninput = 2\noutput = 3\n",
+     "[[follow]] #2: input 2 is already driven by [[follow]] #1"),
+    ("[[timeline]]\ninput = 6\nat = [2.0, 1.0]\n", "[[timeline]] #1 at: expected a list of increasing times"),
+    ("[[timeline]]\ninput = 6\nat = [1.0, 3.0]\nevery = 1.0\n", "the period must be longer than the list's span"),
+    ("[inputs]\n1 = 5\n", "[inputs] 1: expected true or false, got 5"),
+    ("[inputs]\n99 = true\n", "[inputs] 99: expected an input number 1..16"),
+    ("[[follow]\n", "not valid TOML"),
+    ("[[follow]]\ninput = 2\noutput = 1\ndelay = nan\n", "expected a number of seconds"),
+])
+def test_a_bad_scenario_is_refused_before_anything_moves_saying_where_and_what_is_allowed(tmp_path, text, words):
+    path = tmp_path / "cell.toml"
+    path.write_text(text, encoding="utf-8")
+    with pytest.raises(ScenarioError) as error:
+        load_scenario(path, SPEC)
+    assert words in str(error.value) and str(path) in str(error.value), str(error.value)
+    code, out, err = run("run", PICK, "--cell-scenario", path)
+    assert code == 2 and words in err and "Traceback" not in err, err
+
+
+def test_every_rule_kind_is_in_the_docs():
+    text = (ROOT / "docs" / "runtime.md").read_text(encoding="utf-8")
+    for kind, (_doc, fields) in RULES.items():
+        assert f"`[[{kind}]]`" in text
+        for name in fields:
+            assert f"| `{name}` |" in text
+
+
+class FakeIO:
+    """The simulated robot's I/O as the cell sees it."""
+
+    def __init__(self, inputs: int = 16, outputs: int = 16):
+        self._in = [False] * inputs
+        self._out = [False] * outputs
+
+    def set_input(self, n, value):
+        self._in[n - 1] = bool(value)
+
+    def input(self, n):
+        return self._in[n - 1]
+
+    @property
+    def inputs(self):
+        return tuple(self._in)
+
+    @property
+    def outputs(self):
+        return tuple(self._out)
+
+
+@settings(max_examples=150, deadline=None)
+@given(kind=st.sampled_from(["follow", "latch"]), delay_ticks=st.integers(0, 400), invert=st.booleans(),
+       toggles=st.lists(st.tuples(st.integers(1, 600), st.sampled_from([1, 2])), max_size=12))
+def test_an_input_follows_its_rule_exactly_delay_after_each_edge(kind, delay_ticks, invert, toggles):
+    """Random output sequences: at every tick the input is what its rule says it must be,
+    given the outputs delay ago (to the tick), whatever the order of the edges."""
+    delay = delay_ticks * TICK
+    rule = {"input": 5, "delay": delay}
+    rule.update({"output": 1, "invert": invert} if kind == "follow" else {"set": 1, "reset": 2})
+    scenario = parse_scenario({kind: [rule]}, SPEC)
+    backend = FakeIO()
+    cell = Cell(scenario, backend)
+    cell.reset(0.0)
+    changes = {}
+    tick = 0
+    for gap, output in toggles:
+        tick += gap
+        changes.setdefault(tick, []).append(output)
+    history = []  # outputs at each tick
+    for k in range(tick + delay_ticks + 2):
+        for output in changes.get(k, []):
+            backend._out[output - 1] = not backend._out[output - 1]
+        history.append(backend.outputs)
+        cell.update(k * TICK)
+        # what the rule says, from the outputs delay ago
+        if kind == "follow":
+            past = history[k - delay_ticks] if k >= delay_ticks else (False,) * 16  # (outputs start false)
+            expected = past[0] != invert
+        else:
+            expected = False  # (the rule's initial value)
+            for j in range(0, k - delay_ticks + 1):
+                before = history[j - 1] if j else (False,) * 16
+                if history[j][0] and not before[0]:
+                    expected = True
+                if history[j][1] and not before[1]:
+                    expected = False
+        assert backend.input(5) == expected, (k, history[max(0, k - delay_ticks)])

@@ -79,6 +79,15 @@ def cmd_serve(args, env) -> int:
         spec = load_spec(args.spec)
     except SpecError as exc:
         raise cli.UsageError(str(exc)) from None
+    cell = None
+    if args.cell_scenario:
+        from runtime.sim.cell import ScenarioError, load_scenario
+
+        try:
+            cell = load_scenario(args.cell_scenario, spec)
+        except ScenarioError as exc:
+            raise cli.UsageError(f"--cell-scenario: {exc}") from None
+        options.cell = cell
     configurations = None
     if args.config:
         from runtime.config import ConfigError, load_configurations
@@ -417,6 +426,9 @@ def add_commands(sub) -> None:
     p.add_argument("--state-dir", metavar="DIR", help="calibration and reports (default ~/.local/state/irl)")
     p.add_argument("--sim-clock", action="store_true", help="simulated clock (default: wall clock)")
     p.add_argument("--seed", type=int, default=0, help="the simulated robot's seed")
+    p.add_argument("--cell-scenario", metavar="FILE.toml",
+                   help="what the simulated cell does with the digital I/O (see docs/runtime.md); reports gain "
+                        "the io columns")
     p.add_argument("--keys", metavar="DIR", help="require CURVE authentication with the keys in DIR")
     p.add_argument("--insecure-allow-remote-without-encryption", action="store_true",
                    help="allow endpoints other machines can reach without --keys: anyone on the network could "

@@ -1,8 +1,9 @@
 """``irl plot``: one panel per moving axis, position over time, the FSM's phases shaded
 and labelled, as the paper's Figure 6 shows; when the report has the tool centre point
 (the ``tcp`` columns), a path view beside them: the TCP during Move Robot seen from above
-(x-y) and from the side (x-z), so Cartesian programs show their lines and arcs. Needs
-matplotlib (the ``plot`` extra)."""
+(x-y) and from the side (x-z), so Cartesian programs show their lines and arcs; when it
+has the ``io`` columns, a lane per digital input (green) and output (red) that is ever on.
+Needs matplotlib (the ``plot`` extra)."""
 from __future__ import annotations
 
 import csv
@@ -45,6 +46,26 @@ def phases(times, states):
     return [tuple(p) for p in out]
 
 
+def io_lanes(cols) -> list[str]:
+    """The digital inputs and outputs of a report (its io columns) that are ever on, inputs
+    first."""
+    from .components.report import is_io
+
+    return [name for name in cols if is_io(name) and cols[name].max() > 0]
+
+
+def _io_panel(ax, times, cols, lanes: list[str]) -> None:
+    """One step lane per input or output, high while it is on."""
+    for k, name in enumerate(lanes):
+        color = "#2e7d32" if name.startswith("in_") else "#c62828"
+        ax.fill_between(times, k, k + 0.7 * cols[name], step="post", color=color, alpha=0.55, lw=0)
+    ax.set_yticks([k + 0.35 for k in range(len(lanes))])
+    ax.set_yticklabels([name.replace("_", "[") + "]" for name in lanes], fontsize=7)
+    ax.set_ylim(-0.2, len(lanes))
+    ax.set_ylabel("I/O")
+    ax.grid(alpha=0.3, axis="x")
+
+
 def _tcp_views(fig, grid, rows: int, times, states, cols) -> None:
     """The TCP path during Move Robot: from above and from the side (mm, equal scales)."""
     import numpy as np
@@ -82,19 +103,23 @@ def plot_report(report: str | Path, output: str | Path) -> None:
     axes_names = [c[len("sens_pos_"):] for c in cols if c.startswith("sens_pos_")]
     moving = [a for a in axes_names if np.ptp(cols[f"sens_pos_{a}"]) > 1e-6] or axes_names[:1]
     has_tcp = all(f"tcp_{c}" in cols for c in ("x", "y", "z"))
-    rows = max(len(moving), 2 if has_tcp else 1)
+    lanes = io_lanes(cols)
+    rows = max(len(moving) + (1 if lanes else 0), 2 if has_tcp else 1)
     fig = plt.figure(figsize=(15 if has_tcp else 10, 1.9 * rows + 1))
     grid = fig.add_gridspec(rows, 3 if has_tcp else 1)
     first = fig.add_subplot(grid[0, :2] if has_tcp else grid[0, 0])
     panels = np.array([[first]] + [[fig.add_subplot(grid[i, :2] if has_tcp else grid[i, 0], sharex=first)]
-                                   for i in range(1, len(moving))])
+                                   for i in range(1, len(moving) + (1 if lanes else 0))])
     if has_tcp:
         _tcp_views(fig, grid, rows, times, states, cols)
     colors = ["#dde8f5", "#f5e6d3", "#e1f0dc", "#f3dbe7", "#ececec"]
     spans = phases(times, states)
-    for ax, name in zip(panels[:, 0], moving):
+    for ax in panels[:, 0]:
         for k, (t0, t1, phase) in enumerate(spans):
             ax.axvspan(t0, t1, color=colors[k % len(colors)], lw=0)
+    if lanes:
+        _io_panel(panels[-1, 0], times, cols, lanes)
+    for ax, name in zip(panels[:, 0], moving):
         ax.plot(times, cols[f"desi_pos_{name}"], lw=0.8, ls="--", color="#888888", label="reference")
         ax.plot(times, cols[f"sens_pos_{name}"], lw=1.2, color="#1f4e99", label="encoder")
         ax.set_ylabel(f"{name} (deg)")

@@ -10,10 +10,11 @@ Grammar (spaces and tabs are allowed between any two tokens)::
 
     command := "components"                               list the components
              | "help" [NAME]                               usage, or one component
-             | target                                      read a property
-             | target "=" value                            write a property
+             | target [index]                              read a property (one element)
+             | target [index] "=" value                    write a property (one element)
              | target "(" [value ("," value)*] ")"         call an operation
     target  := NAME "." NAME                               component.member, e.g. servo.kp
+    index   := "[" digits "]"                              e.g. io.in[3]
     NAME    := [A-Za-z_][A-Za-z0-9_]*
     value   := number | string | "true" | "false"
     number  := ["+" | "-"] (digits ["." [digits]] | "." digits) [("e" | "E") ["+" | "-"] digits]
@@ -46,6 +47,7 @@ HELP_TEXT = r"""Commands, one per line:
   help [component]                 this text, or what a component offers
   component.property               read a property, e.g. servo.kp
   component.property = value       write a property, e.g. servo.kp = 2.5
+  component.property[n] (= value)  one element, e.g. io.in[3] = true (simulation only)
   component.operation(value, ...)  call an operation, e.g. fsm.request_state("Calibrate Offsets")
 Values: numbers (3, -2, 2.5, 1e-3), true, false, and strings in double or single quotes
 with the escapes \\ \" \' \n \t \r.
@@ -78,19 +80,21 @@ class Help:
 
 @dataclass(frozen=True)
 class GetProperty:
-    """``servo.kp``."""
+    """``servo.kp``, or one element: ``io.in[3]``."""
 
     component: str
     name: str
+    index: int | None = None
 
 
 @dataclass(frozen=True)
 class SetProperty:
-    """``servo.kp = 2.5``."""
+    """``servo.kp = 2.5``, or one element: ``io.in[3] = true``."""
 
     component: str
     name: str
     value: Value
+    index: int | None = None
 
 
 @dataclass(frozen=True)
@@ -117,7 +121,7 @@ class _Token(NamedTuple):
 _NAME = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")
 _NUMBER = re.compile(r"[+-]?(?:[0-9]+(?:\.[0-9]*)?|\.[0-9]+)(?:[eE][+-]?[0-9]+)?")
 _WORD = re.compile(r"[A-Za-z0-9_.]*")  # what may not follow a number directly
-_PUNCT = ".=(),"
+_PUNCT = ".=(),[]"
 _ESCAPES = {"\\": "\\", '"': '"', "'": "'", "n": "\n", "t": "\t", "r": "\r"}
 _ONE_LINE = "a command must be on one line"
 
@@ -255,13 +259,24 @@ class _Parser:
         component = self.expect("name", None, _TARGET).text
         self.expect("punct", ".", _TARGET)
         name = self.expect("name", None, _TARGET).text
+        index = None
+        if self.at("["):
+            self.take()
+            token = self.peek()
+            if token.kind != "number" or not isinstance(token.value, int) or token.value < 0 \
+                    or not token.text.isdigit():
+                raise ScriptError("expected an element number (digits) after '['", token.column)
+            index = self.take().value
+            self.expect("punct", "]", "expected ']' after the element number")
         if self.at("="):
             self.take()
-            return SetProperty(component, name, self.value("expected a value after '='"))
+            return SetProperty(component, name, self.value("expected a value after '='"), index)
         if self.at("("):
+            if index is not None:
+                raise ScriptError("an operation cannot be indexed", self.peek().column)
             self.take()
             return CallOperation(component, name, self.arguments())
-        return GetProperty(component, name)
+        return GetProperty(component, name, index)
 
     def arguments(self) -> tuple[Value, ...]:
         if self.at(")"):

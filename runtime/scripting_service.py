@@ -93,6 +93,52 @@ class ServerTarget:
         return f"reconfiguration to {result['requested']!r} queued as {result['program']}"
 
 
+class IoTarget:
+    """The digital I/O (``io``): ``io.in[3]`` and ``io.out[3]`` read one input or output;
+    ``io.in[3] = true`` forces an input by hand, on the simulated robot only (a real
+    input is the cell's: it cannot be forced from the network). Outputs are the
+    program's: read-only. A cell scenario's rule may change a forced input again."""
+
+    name = "io"
+    PROPERTIES: dict = {}
+    READ_ONLY = {"inputs": "every digital input (input n at index n - 1)",
+                 "outputs": "every digital output (output n at index n - 1)"}
+    #: element-wise properties: name -> (what, writable)
+    INDEXED = {"in": ("a digital input, numbered from 1", True), "out": ("a digital output, numbered from 1", False)}
+    OPERATIONS = ()
+    lifecycle = None
+
+    def __init__(self, loop):
+        self.loop = loop
+
+    @property
+    def inputs(self):
+        return list(self.loop.system.backend.inputs)
+
+    @property
+    def outputs(self):
+        return list(self.loop.system.backend.outputs)
+
+    def element(self, name: str, n: int) -> bool:
+        values = self.inputs if name == "in" else self.outputs
+        if not 1 <= n <= len(values):
+            raise IndexError(f"io.{name}[{n}]: there is no {'input' if name == 'in' else 'output'} {n} "
+                             f"(1..{len(values)})")
+        return values[n - 1]
+
+    def force(self, n: int, value) -> None:
+        """Between ticks: set input ``n`` on the simulated robot."""
+        from .sim.robot import SimRobot
+
+        backend = self.loop.system.backend
+        if not isinstance(backend, SimRobot):
+            raise PermissionError("an input is forced on the simulated robot only; on hardware the cell sets it")
+        if not isinstance(value, bool):
+            raise TypeError(f"io.in[{n}]: expected true or false, got {format_value(value)}")
+        self.element("in", n)  # (the range check)
+        backend.set_input(n, value)
+
+
 #: Operations of the components that the network may never call (the others: only while
 #: no program runs).
 NEVER = {("robot", "release_brakes"): "the brakes are released only by Start Robot, when a program begins"}
@@ -112,7 +158,7 @@ def loop_targets(loop) -> dict:
     """What a script reaches in the loop (runtime.robotloop.RobotLoop)."""
     s = loop.system
     return {"robot": s.robot, "servo": s.servo, "initialization": s.init, "trajectory": s.trajectory,
-            "report": s.report, "fsm": FsmTarget(loop), "server": ServerTarget(loop.front)}
+            "report": s.report, "fsm": FsmTarget(loop), "io": IoTarget(loop), "server": ServerTarget(loop.front)}
 
 
 def parse_call(text: str):
@@ -141,6 +187,8 @@ def call(table: dict, job: int | None, text: str):
         return {"output": _describe(command.component, _target(table, command.component)), "value": None}
     target = _target(table, command.component)
     where = f"{command.component}.{command.name}"
+    if isinstance(command, (GetProperty, SetProperty)) and command.index is not None:
+        return _element(target, command, f"{where}[{command.index}]")
     if isinstance(command, GetProperty):
         if command.name not in _properties(target):
             raise ProtocolError("script_error", f"{command.component} has no property {command.name!r} "
@@ -188,6 +236,32 @@ def call(table: dict, job: int | None, text: str):
     return operation() if getattr(target, "IMMEDIATE", False) else operation
 
 
+def _element(target, command, where: str):
+    """``io.in[3]`` (read now) or ``io.in[3] = true`` (a callable for the loop)."""
+    indexed = getattr(target, "INDEXED", {})
+    if command.name not in indexed:
+        raise ProtocolError("script_error", f"{command.component}.{command.name} has no elements"
+                                            + (f" (indexed: {', '.join(indexed)})" if indexed else ""))
+    try:
+        if isinstance(command, GetProperty):
+            value = target.element(command.name, command.index)
+            return {"output": f"{where} = {format_value(value)}", "value": value}
+    except IndexError as exc:
+        raise ProtocolError("bad_request", str(exc)) from None
+    if not indexed[command.name][1]:
+        raise ProtocolError("refused", f"{where} is read-only (the program sets the outputs)")
+
+    def force():
+        try:
+            target.force(command.index, command.value)
+        except (IndexError, TypeError) as exc:
+            raise ProtocolError("bad_request", str(exc)) from None
+        except PermissionError as exc:
+            raise ProtocolError("refused", f"{where}: {exc}") from None
+        return {"output": f"{where} = {format_value(command.value)}", "value": command.value}
+    return force
+
+
 def _target(table: dict, name: str):
     if name not in table:
         raise ProtocolError("script_error", f"no component {name!r} (components: {', '.join(table)})")
@@ -217,6 +291,8 @@ def _describe(name: str, target) -> str:
                      f"{param.doc}")
     for prop, doc in getattr(target, "READ_ONLY", {}).items():
         lines.append(f"    {prop} = {format_value(_plain(getattr(target, prop)))}  (read-only) {doc}")
+    for prop, (what, writable) in getattr(target, "INDEXED", {}).items():
+        lines.append(f"    {prop}[n]  ({'writable in simulation' if writable else 'read-only'}) {what}")
     lines.append("  operations: " + ", ".join(f"{op}()" for op in target.OPERATIONS))
     return "\n".join(lines)
 

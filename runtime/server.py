@@ -65,6 +65,8 @@ class ServeOptions:
     scheduling: object = None
     #: The loop in a process of its own (False: in this one, driven by ``Server.turn``: tests).
     loop_process: bool = True
+    #: What the simulated cell does with the I/O (runtime.sim.cell.Scenario), or None.
+    cell: object = None
 
 
 INSECURE_FLAG = "--insecure-allow-remote-without-encryption"
@@ -218,7 +220,7 @@ class Server:
         self.loop = self.process = self.channel = None
         self.router = self.pub = self.authenticator = None
         run_options = RunOptions(seed=options.seed, realtime=not options.sim_clock, state_dir=state_dir,
-                                 deadline_policy=options.deadline_policy)
+                                 deadline_policy=options.deadline_policy, cell=options.cell)
         # the loop first: the fork copies only this thread, before any ZeroMQ context exists
         if options.loop_process:
             from .robotloop import start_process
@@ -484,7 +486,8 @@ class Server:
         running = job is not None and snap.get("job") == job.id
         sample = {"kind": "sample", "state": snap["state"] if running else "Idle",
                   "program": job.id if running else None, "queued": len(self.queue),
-                  "override": self.override, "position": snap["position"], "t": snap["t"]}
+                  "override": self.override, "position": snap["position"], "inputs": snap["inputs"],
+                  "outputs": snap["outputs"], "t": snap["t"]}
         if running and "line" in snap:
             sample.update(line=snap["line"], moves_done=snap["moves_done"], moves_total=job.moves_total,
                           paused=snap["paused"], following_error=snap["following_error"])
@@ -672,7 +675,8 @@ class Server:
                 "override": self.override, "configuration": self.configuration,
                 "calibrated": snap.get("calibrated"), "initialized": snap.get("initialized"),
                 "calibration": snap.get("calibration"), "initialization": snap.get("initialization"),
-                "position": snap.get("position"), "shutting_down": self.stop_reason is not None,
+                "position": snap.get("position"), "inputs": snap.get("inputs"), "outputs": snap.get("outputs"),
+                "shutting_down": self.stop_reason is not None,
                 "loop_gone": self.loop_gone}
 
     def _check_queue_room(self) -> None:

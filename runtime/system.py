@@ -74,6 +74,7 @@ class RobotSystem:
             from .sim.cell import Cell
 
             self.cell = Cell(options.cell, self.backend)
+            self.cell.reset(0.0)  # the cell as it stands before any program (a server shows it idle)
             if "io" not in self.report.columns:
                 self.report.columns.append("io")
         self.executive = Executive(self.clock, TICK)

@@ -149,3 +149,87 @@ def test_an_input_follows_its_rule_exactly_delay_after_each_edge(kind, delay_tic
                 if history[j][1] and not before[1]:
                     expected = False
         assert backend.input(5) == expected, (k, history[max(0, k - delay_ticks)])
+
+
+def test_a_timeline_toggles_its_input_at_the_times_given_and_repeats():
+    scenario = parse_scenario({"timeline": [{"input": 6, "at": [0.5, 0.75], "every": 2.0}],
+                               "inputs": {"6": True}}, SPEC)
+    backend = FakeIO()
+    cell = Cell(scenario, backend)
+    cell.reset(10.0)  # (a program that starts at 10 s on the clock: times count from its start)
+    seen = []
+    for k in range(0, 5000):
+        now = 10.0 + k * TICK
+        before = backend.input(6)
+        cell.update(now)
+        if backend.input(6) != before:
+            seen.append((round(now - 10.0, 6), backend.input(6)))
+    assert seen == [(0.5, False), (0.75, True), (2.5, False), (2.75, True), (4.5, False), (4.75, True)]
+    once = Cell(parse_scenario({"timeline": [{"input": 6, "at": [0.001]}]}, SPEC), backend)
+    once.reset(0.0)
+    for k in range(0, 3000):
+        once.update(k * TICK)
+    assert backend.input(6) is True  # toggled once, from false, and never again
+
+
+def test_irl_serve_runs_pick_and_place_against_its_cell_and_shows_the_io(tmp_path):
+    """End to end: `irl serve --sim-clock --cell-scenario`: the program completes, its
+    report has the io columns, and status shows the I/O."""
+    from test_server import ServerProcess, objcode, wait_end
+
+    server = ServerProcess(tmp_path / "server", tmp_path / "state", sim_clock=True,
+                           extra=("--cell-scenario", SCENARIO)).start()
+    try:
+        client = server.client(timeout=30.0)
+        status = client.request("status")
+        assert status["inputs"][:4] == [True, False, True, True] and not any(status["outputs"])
+        job = client.request("submit", {"object": objcode(PICK), "name": "pick"})["program"]
+        final = wait_end(client, job, server)
+        assert final["state"] == "completed", final
+        log = [entry["text"] for entry in final["summary"]["log"]]
+        assert log[-1] == "part 10 of 10 loaded" and not any("timed out" in text for text in log)
+        header = Path(final["report"]).read_text().splitlines()[0].split(",")
+        assert header[-1] == "out_16"
+    finally:
+        assert server.stop() == 0, server.log()
+    code, _, err = run("serve", "--spec", ROOT / "programs" / "lola15.spc", "--sim-clock", "--cell-scenario",
+                       tmp_path / "missing.toml")
+    assert code == 2 and "--cell-scenario: cannot read" in err
+
+
+def test_an_input_forced_by_hand_releases_a_waiting_program_and_outputs_cannot_be_forced(tmp_path):
+    """`irl call 'io.in[5] = true'` (simulation only): a program waiting for in[5] goes on
+    at the next tick; an output is the program's and is refused; the range is checked."""
+    from compiler.driver import compile_source
+    from compiler.objcode import encode
+
+    from runtime.protocol import ProtocolError
+    from runtime.server import ServeOptions, Server
+
+    source = (f'program w;\nsystem_specification "{ROOT / "programs" / "lola15.spc"}";\nseq\n'
+              '  wait for in[5] timeout 30 sec;\n  print "released";\nendseq\nendprogram;\n')
+    result = compile_source(source, "w.irl")
+    assert result.ok, result.diagnostics
+    server = Server(SPEC, ServeOptions(sim_clock=True, state_dir=tmp_path / "state", loop_process=False))
+    try:
+        job = server.request("submit", {"object": encode(result.program)})["program"]
+        while not (server.current is not None and server.system.trajectory.line == 4):
+            server.turn(idle_wait=False)
+        for _ in range(500):  # waiting: nothing sets in[5]
+            server.turn(idle_wait=False)
+        assert server.current is not None
+        assert server.request("call", {"text": "io.in[5] = true"})["value"] is True
+        assert server.request("call", {"text": "io.in[5]"})["value"] is True
+        while server.current is not None:
+            server.turn(idle_wait=False)
+        summary = server.jobs[job].summary
+        assert summary["fault"] is None and [e["text"] for e in summary["log"]] == ["released"]
+        with pytest.raises(ProtocolError, match="read-only"):
+            server.request("call", {"text": "io.out[1] = true"})
+        with pytest.raises(ProtocolError, match="no input 17"):
+            server.request("call", {"text": "io.in[17] = true"})
+        with pytest.raises(ProtocolError, match="expected true or false"):
+            server.request("call", {"text": "io.in[2] = 1"})
+        assert "in[n]  (writable in simulation)" in server.request("call", {"text": "help io"})["output"]
+    finally:
+        server.close()

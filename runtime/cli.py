@@ -238,9 +238,21 @@ def cmd_run(args, env: Environment) -> int:
             cell = load_scenario(args.cell_scenario, spec)
         except ScenarioError as exc:
             raise UsageError(f"--cell-scenario: {exc}") from None
+    fieldbus = None
+    if args.fieldbus:
+        from runtime.fieldbus import FieldbusError, load_fieldbus
+
+        if not args.realtime:
+            raise UsageError("--fieldbus needs --realtime (the PLC lives in real time)")
+        if cell is not None:
+            raise UsageError("--fieldbus and --cell-scenario both drive the inputs: choose one")
+        try:
+            fieldbus = load_fieldbus(args.fieldbus, spec)
+        except FieldbusError as exc:
+            raise UsageError(f"--fieldbus: {exc}") from None
     options = RunOptions(seed=args.seed, realtime=args.realtime, report=args.report, state_dir=args.state_dir,
                          max_time=args.max_time, faults=faults, override=args.override,
-                         deadline_policy=args.deadline_policy, cell=cell)
+                         deadline_policy=args.deadline_policy, cell=cell, fieldbus=fieldbus)
     if args.realtime:
         _err(env, f"irl run: {realtime.apply(wanted)}")
     try:
@@ -376,6 +388,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--cell-scenario", metavar="FILE.toml",
                    help="what the simulated cell does with the digital I/O: inputs that follow outputs, latch or "
                         "toggle on a timeline (see docs/runtime.md); the report gains the io columns")
+    p.add_argument("--fieldbus", metavar="FILE.toml",
+                   help="the digital I/O on a PLC over Modbus TCP (see docs/runtime.md); needs --realtime")
     p.add_argument("--seed", type=int, default=0, help="the simulated robot's seed (power-up position, offsets)")
     p.add_argument("--state-dir", metavar="DIR", help="remember the calibration in DIR across runs")
     p.add_argument("--max-time", type=float, default=3600.0, metavar="S", help="stop the run after S seconds")

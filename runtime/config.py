@@ -307,15 +307,33 @@ def parse_configurations(text: str, name: str = "<config>") -> Configurations:
 def _parse(text: str, source: str, path: Path | None) -> Configurations:
     if not isinstance(text, str):
         raise ConfigError(f"{source}: expected TOML text, got {_describe(text)}")
+    return _build(toml_tables(text, source, ConfigError), source, path)
+
+
+def toml_tables(text: str, source: str, error: type[Exception]) -> dict:
+    """The tables of TOML ``text``, or ``error`` saying where and why it is not TOML
+    (also for what makes tomllib raise other than TOMLDecodeError on untrusted text)."""
     try:
-        data = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as error:
-        raise ConfigError(f"{source}: invalid TOML: {error}") from None
+        return tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise error(f"{source}: invalid TOML: {exc}") from None
     except RecursionError:
-        raise ConfigError(f"{source}: invalid TOML: nested too deeply") from None
-    except ValueError as error:  # e.g. an integer literal with more digits than Python converts
-        raise ConfigError(f"{source}: invalid TOML: {error}") from None
-    return _build(data, source, path)
+        raise error(f"{source}: invalid TOML: nested too deeply") from None
+    except ValueError as exc:  # e.g. an integer literal with more digits than Python converts
+        raise error(f"{source}: invalid TOML: {exc}") from None
+
+
+def read_toml(path: str | Path, error: type[Exception]) -> dict:
+    """A TOML file's tables (a cell scenario, a fieldbus file), or ``error`` saying why not:
+    unreadable, not UTF-8 text, not TOML."""
+    path = Path(path)
+    try:
+        text = path.read_text(encoding="utf-8")
+    except OSError as exc:
+        raise error(f"cannot read {path}: {exc.strerror or exc}") from None
+    except UnicodeDecodeError as exc:
+        raise error(f"{path}: not UTF-8 text (byte {exc.start}): {exc.reason}") from None
+    return toml_tables(text, str(path), error)
 
 
 def _build(data: dict, source: str, path: Path | None) -> Configurations:

@@ -4,7 +4,8 @@ Each table lives between ``<!-- generated: NAME -->`` and ``<!-- end generated -
 page of ``docs/``, and is rendered from its one declaration: the parameters from
 :mod:`compiler.params`, the move clauses and the specification's ``[defaults]`` from
 :mod:`compiler.clauses`, the stop categories from :data:`runtime.components.safety.CATEGORIES`, the simulated
-cell's rules from :data:`runtime.sim.cell.RULES`.
+cell's rules from :data:`runtime.sim.cell.RULES`, the fieldbus file's fields from
+:data:`runtime.fieldbus.FIELDS`.
 A test fails while a page is stale. Not real-time; imports nothing the loop needs.
 """
 from __future__ import annotations
@@ -22,11 +23,13 @@ def tables() -> dict[str, str]:
     from compiler import clauses
     from compiler.params import COMPONENTS, markdown
 
+    from . import fieldbus
     from .components.safety import categories_markdown
     from .sim import cell
 
     return {"params": markdown(), "config": markdown(COMPONENTS), "categories": categories_markdown(),
-            "clauses": clauses.markdown(), "defaults": clauses.defaults_markdown(), "cell": cell.markdown()}
+            "clauses": clauses.markdown(), "defaults": clauses.defaults_markdown(), "cell": cell.markdown(),
+            "fieldbus": fieldbus.markdown()}
 
 
 def render(text: str) -> str:

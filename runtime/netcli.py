@@ -88,6 +88,15 @@ def cmd_serve(args, env) -> int:
         except ScenarioError as exc:
             raise cli.UsageError(f"--cell-scenario: {exc}") from None
         options.cell = cell
+    if args.fieldbus:
+        from runtime.fieldbus import FieldbusError, load_fieldbus
+
+        if args.sim_clock or args.cell_scenario:
+            raise cli.UsageError("--fieldbus needs the wall clock and no --cell-scenario (the PLC sets the inputs)")
+        try:
+            options.fieldbus = load_fieldbus(args.fieldbus, spec)
+        except FieldbusError as exc:
+            raise cli.UsageError(f"--fieldbus: {exc}") from None
     configurations = None
     if args.config:
         from runtime.config import ConfigError, load_configurations
@@ -429,6 +438,8 @@ def add_commands(sub) -> None:
     p.add_argument("--cell-scenario", metavar="FILE.toml",
                    help="what the simulated cell does with the digital I/O (see docs/runtime.md); reports gain "
                         "the io columns")
+    p.add_argument("--fieldbus", metavar="FILE.toml",
+                   help="the digital I/O on a PLC over Modbus TCP (see docs/runtime.md; wall clock only)")
     p.add_argument("--keys", metavar="DIR", help="require CURVE authentication with the keys in DIR")
     p.add_argument("--insecure-allow-remote-without-encryption", action="store_true",
                    help="allow endpoints other machines can reach without --keys: anyone on the network could "

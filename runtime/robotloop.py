@@ -227,7 +227,7 @@ class RobotLoop:
         snap = {"kind": "snapshot", "t": system.clock.now(), "job": self.job,
                 "state": system.supervisor.fsm.path() if self.job is not None else "Idle",
                 "position": list(system.robot.positions),
-                "inputs": list(system.backend.inputs), "outputs": list(system.backend.outputs),
+                "inputs": list(system.io.inputs), "outputs": list(system.io.outputs),
                 "calibrated": memory.calibrated, "initialized": memory.initialized,
                 "calibration": memory.calibration_why, "initialization": memory.initialization_why}
         if self.job is not None:

@@ -113,11 +113,11 @@ class IoTarget:
 
     @property
     def inputs(self):
-        return list(self.loop.system.backend.inputs)
+        return list(self.loop.system.io.inputs)
 
     @property
     def outputs(self):
-        return list(self.loop.system.backend.outputs)
+        return list(self.loop.system.io.outputs)
 
     def element(self, name: str, n: int) -> bool:
         values = self.inputs if name == "in" else self.outputs
@@ -130,9 +130,10 @@ class IoTarget:
         """Between ticks: set input ``n`` on the simulated robot."""
         from .sim.robot import SimRobot
 
-        backend = self.loop.system.backend
+        backend = self.loop.system.io
         if not isinstance(backend, SimRobot):
-            raise PermissionError("an input is forced on the simulated robot only; on hardware the cell sets it")
+            raise PermissionError("an input is forced on the simulated robot only; on hardware or a fieldbus the "
+                                  "cell sets it")
         if not isinstance(value, bool):
             raise TypeError(f"io.in[{n}]: expected true or false, got {format_value(value)}")
         self.element("in", n)  # (the range check)

@@ -67,6 +67,8 @@ class ServeOptions:
     loop_process: bool = True
     #: What the simulated cell does with the I/O (runtime.sim.cell.Scenario), or None.
     cell: object = None
+    #: The I/O on a PLC (runtime.fieldbus.ModbusConfig), or None.
+    fieldbus: object = None
 
 
 INSECURE_FLAG = "--insecure-allow-remote-without-encryption"
@@ -220,7 +222,8 @@ class Server:
         self.loop = self.process = self.channel = None
         self.router = self.pub = self.authenticator = None
         run_options = RunOptions(seed=options.seed, realtime=not options.sim_clock, state_dir=state_dir,
-                                 deadline_policy=options.deadline_policy, cell=options.cell)
+                                 deadline_policy=options.deadline_policy, cell=options.cell,
+                                 fieldbus=options.fieldbus)
         # the loop first: the fork copies only this thread, before any ZeroMQ context exists
         if options.loop_process:
             from .robotloop import start_process

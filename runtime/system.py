@@ -40,6 +40,7 @@ class RunOptions:
     override: float = 100.0  # speed override (percent, 1-100) of every move
     deadline_policy: str | None = None  # the servo's miss policy ("hard", "firm", "soft"); None: the spec's
     cell: object = None  # a runtime.sim.cell.Scenario: what the simulated cell does with the I/O
+    fieldbus: object = None  # a runtime.fieldbus.ModbusConfig: the I/O on a PLC (wall clock only)
 
 
 class RobotSystem:
@@ -62,7 +63,19 @@ class RobotSystem:
         self.servo.measured_velocity = lambda: self.robot.velocities
         self.trajectory = TrajectoryGenerator(spec, self.robot, p["desi_pos"], p["sens_pos"], self.clock)
         self.trajectory.safety = self.safety
-        backend_io = self.backend
+        self.io = self.backend  # the digital I/O: the robot's, or a PLC's over a fieldbus
+        self._fieldbus_lost = False
+        if options.fieldbus is not None:
+            if options.cell is not None:
+                raise ValueError("a fieldbus and a cell scenario both drive the inputs: choose one")
+            if not options.realtime:
+                raise ValueError("a fieldbus needs the wall clock (the PLC lives in real time): run with --realtime")
+            from .fieldbus import ModbusIo
+
+            self.io = ModbusIo(options.fieldbus, spec.inputs, spec.outputs)
+            self.io.start()
+        self.robot.io = self.io
+        backend_io = self.io
         self.report = Report(spec, p["sens_pos"], p["drive_cmd"], self.servo, lambda: self.supervisor.fsm.path(),
                              history=lambda: self.supervisor.fsm.history,
                              io=lambda: (*backend_io.inputs, *backend_io.outputs))
@@ -75,8 +88,8 @@ class RobotSystem:
 
             self.cell = Cell(options.cell, self.backend)
             self.cell.reset(0.0)  # the cell as it stands before any program (a server shows it idle)
-            if "io" not in self.report.columns:
-                self.report.columns.append("io")
+        if (options.cell is not None or options.fieldbus is not None) and "io" not in self.report.columns:
+            self.report.columns.append("io")  # the cell's I/O in every row
         self.executive = Executive(self.clock, TICK)
         identity = {"robot": spec.name, "spec_hash": spec.hash,
                     "backend": f"sim-seed-{options.seed}" if backend is None else "hardware"}
@@ -94,6 +107,8 @@ class RobotSystem:
                                   window=controller.servo_miss_window)
         if self.cell is not None:  # the world first: the inputs as the cell set them this tick
             ex.add("cell", self.cell.update, TICK, "sense")
+        if options.fieldbus is not None:
+            ex.add("fieldbus", self._supervise_fieldbus, TICK, "sense")
         ex.add("robot.read", robot.read, TICK, "sense", component=robot)
         ex.add("supervisor", self.supervisor.step, TICK, "decide")
         ex.add("initialization", self.init.update, SETPOINT_PERIOD, "plan", component=self.init)
@@ -111,6 +126,10 @@ class RobotSystem:
         With ``settings`` instead of a program, the cycle is a reconfiguration: Start
         Robot -> Robot Reconfiguration -> Stop Robot, brakes kept on."""
         self._wall0 = time.perf_counter()
+        if self.options.fieldbus is not None:  # a program does not start without its cell's PLC
+            self._fieldbus_lost = False
+            if not self.io.wait_connected(self.options.fieldbus.timeout + 1.0):
+                raise ValueError(f"the program cannot start: {self.io.lost()}")
         self._report_path = report
         self.supervisor.reset()
         self.supervisor.pending_settings = settings
@@ -138,6 +157,16 @@ class RobotSystem:
         if self.options.realtime:  # the wall clock ran on while this set-up (or a server's idle time) took
             self.executive.resync()  # its time: the first tick is the next one due, not a burst of late ones
         self._ticks0 = self.executive.ticks  # (a server's executive counts on across cycles)
+
+    def _supervise_fieldbus(self, now: float) -> None:
+        """Real-time: a PLC lost (no good exchange within its timeout) stops the robot,
+        category 1, and ends the cycle with the reason."""
+        if self._fieldbus_lost:
+            return
+        why = self.io.lost()
+        if why is not None:
+            self._fieldbus_lost = True
+            self.emergency_stop(f"the fieldbus is lost: {why}")
 
     def _encoder_reset(self, axis: int, delta: float) -> None:
         """Homing reset the encoder of ``axis``: the servo follows, the axis is referenced."""

@@ -12,7 +12,7 @@ from compiler.params import TICK, component_params
 
 #: TICK (s): the executive's tick: the robot interface, the supervisor, the servo and the
 #: safety run every tick (declared in compiler.params, which checks periods against it).
-__all__ = ["TICK", "SETPOINT_PERIOD", "REPORT_PERIOD"]
+__all__ = ["TICK", "SETPOINT_PERIOD", "REPORT_PERIOD", "FIELDBUS_POLL"]
 
 #: s: the trajectory generator's and the initialization's (homing) period: the servo
 #: interpolates their setpoints (the two must be equal).
@@ -20,3 +20,6 @@ SETPOINT_PERIOD: float = component_params("trajectory")["period"].default  # typ
 assert SETPOINT_PERIOD == component_params("initialization")["period"].default
 #: s: the report's period (one logged row).
 REPORT_PERIOD: float = component_params("report")["period"].default  # type: ignore[assignment]
+#: s: the default time between two exchanges with a PLC (runtime.fieldbus; off the loop,
+#: on the exchange's own thread; a fieldbus file may choose from TICK to 1 s).
+FIELDBUS_POLL = 0.01

@@ -69,7 +69,8 @@ def test_without_a_scenario_nothing_answers_and_every_wait_times_out():
     ("[[timeline]]\ninput = 6\nat = [1.0, 3.0]\nevery = 1.0\n", "the period must be longer than the list's span"),
     ("[inputs]\n1 = 5\n", "[inputs] 1: expected true or false, got 5"),
     ("[inputs]\n99 = true\n", "[inputs] 99: expected an input number 1..16"),
-    ("[[follow]\n", "not valid TOML"),
+    ("[[follow]\n", "invalid TOML"),
+    ("a = " + "[" * 2000 + "]" * 2000 + "\n", "invalid TOML"),
     ("[[follow]]\ninput = 2\noutput = 1\ndelay = nan\n", "expected a number of seconds"),
 ])
 def test_a_bad_scenario_is_refused_before_anything_moves_saying_where_and_what_is_allowed(tmp_path, text, words):
@@ -80,6 +81,13 @@ def test_a_bad_scenario_is_refused_before_anything_moves_saying_where_and_what_i
     assert words in str(error.value) and str(path) in str(error.value), str(error.value)
     code, out, err = run("run", PICK, "--cell-scenario", path)
     assert code == 2 and words in err and "Traceback" not in err, err
+
+
+def test_a_scenario_that_is_not_text_is_refused(tmp_path):
+    path = tmp_path / "cell.toml"
+    path.write_bytes(b"[inputs]\n1 = \xff\xfe\n")
+    with pytest.raises(ScenarioError, match="not UTF-8 text"):
+        load_scenario(path, SPEC)
 
 
 def test_every_rule_kind_is_in_the_docs():

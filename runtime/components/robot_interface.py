@@ -29,6 +29,7 @@ class RobotInterface(Component):
         super().__init__("robot", tick)
         self.spec = spec
         self.backend = backend
+        self.io = backend  # the digital I/O: the robot's own, or a fieldbus (runtime.fieldbus.ModbusIo)
         self.sens_pos = sens_pos
         self.drive_cmd = drive_cmd
         self.estimator = estimator
@@ -133,7 +134,7 @@ class RobotInterface(Component):
         self.sens_pos.write(self.positions, self.sens_pos.stamp)  # readers this tick see the new zero
 
     def read_input(self, n: int) -> bool:
-        return self.backend.input(n)
+        return self.io.input(n)
 
     def write_output(self, n: int, value: bool) -> None:
-        self.backend.set_output(n, value)
+        self.io.set_output(n, value)

@@ -35,7 +35,6 @@ from __future__ import annotations
 import bisect
 import difflib
 import math
-import tomllib
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -206,14 +205,9 @@ def markdown() -> str:
 
 
 def load_scenario(path: str | Path, spec) -> Scenario:
-    path = Path(path)
-    try:
-        data = tomllib.loads(path.read_text(encoding="utf-8"))
-    except OSError as exc:
-        raise ScenarioError(f"cannot read {path}: {exc.strerror or exc}") from None
-    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
-        raise ScenarioError(f"{path}: not valid TOML: {exc}") from None
-    return parse_scenario(data, spec, str(path), path)
+    from ..config import read_toml
+
+    return parse_scenario(read_toml(path, ScenarioError), spec, str(path), Path(path))
 
 
 class Cell:

@@ -1,0 +1,197 @@
+"""The robot's I/O on a PLC over Modbus TCP (issue 16): `irl serve --fieldbus FILE`
+against pymodbus's own server on loopback, with a little PLC logic beside it. A program
+that talks to the PLC runs to completion; the PLC's loss stops the robot (category 1)
+and faults the program, within the configured timeout."""
+from __future__ import annotations
+
+import asyncio
+import logging
+import statistics
+import threading
+import time
+from pathlib import Path
+
+import pytest
+
+from compiler.spec import load_spec
+from runtime.fieldbus import FieldbusError, ModbusIo, load_fieldbus, parse_fieldbus
+
+pytest.importorskip("pymodbus")
+
+ROOT = Path(__file__).resolve().parents[1]
+SPEC_PATH = ROOT / "programs" / "lola15.spc"
+SPEC = load_spec(SPEC_PATH)
+COILS, DISCRETE = 1, 2  # Modbus function codes: read coils, read discrete inputs
+
+
+class Plc:
+    """pymodbus's TCP server with one device (64 coils, 64 discrete inputs) on loopback,
+    in a thread of its own; ``coils``/``set_input`` reach its data as the PLC's own
+    program would."""
+
+    def __init__(self, port: int):
+        from pymodbus.server import ModbusTcpServer
+        from pymodbus.simulator import DataType, SimData, SimDevice
+
+        logging.getLogger("pymodbus").setLevel(logging.CRITICAL)
+        bits = lambda: [SimData(0, count=64, values=False, datatype=DataType.BITS)]  # noqa: E731
+        words = lambda: [SimData(0, count=1, values=0, datatype=DataType.REGISTERS)]  # noqa: E731
+        device = SimDevice(1, simdata=(bits(), bits(), words(), words()))
+        self.port = port
+        self.loop = asyncio.new_event_loop()
+        started = threading.Event()
+        self.server = None
+
+        async def main():
+            self.server = ModbusTcpServer(device, address=("127.0.0.1", port))
+            started.set()
+            await self.server.serve_forever()
+        self.thread = threading.Thread(target=lambda: self.loop.run_until_complete(main()), daemon=True)
+        self.thread.start()
+        started.wait(10)
+
+    def _run(self, coroutine):
+        return asyncio.run_coroutine_threadsafe(coroutine, self.loop).result(5)
+
+    def coils(self, count: int = 16) -> list[bool]:
+        return [bool(v) for v in self._run(self.server.async_getValues(1, COILS, 0, count))]
+
+    def set_input(self, n: int, value: bool) -> None:
+        """Discrete input of the robot's in[n] (address n - 1)."""
+        self._run(self.server.async_setValues(1, DISCRETE, n - 1, [value]))
+
+    def stop(self) -> None:
+        if self.server is not None:
+            self._run(self.server.shutdown())
+            self.server = None
+
+
+def fieldbus_file(directory: Path, port: int, timeout: float = 0.5) -> Path:
+    path = directory / "plc.toml"
+    path.write_text(f'[modbus]\nhost = "127.0.0.1"\nport = {port}\ndevice = 1\ninputs = 0\noutputs = 0\n'
+                    f"poll = 0.005\ntimeout = {timeout}\n", encoding="utf-8")
+    return path
+
+
+def program(body: str, variables: str = "") -> bytes:
+    from compiler.driver import compile_source
+    from compiler.objcode import encode
+
+    result = compile_source(f'program p;\nsystem_specification "{SPEC_PATH}";\n{variables}seq\n{body}endseq\n'
+                            "endprogram;\n", "p.irl")
+    assert result.ok, result.diagnostics
+    return encode(result.program)
+
+
+@pytest.mark.parametrize("text, words", [
+    ("[modbus]\nport = 502\n", "[modbus] host is missing"),
+    ('[modbus]\nhost = "plc"\nport = 70000\n', "[modbus] port: expected an integer 1..65535, got 70000"),
+    ('[modbus]\nhost = "plc"\npoll = 0\n', "[modbus] poll: expected a number of seconds 0.001..1, got 0"),
+    ('[modbus]\nhost = "plc"\ntimeot = 1\n', "unknown 'timeot' (did you mean 'timeout'?)"),
+    ('[modbus]\nhost = "plc"\ninputs = 65530\n', "must fit below address 65536"),
+    ('[profinet]\nhost = "plc"\n', "unknown table [profinet]"),
+])
+def test_a_bad_fieldbus_file_says_where_and_what_is_allowed(tmp_path, text, words):
+    path = tmp_path / "plc.toml"
+    path.write_text(text, encoding="utf-8")
+    with pytest.raises(FieldbusError, match=None) as error:
+        load_fieldbus(path, SPEC)
+    assert words in str(error.value), str(error.value)
+
+
+def test_the_io_follows_the_plc_and_a_lost_plc_is_said_within_its_timeout(tmp_path):
+    """The exchange thread alone: inputs read, outputs written, and `lost` once no
+    exchange has succeeded for `timeout` s."""
+    from test_server import free_port
+
+    port = free_port()
+    plc = Plc(port)
+    io = ModbusIo(parse_fieldbus({"modbus": {"host": "127.0.0.1", "port": port, "poll": 0.005,
+                                             "timeout": 0.3}}, SPEC), SPEC.inputs, SPEC.outputs)
+    io.start()
+    try:
+        assert io.wait_connected(5.0), io.lost()
+        plc.set_input(3, True)
+        io.set_output(2, True)
+        deadline = time.monotonic() + 5.0
+        while not (io.input(3) and plc.coils()[1]):
+            assert time.monotonic() < deadline, (io.inputs, plc.coils())
+            time.sleep(0.005)
+        plc.stop()
+        lost_at = time.monotonic()
+        while io.lost() is None:
+            assert time.monotonic() - lost_at < 5.0
+            time.sleep(0.005)
+        assert "no exchange with the PLC at 127.0.0.1" in io.lost() and "the limit is 0.3 s" in io.lost()
+    finally:
+        io.close()
+        plc.stop()
+
+
+def test_irl_serve_runs_a_program_against_a_plc_and_stops_the_robot_when_the_plc_is_lost(tmp_path):
+    from test_server import ServerProcess, free_port, wait_end, wait_for
+
+    port = free_port()
+    plc = Plc(port)
+    stop = threading.Event()
+    reactions: list[float] = []
+
+    def logic() -> None:
+        """The PLC's program: the gripper (in[2] follows out[1] after 20 ms), and the
+        reaction test on in[3] -> out[3]."""
+        while not stop.is_set():
+            coils = plc.coils()
+            plc.set_input(2, coils[0])
+            time.sleep(0.02)
+
+    server = ServerProcess(tmp_path / "server", tmp_path / "state", sim_clock=False,
+                           extra=("--fieldbus", fieldbus_file(tmp_path, port), "--deadline-policy", "soft")).start()
+    thread = threading.Thread(target=logic, daemon=True)
+    thread.start()
+    try:
+        client = server.client(timeout=30.0)
+        gripper = program("  out[1] := true;\n  wait for in[2] timeout 5 sec;\n  print \"closed\";\n"
+                          "  out[1] := false;\n  wait for not in[2] timeout 5 sec;\n  print \"opened\";\n"
+                          "  for i := 1 to 20 do\n    wait for in[3] timeout 5 sec;\n    out[3] := true;\n"
+                          "    wait for not in[3] timeout 5 sec;\n    out[3] := false;\n  endfor;\n",
+                          "var i : integer;\n")
+        job = client.request("submit", {"object": gripper})["program"]
+        wait_for(client, job, lambda s: s.get("line") is not None and s["line"] >= 11, "at its reaction loop",
+                 server)
+        for _ in range(20):  # input change -> the program's reaction, as the PLC sees it
+            started = time.monotonic()
+            plc.set_input(3, True)
+            while not plc.coils()[2]:
+                assert time.monotonic() - started < 5.0
+                time.sleep(0.0005)
+            reactions.append(time.monotonic() - started)
+            plc.set_input(3, False)
+            while plc.coils()[2]:
+                assert time.monotonic() - started < 10.0
+                time.sleep(0.0005)
+        final = wait_end(client, job, server)
+        assert final["state"] == "completed", final
+        log = [entry["text"] for entry in final["summary"]["log"]]
+        assert log == ["closed", "opened"], log
+        header = Path(final["report"]).read_text().splitlines()[0]
+        assert header.endswith(",out_16")
+
+        waiting = client.request("submit", {"object": program("  wait for in[5] timeout 60 sec;\n")})["program"]
+        wait_for(client, waiting, lambda s: s.get("fsm") == "Move Robot", "waiting in Move Robot", server)
+        stop.set()
+        thread.join(5)
+        plc.stop()
+        lost = time.monotonic()
+        final = wait_end(client, waiting, server)
+        took = time.monotonic() - lost
+        assert final["state"] == "faulted" and "the fieldbus is lost" in final["fault"], final
+        assert final["summary"]["stop"]["category"] == 1, final["summary"]["stop"]
+        assert took < 10.0, took
+        ms = sorted(1000 * r for r in reactions)
+        print(f"PLC input -> program -> PLC output, {len(ms)} reactions: p50 {statistics.median(ms):.1f} ms, "
+              f"max {ms[-1]:.1f} ms (poll 5 ms); PLC lost -> program faulted in {took:.2f} s (timeout 0.5 s)")
+        assert client.request("status")["loop_gone"] is None
+    finally:
+        stop.set()
+        plc.stop()
+        assert server.stop() == 0, server.log()

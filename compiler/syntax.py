@@ -413,12 +413,41 @@ def _classify(err: UnexpectedInput, text: str, file: str, tokens: list[Token]):
     if "SEMICOLON" in expected and prev is not None and (prev.end_line < tok.line or is_keyword or tok.type == "NAME"):
         span = ast.Span(prev.end_line, prev.end_column, prev.end_line, prev.end_column + 1)
         return _diag(file, span, f"expected ';' after '{prev.value}'", hint), ("resync", tok.start_pos)
+    unclosed = _unclosed_block(tokens, tok)
+    if unclosed is not None:
+        opener, closer = unclosed
+        return (_diag(file, _span(tok), f"'{tok.value}' ends a block, but the '{opener.value}' at line "
+                      f"{opener.line} is not closed", f"add '{closer};' before it"), None)
     if "NAME" in expected and tok.value.lower() in _keywords():
         return (_diag(file, _span(tok), f"'{tok.value}' is a reserved word and cannot be used as a name",
                       "choose another name"), ("resync", tok.start_pos))
 
     return (_diag(file, _span(tok), f"unexpected '{tok.value}'; expected {_expected_text(expected)}", hint),
             ("resync", tok.start_pos))
+
+
+#: Each block's opening keyword and the one that closes it.
+_BLOCKS = {"PROGRAM": "ENDPROGRAM", "PROCEDURE": "ENDPROCEDURE", "SEQ": "ENDSEQ", "IF": "ENDIF",
+           "WHILE": "ENDWHILE", "FOR": "ENDFOR", "REPEAT": "UNTIL"}
+_CLOSERS = set(_BLOCKS.values())
+
+
+def _unclosed_block(tokens: list[Token], tok: Token) -> tuple[Token, str] | None:
+    """When ``tok`` closes a block other than the innermost open one (``endseq`` while a
+    ``for`` is open): the innermost opener and the keyword that closes it."""
+    if tok.type not in _CLOSERS:
+        return None
+    stack: list[Token] = []
+    for candidate in tokens:
+        if candidate.start_pos is None or tok.start_pos is None or candidate.start_pos >= tok.start_pos:
+            break
+        if candidate.type in _BLOCKS:
+            stack.append(candidate)
+        elif candidate.type in _CLOSERS and stack and _BLOCKS[stack[-1].type] == candidate.type:
+            stack.pop()
+    if not stack or _BLOCKS[stack[-1].type] == tok.type:
+        return None
+    return stack[-1], _BLOCKS[stack[-1].type].lower()
 
 
 def _resync_region(tokens: list[Token], offset: int) -> tuple[int, int] | None:

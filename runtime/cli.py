@@ -32,7 +32,22 @@ class UsageError(Exception):
     """A bad command line or an unreadable file: exit status 2."""
 
 
+class _Formatter(argparse.HelpFormatter):
+    """Help that shows each option's default (when it has one worth showing)."""
+
+    def _get_help_string(self, action):
+        text = action.help or ""
+        if "default" not in text and action.default not in (None, False, argparse.SUPPRESS) \
+                and (action.option_strings or action.nargs in ("?", "*")):
+            text += " (default: %(default)s)"
+        return text
+
+
 class _Parser(argparse.ArgumentParser):
+    def __init__(self, *args, **kwargs):
+        kwargs.setdefault("formatter_class", _Formatter)
+        super().__init__(*args, **kwargs)
+
     def error(self, message):  # argparse would print and sys.exit(2)
         raise UsageError(f"{message}\n{self.format_usage().strip()}")
 
@@ -355,32 +370,47 @@ def cmd_fsm(args, env: Environment) -> int:
     return EXIT_OK
 
 
+def version_text() -> str:
+    """``irl --version``: the package, and the formats a peer must share with it."""
+    from importlib import metadata
+
+    from compiler.objcode import FORMAT_VERSION
+    from runtime.protocol import VERSION
+
+    try:
+        version = metadata.version("irl")
+    except metadata.PackageNotFoundError:  # (run from a source tree that is not installed)
+        version = "unknown (not installed)"
+    return f"irl {version} (object code format {FORMAT_VERSION}, protocol {VERSION})"
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = _Parser(prog="irl", description="L-IRL robot programs: compile, inspect, run.")
+    parser.add_argument("--version", action="version", version=version_text())
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
     sub.required = True
 
     p = sub.add_parser("check", help="check a program; print every diagnostic")
-    p.add_argument("file", metavar="FILE.irl")
+    p.add_argument("file", metavar="FILE.irl", help="the program")
     p.add_argument("--spec", metavar="FILE.spc", help="use this system specification instead of the program's")
     p.add_argument("--json", action="store_true", help="diagnostics as a JSON list (for editors)")
     p.set_defaults(run=cmd_check)
 
     p = sub.add_parser("compile", help="compile a program to object code (.irlo)")
-    p.add_argument("file", metavar="FILE.irl")
+    p.add_argument("file", metavar="FILE.irl", help="the program")
     p.add_argument("-o", "--output", metavar="OUT.irlo", help="default: beside the source, suffix .irlo")
     p.add_argument("--spec", metavar="FILE.spc", help="use this system specification instead of the program's")
     p.add_argument("--json", action="store_true", help="diagnostics as a JSON list")
     p.set_defaults(run=cmd_compile)
 
     p = sub.add_parser("dis", help="disassemble object code (or compile a program and disassemble it)")
-    p.add_argument("file", metavar="FILE.irlo|FILE.irl")
+    p.add_argument("file", metavar="FILE.irlo|FILE.irl", help="the object code, or a program to compile first")
     p.add_argument("--spec", metavar="FILE.spc", help="for FILE.irl: the system specification to use")
     p.add_argument("--json", action="store_true", help="the listing as JSON")
     p.set_defaults(run=cmd_dis)
 
     p = sub.add_parser("run", help="run a program on the simulated robot, through every phase")
-    p.add_argument("file", metavar="FILE.irl|FILE.irlo")
+    p.add_argument("file", metavar="FILE.irl|FILE.irlo", help="the program, or its object code (then --spec)")
     p.add_argument("--spec", metavar="FILE.spc", help="the robot's specification (needed for FILE.irlo)")
     p.add_argument("--report", metavar="OUT.csv", help="write the report (and OUT.states.csv)")
     p.add_argument("--plot", metavar="OUT.png", help="draw the report (needs --report and matplotlib)")
@@ -416,17 +446,20 @@ def build_parser() -> argparse.ArgumentParser:
     p.set_defaults(run=cmd_latency)
 
     p = sub.add_parser("plot", help="draw a report: position over time per axis, phases shaded")
-    p.add_argument("report", metavar="REPORT.csv")
-    p.add_argument("-o", "--output", metavar="FIG.png", required=True)
+    p.add_argument("report", metavar="REPORT.csv", help="a report written by irl run --report or irl submit --report")
+    p.add_argument("-o", "--output", metavar="FIG.png", required=True, help="where to draw it (PNG, PDF or SVG)")
     p.set_defaults(run=cmd_plot)
 
     p = sub.add_parser("fsm", help="print the supervisor's state machine as a diagram")
-    p.add_argument("--format", choices=("mermaid", "dot"), default="mermaid")
+    p.add_argument("--format", choices=("mermaid", "dot"), default="mermaid", help="the diagram's language")
     p.set_defaults(run=cmd_fsm)
 
     from runtime.netcli import add_commands  # light: ZeroMQ is imported when a command runs
 
     add_commands(sub)
+    helps = {choice.dest: choice.help for choice in sub._choices_actions}
+    for name, command in sub.choices.items():  # each command's own help starts with what it does
+        command.description = command.description or helps.get(name)
     return parser
 
 

@@ -4,6 +4,7 @@ keys. ZeroMQ is imported only when one of them runs (``irl check`` stays light).
 from __future__ import annotations
 
 import json
+import os
 import time
 from pathlib import Path
 
@@ -151,15 +152,23 @@ def cmd_submit(args, env) -> int:
     try:
         reply = _call(client, "submit", {"object": data, "name": name})
         job = reply["program"]
-        cli._print(env, f"program {job} queued on {args.endpoint} ({name})")
+        if not args.json:
+            cli._print(env, f"program {job} queued on {args.endpoint} ({name})")
         if not args.wait:
+            if args.json:
+                cli._print(env, json.dumps({"program": job, "queued": reply["queued"], "endpoint": args.endpoint}))
             return cli.EXIT_OK
-        final = _wait(client, job, env)
+        final = _wait(client, job, env, quiet=args.json)
         if args.report:
             out = Path(args.report)
             client.download(job, "report", out)
             client.download(job, "states", out.with_suffix(".states.csv"))
             cli._err(env, f"report written to {out}")
+        if args.json:
+            cli._print(env, json.dumps(final, default=str))
+            return cli.EXIT_OK if final["state"] == "completed" else cli.EXIT_INVALID
+        for entry in (final.get("summary") or {}).get("log", []):  # the program's print output
+            cli._print(env, f"  [{entry['time']:8.3f} s] line {entry['line']}: {entry['text']}")
         if final["state"] == "completed":
             summary = final.get("summary") or {}
             cli._print(env, f"program {job} completed: {len(summary.get('moves', []))} moves, final position "
@@ -171,10 +180,11 @@ def cmd_submit(args, env) -> int:
         client.close()
 
 
-def _wait(client, job: int, env) -> dict:
-    """Poll the program's status, showing one progress line, until it has ended."""
+def _wait(client, job: int, env, quiet: bool = False) -> dict:
+    """Poll the program's status, showing one progress line (unless ``quiet``), until it
+    has ended."""
     cli = _cli()
-    tty = hasattr(env.stdout, "isatty") and env.stdout.isatty()
+    tty = hasattr(env.stdout, "isatty") and env.stdout.isatty() and not quiet
     last = None
     while True:
         status = _call(client, "status", {"program": job})
@@ -189,7 +199,7 @@ def _wait(client, job: int, env) -> dict:
             moves = f"{status.get('moves_done', 0)}/{total if total is not None else '?'}"
             paused = " (paused)" if status.get("paused") else ""
             line = f"program {job}: {status.get('fsm', '')}  line {status.get('line', 0)}  moves {moves}{paused}"
-        if line != last:
+        if line != last and not quiet:
             if tty:
                 env.stdout.write("\r\x1b[K" + line)
                 env.stdout.flush()
@@ -418,18 +428,25 @@ def cmd_keys(args, env) -> int:
 
 # ---- the parsers ----------------------------------------------------------------------------------
 def add_commands(sub) -> None:
+    endpoint = os.environ.get("IRL_ENDPOINT") or DEFAULT_ENDPOINT
+    telemetry_endpoint = os.environ.get("IRL_TELEMETRY") or DEFAULT_TELEMETRY
+
     def connection(p, telemetry: bool = False):
-        p.add_argument("--endpoint", default=DEFAULT_ENDPOINT, metavar="E",
-                       help=f"the server's request endpoint (default {DEFAULT_ENDPOINT})")
+        p.add_argument("--endpoint", default=endpoint, metavar="E",
+                       help=f"the server's request endpoint (default: $IRL_ENDPOINT, else {DEFAULT_ENDPOINT}; "
+                            f"now {endpoint})")
         if telemetry:
-            p.add_argument("--telemetry", default=DEFAULT_TELEMETRY, metavar="E",
-                           help=f"the server's telemetry endpoint (default {DEFAULT_TELEMETRY})")
+            p.add_argument("--telemetry", default=telemetry_endpoint, metavar="E",
+                           help=f"the server's telemetry endpoint (default: $IRL_TELEMETRY, else "
+                                f"{DEFAULT_TELEMETRY}; now {telemetry_endpoint})")
         p.add_argument("--keys", metavar="DIR", help="CURVE keys (made by 'irl keys DIR')")
         p.add_argument("--timeout", type=float, default=5.0, metavar="S", help="seconds to wait for a reply")
 
     p = sub.add_parser("serve", help="serve a robot (the simulated one) on the network")
-    p.add_argument("--endpoint", default=DEFAULT_ENDPOINT, metavar="E", help="request endpoint to bind")
-    p.add_argument("--telemetry", default=DEFAULT_TELEMETRY, metavar="E", help="telemetry endpoint to bind")
+    p.add_argument("--endpoint", default=DEFAULT_ENDPOINT, metavar="E", help="request endpoint to bind (default: "
+                   "%(default)s)")
+    p.add_argument("--telemetry", default=DEFAULT_TELEMETRY, metavar="E", help="telemetry endpoint to bind (default: "
+                   "%(default)s)")
     p.add_argument("--spec", required=True, metavar="FILE.spc", help="the robot's specification")
     p.add_argument("--config", metavar="FILE.toml", help="component configurations (see docs/runtime.md)")
     p.add_argument("--state-dir", metavar="DIR", help="calibration and reports (default ~/.local/state/irl)")
@@ -452,18 +469,20 @@ def add_commands(sub) -> None:
     p.set_defaults(run=cmd_serve)
 
     p = sub.add_parser("submit", help="send a program to a server's queue")
-    p.add_argument("file", metavar="FILE.irl|FILE.irlo")
+    p.add_argument("file", metavar="FILE.irl|FILE.irlo", help="the program (compiled here) or its object code")
     p.add_argument("--spec", metavar="FILE.spc", help="for FILE.irl: the system specification to use")
     p.add_argument("--wait", action="store_true", help="show progress until the program ends; exit 1 unless "
                                                        "it completed")
     p.add_argument("--report", metavar="OUT.csv", help="with --wait: fetch the program's report")
     p.add_argument("--cell", metavar="CELL.toml", help="send to the robot the program's act_rob names")
+    p.add_argument("--json", action="store_true",
+                   help="print one JSON object: the queued program (with --wait: its final status and summary)")
     connection(p)
     p.set_defaults(run=cmd_submit)
 
     p = sub.add_parser("status", help="the robot, the queue and the programs (or one program)")
-    p.add_argument("program", nargs="?", type=int, metavar="ID")
-    p.add_argument("--json", action="store_true")
+    p.add_argument("program", nargs="?", type=int, metavar="ID", help="one program (default: the whole server)")
+    p.add_argument("--json", action="store_true", help="the reply as one JSON object")
     connection(p)
     p.set_defaults(run=cmd_status)
 
@@ -473,15 +492,17 @@ def add_commands(sub) -> None:
         p = sub.add_parser(name, help=text)
         connection(p)
         p.set_defaults(run=fn)
-    for name, fn, text, arg, kind, metavar in (
-            ("abort", cmd_abort, "stop the running program (controlled stop; or remove a queued one)", "program", int, "ID"),
+    for name, fn, text, arg, kind, metavar, what in (
+            ("abort", cmd_abort, "stop the running program (controlled stop; or remove a queued one)", "program", int,
+             "ID", "the program (default: the running one)"),
             ("override", cmd_override, "speed override (percent), also of the move under way", "percent", float,
-             "PCT"),
+             "PCT", "1 to 100"),
             ("reconfigure", cmd_reconfigure, "switch to another named configuration between programs", "name", str,
-             "NAME"),
-            ("call", cmd_call, "one scripting command, e.g. 'servo.kp' or 'servo.kp = 30'", "text", str, "TEXT")):
+             "NAME", "a configuration of the server's --config file"),
+            ("call", cmd_call, "one scripting command, e.g. 'servo.kp' or 'servo.kp = 30'", "text", str, "TEXT",
+             "the command ('help' lists the forms)")):
         p = sub.add_parser(name, help=text)
-        p.add_argument(arg, type=kind, metavar=metavar, **({"nargs": "?"} if name == "abort" else {}))
+        p.add_argument(arg, type=kind, metavar=metavar, help=what, **({"nargs": "?"} if name == "abort" else {}))
         connection(p)
         p.set_defaults(run=fn)
 
@@ -499,7 +520,7 @@ def add_commands(sub) -> None:
     p.set_defaults(run=cmd_console)
 
     p = sub.add_parser("keys", help="make CURVE key pairs for a server and its clients")
-    p.add_argument("directory", metavar="DIR")
+    p.add_argument("directory", metavar="DIR", help="where to make (or add) the key files")
     p.add_argument("--name", default=None, metavar="NAME",
                    help="make only a client key pair called NAME (default: the server's and a client's)")
     p.set_defaults(run=cmd_keys)

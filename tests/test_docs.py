@@ -8,6 +8,7 @@
 """
 from __future__ import annotations
 
+import io
 import re
 from pathlib import Path
 
@@ -289,3 +290,41 @@ def test_docgen_check_and_write(tmp_path, monkeypatch):
     assert docgen.main(["--check"]) == 0
     assert "| emergency stop | 1 |" in page.read_text(encoding="utf-8")
     assert docgen.main([]) == 2
+
+
+def _doc_programs():
+    """(page, line, text) of every whole program in a code block of docs/ (a block whose
+    first line is ``program name;``; the grammar's ``program NAME;`` outline is not one)."""
+    found = []
+    for page in sorted((ROOT / "docs").glob("*.md")):
+        lines = page.read_text(encoding="utf-8").splitlines()
+        inside, start, block = False, 0, []
+        for number, line in enumerate(lines, 1):
+            if line.startswith("```"):
+                if inside and block and re.match(r"program [a-z_][a-z0-9_]*;", block[0]):
+                    found.append((page.name, start + 1, "\n".join(block) + "\n"))
+                inside, start, block = not inside, number, []
+            elif inside:
+                block.append(line)
+    return found
+
+
+DOC_PROGRAMS = _doc_programs()
+
+
+@pytest.mark.parametrize("page, line, text", DOC_PROGRAMS, ids=[f"{p}:{n}" for p, n, _ in DOC_PROGRAMS])
+def test_every_program_in_the_docs_compiles_and_runs_to_completion(tmp_path, page, line, text):
+    import shutil
+
+    from runtime.cli import Environment, main
+
+    shutil.copy(ROOT / "programs" / "lola15.spc", tmp_path / "lola15.spc")
+    source = tmp_path / "example.irl"
+    source.write_text(text, encoding="utf-8")
+    out, err = io.StringIO(), io.StringIO()
+    code = main(["run", str(source)], Environment(stdout=out, stderr=err))
+    assert code == 0, f"docs/{page}:{line}: the example does not run:\n{out.getvalue()[:600]}{err.getvalue()}"
+
+
+def test_the_docs_hold_programs_to_run():
+    assert any(page == "language.md" for page, _, _ in DOC_PROGRAMS)

@@ -218,6 +218,25 @@ def _print_summary(env: Environment, s: dict) -> None:
                 f"kernels: {s['kernels']})")
 
 
+def _on_pause(args, env: Environment):
+    """What a ``pause;`` of the program leads to under irl run: on a terminal, ask (Enter
+    resumes, 'abort' aborts); else, or with --on-pause, resume or abort at once."""
+    stdin = env.stdin
+    choice = args.on_pause or ("ask" if stdin is not None and stdin.isatty() else "resume")
+
+    why = f"--on-pause {choice}" if args.on_pause else "not a terminal; --on-pause ask|resume|abort chooses"
+
+    def decide(line: int) -> str:
+        if choice != "ask":
+            _err(env, f"irl run: line {line}: paused by the program: {choice.rstrip('e')}ed ({why})")
+            return choice
+        env.stderr.write(f"irl run: line {line}: paused by the program. Enter resumes, 'abort' Enter aborts: ")
+        env.stderr.flush()
+        answer = stdin.readline()
+        return "abort" if answer.strip().lower() == "abort" or not answer else "resume"
+    return decide
+
+
 def cmd_run(args, env: Environment) -> int:
     if args.plot and not args.report:
         raise UsageError("--plot needs --report (the plot is drawn from the report)")
@@ -270,8 +289,9 @@ def cmd_run(args, env: Environment) -> int:
                          deadline_policy=args.deadline_policy, cell=cell, fieldbus=fieldbus)
     if args.realtime:
         _err(env, f"irl run: {realtime.apply(wanted)}")
+    on_pause = _on_pause(args, env)
     try:
-        summary = RobotSystem(spec, options).run(program)
+        summary = RobotSystem(spec, options).run(program, on_pause)
     except ValueError as exc:  # refused at load time (e.g. a move kind not supported yet)
         _err(env, f"{args.file}: {exc}")
         return EXIT_INVALID
@@ -420,6 +440,9 @@ def build_parser() -> argparse.ArgumentParser:
                         "toggle on a timeline (see docs/runtime.md); the report gains the io columns")
     p.add_argument("--fieldbus", metavar="FILE.toml",
                    help="the digital I/O on a PLC over Modbus TCP (see docs/runtime.md); needs --realtime")
+    p.add_argument("--on-pause", choices=("ask", "resume", "abort"),
+                   help="what the program's 'pause;' leads to (default: ask on a terminal: Enter resumes; "
+                        "else resume)")
     p.add_argument("--seed", type=int, default=0, help="the simulated robot's seed (power-up position, offsets)")
     p.add_argument("--state-dir", metavar="DIR", help="remember the calibration in DIR across runs")
     p.add_argument("--max-time", type=float, default=3600.0, metavar="S", help="stop the run after S seconds")

@@ -34,8 +34,21 @@ def read_report(path: str | Path):
     return times, [r[1] for r in body], columns
 
 
-def phases(times, states):
-    """[(start, end, name)] of consecutive rows in the same top-level state."""
+def phases(times, states, transitions=()):
+    """[(start, end, name)] of the top-level states: from the states file's transitions
+    ``(time, from, to)`` when given (every phase, Start Robot too, which ends before the
+    report's first row), else from consecutive rows in the same state."""
+    if transitions:
+        out = []
+        end = float(times[-1]) if len(times) else 0.0
+        for t, _source, target in transitions:
+            top = target.split("/")[0]
+            if out and out[-1][2] == top:
+                continue
+            if out:
+                out[-1][1] = t
+            out.append([t, end, top])
+        return [tuple(p) for p in out]
     out = []
     for t, s in zip(times, states):
         top = s.split("/")[0]
@@ -44,6 +57,36 @@ def phases(times, states):
         else:
             out.append([t, t, top])
     return [tuple(p) for p in out]
+
+
+def read_transitions(report: str | Path) -> list[tuple[float, str, str]]:
+    """The report's states file (``<report>.states.csv``), if it is there and readable."""
+    path = Path(report).with_suffix(".states.csv")
+    try:
+        with open(path, newline="", encoding="utf-8") as f:
+            rows = list(csv.reader(f))[1:]
+        return [(float(r[0]), r[1], r[2]) for r in rows if len(r) == 3]
+    except (OSError, ValueError):
+        return []
+
+
+def label_rows(spans, total: float, chars_per_axis: float = 130.0) -> list[int]:
+    """A row (0, 1, 2...) for each phase label so that no two labels overlap: a label
+    about ``len(name)`` characters wide, of ``chars_per_axis`` across the axis."""
+    rows: list[int] = []
+    ends: list[float] = []  # per row: where its last label ends (axis fraction)
+    for t0, t1, name in spans:
+        centre = ((t0 + t1) / 2) / total if total > 0 else 0.0
+        half = len(name) / chars_per_axis / 2
+        for row, end in enumerate(ends):
+            if centre - half > end:
+                ends[row] = centre + half
+                rows.append(row)
+                break
+        else:
+            ends.append(centre + half)
+            rows.append(len(ends) - 1)
+    return rows
 
 
 def io_lanes(cols) -> list[str]:
@@ -113,21 +156,23 @@ def plot_report(report: str | Path, output: str | Path) -> None:
     if has_tcp:
         _tcp_views(fig, grid, rows, times, states, cols)
     colors = ["#dde8f5", "#f5e6d3", "#e1f0dc", "#f3dbe7", "#ececec"]
-    spans = phases(times, states)
+    spans = phases(times, states, read_transitions(report))
     for ax in panels[:, 0]:
         for k, (t0, t1, phase) in enumerate(spans):
             ax.axvspan(t0, t1, color=colors[k % len(colors)], lw=0)
     if lanes:
         _io_panel(panels[-1, 0], times, cols, lanes)
     for ax, name in zip(panels[:, 0], moving):
-        ax.plot(times, cols[f"desi_pos_{name}"], lw=0.8, ls="--", color="#888888", label="reference")
-        ax.plot(times, cols[f"sens_pos_{name}"], lw=1.2, color="#1f4e99", label="encoder")
+        ax.plot(times, cols[f"sens_pos_{name}"], lw=2.2, color="#1f4e99", alpha=0.55, label="encoder")
+        ax.plot(times, cols[f"desi_pos_{name}"], lw=0.9, ls="--", color="#d35400", label="reference")
         ax.set_ylabel(f"{name} (deg)")
         ax.grid(alpha=0.3)
     top = panels[0, 0]
-    for t0, t1, phase in spans:
-        top.text((t0 + t1) / 2, 1.02, phase, transform=top.get_xaxis_transform(), ha="center", va="bottom",
-                 fontsize=8)
+    end = max(float(times[-1]) if len(times) else 0.0, spans[-1][1] if spans else 0.0)
+    top.set_xlim(0.0, end)
+    for (t0, t1, phase), row in zip(spans, label_rows(spans, end)):
+        top.text((t0 + t1) / 2, 1.02 + 0.14 * row, phase, transform=top.get_xaxis_transform(), ha="center",
+                 va="bottom", fontsize=8)
     panels[0, 0].legend(loc="lower right", fontsize=7)
     for ax in panels[:-1, 0]:
         ax.tick_params(labelbottom=False)

@@ -234,8 +234,12 @@ class RobotSystem:
             summary["fault"] = summary["fault"] or error
         return summary
 
-    def run(self, program: Program) -> dict:
-        """Power-up to Stop Robot with ``program``; returns the summary (see ``summary``)."""
+    def run(self, program: Program, on_pause=None) -> dict:
+        """Power-up to Stop Robot with ``program``; returns the summary (see ``summary``).
+        ``on_pause(line) -> "resume" | "abort"`` decides what each ``pause;`` of the
+        program leads to (None: the program waits for a resume that nothing here sends,
+        until ``max_time``). On the simulated clock time stands still while it decides; on
+        the wall clock the loop runs on (the robot held) and it decides on a thread."""
         self.begin(program, self.options.report)
         max_ticks = int(self.options.max_time / TICK)
         sup = self.supervisor
@@ -252,7 +256,16 @@ class RobotSystem:
         if self.options.realtime:
             sys.setswitchinterval(0.0005)
         try:
-            self.executive.run(lambda: sup.done, max_ticks)
+            if on_pause is None:
+                self.executive.run(lambda: sup.done, max_ticks)
+            else:
+                held = self._held_by_program
+                left = max_ticks
+                while True:
+                    left -= self.executive.run(lambda: sup.done or held(), left)
+                    if sup.done or left <= 0:
+                        break
+                    left -= self._decide(on_pause, left)
             if not sup.done:  # the time limit: stop through Stop Robot like any other fault
                 sup.request_stop(f"the run did not end within {self.options.max_time:g} s")
                 self.executive.run(lambda: sup.done, int(5.0 / TICK))
@@ -265,6 +278,29 @@ class RobotSystem:
                 gc.enable()
             gc.unfreeze()
         return self.finish()
+
+    def _held_by_program(self) -> bool:
+        vm = self.trajectory.vm
+        return vm is not None and vm.paused and not self.trajectory.motion.paused
+
+    def _decide(self, on_pause, left: int) -> int:
+        """Not real-time: the program paused itself: ask ``on_pause``, then resume or
+        abort; returns the ticks run meanwhile (wall clock: the loop goes on)."""
+        line = self.trajectory.line
+        if self.clock.simulated:
+            choice, ticks = on_pause(line), 0
+        else:
+            import threading
+
+            box: list = []
+            threading.Thread(target=lambda: box.append(on_pause(line)), name="irl-pause", daemon=True).start()
+            ticks = self.executive.run(lambda: self.supervisor.done or bool(box), left)
+            choice = box[0] if box else "abort"
+        if self.supervisor.done:
+            return ticks
+        if choice != "resume" or not self.trajectory.resume():
+            self.trajectory.abort("aborted at the program's pause")
+        return ticks
 
     def summary(self, wall_time: float) -> dict:
         sup = self.supervisor

@@ -73,3 +73,77 @@ def test_submit_json_and_wait_shows_the_programs_print_output(tmp_path, monkeypa
         assert final["summary"]["log"][0]["text"] == "hello from the robot"
     finally:
         assert server.stop() == 0, server.log()
+
+
+def test_the_plot_shows_all_five_phases_from_the_states_file(tmp_path):
+    from runtime.plot import phases, read_report, read_transitions
+
+    code, _, err = run("run", ROOT / "programs" / "test.irl", "--report", tmp_path / "r.csv", "--plot",
+                       tmp_path / "r.png")
+    assert code == 0, err
+    times, states, _ = read_report(tmp_path / "r.csv")
+    names = [name for _t0, _t1, name in phases(times, states, read_transitions(tmp_path / "r.csv"))]
+    assert names == ["Start Robot", "Calibrate Offsets", "Initialization Sequence", "Move Robot", "Stop Robot"]
+    assert (tmp_path / "r.png").stat().st_size > 10_000
+
+
+from hypothesis import given, strategies as st  # noqa: E402
+
+
+@given(st.lists(st.tuples(st.floats(0.0, 10.0), st.text(min_size=1, max_size=30)), min_size=1, max_size=8))
+def test_phase_labels_never_overlap(raw):
+    from runtime.plot import label_rows
+
+    spans, t = [], 0.0
+    for width, name in raw:
+        spans.append((t, t + width, name))
+        t += width
+    total = max(t, 1e-9)
+    rows = label_rows(spans, total)
+    placed: dict[int, list[tuple[float, float]]] = {}
+    for (t0, t1, name), row in zip(spans, rows):
+        centre, half = (t0 + t1) / 2 / total, len(name) / 130.0 / 2
+        for a, b in placed.get(row, []):
+            assert centre - half > b or centre + half < a, (spans, rows)
+        placed.setdefault(row, []).append((centre - half, centre + half))
+
+
+PAUSING = """program pausing;
+system_specification "{spec}";
+seq
+  move ptp joint(mainjoint(10, -30, 30, 0, 60, 0));
+  pause;
+  print "after the pause";
+endseq
+endprogram;
+"""
+
+
+def _pausing(tmp_path) -> Path:
+    path = tmp_path / "pausing.irl"
+    path.write_text(PAUSING.format(spec=ROOT / "programs" / "lola15.spc"), encoding="utf-8")
+    return path
+
+
+def test_a_pause_under_irl_run_resumes_or_aborts_as_asked_instead_of_idling_for_an_hour(tmp_path):
+    path = _pausing(tmp_path)
+    code, out, err = run("run", path, "--json")  # not a terminal: resumes, and says so
+    summary = json.loads(out)
+    assert code == 0 and summary["log"][-1]["text"] == "after the pause" and summary["sim_time"] < 60, summary
+    assert "paused by the program: resumed (not a terminal" in err
+    code, out, err = run("run", path, "--on-pause", "abort", "--json")
+    summary = json.loads(out)
+    assert code == 1 and summary["fault"] == "Move Robot: aborted at the program's pause at line 5", summary
+
+
+def test_on_a_terminal_a_pause_waits_for_enter_and_abort_aborts(tmp_path):
+    class Terminal(io.StringIO):
+        def isatty(self):
+            return True
+
+    path = _pausing(tmp_path)
+    for answer, code_wanted in (("\n", 0), ("abort\n", 1)):
+        out, err = io.StringIO(), io.StringIO()
+        code = main(["run", str(path)], Environment(stdout=out, stderr=err, stdin=Terminal(answer)))
+        assert code == code_wanted, (answer, out.getvalue(), err.getvalue())
+        assert "paused by the program. Enter resumes" in err.getvalue()

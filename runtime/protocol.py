@@ -15,7 +15,13 @@ import math
 
 import msgpack
 
-VERSION = 1
+VERSION = 2  # the newest version this runtime speaks
+#: Every version it speaks: a request says its own (``v``), and the reply has the same.
+VERSIONS = (1, 2)
+#: The longest a ``wait`` may wait (s).
+MAX_WAIT = 3600.0
+#: Telemetry messages kept for ``telemetry`` replay (about 100 s of samples at 10 ms).
+TELEMETRY_HISTORY = 10_000
 
 #: Largest request the server takes (bytes); bigger ones get a ``too_large`` error.
 MAX_REQUEST_BYTES = 1 << 20
@@ -49,6 +55,7 @@ ERRORS = {
 _INT, _NUM, _STR, _BIN = (int,), (int, float), (str,), (bytes,)
 
 #: op -> {argument: (types, required, description)}, and the op's description.
+#: (:data:`SINCE` says which protocol version brought an op; the others are in every version.)
 OPS: dict[str, tuple[dict[str, tuple[tuple, bool, str]], str]] = {
     "hello": ({}, "who the server is: protocol version, robot, specification hash, clock, configurations"),
     "status": ({"program": (_INT, False, "a program id: that program only")},
@@ -56,8 +63,10 @@ OPS: dict[str, tuple[dict[str, tuple[tuple, bool, str]], str]] = {
     "submit": ({"object": (_BIN, True, "the object code (an .irlo file's bytes)"),
                 "name": (_STR, False, "a name to show for the program (e.g. its file name)")},
                "verify the object code and queue it; returns its id"),
-    "pause": ({}, "hold the running program; a move under way comes to a controlled stop"),
-    "resume": ({}, "continue the paused program (the interrupted move is finished first)"),
+    "pause": ({"program": (_INT, False, "the program meant (refused if another one runs)")},
+              "hold the running program; a move under way comes to a controlled stop"),
+    "resume": ({"program": (_INT, False, "the program meant (refused if another one is paused)")},
+               "continue the paused program (the interrupted move is finished first)"),
     "abort": ({"program": (_INT, False, "a queued program to remove instead of the running one")},
               "bring the running program to a controlled stop and end it (or remove a queued one)"),
     "estop": ({}, "emergency stop: brakes on and drives off now; the running program and the queue are ended"),
@@ -71,7 +80,18 @@ OPS: dict[str, tuple[dict[str, tuple[tuple, bool, str]], str]] = {
                 "file": (_STR, False, "\"report\" (default) or \"states\""),
                 "offset": (_INT, False, "byte offset to read from (default 0)")},
                f"a chunk (at most {MAX_CHUNK_BYTES} bytes) of a program's report CSV"),
+    "wait": ({"program": (_INT, True, "a program id"),
+              "timeout": (_NUM, False, f"seconds to wait at most, more than 0, at most {MAX_WAIT:g} (default 60)")},
+             "answer when the program has ended (its status, with the summary), or at the timeout (its status "
+             "then, with \"timed_out\": true)"),
+    "telemetry": ({"since": (_INT, False, "a telemetry seq: the messages after it (default: none, the latest "
+                                         "sample only)")},
+                  f"the latest telemetry sample, and the messages after ``since`` from a history of the last "
+                  f"{TELEMETRY_HISTORY} (a subscriber that joined late or lost messages catches up)"),
 }
+
+#: The ops a protocol version brought (every other op is in every version).
+SINCE = {"wait": 2, "telemetry": 2}
 
 
 class ProtocolError(Exception):
@@ -82,6 +102,7 @@ class ProtocolError(Exception):
         self.code = code
         self.message = message
         self.request_id = request_id
+        self.version: int | None = None  # the request's protocol version, once read
 
 
 def pack(obj) -> bytes:
@@ -95,6 +116,22 @@ def _valid_id(value) -> bool:
 
 def decode_request(payload: bytes) -> tuple[object, str, dict]:
     """``(request id, op, args)`` of a request, or ProtocolError with what is wrong."""
+    request_id, op, args, _version = decode(payload)
+    return request_id, op, args
+
+
+def decode(payload: bytes) -> tuple[object, str, dict, int]:
+    """``(request id, op, args, version)`` of a request, or ProtocolError with what is
+    wrong (its ``version``: the request's when it could be read, for the reply)."""
+    try:
+        return _decode(payload)
+    except ProtocolError as exc:
+        if exc.version is None:
+            exc.version = VERSION
+        raise
+
+
+def _decode(payload: bytes) -> tuple[object, str, dict, int]:
     if len(payload) > MAX_REQUEST_BYTES:
         raise ProtocolError("too_large", f"the request has {len(payload)} bytes; the limit is {MAX_REQUEST_BYTES}")
     try:
@@ -108,14 +145,27 @@ def decode_request(payload: bytes) -> tuple[object, str, dict]:
     if not _valid_id(request_id):
         raise ProtocolError("bad_request", "\"id\" must be an integer or a string of at most 256 characters")
     version = message.get("v")
-    if version != VERSION or isinstance(version, bool):
+    if version not in VERSIONS or isinstance(version, bool):
         raise ProtocolError("bad_version", f"protocol version {version!r} is not supported; this server speaks "
-                                           f"version {VERSION}", request_id)
+                                           f"versions {', '.join(map(str, VERSIONS))}", request_id)
+    try:
+        op, args = _operation(message, request_id, version)
+    except ProtocolError as exc:
+        exc.version = version
+        raise
+    return request_id, op, args, version
+
+
+def _operation(message: dict, request_id, version: int) -> tuple[str, dict]:
     op = message.get("op")
     if not isinstance(op, str):
         raise ProtocolError("bad_request", "\"op\" must be a string", request_id)
-    if op not in OPS:
-        raise ProtocolError("unknown_op", f"unknown operation {op[:64]!r}; known: {', '.join(OPS)}", request_id)
+    if op not in OPS or SINCE.get(op, 1) > version:
+        if op in OPS:
+            raise ProtocolError("unknown_op", f"{op!r} is an operation of protocol version {SINCE[op]}; the "
+                                              f"request says \"v\": {version}", request_id)
+        known = [name for name in OPS if SINCE.get(name, 1) <= version]
+        raise ProtocolError("unknown_op", f"unknown operation {op[:64]!r}; known: {', '.join(known)}", request_id)
     args = message.get("args", {})
     if not isinstance(args, dict):
         raise ProtocolError("bad_request", f"\"args\" must be a map, got {type(args).__name__}", request_id)
@@ -135,23 +185,23 @@ def decode_request(payload: bytes) -> tuple[object, str, dict]:
                 (isinstance(value, float) and not math.isfinite(value)):
             raise ProtocolError("bad_request", f"{op}: argument {name!r} must be {_kind(types)}, "
                                                f"got {type(value).__name__}", request_id)
-    return request_id, op, args
+    return op, args
 
 
 def _kind(types: tuple) -> str:
     return {_INT: "an integer", _NUM: "a finite number", _STR: "a string", _BIN: "binary (msgpack bin)"}[types]
 
 
-def ok(request_id, result) -> bytes:
-    return pack({"v": VERSION, "id": request_id, "ok": True, "result": result})
+def ok(request_id, result, version: int = VERSION) -> bytes:
+    return pack({"v": version, "id": request_id, "ok": True, "result": result})
 
 
-def error(request_id, code: str, message: str) -> bytes:
-    return pack({"v": VERSION, "id": request_id, "ok": False, "error": {"code": code, "message": message}})
+def error(request_id, code: str, message: str, version: int = VERSION) -> bytes:
+    return pack({"v": version, "id": request_id, "ok": False, "error": {"code": code, "message": message}})
 
 
-def request(op: str, args: dict | None = None, request_id=None) -> bytes:
-    message = {"v": VERSION, "op": op, "args": args or {}}
+def request(op: str, args: dict | None = None, request_id=None, version: int = VERSION) -> bytes:
+    message = {"v": version, "op": op, "args": args or {}}
     if request_id is not None:
         message["id"] = request_id
     return pack(message)

@@ -112,15 +112,26 @@ class RobotLoop:
         gc.disable()
         return {"t": system.clock.now()}
 
+    def _meant(self, m: dict) -> None:
+        """Refuse a command meant for another program than the running one."""
+        wanted = m.get("program")
+        if wanted is not None and wanted != self.job:
+            raise ProtocolError("refused", f"program {wanted} is not the running program"
+                                           + (f" (program {self.job} is)" if self.job is not None else ""))
+
     def _pause(self, m: dict) -> dict:
         system = self.system
+        self._meant(m)
         if self.job is None or system.supervisor.fsm.state != MOVE:
             raise ProtocolError("refused", "no program is moving the robot")
+        if system.trajectory.paused:
+            raise ProtocolError("refused", f"program {self.job} is already paused")
         if not system.trajectory.pause():
             raise ProtocolError("refused", "the program cannot be paused now (it is ending)")
         return {"program": self.job, "paused": True}
 
     def _resume(self, m: dict) -> dict:
+        self._meant(m)
         if self.job is None or not self.system.trajectory.resume():
             raise ProtocolError("refused", "no program is paused")
         return {"program": self.job, "paused": False}

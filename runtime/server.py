@@ -25,6 +25,7 @@ turn by turn: one turn is one tick.
 from __future__ import annotations
 
 import collections
+import itertools
 import logging
 import os
 import signal
@@ -179,13 +180,24 @@ class LoopCommand:
     command's name and arguments (runtime.robotloop.COMMANDS); the loop's reply becomes
     the client's (through ``finish``, when given, for what the server adds to it)."""
 
-    __slots__ = ("op", "args", "finish", "failed")
+    __slots__ = ("op", "args", "finish", "failed", "version")
 
     def __init__(self, op: str, finish=None, failed=None, **args):
         self.op = op
         self.args = args
         self.finish = finish  # result -> the client's result (may raise ProtocolError)
         self.failed = failed  # called with the loop's refusal
+        self.version = protocol.VERSION  # the request's protocol version (its reply's)
+
+
+class Wait:
+    """What ``op_wait`` returns: answer when ``program`` has ended, or at ``deadline``."""
+
+    __slots__ = ("program", "deadline")
+
+    def __init__(self, program: int, deadline: float):
+        self.program = program
+        self.deadline = deadline
 
 
 class LoopGone(Exception):
@@ -217,6 +229,9 @@ class Server:
         self._shutdown_deadline: float | None = None
         self.telemetry_seq = 0
         self.telemetry_sent = 0
+        self.telemetry_history: collections.deque = collections.deque(maxlen=protocol.TELEMETRY_HISTORY)
+        self.last_sample: dict | None = None
+        self.waiters: list = []  # (Wait, identity, request id, version) of unanswered waits
         self.loop_scheduling: str | None = None
         self.loop_gone: str | None = None  # why the loop process ended (then no program runs)
         self.loop = self.process = self.channel = None
@@ -370,13 +385,13 @@ class Server:
             try:
                 if command.finish is not None:
                     result = command.finish(result)
-                reply = protocol.ok(request_id, result)
+                reply = protocol.ok(request_id, result, command.version)
             except ProtocolError as exc:
-                reply = protocol.error(request_id, exc.code, exc.message)
+                reply = protocol.error(request_id, exc.code, exc.message, command.version)
         else:
             if command.failed is not None:
                 command.failed(message)
-            reply = protocol.error(request_id, message["code"], message["message"])
+            reply = protocol.error(request_id, message["code"], message["message"], command.version)
         if identity is not None:
             self._reply(identity, reply)
 
@@ -405,6 +420,7 @@ class Server:
         self.loop.turn()
         for message in self._receive():
             self._on_loop(message)
+        self._answer_waiters()
         return True
 
     def request_shutdown(self, reason: str = "the server is shutting down") -> None:
@@ -462,6 +478,7 @@ class Server:
         log.info("program %d %s%s", job.id, job.state, f": {job.fault}" if job.fault else "")
         self._publish({"kind": "event", "event": "program", "program": job.id, "state": job.state,
                        "fault": job.fault})
+        self._answer_waiters()
 
     def _retire(self, job: Job) -> None:
         job.program = job.object = None  # the code is not needed any more
@@ -475,6 +492,9 @@ class Server:
         message["v"] = protocol.VERSION
         message["seq"] = self.telemetry_seq
         message.setdefault("t", self.snapshot.get("t", 0.0))
+        self.telemetry_history.append(message)  # (for replay: the telemetry request)
+        if message["kind"] == "sample":
+            self.last_sample = message
         if self.pub is None:  # not bound (driven turn by turn, in-process)
             return
         try:
@@ -565,10 +585,11 @@ class Server:
                     log.error("the robot did not come to rest within %g s of the shutdown: emergency stop",
                               SHUTDOWN_TIMEOUT)
                     self._send_loop(LoopCommand("estop"))
-                self._poll_requests(5 if self.channel.pending else 200, poller)
+                self._poll_requests(5 if self.channel.pending else (50 if self.waiters else 200), poller)
                 for message in self._receive():
                     self._on_loop(message)
                 self.channel.flush()
+                self._answer_waiters()
             except LoopGone as exc:
                 log.error("%s: the server answers requests but runs no program; restart it", exc)
                 poller.unregister(self.channel.fileno())
@@ -621,29 +642,63 @@ class Server:
         identity = frames[:-1]
         payload = frames[-1]
         request_id = None
+        version = protocol.VERSION
         try:
             if len(frames) > 3:
                 raise ProtocolError("bad_message", "expected one message frame (after the envelope)")
-            request_id, op, args = protocol.decode_request(payload)
+            request_id, op, args, version = protocol.decode(payload)
             handler = getattr(self, f"op_{op}")
             result = handler(args)
             if isinstance(result, LoopCommand):  # to be carried out by the loop
                 if self.loop_gone is not None:
                     raise ProtocolError("refused", f"{self.loop_gone}: restart irl serve")
+                result.version = version
                 self.commands.append((identity, request_id, result))
                 return
-            reply = protocol.ok(request_id, result)
+            if isinstance(result, Wait):  # answered when the program ends (or at the deadline)
+                self.waiters.append((result, identity, request_id, version))
+                self._answer_waiters()
+                return
+            reply = protocol.ok(request_id, result, version)
         except ProtocolError as exc:
             reply = protocol.error(exc.request_id if exc.request_id is not None else request_id, exc.code,
-                                   exc.message)
+                                   exc.message, exc.version or version)
         except Exception as exc:  # a bug: answer and keep serving
             log.exception("request failed")
-            reply = protocol.error(request_id, "internal", f"{type(exc).__name__}: {exc}")
+            reply = protocol.error(request_id, "internal", f"{type(exc).__name__}: {exc}", version)
         self._reply(identity, reply)
+
+    def _answer_waiters(self, now: float | None = None) -> None:
+        """Answer every ``wait`` whose program has ended, or whose deadline has passed."""
+        if not self.waiters:
+            return
+        now = time.monotonic() if now is None else now
+        keep = []
+        for entry in self.waiters:
+            wait, identity, request_id, version = entry
+            job = self.jobs.get(wait.program)
+            ended = job is None or job.state not in ("queued", "running")
+            if not ended and now < wait.deadline:
+                keep.append(entry)
+                continue
+            if job is None:
+                reply = protocol.error(request_id, "not_found", f"no program {wait.program} (finished programs are "
+                                                                f"kept for the last {HISTORY})", version)
+            else:
+                result = self._running(job) if job is self.current else job.as_dict()
+                if not ended:
+                    result["timed_out"] = True
+                reply = protocol.ok(request_id, result, version)
+            if identity is not None:
+                self._reply(identity, reply)
+            else:
+                self.outbox.append((identity, reply))
+        self.waiters = keep
 
     # ---- operations (a LoopCommand result is carried out by the loop) ----------------------------
     def op_hello(self, args: dict) -> dict:
-        return {"protocol": protocol.VERSION, "robot": self.spec.name, "spec_hash": self.spec.hash,
+        return {"protocol": protocol.VERSION, "protocols": list(protocol.VERSIONS), "robot": self.spec.name,
+                "spec_hash": self.spec.hash,
                 "axes": [a.name for a in self.spec.axes],
                 "clock": "simulated" if self.options.sim_clock else "wall",
                 "configuration": self.configuration,
@@ -723,10 +778,38 @@ class Server:
         return {"program": job.id, "queued": len(self.queue)}
 
     def op_pause(self, args: dict) -> LoopCommand:
-        return LoopCommand("pause")
+        return LoopCommand("pause", program=args.get("program"))
 
     def op_resume(self, args: dict) -> LoopCommand:
-        return LoopCommand("resume")
+        return LoopCommand("resume", program=args.get("program"))
+
+    def op_wait(self, args: dict) -> Wait:
+        timeout = float(args.get("timeout", 60.0))
+        if not 0.0 < timeout <= protocol.MAX_WAIT:
+            raise ProtocolError("bad_request", f"wait: timeout must be more than 0 and at most "
+                                               f"{protocol.MAX_WAIT:g} s, got {timeout:g}")
+        if args["program"] not in self.jobs:
+            raise ProtocolError("not_found", f"no program {args['program']} (ids start at 1; finished programs "
+                                             f"are kept for the last {HISTORY})")
+        return Wait(args["program"], time.monotonic() + timeout)
+
+    #: The most telemetry messages one ``telemetry`` reply carries (ask again from the last).
+    REPLAY_CHUNK = 2000
+
+    def op_telemetry(self, args: dict) -> dict:
+        result = {"seq": self.telemetry_seq, "sample": self.last_sample}
+        since = args.get("since")
+        if since is not None:
+            if not 0 <= since <= self.telemetry_seq:
+                raise ProtocolError("bad_request", f"telemetry: since must be a seq from 0 to the latest, "
+                                                   f"{self.telemetry_seq}, got {since}")
+            history = self.telemetry_history
+            oldest = history[0]["seq"] if history else self.telemetry_seq + 1
+            start = max(since + 1, oldest)
+            messages = [m for m in itertools.islice(history, start - oldest, None)][:self.REPLAY_CHUNK]
+            result.update(messages=messages, missing=start - (since + 1),
+                          more=bool(messages) and messages[-1]["seq"] < self.telemetry_seq)
+        return result
 
     def op_abort(self, args: dict):
         wanted = args.get("program")

@@ -345,7 +345,7 @@ def _malformed_requests(rng: random.Random, count: int, good_object: bytes):
         elif kind == 3:  # map without "op"
             out.append(([pack({"v": v, "id": rid, "args": {}})], rid, "bad_request"))
         elif kind == 4:  # wrong version
-            bad_v = rng.choice([0, 2, -1, "1", True, None, [1], 2**40, "v1"])
+            bad_v = rng.choice([0, max(protocol.VERSIONS) + 1, -1, "1", True, None, [1], 2**40, "v1"])
             out.append(([pack({"v": bad_v, "id": rid, "op": "hello"})], rid, "bad_version"))
         elif kind == 5:  # unknown op, sometimes huge
             op = rng.choice(["helo", "STATUS", "", "submit ", "op_hello", "__init__",

@@ -22,6 +22,8 @@ VERSIONS = (1, 2)
 MAX_WAIT = 3600.0
 #: Telemetry messages kept for ``telemetry`` replay (about 100 s of samples at 10 ms).
 TELEMETRY_HISTORY = 10_000
+#: Control's lease (s): it ends this long after its holder's last request.
+MIN_LEASE, DEFAULT_LEASE, MAX_LEASE = 0.5, 10.0, 3600.0
 
 #: Largest request the server takes (bytes); bigger ones get a ``too_large`` error.
 MAX_REQUEST_BYTES = 1 << 20
@@ -52,7 +54,7 @@ ERRORS = {
 }
 
 # Argument kinds: name -> (python types, description for the docs)
-_INT, _NUM, _STR, _BIN = (int,), (int, float), (str,), (bytes,)
+_INT, _NUM, _STR, _BIN, _BOOL = (int,), (int, float), (str,), (bytes,), (bool,)
 
 #: op -> {argument: (types, required, description)}, and the op's description.
 #: (:data:`SINCE` says which protocol version brought an op; the others are in every version.)
@@ -84,6 +86,13 @@ OPS: dict[str, tuple[dict[str, tuple[tuple, bool, str]], str]] = {
               "timeout": (_NUM, False, f"seconds to wait at most, more than 0, at most {MAX_WAIT:g} (default 60)")},
              "answer when the program has ended (its status, with the summary), or at the timeout (its status "
              "then, with \"timed_out\": true)"),
+    "control": ({"take": (_BOOL, True, "true: take control of the robot; false: give it back"),
+                 "name": (_STR, False, "who you are, shown to the clients that are refused (default: your "
+                                       "connection's id)"),
+                 "lease": (_NUM, False, f"seconds the control lasts without a request from you, "
+                                        f"{MIN_LEASE:g} to {MAX_LEASE:g} (default {DEFAULT_LEASE:g})")},
+                "one controlling client at a time: while one holds control, the others may only read (and "
+                "estop); control ends when given back, or after its lease without a request from its holder"),
     "telemetry": ({"since": (_INT, False, "a telemetry seq: the messages after it (default: none, the latest "
                                          "sample only)")},
                   f"the latest telemetry sample, and the messages after ``since`` from a history of the last "
@@ -91,7 +100,10 @@ OPS: dict[str, tuple[dict[str, tuple[tuple, bool, str]], str]] = {
 }
 
 #: The ops a protocol version brought (every other op is in every version).
-SINCE = {"wait": 2, "telemetry": 2}
+SINCE = {"wait": 2, "telemetry": 2, "control": 2}
+#: The ops that control the robot: refused to every client but the holder while one holds
+#: control (``estop`` never is: an emergency stop is open to every client).
+CONTROLLING = frozenset({"submit", "pause", "resume", "abort", "override", "call", "reconfigure"})
 
 
 class ProtocolError(Exception):
@@ -181,7 +193,7 @@ def _operation(message: dict, request_id, version: int) -> tuple[str, dict]:
                 raise ProtocolError("bad_request", f"{op}: missing argument {name!r}", request_id)
             continue
         value = args[name]
-        if isinstance(value, bool) or not isinstance(value, types) or \
+        if (isinstance(value, bool) and types is not _BOOL) or not isinstance(value, types) or \
                 (isinstance(value, float) and not math.isfinite(value)):
             raise ProtocolError("bad_request", f"{op}: argument {name!r} must be {_kind(types)}, "
                                                f"got {type(value).__name__}", request_id)
@@ -189,7 +201,8 @@ def _operation(message: dict, request_id, version: int) -> tuple[str, dict]:
 
 
 def _kind(types: tuple) -> str:
-    return {_INT: "an integer", _NUM: "a finite number", _STR: "a string", _BIN: "binary (msgpack bin)"}[types]
+    return {_INT: "an integer", _NUM: "a finite number", _STR: "a string", _BIN: "binary (msgpack bin)",
+            _BOOL: "true or false"}[types]
 
 
 def ok(request_id, result, version: int = VERSION) -> bytes:

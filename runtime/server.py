@@ -232,6 +232,7 @@ class Server:
         self.telemetry_history: collections.deque = collections.deque(maxlen=protocol.TELEMETRY_HISTORY)
         self.last_sample: dict | None = None
         self.waiters: list = []  # (Wait, identity, request id, version) of unanswered waits
+        self.controller: tuple | None = None  # (client id, name, lease s, last request) of control's holder
         self.loop_scheduling: str | None = None
         self.loop_gone: str | None = None  # why the loop process ended (then no program runs)
         self.loop = self.process = self.channel = None
@@ -647,8 +648,10 @@ class Server:
             if len(frames) > 3:
                 raise ProtocolError("bad_message", "expected one message frame (after the envelope)")
             request_id, op, args, version = protocol.decode(payload)
+            client = frames[0]
+            self._check_control(client, op, args)
             handler = getattr(self, f"op_{op}")
-            result = handler(args)
+            result = self.op_control(args, client) if op == "control" else handler(args)
             if isinstance(result, LoopCommand):  # to be carried out by the loop
                 if self.loop_gone is not None:
                     raise ProtocolError("refused", f"{self.loop_gone}: restart irl serve")
@@ -667,6 +670,51 @@ class Server:
             log.exception("request failed")
             reply = protocol.error(request_id, "internal", f"{type(exc).__name__}: {exc}", version)
         self._reply(identity, reply)
+
+    def _check_control(self, client: bytes, op: str, args: dict) -> None:
+        """Refuse a controlling request from a client that does not hold control while
+        another one does; a request from the holder renews its lease."""
+        holder = self.controller
+        if holder is None:
+            return
+        owner, name, lease, last = holder
+        now = time.monotonic()
+        if now - last > lease:  # the holder went quiet (or away): control ends
+            log.info("control of %s ended: no request for %g s", name, lease)
+            self.controller = None
+            return
+        if client == owner:
+            self.controller = (owner, name, lease, now)
+            return
+        if op in protocol.CONTROLLING and not (op == "call" and self._reads_only(args)):
+            raise ProtocolError("refused", f"{name} holds control of the robot (for {lease - (now - last):.1f} s "
+                                           "more without a request from it): this client may read, and estop")
+        if op == "control" and args.get("take"):
+            raise ProtocolError("refused", f"{name} holds control of the robot")
+
+    @staticmethod
+    def _reads_only(args: dict) -> bool:
+        from .scripting import CallOperation, SetProperty, ScriptError, parse
+
+        try:
+            return not isinstance(parse(args["text"]), (SetProperty, CallOperation))
+        except ScriptError:
+            return True  # (answered with its script_error)
+
+    def op_control(self, args: dict, client: bytes = b"") -> dict:
+        if not args["take"]:
+            if self.controller is not None and self.controller[0] == client:
+                log.info("control given back by %s", self.controller[1])
+                self.controller = None
+            return {"control": False}
+        lease = float(args.get("lease", protocol.DEFAULT_LEASE))
+        if not protocol.MIN_LEASE <= lease <= protocol.MAX_LEASE:
+            raise ProtocolError("bad_request", f"control: lease must be from {protocol.MIN_LEASE:g} to "
+                                               f"{protocol.MAX_LEASE:g} s, got {lease:g}")
+        name = str(args.get("name") or f"client {client.hex()[:16]}")[:100]
+        self.controller = (client, name, lease, time.monotonic())
+        log.info("control taken by %s (lease %g s)", name, lease)
+        return {"control": True, "name": name, "lease": lease}
 
     def _answer_waiters(self, now: float | None = None) -> None:
         """Answer every ``wait`` whose program has ended, or whose deadline has passed."""
@@ -735,6 +783,7 @@ class Server:
                 "calibration": snap.get("calibration"), "initialization": snap.get("initialization"),
                 "position": snap.get("position"), "inputs": snap.get("inputs"), "outputs": snap.get("outputs"),
                 "shutting_down": self.stop_reason is not None,
+                "control": self.controller[1] if self.controller is not None else None,
                 "loop_gone": self.loop_gone}
 
     def _check_queue_room(self) -> None:

@@ -117,3 +117,37 @@ def test_pause_names_its_program_and_a_second_pause_is_refused(tmp_path):
     finally:
         client.close()
         assert server.stop() == 0, server.log()
+
+
+def test_one_controlling_client_at_a_time_observers_read_and_estop_and_the_lease_ends_control(tmp_path):
+    server = ServerProcess(tmp_path / "server", tmp_path / "state", sim_clock=True).start()
+    owner, other = RawClient(server.endpoint, 2), RawClient(server.endpoint, 2)
+    try:
+        taken = owner.call("control", take=True, name="cell PLC gateway", lease=1.0)["result"]
+        assert taken == {"control": True, "name": "cell PLC gateway", "lease": 1.0}
+        assert other.call("status")["result"]["control"] == "cell PLC gateway"
+        for op, args in (("submit", {"object": objcode(PROGRAMS / "short.irl")}), ("pause", {}),
+                         ("override", {"percent": 50}), ("call", {"text": "trajectory.budget = 500"}),
+                         ("control", {"take": True})):
+            refused = other.call(op, **args)
+            assert refused["error"]["code"] == "refused" and "cell PLC gateway" in refused["error"]["message"], op
+        assert other.call("call", text="trajectory.budget")["ok"]  # a read
+        assert other.call("estop")["ok"]  # open to everyone
+        job = owner.call("submit", object=objcode(PROGRAMS / "short.irl"))["result"]["program"]
+        assert owner.call("wait", program=job, timeout=120)["result"]["state"] == "completed"
+        assert owner.call("control", take=False)["result"] == {"control": False}
+        assert other.call("override", percent=80)["ok"]  # nobody holds it: everyone controls
+
+        assert owner.call("control", take=True, lease=0.5)["ok"]
+        assert other.call("override", percent=70)["error"]["code"] == "refused"
+        time.sleep(0.8)  # the holder sends nothing: its lease ends
+        assert other.call("override", percent=60)["ok"]
+        assert other.call("status")["result"]["control"] is None
+        assert owner.call("control", take=True, lease=0.1)["error"]["code"] == "bad_request"
+        v1 = RawClient(server.endpoint, 1)
+        assert v1.call("control", take=True)["error"]["code"] == "unknown_op"
+        v1.close()
+    finally:
+        owner.close()
+        other.close()
+        assert server.stop() == 0, server.log()

@@ -46,7 +46,6 @@ from .system import RunOptions
 log = logging.getLogger("irl.serve")
 
 HISTORY = 200  # finished programs kept for status
-SHUTDOWN_TIMEOUT = 15.0  # s the server waits for the robot to come to rest on shutdown (then: estop)
 LOOP_START_TIMEOUT = 30.0  # s the server waits for the loop process to be ready
 
 
@@ -225,8 +224,7 @@ class Server:
         self._ref = 0
         self.snapshot: dict = {}  # the loop's latest
         self.stop_reason: str | None = None
-        self._stopping = False  # the running program was told to stop for the shutdown
-        self._shutdown_deadline: float | None = None
+        self._stopping = False  # the loop was told to stop the running program and end (shutdown)
         self.telemetry_seq = 0
         self.telemetry_sent = 0
         self.telemetry_history: collections.deque = collections.deque(maxlen=protocol.TELEMETRY_HISTORY)
@@ -405,9 +403,10 @@ class Server:
             if self.queue and self.loop_gone is None:
                 self._start_next()
         elif self.stop_reason is not None and not self._stopping:
+            # the loop stops the program on its path, and makes it an emergency stop if the
+            # robot is not at rest within robotloop.EXIT_TIMEOUT
             self._stopping = True
-            self._shutdown_deadline = time.monotonic() + SHUTDOWN_TIMEOUT
-            self._send_loop(LoopCommand("abort", reason=self.stop_reason))
+            self._send_loop(LoopCommand("exit", reason=self.stop_reason))
         return True
 
     def turn(self, idle_wait: bool = True) -> bool:
@@ -474,7 +473,6 @@ class Server:
         else:
             job.state = "faulted"
         self.current = None
-        self._shutdown_deadline = None
         self._retire(job)
         log.info("program %d %s%s", job.id, job.state, f": {job.fault}" if job.fault else "")
         self._publish({"kind": "event", "event": "program", "program": job.id, "state": job.state,
@@ -581,11 +579,6 @@ class Server:
                 continue
             try:
                 self._forward()
-                if self._shutdown_deadline is not None and time.monotonic() > self._shutdown_deadline:
-                    self._shutdown_deadline = None  # once: the emergency stop's ramp ends the cycle
-                    log.error("the robot did not come to rest within %g s of the shutdown: emergency stop",
-                              SHUTDOWN_TIMEOUT)
-                    self._send_loop(LoopCommand("estop"))
                 self._poll_requests(5 if self.channel.pending else (50 if self.waiters else 200), poller)
                 for message in self._receive():
                     self._on_loop(message)
@@ -737,10 +730,7 @@ class Server:
                 if not ended:
                     result["timed_out"] = True
                 reply = protocol.ok(request_id, result, version)
-            if identity is not None:
-                self._reply(identity, reply)
-            else:
-                self.outbox.append((identity, reply))
+            self._reply(identity, reply)
         self.waiters = keep
 
     # ---- operations (a LoopCommand result is carried out by the loop) ----------------------------

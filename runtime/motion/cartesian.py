@@ -29,6 +29,7 @@ from math import ceil
 from typing import Mapping, Sequence
 
 import numpy as np
+import numpy.ma  # noqa: F401  (np.unique imports it on its first call: in a tick, that is file I/O)
 
 from compiler.values import Joint
 

@@ -45,8 +45,9 @@ CHANGES = ("specification", "configuration", "live")
 TICK = 0.001  # s: every period is a whole multiple of the executive's tick
 PERIOD_MIN, PERIOD_MAX = 0.001, 1.0
 REPORT_COLUMNS = ("sens_pos", "desi_pos", "out_vel", "following_error", "tcp")
-#: Columns a report may also have (not by default): io, every digital input then output (0/1).
-REPORT_COLUMNS_OPTIONAL = ("io",)
+#: Columns a report may also have (not by default): io, every digital input then output (0/1);
+#: move, the number and source line of the program's move under way (runtime.components.report).
+REPORT_COLUMNS_OPTIONAL = ("io", "move")
 
 
 class ParamError(ValueError):
@@ -276,7 +277,9 @@ PARAMS: tuple[Param, ...] = (
     _p("report", "columns", "columns", list(REPORT_COLUMNS), choices=REPORT_COLUMNS + REPORT_COLUMNS_OPTIONAL,
        change="configuration",
        doc="signals logged in each row, in this order (tcp: x, y, z, roll, pitch, yaw of the tool; io: every "
-           "digital input, then output, 0 or 1; added by a cell scenario)"),
+           "digital input, then output, 0 or 1; added by a cell scenario; move: move, the number of the program's "
+           "move under way or last started (from 1; 0 before the first), and line, the source line of the move "
+           "under way (0 when none is))"),
 )
 
 _BY_SECTION: dict[str, dict[str, Param]] = {}

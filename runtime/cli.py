@@ -240,6 +240,8 @@ def _on_pause(args, env: Environment):
 def cmd_run(args, env: Environment) -> int:
     if args.plot and not args.report:
         raise UsageError("--plot needs --report (the plot is drawn from the report)")
+    if args.report_columns is not None and not args.report:
+        raise UsageError("--report-columns needs --report (it chooses the report's columns)")
     loaded = _load_program(args.file, args.spec, env)
     if loaded is None:
         return EXIT_INVALID
@@ -284,6 +286,7 @@ def cmd_run(args, env: Environment) -> int:
             fieldbus = load_fieldbus(args.fieldbus, spec)
         except FieldbusError as exc:
             raise UsageError(f"--fieldbus: {exc}") from None
+    columns = _report_columns(args.report_columns, spec) if args.report_columns is not None else None
     options = RunOptions(seed=args.seed, realtime=args.realtime, report=args.report, state_dir=args.state_dir,
                          max_time=args.max_time, faults=faults, override=args.override,
                          deadline_policy=args.deadline_policy, cell=cell, fieldbus=fieldbus)
@@ -291,7 +294,12 @@ def cmd_run(args, env: Environment) -> int:
         _err(env, f"irl run: {realtime.apply(wanted)}")
     on_pause = _on_pause(args, env)
     try:
-        summary = RobotSystem(spec, options).run(program, on_pause)
+        system = RobotSystem(spec, options)
+        if columns is not None:
+            add, names = columns
+            system.report.columns = [*system.report.columns, *(n for n in names if n not in system.report.columns)] \
+                if add else names
+        summary = system.run(program, on_pause)
     except ValueError as exc:  # refused at load time (e.g. a move kind not supported yet)
         _err(env, f"{args.file}: {exc}")
         return EXIT_INVALID
@@ -305,6 +313,25 @@ def cmd_run(args, env: Environment) -> int:
     if plot_status:
         return plot_status
     return EXIT_INVALID if summary["fault"] else EXIT_OK
+
+
+def _report_columns(text: str, spec) -> tuple[bool, list[str]]:
+    """``--report-columns``: (whether they add to the report's own, the column groups),
+    checked as a configuration's ``report.columns`` is."""
+    from compiler.params import ParamError, component_params
+
+    add = text.startswith("+")
+    names = [name.strip() for name in (text[1:] if add else text).split(",") if name.strip()]
+    try:
+        names = component_params("report")["columns"].check(names)
+    except ParamError as exc:
+        raise UsageError(f"--report-columns {text}: {exc.reason}") from None
+    if "tcp" in names:
+        from runtime.components.report import _forward_kinematics
+
+        if _forward_kinematics(spec) is None:
+            raise UsageError(f"--report-columns {text}: this robot's kinematics give no tool centre point (tcp)")
+    return add, names
 
 
 def _plot(report: str, out: str, env: Environment) -> int:
@@ -434,6 +461,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--spec", metavar="FILE.spc", help="the robot's specification (needed for FILE.irlo)")
     p.add_argument("--report", metavar="OUT.csv", help="write the report (and OUT.states.csv)")
     p.add_argument("--plot", metavar="OUT.png", help="draw the report (needs --report and matplotlib)")
+    p.add_argument("--report-columns", metavar="LIST",
+                   help="the report's column groups, comma-separated, in order (default: sens_pos,desi_pos,out_vel,"
+                        "following_error,tcp, and io with a cell or fieldbus); +LIST adds to them: +move records "
+                        "each move's number and line, which irl plot marks")
     p.add_argument("--realtime", action="store_true", help="run on the wall clock (default: simulated clock)")
     p.add_argument("--cell-scenario", metavar="FILE.toml",
                    help="what the simulated cell does with the digital I/O: inputs that follow outputs, latch or "

@@ -21,9 +21,10 @@ The exchange runs **off the loop**, on a thread of its own: every ``poll`` secon
 reads every input and writes the outputs when the program changed them (all of them again
 after a reconnection). The loop only reads the last inputs and sets the outputs it wants
 (plain assignments, never a wait). The connection is supervised: when no exchange has
-succeeded for ``timeout`` seconds, :meth:`ModbusIo.lost` says why and the robot system
-stops the robot (category 1, as an emergency stop) and ends the program with that
-fault; a program does not start while the PLC cannot be reached. The PLC lives in real
+succeeded for ``timeout`` seconds, :meth:`ModbusIo.lost` says why and the io component
+(runtime/components/io.py, whose backend this is) has the robot system stop the robot
+(category 1, as an emergency stop) and end the program with that fault; a program does
+not start while the PLC cannot be reached. The PLC lives in real
 time: a fieldbus needs the wall clock.
 """
 from __future__ import annotations
@@ -34,6 +35,7 @@ import time
 from dataclasses import dataclass
 from pathlib import Path
 
+from .components.io import IoBackend
 from .timing import FIELDBUS_POLL, TICK
 
 __all__ = ["FIELDS", "FieldbusError", "ModbusConfig", "ModbusIo", "load_fieldbus"]
@@ -140,9 +142,11 @@ def markdown() -> str:
     return "\n".join(lines) + "\n"
 
 
-class ModbusIo:
-    """The robot's I/O on the PLC, as the loop sees it (the same interface as the
-    simulated robot's: ``input``, ``set_output``, ``inputs``, ``outputs``)."""
+class ModbusIo(IoBackend):
+    """The robot's I/O on the PLC, as the loop sees it: a backend of the io component
+    (runtime.components.io.IoBackend, as the simulated robot's own I/O is: ``inputs``,
+    ``outputs``, ``input``, ``set_output``, ``lost``; and ``start``, ``close``,
+    ``wait_connected`` for its exchange thread)."""
 
     def __init__(self, config: ModbusConfig, n_inputs: int, n_outputs: int):
         self.config = config

@@ -1,5 +1,11 @@
 """``irl plot``: one panel per moving axis, position over time, the FSM's phases shaded
-and labelled, as the paper's Figure 6 shows; when the report has the tool centre point
+and labelled, as the paper's Figure 6 shows; the homing steps (the sub-states of
+Initialization Sequence the report's ``state`` column names: Find Sensors, Find Index, Go
+To Start) as a thin band along the top of the first panel, each named; when the report has
+the ``move`` columns (``report.columns``, or ``irl run --report-columns +move``), a thin
+vertical line on every panel where each of the program's moves starts, labelled with its
+source line (``L12``) on the first panel. The labels (phases, homing steps, moves) are
+stacked in rows so that none overlaps another. When the report has the tool centre point
 (the ``tcp`` columns), a path view beside them: the TCP during Move Robot seen from above
 (x-y) and from the side (x-z), so Cartesian programs show their lines and arcs; when it
 has the ``io`` columns, a lane per digital input (green) and output (red) that is ever on.
@@ -8,6 +14,13 @@ from __future__ import annotations
 
 import csv
 from pathlib import Path
+
+
+HOMING = "Initialization Sequence"  # the phase whose sub-states are the homing steps
+STEP_BAND = ("#b8c4d6", "#8a9bb5")  # the homing steps' band, alternating
+STEP_COLOR = "#4a5a78"  # the homing steps' labels
+MOVE_COLOR = "#7b1fa2"  # the moves' start lines and labels
+MARK_ROWS = 4  # rows of homing-step and move labels at most
 
 
 class PlotError(Exception):
@@ -57,6 +70,41 @@ def phases(times, states, transitions=()):
         else:
             out.append([t, t, top])
     return [tuple(p) for p in out]
+
+
+def homing_steps(times, states, parent: str = HOMING) -> list[tuple[float, float, str]]:
+    """[(start, end, step)] of the sub-states of ``parent`` (the homing steps), from the
+    report's ``state`` column (``Initialization Sequence/Find Index``; the states file
+    lists the top-level transitions only): a step runs from its first row to the first
+    row in another state (or the report's last row)."""
+    out: list[list] = []
+    prefix = parent + "/"
+    for t, s in zip(times, states):
+        step = s[len(prefix):] if s.startswith(prefix) else None
+        if out and out[-1][1] is None:  # a step is open
+            if step == out[-1][2]:
+                continue
+            out[-1][1] = float(t)
+        if step:
+            out.append([float(t), None, step])
+    if out and out[-1][1] is None:
+        out[-1][1] = float(times[-1])
+    return [tuple(step) for step in out]
+
+
+def move_starts(times, cols) -> list[tuple[float, int, int]]:
+    """[(time, move, line)]: the first row of each of the program's moves, from the report's
+    ``move`` columns (none without them): where ``move`` goes up, and the move's source line
+    (``line``; 0 if the move ended before the row)."""
+    if "move" not in cols or "line" not in cols:
+        return []
+    out = []
+    last = 0
+    for t, number, line in zip(times, cols["move"], cols["line"]):
+        if number > last:
+            out.append((float(t), int(number), int(line)))
+            last = number
+    return out
 
 
 def read_transitions(report: str | Path) -> list[tuple[float, str, str]]:
@@ -133,6 +181,21 @@ def _tcp_views(fig, grid, rows: int, times, states, cols) -> None:
 
 
 def plot_report(report: str | Path, output: str | Path) -> None:
+    """Draw ``report`` into ``output`` (PNG, PDF or SVG: by its suffix)."""
+    fig = figure(report)
+    import matplotlib.pyplot as plt
+
+    try:
+        Path(output).parent.mkdir(parents=True, exist_ok=True)
+        fig.savefig(output, dpi=110)
+    except OSError as exc:
+        raise PlotError(f"cannot write {output}: {exc.strerror or exc}") from None
+    finally:
+        plt.close(fig)
+
+
+def figure(report: str | Path):
+    """The matplotlib figure of ``report`` (the caller closes it)."""
     try:
         import matplotlib
 
@@ -157,9 +220,14 @@ def plot_report(report: str | Path, output: str | Path) -> None:
         _tcp_views(fig, grid, rows, times, states, cols)
     colors = ["#dde8f5", "#f5e6d3", "#e1f0dc", "#f3dbe7", "#ececec"]
     spans = phases(times, states, read_transitions(report))
+    steps = homing_steps(times, states)
+    starts = move_starts(times, cols)
     for ax in panels[:, 0]:
         for k, (t0, t1, phase) in enumerate(spans):
             ax.axvspan(t0, t1, color=colors[k % len(colors)], lw=0)
+        for k, (t, _number, _line) in enumerate(starts):
+            ax.axvline(t, color=MOVE_COLOR, lw=0.7, ls=":", zorder=1,
+                       label="move start (its line)" if k == 0 and ax is first else None)
     if lanes:
         _io_panel(panels[-1, 0], times, cols, lanes)
     for ax, name in zip(panels[:, 0], moving):
@@ -170,8 +238,20 @@ def plot_report(report: str | Path, output: str | Path) -> None:
     top = panels[0, 0]
     end = max(float(times[-1]) if len(times) else 0.0, spans[-1][1] if spans else 0.0)
     top.set_xlim(0.0, end)
+    for k, (t0, t1, _step) in enumerate(steps):  # the homing steps: a thin band along the top
+        top.axvspan(t0, t1, ymin=0.94, ymax=1.0, color=STEP_BAND[k % len(STEP_BAND)], lw=0)
+    # just above the first panel: the homing steps' and the moves' labels, then the phases'
+    marks = sorted([(t0, t1, step, STEP_COLOR) for t0, t1, step in steps]
+                   + [(t, t, f"L{line}" if line else f"#{number}", MOVE_COLOR) for t, number, line in starts],
+                   key=lambda mark: mark[0] + mark[1])
+    # (many short moves: the labels beyond MARK_ROWS rows are left out, not their lines)
+    shown = [(mark, row) for mark, row in zip(marks, label_rows([m[:3] for m in marks], end)) if row < MARK_ROWS]
+    for (t0, t1, text, color), row in shown:
+        top.text((t0 + t1) / 2, 1.01 + 0.11 * row, text, transform=top.get_xaxis_transform(), ha="center",
+                 va="bottom", fontsize=7, color=color)
+    base = 1.02 + 0.11 * (max(row for _mark, row in shown) + 1) if shown else 1.02
     for (t0, t1, phase), row in zip(spans, label_rows(spans, end)):
-        top.text((t0 + t1) / 2, 1.02 + 0.14 * row, phase, transform=top.get_xaxis_transform(), ha="center",
+        top.text((t0 + t1) / 2, base + 0.14 * row, phase, transform=top.get_xaxis_transform(), ha="center",
                  va="bottom", fontsize=8)
     panels[0, 0].legend(loc="lower right", fontsize=7)
     for ax in panels[:-1, 0]:
@@ -179,10 +259,4 @@ def plot_report(report: str | Path, output: str | Path) -> None:
     panels[-1, 0].set_xlabel("time (s)")
     fig.suptitle(f"{Path(report).name}: positions read from the encoders, by FSM phase", y=0.995)
     fig.tight_layout()
-    try:
-        Path(output).parent.mkdir(parents=True, exist_ok=True)
-        fig.savefig(output, dpi=110)
-    except OSError as exc:
-        raise PlotError(f"cannot write {output}: {exc.strerror or exc}") from None
-    finally:
-        plt.close(fig)
+    return fig

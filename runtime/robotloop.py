@@ -194,6 +194,8 @@ class RobotLoop:
         """Between two ticks: the queued commands (at most COMMANDS_PER_TICK); then one
         tick of the running cycle (real-time), or an idle snapshot now and then."""
         commands = self.commands
+        if self.job is None:  # no cycle, no io task: the I/O's ports as the backend has it now (a PLC's)
+            self.system.io.refresh()
         for _ in range(COMMANDS_PER_TICK):
             if not commands:
                 break
@@ -228,7 +230,8 @@ class RobotLoop:
         while self._seen_log < len(lines):
             at, line, text = lines[self._seen_log]
             self._seen_log += 1
-            self.send({"kind": "event", "event": "log", "line": line, "text": text, "at": at, "t": t})
+            self.send({"kind": "event", "event": "log", "program": self.job, "line": line, "text": text, "at": at,
+                       "t": t})
         self.send(self.snapshot(), True)
 
     def snapshot(self) -> dict:
@@ -238,7 +241,7 @@ class RobotLoop:
         snap = {"kind": "snapshot", "t": system.clock.now(), "job": self.job,
                 "state": system.supervisor.fsm.path() if self.job is not None else "Idle",
                 "position": list(system.robot.positions),
-                "inputs": list(system.io.inputs), "outputs": list(system.io.outputs),
+                "inputs": list(system.io.inputs.read()), "outputs": list(system.io.outputs.read()),
                 "calibrated": memory.calibrated, "initialized": memory.initialized,
                 "calibration": memory.calibration_why, "initialization": memory.initialization_why}
         if self.job is not None:

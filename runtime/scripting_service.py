@@ -19,6 +19,7 @@ from __future__ import annotations
 
 from compiler.params import ParamError
 
+from .component import DataPort
 from .protocol import ProtocolError
 from .scripting import (
     HELP_TEXT, CallOperation, Components, GetProperty, Help, ScriptError, SetProperty, format_value, parse,
@@ -93,53 +94,6 @@ class ServerTarget:
         return f"reconfiguration to {result['requested']!r} queued as {result['program']}"
 
 
-class IoTarget:
-    """The digital I/O (``io``): ``io.in[3]`` and ``io.out[3]`` read one input or output;
-    ``io.in[3] = true`` forces an input by hand, on the simulated robot only (a real
-    input is the cell's: it cannot be forced from the network). Outputs are the
-    program's: read-only. A cell scenario's rule may change a forced input again."""
-
-    name = "io"
-    PROPERTIES: dict = {}
-    READ_ONLY = {"inputs": "every digital input (input n at index n - 1)",
-                 "outputs": "every digital output (output n at index n - 1)"}
-    #: element-wise properties: name -> (what, writable)
-    INDEXED = {"in": ("a digital input, numbered from 1", True), "out": ("a digital output, numbered from 1", False)}
-    OPERATIONS = ()
-    lifecycle = None
-
-    def __init__(self, loop):
-        self.loop = loop
-
-    @property
-    def inputs(self):
-        return list(self.loop.system.io.inputs)
-
-    @property
-    def outputs(self):
-        return list(self.loop.system.io.outputs)
-
-    def element(self, name: str, n: int) -> bool:
-        values = self.inputs if name == "in" else self.outputs
-        if not 1 <= n <= len(values):
-            raise IndexError(f"io.{name}[{n}]: there is no {'input' if name == 'in' else 'output'} {n} "
-                             f"(1..{len(values)})")
-        return values[n - 1]
-
-    def force(self, n: int, value) -> None:
-        """Between ticks: set input ``n`` on the simulated robot."""
-        from .sim.robot import SimRobot
-
-        backend = self.loop.system.io
-        if not isinstance(backend, SimRobot):
-            raise PermissionError("an input is forced on the simulated robot only; on hardware or a fieldbus the "
-                                  "cell sets it")
-        if not isinstance(value, bool):
-            raise TypeError(f"io.in[{n}]: expected true or false, got {format_value(value)}")
-        self.element("in", n)  # (the range check)
-        backend.set_input(n, value)
-
-
 #: Operations of the components that the network may never call (the others: only while
 #: no program runs).
 NEVER = {("robot", "release_brakes"): "the brakes are released only by Start Robot, when a program begins"}
@@ -156,10 +110,13 @@ def _operation_refused(job: int | None, component: str, name: str, target) -> st
 
 
 def loop_targets(loop) -> dict:
-    """What a script reaches in the loop (runtime.robotloop.RobotLoop)."""
+    """What a script reaches in the loop (runtime.robotloop.RobotLoop). The digital I/O
+    (``io``) is the io component itself (runtime.components.io: read-only ``inputs`` and
+    ``outputs``, ``in[n]`` and ``out[n]``; ``in[n] = ...`` forces an input, on the simulated
+    robot only)."""
     s = loop.system
     return {"robot": s.robot, "servo": s.servo, "initialization": s.init, "trajectory": s.trajectory,
-            "report": s.report, "fsm": FsmTarget(loop), "io": IoTarget(loop), "server": ServerTarget(loop.front)}
+            "report": s.report, "fsm": FsmTarget(loop), "io": s.io, "server": ServerTarget(loop.front)}
 
 
 def parse_call(text: str):
@@ -299,9 +256,12 @@ def _describe(name: str, target) -> str:
 
 
 def _plain(value):
-    """What msgpack can carry: tuples become lists, other objects their text."""
+    """What msgpack can carry: tuples become lists, a data port its value, other objects
+    their text."""
     if isinstance(value, (bool, int, float, str)) or value is None:
         return value
+    if isinstance(value, DataPort):
+        return _plain(value.read())
     if isinstance(value, (tuple, list)):
         return [_plain(v) for v in value]
     return str(value)

@@ -16,6 +16,7 @@ from compiler.objcode import Program
 from . import accel
 from .component import DataPort
 from .components.initialization import Initialization
+from .components.io import IoComponent, backend_of
 from .components.report import Report
 from .components.robot_interface import RobotInterface
 from .components.safety import SafetySupervisor
@@ -63,8 +64,7 @@ class RobotSystem:
         self.servo.measured_velocity = lambda: self.robot.velocities
         self.trajectory = TrajectoryGenerator(spec, self.robot, p["desi_pos"], p["sens_pos"], self.clock)
         self.trajectory.safety = self.safety
-        self.io = self.backend  # the digital I/O: the robot's, or a PLC's over a fieldbus
-        self._fieldbus_lost = False
+        io_backend = backend_of(self.backend)  # the digital I/O: the robot's own, or a PLC's over a fieldbus
         if options.fieldbus is not None:
             if options.cell is not None:
                 raise ValueError("a fieldbus and a cell scenario both drive the inputs: choose one")
@@ -72,13 +72,7 @@ class RobotSystem:
                 raise ValueError("a fieldbus needs the wall clock (the PLC lives in real time): run with --realtime")
             from .fieldbus import ModbusIo
 
-            self.io = ModbusIo(options.fieldbus, spec.inputs, spec.outputs)
-            self.io.start()
-        self.robot.io = self.io
-        backend_io = self.io
-        self.report = Report(spec, p["sens_pos"], p["drive_cmd"], self.servo, lambda: self.supervisor.fsm.path(),
-                             history=lambda: self.supervisor.fsm.history,
-                             io=lambda: (*backend_io.inputs, *backend_io.outputs))
+            io_backend = ModbusIo(options.fieldbus, spec.inputs, spec.outputs)
         self.cell = None
         if options.cell is not None:
             if backend is not None:
@@ -88,6 +82,12 @@ class RobotSystem:
 
             self.cell = Cell(options.cell, self.backend)
             self.cell.reset(0.0)  # the cell as it stands before any program (a server shows it idle)
+        self.io = IoComponent(io_backend, self.cell, on_lost=self.emergency_stop)
+        self.io.configure()  # the backend opened (a PLC's exchange starts), its I/O in the ports
+        self.trajectory.io = self.io
+        self.report = Report(spec, p["sens_pos"], p["drive_cmd"], self.servo, lambda: self.supervisor.fsm.path(),
+                             history=lambda: self.supervisor.fsm.history, io=(self.io.inputs, self.io.outputs))
+        self.report.motion = self.trajectory.motion  # the move columns: the program's moves as they run
         if (options.cell is not None or options.fieldbus is not None) and "io" not in self.report.columns:
             self.report.columns.append("io")  # the cell's I/O in every row
         self.executive = Executive(self.clock, TICK)
@@ -105,10 +105,8 @@ class RobotSystem:
         servo_policy = MissPolicy(options.deadline_policy or controller.servo_miss_policy,
                                   limit=controller.servo_miss_limit,
                                   window=controller.servo_miss_window)
-        if self.cell is not None:  # the world first: the inputs as the cell set them this tick
-            ex.add("cell", self.cell.update, TICK, "sense")
-        if options.fieldbus is not None:
-            ex.add("fieldbus", self._supervise_fieldbus, TICK, "sense")
+        # the world first: the cell acts, then the inputs as they are this tick, the backend's health
+        ex.add("io", self.io.update, TICK, "sense", component=self.io)
         ex.add("robot.read", robot.read, TICK, "sense", component=robot)
         ex.add("supervisor", self.supervisor.step, TICK, "decide")
         ex.add("initialization", self.init.update, SETPOINT_PERIOD, "plan", component=self.init)
@@ -127,14 +125,13 @@ class RobotSystem:
         Robot -> Robot Reconfiguration -> Stop Robot, brakes kept on."""
         self._wall0 = time.perf_counter()
         if self.options.fieldbus is not None:  # a program does not start without its cell's PLC
-            self._fieldbus_lost = False
             if not self.io.wait_connected(self.options.fieldbus.timeout + 1.0):
                 raise ValueError(f"the program cannot start: {self.io.lost()}")
         self._report_path = report
         self.supervisor.reset()
         self.supervisor.pending_settings = settings
         self.executive.reset_statistics()  # the summary's deadlines are this cycle's
-        for component in (self.robot, self.servo, self.init, self.trajectory, self.report, self.safety):
+        for component in (self.io, self.robot, self.servo, self.init, self.trajectory, self.report, self.safety):
             component.recover()  # a fault of the last cycle is not this one's
             component.stop()  # a clean slate: the supervisor alone starts what the cycle needs
         self.init.fault = None
@@ -146,6 +143,7 @@ class RobotSystem:
         self.report.open(report)
         if self.cell is not None:
             self.cell.reset(self.clock.now())
+        self.io.start()  # the inputs as the cycle begins (the cell reset), its outputs; a loss taken anew
         if self.options.realtime:  # the threads beside the loop (now all started) one below it
             from .realtime import rank_helpers
 
@@ -157,16 +155,6 @@ class RobotSystem:
         if self.options.realtime:  # the wall clock ran on while this set-up (or a server's idle time) took
             self.executive.resync()  # its time: the first tick is the next one due, not a burst of late ones
         self._ticks0 = self.executive.ticks  # (a server's executive counts on across cycles)
-
-    def _supervise_fieldbus(self, now: float) -> None:
-        """Real-time: a PLC lost (no good exchange within its timeout) stops the robot,
-        category 1, and ends the cycle with the reason."""
-        if self._fieldbus_lost:
-            return
-        why = self.io.lost()
-        if why is not None:
-            self._fieldbus_lost = True
-            self.emergency_stop(f"the fieldbus is lost: {why}")
 
     def _encoder_reset(self, axis: int, delta: float) -> None:
         """Homing reset the encoder of ``axis``: the servo follows, the axis is referenced."""
@@ -228,6 +216,7 @@ class RobotSystem:
         """Not real-time: after a cycle ended, flush the report and the state transitions
         beside it (both written as the cycle ran), and return the cycle's summary."""
         error = self.report.close()
+        self.io.stop()  # the cycle is over: no task reads the I/O until the next begins
         self.state_file.flush()
         summary = self.summary(time.perf_counter() - self._wall0)
         if error:

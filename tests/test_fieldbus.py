@@ -195,3 +195,61 @@ def test_irl_serve_runs_a_program_against_a_plc_and_stops_the_robot_when_the_plc
         stop.set()
         plc.stop()
         assert server.stop() == 0, server.log()
+
+
+def test_the_pick_and_place_program_runs_its_cell_over_modbus(tmp_path):
+    """programs/pick_place.irl itself under `irl run --realtime --fieldbus`, against a PLC
+    that plays its cell (docs/runtime.md): the feeder has a part, the fixture is free, the
+    jaw sensors follow the gripper's outputs after 0.3 s; after the second machine start
+    the operator presses stop (in[16]), so the program ends its loop as it would in the
+    cell, after two parts (about 25 s of wall clock) instead of ten."""
+    import csv
+    import json
+    import subprocess
+
+    from test_server import IRL, free_port
+
+    port = free_port()
+    plc = Plc(port)
+    stop = threading.Event()
+    starts: list[float] = []
+
+    def cell() -> None:
+        plc.set_input(1, True)  # a part at the feeder
+        plc.set_input(4, True)  # the fixture free
+        jaws = {2: (0, False, 0.0), 3: (1, False, 0.0)}  # input -> (coil it follows, last coil value, since)
+        cycle_start = False
+        while not stop.is_set():
+            coils, now = plc.coils(), time.monotonic()
+            for sensor, (coil, value, since) in list(jaws.items()):
+                if coils[coil] != value:
+                    jaws[sensor] = (coil, coils[coil], now)
+                elif now - since >= 0.3:
+                    plc.set_input(sensor, value)
+            if coils[3] and not cycle_start:
+                starts.append(now)
+                if len(starts) == 2:
+                    plc.set_input(16, True)  # the operator's stop button
+            cycle_start = coils[3]
+            time.sleep(0.005)
+
+    thread = threading.Thread(target=cell, daemon=True)
+    thread.start()
+    report = tmp_path / "pick_place.csv"
+    try:
+        proc = subprocess.run([*IRL, "run", ROOT / "programs" / "pick_place.irl", "--realtime", "--fieldbus",
+                               fieldbus_file(tmp_path, port), "--deadline-policy", "soft", "--report", report,
+                               "--json", "--state-dir", tmp_path / "state"],
+                              cwd=ROOT, capture_output=True, text=True, timeout=240)
+        summary = json.loads(proc.stdout)
+        assert proc.returncode == 0 and summary["fault"] is None, (proc.stdout, proc.stderr)
+        assert [entry["text"] for entry in summary["log"]] == ["part 1 of 10 loaded", "part 2 of 10 loaded"]
+        assert len(starts) == 2
+        with open(report, newline="") as f:
+            rows = list(csv.DictReader(f))
+        assert rows[-1]["in_16"] == "1" and rows[0]["in_16"] == "0"
+        assert any(r["out_4"] == "1" for r in rows) and any(r["in_2"] == "1" for r in rows)
+    finally:
+        stop.set()
+        thread.join(5)
+        plc.stop()

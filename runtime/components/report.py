@@ -2,7 +2,10 @@
 
 Columns: time, FSM state, and per axis ``sens_pos``, ``desi_pos`` (the servo's reference),
 ``out_vel`` (the velocity command to the drives, after the safety supervisor) and the
-following error (the ``columns`` setting chooses among these, and the TCP). The report
+following error (the ``columns`` setting chooses among these, the TCP, and optionally the
+I/O and the ``move`` group: ``move``, the number of the program's move under way or last
+started, from 1, 0 before the first, and ``line``, the source line of the move under way, 0
+when none is: ``irl plot`` marks each move's start with them). The report
 records from Calibrate Offsets to the end of Stop Robot (the robot at rest, brakes
 applied). The real-time side only appends a tuple of numbers; every 100 ms (ten rows)
 it hands the batch, with the state transitions since the last one, to a writer thread
@@ -28,12 +31,20 @@ COLUMNS = ["sens_pos", "desi_pos", "out_vel", "following_error"]  # the per-axis
 TCP = "tcp"  # the tool centre point: x, y, z (mm), roll, pitch, yaw (deg), from the measured joints
 TCP_FIELDS = ("x", "y", "z", "roll", "pitch", "yaw")
 IO = "io"  # every digital input, then every output: in_1.., out_1.. (0 or 1)
+MOVE = "move"  # the move under way: its number (moves started so far) and source line (0: at rest)
+MOVE_FIELDS = ("move", "line")
 
 
 def is_io(name: str) -> bool:
     """Whether a report column is a digital input or output (``in_3``, ``out_12``)."""
     kind, _, number = name.partition("_")
     return kind in ("in", "out") and number.isdigit()
+
+
+def is_integer(name: str) -> bool:
+    """Whether a report column holds whole numbers (written with %d): an input or output,
+    or the move group's ``move`` and ``line``."""
+    return name in MOVE_FIELDS or is_io(name)
 
 
 class ReportWriter(threading.Thread):
@@ -48,8 +59,9 @@ class ReportWriter(threading.Thread):
         self.tcp = tcp  # (start, count, forward): row[start:start + count] are joints -> the TCP
         self.error: str | None = None
         self.rows_written = 0
-        # one C-level format per row (time to the ms, the state, every value to 1e-6, I/O 0 or 1)
-        self.row_format = "%.3f,%s," + ",".join(["%d" if is_io(name) else "%.6f" for name in header[2:]]) + "\n"
+        # one C-level format per row (time to the ms, the state, every value to 1e-6, I/O 0 or 1,
+        # the move's number and line as integers)
+        self.row_format = "%.3f,%s," + ",".join(["%d" if is_integer(name) else "%.6f" for name in header[2:]]) + "\n"
 
     def run(self) -> None:
         try:
@@ -89,13 +101,14 @@ class Report(Component):
     PROPERTIES = component_params("report")
 
     def __init__(self, spec, sens_pos: DataPort, out_vel: DataPort, servo, state_of, period: float = REPORT_PERIOD,
-                 history=lambda: (), io=lambda: ()):
+                 history=lambda: (), io: tuple = ()):
         super().__init__("report", period)
         self.spec = spec
         self.sens_pos, self.out_vel, self.servo = sens_pos, out_vel, servo
         self.state_of = state_of  # callable -> the FSM's current state path
         self.history = history  # callable -> the FSM's transitions so far: (time, from, to)
-        self.io = io  # callable -> every digital input, then output (the io columns)
+        self.io = io  # the io component's ports (inputs, outputs): the io columns
+        self.motion = None  # the trajectory generator's motion queue (the move columns; set by the supervisor)
         self._transitions_sent = 0
         self.names = [a.name for a in spec.axes]
         self._zeros = (0.0,) * len(self.names)
@@ -114,6 +127,8 @@ class Report(Component):
         if kind == IO:
             return [f"in_{n}" for n in range(1, self.spec.inputs + 1)] + \
                 [f"out_{n}" for n in range(1, self.spec.outputs + 1)]
+        if kind == MOVE:
+            return list(MOVE_FIELDS)
         return [f"{kind}_{n}" for n in self.names]
 
     def header(self) -> list[str]:
@@ -151,13 +166,27 @@ class Report(Component):
                   "following_error": tuple(map(_sub, reference, servo.position)),
                   TCP: pos[:self.main]}  # the writer turns these joints into the TCP
         if IO in self.columns:
-            values[IO] = self.io()
+            inputs, outputs = self.io
+            values[IO] = (*inputs.value, *outputs.value)
+        if MOVE in self.columns:
+            values[MOVE] = self._move()
         row = (now, self.state_of())
         for kind in self.columns:
             row += values[kind]
         self.batch.append(row)
         if len(self.batch) * self.period >= FLUSH_PERIOD - 1e-9:
             self._hand_over()
+
+    def _move(self) -> tuple[int, int]:
+        """Real-time: (the number of the move under way or last started, from 1: 0 before
+        the first; the source line of the move under way, 0 when none is). A move resumed
+        after a pause is the same move; in a blend, the move blended into."""
+        motion = self.motion
+        if motion is None:
+            return (0, 0)
+        moves = motion.moves
+        started = len(moves)
+        return (started, moves[-1].line if started and motion.line is not None else 0)
 
     def _hand_over(self) -> None:
         if self.writer is not None:

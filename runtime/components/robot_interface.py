@@ -8,7 +8,8 @@ calibrated offset compensation) to the drives; a command the safety did not writ
 tick is never applied: the interface then takes the torque off and applies the brakes
 itself. The hardware is a backend; the simulated robot is the default, real hardware
 plugs in behind the same methods (encoders, drives with a velocity command and a torque
-enable, brakes, digital I/O).
+enable, brakes). The digital I/O is a component of its own (runtime/components/io.py),
+with the backend's I/O (or a PLC's) behind it.
 """
 from __future__ import annotations
 
@@ -29,7 +30,6 @@ class RobotInterface(Component):
         super().__init__("robot", tick)
         self.spec = spec
         self.backend = backend
-        self.io = backend  # the digital I/O: the robot's own, or a fieldbus (runtime.fieldbus.ModbusIo)
         self.sens_pos = sens_pos
         self.drive_cmd = drive_cmd
         self.estimator = estimator
@@ -132,9 +132,3 @@ class RobotInterface(Component):
         shifted[axis] += delta
         self.positions = tuple(shifted)
         self.sens_pos.write(self.positions, self.sens_pos.stamp)  # readers this tick see the new zero
-
-    def read_input(self, n: int) -> bool:
-        return self.io.input(n)
-
-    def write_output(self, n: int, value: bool) -> None:
-        self.io.set_output(n, value)

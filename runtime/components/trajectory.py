@@ -91,6 +91,7 @@ class TrajectoryGenerator(Component):
         self.fault: str | None = None
         self.start_position: tuple | None = None  # the commanded position to plan from (else sens_pos)
         self.safety = None  # the safety supervisor: told when the motion is at rest, and of stops on the path
+        self.io = None  # the io component (runtime.components.io): the program's inputs and outputs
         # the robot's kinematics, built here (never in a tick), or why poses cannot be used
         kinematics, problem = _build_kinematics(spec)
         self.planner = MovePlanner(spec.axes, spec.main_axes, motion_profile(spec), kinematics, problem)
@@ -303,12 +304,12 @@ class TrajectoryGenerator(Component):
     def read_input(self, n: int) -> bool:
         if not 1 <= n <= self.spec.inputs:
             raise IndexError(f"digital input {n} does not exist (1..{self.spec.inputs})")
-        return self.robot.read_input(n)
+        return self.io.input(n)
 
     def write_output(self, n: int, value: bool) -> None:
         if not 1 <= n <= self.spec.outputs:
             raise IndexError(f"digital output {n} does not exist (1..{self.spec.outputs})")
-        self.robot.write_output(n, value)
+        self.io.set_output(n, value)
 
     def log(self, text: str, line: int) -> None:
         """The operator log: at most MAX_LOG_LINES lines per program (then one line that

@@ -26,9 +26,11 @@ behaves; ``irl run --cell-scenario FILE`` runs a program against it:
     every = 10.0
 
 Each rule kind and its fields are declared once (:data:`RULES`); the loader, its error
-messages and docs/runtime.md read the table. The cell is a task of the executive (every
-1 ms tick, first in the tick, as the world is); on the simulated clock it is
-deterministic: the same program, seed and scenario give the same report bytes.
+messages and docs/runtime.md read the table. The cell is a driver of the simulated
+robot's I/O, run by the io component's task (runtime/components/io.py: every 1 ms tick,
+first in the tick, as the world is, before the inputs are read into its port); on the
+simulated clock it is deterministic: the same program, seed and scenario give the same
+report bytes.
 """
 from __future__ import annotations
 

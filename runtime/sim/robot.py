@@ -65,6 +65,7 @@ import math
 import random
 
 from ..accel import kernels
+from ..components.io import IoBackend
 from ..faults import FAULTS
 
 drive_step = kernels.drive_step
@@ -73,7 +74,7 @@ drive_step = kernels.drive_step
 _floor = math.floor
 
 
-class SimRobot:
+class SimRobot(IoBackend):
     """A simulated robot for ``spec``; ``seed`` fixes its drive offsets and park positions.
 
     Not real-time (set-up): builds the per-axis state from the specification.
@@ -340,7 +341,7 @@ class SimRobot:
         """Per axis: an index pulse happened during the last step. Real-time."""
         return tuple(self._index_active)
 
-    # ---- digital I/O (numbered from 1, as in L-IRL) ------------------------------------
+    # ---- digital I/O (numbered from 1, as in L-IRL; a backend of runtime.components.io) --
 
     def set_input(self, n: int, value: bool) -> None:
         """Set digital input ``n`` (1..spec.inputs): the world's side, for tests and

@@ -5,7 +5,8 @@ page of ``docs/``, and is rendered from its one declaration: the parameters from
 :mod:`compiler.params`, the move clauses and the specification's ``[defaults]`` from
 :mod:`compiler.clauses`, the stop categories from :data:`runtime.components.safety.CATEGORIES`, the simulated
 cell's rules from :data:`runtime.sim.cell.RULES`, the fieldbus file's fields from
-:data:`runtime.fieldbus.FIELDS`.
+:data:`runtime.fieldbus.FIELDS`, the telemetry sample's fields from
+:data:`runtime.protocol.SAMPLE_FIELDS`.
 A test fails while a page is stale. Not real-time; imports nothing the loop needs.
 """
 from __future__ import annotations
@@ -23,13 +24,13 @@ def tables() -> dict[str, str]:
     from compiler import clauses
     from compiler.params import COMPONENTS, markdown
 
-    from . import fieldbus
+    from . import fieldbus, protocol
     from .components.safety import categories_markdown
     from .sim import cell
 
     return {"params": markdown(), "config": markdown(COMPONENTS), "categories": categories_markdown(),
             "clauses": clauses.markdown(), "defaults": clauses.defaults_markdown(), "cell": cell.markdown(),
-            "fieldbus": fieldbus.markdown()}
+            "fieldbus": fieldbus.markdown(), "sample": protocol.sample_markdown()}
 
 
 def render(text: str) -> str:

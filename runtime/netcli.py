@@ -150,6 +150,7 @@ def cmd_submit(args, env) -> int:
         args.endpoint = _cell_endpoint(args.cell, robots)
     client = _client(args)
     try:
+        since = _call(client, "telemetry")["seq"] if args.wait else 0  # the program's print output: after this
         reply = _call(client, "submit", {"object": data, "name": name})
         job = reply["program"]
         if not args.json:
@@ -158,7 +159,7 @@ def cmd_submit(args, env) -> int:
             if args.json:
                 cli._print(env, json.dumps({"program": job, "queued": reply["queued"], "endpoint": args.endpoint}))
             return cli.EXIT_OK
-        final = _wait(client, job, env, quiet=args.json)
+        final, shown = _wait(client, job, env, since, quiet=args.json)
         if args.report:
             out = Path(args.report)
             client.download(job, "report", out)
@@ -167,8 +168,8 @@ def cmd_submit(args, env) -> int:
         if args.json:
             cli._print(env, json.dumps(final, default=str))
             return cli.EXIT_OK if final["state"] == "completed" else cli.EXIT_INVALID
-        for entry in (final.get("summary") or {}).get("log", []):  # the program's print output
-            cli._print(env, f"  [{entry['time']:8.3f} s] line {entry['line']}: {entry['text']}")
+        for entry in (final.get("summary") or {}).get("log", [])[shown:]:  # print output telemetry had lost
+            cli._print(env, _log_line(entry["time"], entry["line"], entry["text"]))
         if final["state"] == "completed":
             summary = final.get("summary") or {}
             cli._print(env, f"program {job} completed: {len(summary.get('moves', []))} moves, final position "
@@ -180,18 +181,36 @@ def cmd_submit(args, env) -> int:
         client.close()
 
 
-def _wait(client, job: int, env, quiet: bool = False) -> dict:
-    """Poll the program's status, showing one progress line (unless ``quiet``), until it
-    has ended."""
+def _log_line(at: float, line: int, text: str) -> str:
+    return f"  [{at:8.3f} s] line {line}: {text}"
+
+
+def _wait(client, job: int, env, since: int, quiet: bool = False) -> tuple[dict, int]:
+    """Poll the program's status, showing one progress line and the program's ``print``
+    output as it comes (from the telemetry after ``since``; unless ``quiet``), until it
+    has ended. Returns its final status and how many print lines were shown."""
     cli = _cli()
     tty = hasattr(env.stdout, "isatty") and env.stdout.isatty() and not quiet
     last = None
+    shown = 0
     while True:
         status = _call(client, "status", {"program": job})
+        more = not quiet
+        while more:  # the print output so far (telemetry keeps it; a long gap loses the oldest)
+            replay = _call(client, "telemetry", {"since": since})
+            more = replay.get("more", False)
+            for m in replay["messages"]:
+                since = m["seq"]
+                if m["kind"] == "event" and m.get("event") == "log" and m.get("program") == job:
+                    if tty and last:
+                        env.stdout.write("\r\x1b[K")
+                        last = None
+                    cli._print(env, _log_line(m["at"], m["line"], m["text"]))
+                    shown += 1
         if status["state"] in TERMINAL:
             if tty and last:
                 env.stdout.write("\n")
-            return status
+            return status, shown
         if status["state"] == "queued":
             line = f"program {job}: queued"
         else:

@@ -37,6 +37,31 @@ MAX_CHUNK_BYTES = 256 << 10
 MAX_QUEUED = 100
 
 TELEMETRY_TOPIC = b"telemetry"
+#: Feeds (protocol 2): the most a server keeps at once; a feed nobody has subscribed to for
+#: FEED_IDLE seconds is forgotten (its topic then carries nothing until asked for again).
+MAX_FEEDS, FEED_IDLE = 32, 60.0
+#: A feed's rate (samples per second of the robot's clock): a sample comes every 10 ms
+#: while a program runs, so at most 100.
+MIN_FEED_RATE, MAX_FEED_RATE = 0.1, 100.0
+#: Envelope frames a request may come with (a REQ client's delimiter, proxies' identities).
+MAX_ENVELOPE_FRAMES = 16
+
+#: The fields of a telemetry ``sample``: name -> (type, description). A feed names some
+#: of them; docs/protocol.md's table is generated from this one.
+SAMPLE_FIELDS: dict[str, tuple[str, str]] = {
+    "state": ("str", "the supervisor's state path (`\"Move Robot\"`, ...), or `\"Idle\"`"),
+    "program": ("int or nil", "the running program's id"),
+    "queued": ("int", "programs waiting in the queue"),
+    "override": ("float", "speed override, percent"),
+    "position": ("[float]", "measured axis positions (deg), one per axis"),
+    "inputs": ("[bool]", "digital inputs, input n at index n - 1"),
+    "outputs": ("[bool]", "digital outputs, output n at index n - 1"),
+    "line": ("int", "while a program runs: the source line executing"),
+    "moves_done": ("int", "while a program runs: moves completed"),
+    "moves_total": ("int or nil", "while a program runs: its moves (nil when it loops or calls procedures)"),
+    "paused": ("bool", "while a program runs: it is paused"),
+    "following_error": ("float", "while a program runs: the largest absolute following error (deg)"),
+}
 
 ERRORS = {
     "bad_message": "the request is not a msgpack map (or is not valid msgpack)",
@@ -54,7 +79,7 @@ ERRORS = {
 }
 
 # Argument kinds: name -> (python types, description for the docs)
-_INT, _NUM, _STR, _BIN, _BOOL = (int,), (int, float), (str,), (bytes,), (bool,)
+_INT, _NUM, _STR, _BIN, _BOOL, _LIST = (int,), (int, float), (str,), (bytes,), (bool,), (list,)
 
 #: op -> {argument: (types, required, description)}, and the op's description.
 #: (:data:`SINCE` says which protocol version brought an op; the others are in every version.)
@@ -97,13 +122,25 @@ OPS: dict[str, tuple[dict[str, tuple[tuple, bool, str]], str]] = {
                                          "sample only)")},
                   f"the latest telemetry sample, and the messages after ``since`` from a history of the last "
                   f"{TELEMETRY_HISTORY} (a subscriber that joined late or lost messages catches up)"),
+    "feed": ({"fields": (_LIST, True, "the sample fields wanted (an array of names, see the sample table)"),
+              "rate": (_NUM, False, f"samples per second, {MIN_FEED_RATE:g} to {MAX_FEED_RATE:g} (default "
+                                    f"{MAX_FEED_RATE:g}: every sample)"),
+              "events": (_BOOL, False, "true: the events too (default false: samples only)")},
+             "a telemetry feed of some sample fields at a chosen rate: the reply names its topic; subscribe to "
+             "it on the telemetry socket"),
 }
 
 #: The ops a protocol version brought (every other op is in every version).
-SINCE = {"wait": 2, "telemetry": 2, "control": 2}
+SINCE = {"wait": 2, "telemetry": 2, "control": 2, "feed": 2}
 #: The ops that control the robot: refused to every client but the holder while one holds
 #: control (``estop`` never is: an emergency stop is open to every client).
 CONTROLLING = frozenset({"submit", "pause", "resume", "abort", "override", "call", "reconfigure"})
+
+
+def sample_markdown() -> str:
+    """docs/protocol.md's table of the sample fields (:data:`SAMPLE_FIELDS`)."""
+    rows = [f"| `{name}` | {kind} | {text} |" for name, (kind, text) in SAMPLE_FIELDS.items()]
+    return "\n".join(["| Field | Type | |", "|---|---|---|", *rows]) + "\n"
 
 
 class ProtocolError(Exception):
@@ -154,8 +191,9 @@ def _decode(payload: bytes) -> tuple[object, str, dict, int]:
     if not isinstance(message, dict):
         raise ProtocolError("bad_message", f"expected a msgpack map, got {type(message).__name__}")
     request_id = message.get("id")
-    if not _valid_id(request_id):
-        raise ProtocolError("bad_request", "\"id\" must be an integer or a string of at most 256 characters")
+    if not _valid_id(request_id):  # answered with id nil: the client's id cannot be echoed
+        raise ProtocolError("bad_request", f"\"id\" must be an integer or a string of at most 256 characters, got "
+                                           f"{_shown(request_id)}: this reply's id is nil")
     version = message.get("v")
     if version not in VERSIONS or isinstance(version, bool):
         raise ProtocolError("bad_version", f"protocol version {version!r} is not supported; this server speaks "
@@ -202,7 +240,15 @@ def _operation(message: dict, request_id, version: int) -> tuple[str, dict]:
 
 def _kind(types: tuple) -> str:
     return {_INT: "an integer", _NUM: "a finite number", _STR: "a string", _BIN: "binary (msgpack bin)",
-            _BOOL: "true or false"}[types]
+            _BOOL: "true or false", _LIST: "an array"}[types]
+
+
+def _shown(value) -> str:
+    """A malformed value, for an error message: its type, and its text when short."""
+    kind = {bool: "bool", float: "float", int: "an integer out of range", str: "a string of "
+            f"{len(value) if isinstance(value, str) else 0} characters"}.get(type(value), type(value).__name__)
+    text = repr(value)
+    return f"{kind} {text}" if len(text) <= 40 and not isinstance(value, str) else kind
 
 
 def ok(request_id, result, version: int = VERSION) -> bytes:

@@ -39,6 +39,7 @@ import zmq
 from compiler.objcode import OP, ObjectCodeError, Program, load
 
 from . import protocol
+from .feeds import Feeds
 from .protocol import ProtocolError
 from .robotloop import EXIT_TIMEOUT
 from .system import RunOptions
@@ -229,6 +230,7 @@ class Server:
         self.telemetry_sent = 0
         self.telemetry_history: collections.deque = collections.deque(maxlen=protocol.TELEMETRY_HISTORY)
         self.last_sample: dict | None = None
+        self.feeds = Feeds()  # the subscribers' chosen fields and rates (the feed request)
         self.waiters: list = []  # (Wait, identity, request id, version) of unanswered waits
         self.controller: tuple | None = None  # (client id, name, lease s, last request) of control's holder
         self.loop_scheduling: str | None = None
@@ -433,9 +435,7 @@ class Server:
         try:
             self.report_dir.mkdir(parents=True, exist_ok=True)
         except OSError as exc:
-            job.state, job.fault, job.ended = "faulted", f"cannot make {self.report_dir}: {exc.strerror or exc}", \
-                time.time()
-            self._retire(job)
+            self._end(job, "faulted", f"cannot make {self.report_dir}: {exc.strerror or exc}")
             return
         job.state, job.started = "running", time.time()
         self.current = job
@@ -447,10 +447,7 @@ class Server:
             return result
 
         def refused(reply: dict) -> None:  # the program cannot run here
-            job.state, job.fault, job.ended = "faulted", reply["message"], time.time()
-            self.current = None
-            self._retire(job)
-            log.info("program %d faulted: %s", job.id, job.fault)
+            self._end(job, "faulted", reply["message"])
 
         self._send_loop(LoopCommand("start", finish=started, failed=refused, job=job.id, object=job.object,
                                     report=str(job.report) if job.report else None,
@@ -460,23 +457,21 @@ class Server:
         job = self.current
         if job is None or job.id != message["job"]:
             return
-        summary = message["summary"]
-        job.summary = summary
-        job.ended = time.time()
-        job.fault = summary["fault"]
-        if job.fault is None:
-            job.state = "completed"
-            if job.configuration is not None:
-                self.configuration = job.configuration
-        elif message["aborted"]:
-            job.state = "aborted"
-        else:
-            job.state = "faulted"
-        self.current = None
+        job.summary = message["summary"]
+        fault = job.summary["fault"]
+        if fault is None and job.configuration is not None:
+            self.configuration = job.configuration
+        self._end(job, "completed" if fault is None else "aborted" if message["aborted"] else "faulted", fault)
+
+    def _end(self, job: Job, state: str, fault: str | None) -> None:
+        """A program has ended (``completed``, ``faulted``, ``aborted``) or will never run
+        (``cancelled``): kept for status, said on telemetry, its waiters answered."""
+        job.state, job.fault, job.ended = state, fault, time.time()
+        if job is self.current:
+            self.current = None
         self._retire(job)
-        log.info("program %d %s%s", job.id, job.state, f": {job.fault}" if job.fault else "")
-        self._publish({"kind": "event", "event": "program", "program": job.id, "state": job.state,
-                       "fault": job.fault})
+        log.info("program %d %s%s", job.id, state, f": {fault}" if fault else "")
+        self._publish({"kind": "event", "event": "program", "program": job.id, "state": state, "fault": fault})
         self._answer_waiters()
 
     def _retire(self, job: Job) -> None:
@@ -501,6 +496,19 @@ class Server:
             self.telemetry_sent += 1
         except zmq.Again:
             pass
+        for topic, fed in self.feeds.outgoing(message):
+            try:
+                self.pub.send_multipart((topic, protocol.pack(fed)), zmq.NOBLOCK)
+            except zmq.Again:
+                pass
+
+    def _poll_subscriptions(self) -> None:
+        """Which telemetry topics have subscribers (XPUB's subscription messages)."""
+        for _ in range(1000):
+            try:
+                self.feeds.subscription(self.pub.recv(zmq.NOBLOCK))
+            except zmq.ZMQError:  # (zmq.Again: none left)
+                return
 
     def _publish_sample(self) -> None:
         snap = self.snapshot
@@ -521,7 +529,7 @@ class Server:
         check_endpoints(self.options)
         ctx = self.ctx
         self.router = ctx.socket(zmq.ROUTER)
-        self.pub = ctx.socket(zmq.PUB)
+        self.pub = ctx.socket(zmq.XPUB)  # a PUB that says which topics have subscribers (feeds)
         if self.options.keys:
             from .keys import server_security
 
@@ -573,6 +581,7 @@ class Server:
         poller = zmq.Poller()
         poller.register(self.router, zmq.POLLIN)
         poller.register(self.channel.fileno(), zmq.POLLIN)
+        poller.register(self.pub, zmq.POLLIN)
         while self._dispatch():
             if self.loop_gone is not None:  # keep answering (status says why), refuse work
                 self._poll_requests(200, poller)
@@ -594,8 +603,12 @@ class Server:
     def _poll_requests(self, timeout: int, poller=None) -> None:
         if poller is not None:
             events = dict(poller.poll(timeout))
+            if self.pub in events:
+                self._poll_subscriptions()
             if self.router not in events:
                 return
+        elif self.pub is not None:
+            self._poll_subscriptions()
         for _ in range(100):
             try:
                 frames = self.router.recv_multipart(zmq.NOBLOCK, copy=True)
@@ -608,11 +621,8 @@ class Server:
     def _fail_all(self, reason: str) -> None:
         """The loop is gone: the running program faulted, the waiting ones cancelled."""
         self.loop_gone = reason
-        job = self.current
-        if job is not None:
-            job.state, job.fault, job.ended = "faulted", reason, time.time()
-            self.current = None
-            self._retire(job)
+        if self.current is not None:
+            self._end(self.current, "faulted", reason)
         self._cancel_queue(reason)
         for identity, request_id, _command in self.pending.values():
             if identity is not None:
@@ -630,16 +640,18 @@ class Server:
 
     def _handle(self, frames: list[bytes]) -> None:
         """One request: reply now, or forward a command whose reply the loop makes."""
-        # ROUTER frames: identity, [empty delimiter (REQ clients)], payload
+        # ROUTER frames: identity, [envelope ending in an empty delimiter (REQ clients, proxies)], payload
         if len(frames) < 2:
             return
-        identity = frames[:-1]
-        payload = frames[-1]
+        identity, payload = envelope(frames)
         request_id = None
         version = protocol.VERSION
         try:
-            if len(frames) > 3:
-                raise ProtocolError("bad_message", "expected one message frame (after the envelope)")
+            if payload is None:
+                raise ProtocolError("bad_message", f"expected one message frame after the envelope, got "
+                                                   f"{len(frames) - len(identity)} frames (an envelope ends with an "
+                                                   "empty frame, and holds at most "
+                                                   f"{protocol.MAX_ENVELOPE_FRAMES} frames)")
             request_id, op, args, version = protocol.decode(payload)
             client = frames[0]
             self._check_control(client, op, args)
@@ -850,17 +862,21 @@ class Server:
                           more=bool(messages) and messages[-1]["seq"] < self.telemetry_seq)
         return result
 
+    def op_feed(self, args: dict) -> dict:
+        return self.feeds.request(args)
+
     def op_abort(self, args: dict):
         wanted = args.get("program")
         if wanted is not None and (self.current is None or self.current.id != wanted):
             for job in self.queue:
                 if job.id == wanted:
                     self.queue.remove(job)
-                    job.state, job.fault, job.ended = "cancelled", "removed from the queue by the operator", \
-                        time.time()
-                    self._retire(job)
+                    self._end(job, "cancelled", "removed from the queue by the operator")
                     return {"program": wanted, "state": "cancelled"}
-            raise ProtocolError("not_found", f"program {wanted} is neither running nor queued")
+            job = self.jobs.get(wanted)
+            if job is not None:
+                raise ProtocolError("refused", f"program {wanted} has already ended ({job.state})")
+            raise ProtocolError("not_found", f"program {wanted} is neither running nor queued (no such program)")
         if self.current is None:
             raise ProtocolError("refused", "no program is running")
         return LoopCommand("abort", program=self.current.id, reason="aborted by the operator")
@@ -873,8 +889,7 @@ class Server:
         cancelled = []
         while self.queue:
             job = self.queue.popleft()
-            job.state, job.fault, job.ended = "cancelled", reason, time.time()
-            self._retire(job)
+            self._end(job, "cancelled", reason)
             cancelled.append(job.id)
         return cancelled
 
@@ -950,6 +965,19 @@ class Server:
         final = job.state not in ("queued", "running")
         return {"data": data, "offset": offset, "size": size, "final": final,
                 "eof": final and offset + len(data) >= size}
+
+
+def envelope(frames: list[bytes]) -> tuple[list[bytes], bytes | None]:
+    """``(envelope, payload)`` of a message the ROUTER received: the frames a reply goes
+    back with, and the request (None when the frames are not one request). The first frame
+    is the connection's identity; a request is the last frame, alone after it (a DEALER) or
+    after an envelope that ends with an empty delimiter frame (a REQ, or a client behind a
+    proxy); anything else is answered as a ``bad_message`` to the identity alone."""
+    if len(frames) == 2:
+        return frames[:1], frames[1]
+    if frames[-2] == b"" and len(frames) - 1 <= protocol.MAX_ENVELOPE_FRAMES:
+        return frames[:-1], frames[-1]
+    return frames[:1] + ([b""] if frames[1] == b"" else []), None
 
 
 def merge_settings(base: dict, settings: dict) -> dict:

@@ -75,6 +75,36 @@ def test_submit_json_and_wait_shows_the_programs_print_output(tmp_path, monkeypa
         assert server.stop() == 0, server.log()
 
 
+def test_submit_wait_shows_print_output_while_the_program_runs(tmp_path):
+    """On the wall clock: the first print is on the terminal seconds before the program
+    ends, not only in the final summary."""
+    import subprocess
+    import threading
+    import time
+
+    from test_server import IRL, ServerProcess
+
+    server = ServerProcess(tmp_path / "server", tmp_path / "state", sim_clock=False).start()
+    try:
+        program = tmp_path / "dwell.irl"
+        program.write_text(f'program dwell;\nsystem_specification "{ROOT / "programs" / "lola15.spc"}";\nseq\n'
+                           '  print "first";\n  wait 3 sec;\n  print "second";\nendseq\nendprogram;\n',
+                           encoding="utf-8")
+        proc = subprocess.Popen([*IRL, "submit", str(program), "--wait", "--endpoint", server.endpoint],
+                                cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        seen: list[tuple[float, str]] = []
+        reader = threading.Thread(target=lambda: seen.extend((time.monotonic(), line) for line in proc.stdout))
+        reader.start()
+        assert proc.wait(120) == 0, proc.stderr.read()
+        reader.join(10)
+        when = {text: t for t, line in seen for text in ("first", "second", "completed") if text in line}
+        assert set(when) == {"first", "second", "completed"}, seen
+        assert when["second"] - when["first"] >= 2.0, seen  # shown as it came: 3 s of dwell between them
+        assert sum("line 4: first" in line for _t, line in seen) == 1  # once, not again at the end
+    finally:
+        assert server.stop() == 0, server.log()
+
+
 def test_the_plot_shows_all_five_phases_from_the_states_file(tmp_path):
     from runtime.plot import phases, read_report, read_transitions
 

@@ -151,3 +151,122 @@ def test_one_controlling_client_at_a_time_observers_read_and_estop_and_the_lease
         owner.close()
         other.close()
         assert server.stop() == 0, server.log()
+
+
+def test_framing_the_envelope_and_malformed_ids_are_answered_unambiguously(tmp_path):
+    """docs/protocol.md, Transport and Replies: a request is the last frame, alone or after
+    an envelope that ends with an empty frame; the reply comes back with that envelope; any
+    other framing, and an id the server cannot echo, get an error whose id is nil."""
+    server = ServerProcess(tmp_path / "server", tmp_path / "state", sim_clock=True).start()
+    sock = zmq.Context.instance().socket(zmq.DEALER)
+    sock.connect(server.endpoint)
+
+    def exchange(*frames):
+        sock.send_multipart(list(frames))
+        assert sock.poll(10_000), f"no reply to {frames!r}"
+        reply = sock.recv_multipart()
+        return reply[:-1], msgpack.unpackb(reply[-1], raw=False)
+
+    def status(request_id=1, **extra):
+        return msgpack.packb({"v": 2, "id": request_id, "op": "status", **extra})
+
+    try:
+        envelope, reply = exchange(status(1))  # a DEALER: the request alone
+        assert envelope == [] and reply["ok"] and reply["id"] == 1
+        envelope, reply = exchange(b"", status(2))  # a REQ's delimiter
+        assert envelope == [b""] and reply["ok"] and reply["id"] == 2
+        envelope, reply = exchange(b"proxy-7", b"", status(3))  # a client behind a proxy
+        assert envelope == [b"proxy-7", b""] and reply["ok"] and reply["id"] == 3
+        envelope, reply = exchange(b"not-a-delimiter", status(4))  # not one request
+        assert envelope == [] and reply["id"] is None and reply["error"]["code"] == "bad_message"
+        assert "got 2 frames" in reply["error"]["message"]
+        for bad_id, shown in ((1.5, "float 1.5"), ([1], "list [1]"), (True, "bool True"), ("x" * 300, "300")):
+            envelope, reply = exchange(msgpack.packb({"v": 2, "id": bad_id, "op": "status"}))
+            assert reply["id"] is None and reply["error"]["code"] == "bad_request", reply
+            assert shown in reply["error"]["message"] and "id is nil" in reply["error"]["message"]
+        _, reply = exchange(msgpack.packb({"v": 9, "id": "mine", "op": "status"}))  # the id read: echoed
+        assert reply["id"] == "mine" and reply["error"]["code"] == "bad_version" and reply["v"] == 2
+        _, reply = exchange(b"\xc1")  # not msgpack: nothing could be read
+        assert reply["id"] is None and reply["error"]["code"] == "bad_message"
+        assert server.client().request("status")["state"] == "Idle"  # and it keeps serving
+    finally:
+        sock.close(linger=0)
+        assert server.stop() == 0, server.log()
+
+
+def test_a_feed_sends_the_fields_asked_for_at_the_rate_asked_for(tmp_path):
+    """docs/protocol.md, ``feed``: a subscriber chooses sample fields and a rate (as RTDE
+    does), subscribes to the topic the reply names, and gets those fields only, at that
+    rate of the robot's clock, numbered so that a loss shows."""
+    server = ServerProcess(tmp_path / "server", tmp_path / "state", sim_clock=True).start()
+    client = RawClient(server.endpoint, 2)
+    sub = zmq.Context.instance().socket(zmq.SUB)
+    try:
+        old = RawClient(server.endpoint, 1).call("feed", fields=["position"])
+        assert old["error"]["code"] == "unknown_op"
+        bad = client.call("feed", fields=["postion"])["error"]
+        assert bad["code"] == "bad_request" and "did you mean 'position'" in bad["message"]
+        assert client.call("feed", fields=["line"], rate=1000)["error"]["code"] == "bad_request"
+        assert client.call("feed", fields=[])["error"]["code"] == "bad_request"
+        feed = client.call("feed", fields=["line", "position"], rate=10, events=True)["result"]
+        assert feed["fields"] == ["position", "line"] and feed["rate"] == 10 and feed["topic"].startswith("feed:")
+        same = client.call("feed", fields=["position", "line"], rate=10.0, events=True)["result"]
+        assert same["topic"] == feed["topic"]  # the same feed, shared
+        other = client.call("feed", fields=["position"], rate=10)["result"]
+        assert other["topic"] != feed["topic"]
+        sub.connect(server.telemetry)
+        sub.subscribe(feed["topic"].encode())
+        time.sleep(0.5)  # (the subscription reaches the server)
+        job = client.call("submit", object=objcode(PROGRAMS / "short.irl"))["result"]["program"]
+        messages = []
+        deadline = time.monotonic() + 60
+        while time.monotonic() < deadline:
+            if not sub.poll(1000):
+                continue
+            topic, payload = sub.recv_multipart()
+            assert topic == feed["topic"].encode()
+            message = msgpack.unpackb(payload, raw=False)
+            messages.append(message)
+            if message.get("event") == "program" and message["state"] == "completed":
+                break
+        assert [m["feed_seq"] for m in messages] == list(range(messages[0]["feed_seq"],
+                                                               messages[0]["feed_seq"] + len(messages)))
+        running = [m for m in messages if m["kind"] == "sample" and m.get("line") is not None]
+        assert len(running) > 5, messages[:5]
+        for m in running:
+            assert set(m) == {"v", "seq", "feed_seq", "t", "kind", "position", "line"}, m
+        gaps = [b["t"] - a["t"] for a, b in zip(running, running[1:])]
+        assert all(0.095 <= g <= 0.105 for g in gaps), gaps  # 10 per second of the robot's clock
+        events = [m for m in messages if m["kind"] == "event" and m["event"] == "program"]
+        assert [e["state"] for e in events if e["program"] == job][-1] == "completed"
+    finally:
+        sub.close(linger=0)
+        client.close()
+        assert server.stop() == 0, server.log()
+
+
+def test_a_cancelled_program_is_said_on_telemetry(tmp_path):
+    """Every program that will not run any more has its ``program`` event: a queued one
+    removed by abort is ``cancelled``; aborting one that has ended is refused, saying so."""
+    server = ServerProcess(tmp_path / "server", tmp_path / "state", sim_clock=True).start()
+    client = RawClient(server.endpoint, 2)
+    try:
+        first = client.call("submit", object=objcode(PROGRAMS / "medium.irl"))["result"]["program"]
+        second = client.call("submit", object=objcode(PROGRAMS / "short.irl"))["result"]["program"]
+        assert client.call("abort", program=second)["result"] == {"program": second, "state": "cancelled"}
+        client.call("wait", program=first, timeout=120)
+        replay = client.call("telemetry", since=0)["result"]
+        events = [m for m in replay["messages"] if m["kind"] == "event" and m["event"] == "program"
+                  and m["program"] == second]
+        assert [(e["state"], e["fault"]) for e in events] == [("cancelled", "removed from the queue by the operator")]
+        from runtime.protocol import SAMPLE_FIELDS  # every field a sample has is declared (and documented)
+
+        samples = [m for m in replay["messages"] if m["kind"] == "sample"]
+        assert any("line" in m for m in samples)
+        assert set().union(*samples) - {"v", "seq", "t", "kind"} <= set(SAMPLE_FIELDS)
+        ended = client.call("abort", program=first)["error"]
+        assert ended["code"] == "refused" and f"program {first} has already ended (completed)" in ended["message"]
+        assert client.call("abort", program=999)["error"]["code"] == "not_found"
+    finally:
+        client.close()
+        assert server.stop() == 0, server.log()

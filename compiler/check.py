@@ -18,8 +18,8 @@ from .clauses import CLAUSES as CLAUSE_TABLE
 from .clauses import NAMES as CLAUSES
 from .clauses import Clause
 from .objcode import BUILTINS, MAX_ARRAY_ELEMENTS, MAX_COUNT, MAX_STRING_LENGTH
-from .semantics import (INT_MAX, INT_MIN, EvalError, binary, call_builtin, make_joint, make_pos, make_quat,
-                        make_rpy, unary)
+from .semantics import (GEOMETRIC_BUILTINS, GEOMETRY, INT_MAX, INT_MIN, EvalError, binary, call_builtin, make_joint,
+                        make_pos, make_quat, make_rpy, unary)
 from .spec import Spec
 from .values import AddJoint, Joint, MainJoint, Pose
 
@@ -47,6 +47,14 @@ class ArrayT:
     @property
     def length(self) -> int:
         return self.high - self.low + 1
+
+
+GEOMETRIC_KINDS = (POSITION, POSE, ORIENTATION)
+
+
+def _kind(t) -> str:
+    """A checker type as compiler.semantics' operator tables name it."""
+    return "number" if t in NUMERIC else str(t)
 
 
 def type_name(t) -> str:
@@ -291,8 +299,12 @@ class Checker:
             t = self.expect(node.operand, BOOL, "the operand of 'not'")
             result = BOOL
         else:
-            t = self.expect(node.operand, NUMERIC, f"the operand of unary '{node.op}'")
-            result = self.types[id(node.operand)]
+            t = result = self.expr(node.operand)
+            if t not in NUMERIC + (ERROR,) and not (t == POSITION and node.op == "-"):
+                self.error(node.operand.span, f"the operand of unary '{node.op}' must be integer or real"
+                                              + (" (or a position, for '-')" if node.op == "-" else "")
+                                              + f", not {type_name(t)}")
+                t = ERROR
         if t == ERROR:
             return ERROR
         value = self.value_of(node.operand)
@@ -345,6 +357,17 @@ class Checker:
             return INTEGER if lt == rt == INTEGER else REAL
         if op == "+" and lt == STRING and rt == STRING:
             return STRING
+        geometric = GEOMETRY.get((op, _kind(lt), _kind(rt)))
+        if geometric is not None:
+            return geometric[0]
+        if _kind(lt) in GEOMETRIC_KINDS or _kind(rt) in GEOMETRIC_KINDS:
+            allowed = ", ".join(f"{left} {op} {right}" for o, left, right in GEOMETRY if o == op)
+            compose = op == "+" and lt == rt and lt in (POSE, ORIENTATION)
+            self.error(node.op_span, f"'{op}' is not defined for {pair}",
+                       f"to compose two {lt}s, use '*' (the right one given in the frame of the left one)" if compose
+                       else f"with positions, poses and orientations '{op}' takes: {allowed}" if allowed else
+                       "see 'Pose arithmetic' in docs/language.md")
+            return ERROR
         self.error(node.op_span, f"'{op}' needs two numbers, not {pair}")
         return ERROR
 
@@ -435,6 +458,8 @@ class Checker:
         name = node.name
         if not self.arity(node, BUILTINS[name]):
             return ERROR
+        if name in GEOMETRIC_BUILTINS:
+            return self.geometric_builtin(node)
         types = [self.expect(arg, NUMERIC, f"the argument of {name}") for arg in node.args]
         if ERROR in types:
             return ERROR
@@ -450,6 +475,26 @@ class Checker:
                 values = [float(v) for v in values]
             if not self.fold(node, call_builtin, name, values):
                 return ERROR
+        return result
+
+    def geometric_builtin(self, node: ast.Call):
+        """``inv``, ``distance``, ``tool_offset``: typed by GEOMETRIC_BUILTINS."""
+        name = node.name
+        types = [self.expr(arg) for arg in node.args]
+        if ERROR in types:
+            return ERROR
+        kinds = tuple(_kind(t) for t in types)
+        for wanted, result in GEOMETRIC_BUILTINS[name]:
+            if len(wanted) == len(kinds) and all(k in w.split("|") for k, w in zip(kinds, wanted)):
+                break
+        else:
+            forms = " or ".join(f"{name}({', '.join(w.replace('|', ' or ') for w in wanted)})"
+                                for wanted, _r in GEOMETRIC_BUILTINS[name])
+            self.error(node.span, f"{name} is not defined for {', '.join(map(a, types))}", f"it takes {forms}")
+            return ERROR
+        values = [self.value_of(arg) for arg in node.args]
+        if _NO_VALUE not in values and not self.fold(node, call_builtin, name, values):
+            return ERROR
         return result
 
     def numbers(self, node: ast.Call, count: int | None, what: str):

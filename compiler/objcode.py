@@ -70,6 +70,7 @@ OPERAND_KINDS = {
 BUILTINS: dict[str, int] = {
     "sin": 1, "cos": 1, "tan": 1, "asin": 1, "acos": 1, "atan2": 2, "sqrt": 1,
     "abs": 1, "min": 2, "max": 2, "round": 1, "trunc": 1,
+    "inv": 1, "distance": 2, "tool_offset": 2,  # (on poses and positions: compiler.semantics.GEOMETRIC_BUILTINS)
 }
 BUILTIN_NAMES = tuple(BUILTINS)
 

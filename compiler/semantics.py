@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import math
 
+from . import geometry
 from .values import Joint, Pose, Position, Quat, Rpy
 
 
@@ -72,7 +73,161 @@ INT_MIN, INT_MAX = -(2 ** 63), 2 ** 63 - 1  # integers are 64-bit
 MAX_STRING_LENGTH = 10_000
 
 
+# ---- geometry: positions as vectors, poses as frames ---------------------------------------
+# Kinds are the L-IRL type names; "number" is an integer or a real.
+
+def kind(value) -> str:
+    """The L-IRL kind of a run-time value, as the operator tables name it."""
+    if isinstance(value, bool):
+        return "bool"
+    if isinstance(value, (int, float)):
+        return "number"
+    return _KINDS.get(type(value), type(value).__name__)
+
+
+_KINDS = {Position: "position", Pose: "pose", Rpy: "orientation", Quat: "orientation", Joint: "joint", str: "string"}
+
+
+def _quat(o) -> tuple[float, float, float, float]:
+    return geometry.rpy_to_quat(o.roll, o.pitch, o.yaw) if isinstance(o, Rpy) else (o.w, o.x, o.y, o.z)
+
+
+def _orientation(q, rpy: bool):
+    """A rotation as an ``rpy`` (when ``rpy``) or a unit ``quat`` with w >= 0."""
+    return Rpy(*geometry.quat_to_rpy(q)) if rpy else Quat(*geometry.unit(q))
+
+
+def _vector(p: Position) -> tuple[float, float, float]:
+    return (p.x, p.y, p.z)
+
+
+def _position(v) -> Position:
+    x, y, z = v
+    for c in (x, y, z):
+        _finite(c, "a coordinate of the result")
+    return Position(x, y, z)
+
+
+def _plus(a: Position, b: Position) -> Position:
+    return _position((a.x + b.x, a.y + b.y, a.z + b.z))
+
+
+def _minus(a: Position, b: Position) -> Position:
+    return _position((a.x - b.x, a.y - b.y, a.z - b.z))
+
+
+def _scale(p: Position, k) -> Position:
+    return _position((p.x * k, p.y * k, p.z * k))
+
+
+def _shrink(p: Position, k) -> Position:
+    if k == 0:
+        raise EvalError("division by zero")
+    return _position((p.x / k, p.y / k, p.z / k))
+
+
+def compose(a: Pose, b: Pose) -> Pose:
+    """``a * b``: the pose ``b``, given in the frame ``a``, in the frame ``a`` is given in."""
+    qa = _quat(a.orientation)
+    moved = geometry.rotate(qa, _vector(b.position))
+    rpy = isinstance(a.orientation, Rpy) and isinstance(b.orientation, Rpy)
+    return Pose(_plus(a.position, _position(moved)),
+                _orientation(geometry.quat_multiply(qa, _quat(b.orientation)), rpy))
+
+
+def transform(a: Pose, p: Position) -> Position:
+    """``a * p``: the point ``p``, given in the frame ``a``, in the frame ``a`` is given in."""
+    return _plus(a.position, _position(geometry.rotate(_quat(a.orientation), _vector(p))))
+
+
+def inverse(a):
+    """``inv(a)``: the inverse of a pose (``a * inv(a)`` is the identity) or of an
+    orientation; the orientation stays ``rpy`` or ``quat`` as it was."""
+    if isinstance(a, Pose):
+        qi = geometry.quat_conjugate(_quat(a.orientation))
+        x, y, z = geometry.rotate(qi, _vector(a.position))
+        return Pose(_position((-x, -y, -z)), _orientation(qi, isinstance(a.orientation, Rpy)))
+    return _orientation(geometry.quat_conjugate(_quat(a)), isinstance(a, Rpy))
+
+
+def tool_offset(a: Pose, p: Position) -> Pose:
+    """``tool_offset(a, p)``: ``a`` moved by ``p`` along its own (the tool's) axes; the
+    orientation unchanged (``a * pose(p, rpy(0, 0, 0))``)."""
+    return Pose(transform(a, p), a.orientation)
+
+
+def distance(a, b) -> float:
+    """``distance(a, b)``: between two positions, or the positions of poses (mm)."""
+    pa = a.position if isinstance(a, Pose) else a
+    pb = b.position if isinstance(b, Pose) else b
+    return math.dist(_vector(pa), _vector(pb))
+
+
+#: The geometric operators: (operator, left kind, right kind) -> (result kind, function,
+#: what it means). The checker types expressions with it, the VM computes with it, and
+#: docs/language.md's table is generated from it.
+GEOMETRY: dict[tuple[str, str, str], tuple[str, object, str]] = {
+    ("+", "position", "position"): ("position", _plus, "vector sum"),
+    ("-", "position", "position"): ("position", _minus, "vector difference"),
+    ("*", "position", "number"): ("position", _scale, "scaled"),
+    ("*", "number", "position"): ("position", lambda k, p: _scale(p, k), "scaled"),
+    ("/", "position", "number"): ("position", _shrink, "scaled by 1/k; k = 0 is an error"),
+    ("+", "pose", "position"): ("pose", lambda a, p: Pose(_plus(a.position, p), a.orientation),
+                                "offset along the base frame's axes (orientation unchanged)"),
+    ("-", "pose", "position"): ("pose", lambda a, p: Pose(_minus(a.position, p), a.orientation),
+                                "offset against the base frame's axes"),
+    ("*", "pose", "pose"): ("pose", compose, "composition: the right pose, given in the frame of the left "
+                                             "one, in the left one's frame"),
+    ("*", "pose", "position"): ("position", transform, "the point, given in the frame of the pose, in the pose's "
+                                                       "frame"),
+    ("*", "orientation", "orientation"): ("orientation", lambda a, b: _orientation(
+        geometry.quat_multiply(_quat(a), _quat(b)), isinstance(a, Rpy) and isinstance(b, Rpy)),
+        "composition: the right rotation first, then the left one"),
+}
+GEOMETRY_OPS = frozenset(op for op, _l, _r in GEOMETRY)
+
+
+def _matches(kinds: tuple[str, ...], wanted: tuple[str, ...]) -> bool:
+    return len(kinds) == len(wanted) and all(k in w.split("|") for k, w in zip(kinds, wanted))
+_GEOMETRIC = (Position, Pose, Rpy, Quat)
+
+
+def geometry_markdown() -> str:
+    """docs/language.md's table of the geometric operators and built-ins (python -m
+    runtime.docgen), from :data:`GEOMETRY` and :data:`GEOMETRIC_BUILTINS`."""
+    lines = ["| expression | result | meaning |", "|---|---|---|"]
+    for (op, left, right), (result, _fn, doc) in GEOMETRY.items():
+        lines.append(f"| {left} `{op}` {right} | {result} | {doc} |")
+    lines.append("| `-` position | position | the opposite vector |")
+    docs = {"inv": "the inverse: `a * inv(a)` is the identity",
+            "distance": "the distance between the two points (mm; of poses, their positions)",
+            "tool_offset": "the pose moved by the position along its own (the tool's) axes, orientation unchanged"}
+    for name, forms in GEOMETRIC_BUILTINS.items():
+        for wanted, result in forms:
+            lines.append(f"| `{name}`({', '.join(w.replace('|', ' or ') for w in wanted)}) | {result} | {docs[name]} |")
+    return "\n".join(lines) + "\n"
+
+
+def geometric(op: str, a, b):
+    """``a op b`` by :data:`GEOMETRY`; EvalError for a pair it does not define."""
+    entry = GEOMETRY.get((op, kind(a), kind(b)))
+    if entry is None:
+        raise EvalError(f"'{op}' is not defined for {kind(a)} {op} {kind(b)}")
+    return entry[1](a, b)
+
+
+_ARITHMETIC = frozenset({"+", "-", "*", "/", "div", "mod"})
+_NUMBERS = (int, float)
+
+
 def binary(op: str, a, b):
+    if op in GEOMETRY_OPS and (isinstance(a, _GEOMETRIC) or isinstance(b, _GEOMETRIC)):
+        return geometric(op, a, b)
+    if op in _ARITHMETIC and not (type(a) in _NUMBERS and type(b) in _NUMBERS) and \
+            not (op == "+" and type(a) is str and type(b) is str):
+        # (the compiler never makes such object code: a string repeated or an array joined
+        # from hand-made code must not allocate at will)
+        raise EvalError(f"'{op}' is not defined for {kind(a)} {op} {kind(b)}")
     if op == "+" and isinstance(a, str) and isinstance(b, str) and len(a) + len(b) > MAX_STRING_LENGTH:
         raise EvalError(f"string too long: joining {len(a)} and {len(b)} characters gives more than "
                         f"{MAX_STRING_LENGTH}, the longest string allowed")
@@ -85,6 +240,8 @@ def binary(op: str, a, b):
 
 
 def unary(op: str, a):
+    if op == "-" and isinstance(a, Position):
+        return Position(-a.x, -a.y, -a.z)
     if op == "-":
         if a == INT_MIN and not isinstance(a, float):
             raise EvalError("integer overflow in '-': the result is outside the 64-bit integer range")
@@ -131,10 +288,25 @@ BUILTIN_FUNCTIONS = {
     "max": max,
     "round": _round,
     "trunc": lambda x: int(_finite(float(x), "trunc's argument")),
+    "inv": inverse,
+    "distance": distance,
+    "tool_offset": tool_offset,
+}
+
+#: The built-in functions on geometric values: name -> [(argument kinds, result kind)]
+#: (the others take numbers). "position|pose": either.
+GEOMETRIC_BUILTINS: dict[str, tuple[tuple[tuple[str, ...], str], ...]] = {
+    "inv": ((("pose",), "pose"), (("orientation",), "orientation")),
+    "distance": ((("position|pose", "position|pose"), "real"),),
+    "tool_offset": ((("pose", "position"), "pose"),),
 }
 
 
 def call_builtin(name: str, args):
+    if name in GEOMETRIC_BUILTINS:  # (checked at compile time; object code is checked again here)
+        kinds = tuple(kind(arg) for arg in args)
+        if not any(_matches(kinds, wanted) for wanted, _result in GEOMETRIC_BUILTINS[name]):
+            raise EvalError(f"{name}({', '.join(kinds)}) is not defined")
     result = BUILTIN_FUNCTIONS[name](*args)
     if isinstance(result, float):
         _finite(result, f"{name}(...)")

@@ -73,6 +73,9 @@ SLICE = 32
 PRINT_SEPARATOR = ""
 
 
+_NUMBER_TYPES = (int, float)  # (type(x) in: bool is not a number here)
+
+
 class VMStatus(enum.IntEnum):
     READY = 0  # not started
     RUNNING = 1  # the budget was used up: call step again
@@ -367,6 +370,7 @@ class VM:
         LT, LE, GT, GE, EQ, NE = OP.LT, OP.LE, OP.GT, OP.GE, OP.EQ, OP.NE
         GET_ITEM = OP.GET_ITEM
         lo, hi = INT_MIN, INT_MAX
+        numbers = _NUMBER_TYPES
         pc = here = self.pc
         try:
             while n:
@@ -393,7 +397,10 @@ class VM:
                 elif op == ADD:
                     b = pop()
                     a = stack[-1]
-                    r = a + b
+                    try:
+                        r = a + b
+                    except TypeError:  # positions, poses, orientations: semantics.binary
+                        r = None
                     # the common results here; anything else (strings, overflow,
                     # non-finite reals) through semantics.binary
                     if (lo <= r <= hi) if type(r) is int else (type(r) is float and r - r == 0.0):
@@ -430,7 +437,10 @@ class VM:
                 elif op == SUB:
                     b = pop()
                     a = stack[-1]
-                    r = a - b
+                    try:
+                        r = a - b
+                    except TypeError:  # positions, poses, orientations: semantics.binary
+                        r = None
                     if (lo <= r <= hi) if type(r) is int else (type(r) is float and r - r == 0.0):
                         stack[-1] = r
                     else:
@@ -439,7 +449,10 @@ class VM:
                 elif op == MUL:
                     b = pop()
                     a = stack[-1]
-                    r = a * b
+                    ta = type(a)
+                    # numbers only here: a string or an array times an integer (object code the
+                    # compiler never makes) would allocate before semantics.binary refuses it
+                    r = a * b if (ta is float or ta is int) and type(b) in numbers else None
                     if (lo <= r <= hi) if type(r) is int else (type(r) is float and r - r == 0.0):
                         stack[-1] = r
                     else:

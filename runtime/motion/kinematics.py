@@ -103,6 +103,7 @@ from __future__ import annotations
 from math import atan2, ceil, cos, inf, isfinite, pi, sin, sqrt
 from typing import Sequence
 
+from compiler.geometry import rotation_to_rpy
 from compiler.spec import DH, Spec
 from compiler.values import Joint, Pose, Position, Quat, Rpy
 
@@ -160,19 +161,6 @@ def rpy_to_matrix(roll: float, pitch: float, yaw: float) -> tuple:
     return ((cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr),
             (sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr),
             (-sp, cp * sr, cp * cr))
-
-
-def rotation_to_rpy(r00, r01, r02, r10, r11, r12, r20, r21, r22) -> tuple[float, float, float]:
-    """(roll, pitch, yaw) in degrees of a rotation matrix. Yaw first, then roll and pitch
-    from ``Rz(-yaw) R``: exact to rounding even next to gimbal lock."""
-    if abs(r00) + abs(r10) < 1e-12:  # gimbal lock: pitch = +-90, yaw taken as 0
-        cy, sy, yaw = 1.0, 0.0, 0.0
-    else:
-        yaw = atan2(r10, r00)
-        cy, sy = cos(yaw), sin(yaw)
-    roll = atan2(sy * r02 - cy * r12, cy * r11 - sy * r01)
-    pitch = atan2(-r20, cy * r00 + sy * r10)
-    return roll * _R2D, pitch * _R2D, yaw * _R2D
 
 
 def matrix_to_rpy(matrix) -> tuple[float, float, float]:

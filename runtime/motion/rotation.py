@@ -12,9 +12,10 @@ Plain floats and ``math``; no NumPy (sampled every tick).
 """
 from __future__ import annotations
 
-from math import atan2, cos, isfinite, pi, sin, sqrt
+from math import atan2, isfinite, pi, sin, sqrt
 
-from .kinematics import rotation_to_rpy
+from compiler.geometry import quat_multiply, quat_to_rpy, rpy_to_quat
+from compiler.geometry import rpy_of_quat as _rpy_of_quat  # noqa: F401  (runtime.motion.paths)
 
 __all__ = ["matrix_to_quat", "quat_angle", "quat_multiply", "quat_to_matrix", "quat_to_rpy", "rpy_to_quat",
            "slerp"]
@@ -23,14 +24,6 @@ _D2R = pi / 180.0
 _R2D = 180.0 / pi
 # below this slerp angle (rad) the slerp weights use their series (error ~ omega^4 / 100)
 _SMALL_ANGLE = 1e-4
-
-
-def rpy_to_quat(roll: float, pitch: float, yaw: float) -> tuple[float, float, float, float]:
-    """The unit quaternion ``(w, x, y, z)`` of ``Rz(yaw) Ry(pitch) Rx(roll)`` (degrees)."""
-    hr, hp, hy = 0.5 * roll * _D2R, 0.5 * pitch * _D2R, 0.5 * yaw * _D2R
-    cr, sr, cp, sp, cy, sy = cos(hr), sin(hr), cos(hp), sin(hp), cos(hy), sin(hy)
-    return (cr * cp * cy + sr * sp * sy, sr * cp * cy - cr * sp * sy,
-            cr * sp * cy + sr * cp * sy, cr * cp * sy - sr * sp * cy)
 
 
 def quat_to_matrix(q) -> tuple:
@@ -68,40 +61,6 @@ def matrix_to_quat(matrix) -> tuple[float, float, float, float]:
     if w < 0.0:
         n = -n
     return (w / n, x / n, y / n, z / n)
-
-
-def _rpy_of_quat(w: float, x: float, y: float, z: float) -> tuple[float, float, float]:
-    """(roll, pitch, yaw) in degrees of a unit quaternion: the matrix entries that
-    :func:`runtime.motion.kinematics.matrix_to_rpy` uses, and its method (yaw first, then
-    roll and pitch from ``Rz(-yaw) R``; at gimbal lock yaw = 0)."""
-    r00 = 1.0 - 2.0 * (y * y + z * z)
-    r01 = 2.0 * (x * y - w * z)
-    r02 = 2.0 * (x * z + w * y)
-    r10 = 2.0 * (x * y + w * z)
-    r11 = 1.0 - 2.0 * (x * x + z * z)
-    r12 = 2.0 * (y * z - w * x)
-    r20 = 2.0 * (x * z - w * y)
-    r21 = 2.0 * (y * z + w * x)
-    r22 = 1.0 - 2.0 * (x * x + y * y)
-    return rotation_to_rpy(r00, r01, r02, r10, r11, r12, r20, r21, r22)
-
-
-def quat_to_rpy(q) -> tuple[float, float, float]:
-    """(roll, pitch, yaw) in degrees of a quaternion ``(w, x, y, z)`` (normalised here),
-    in the ranges of ``Kinematics.forward``."""
-    w, x, y, z = q
-    n = sqrt(w * w + x * x + y * y + z * z)
-    if not (n > 0.0 and isfinite(n)):
-        raise ValueError(f"the quaternion {tuple(q)} is not a rotation")
-    return _rpy_of_quat(w / n, x / n, y / n, z / n)
-
-
-def quat_multiply(a, b) -> tuple[float, float, float, float]:
-    """The Hamilton product ``a b`` (the rotation ``b`` first, then ``a``)."""
-    aw, ax, ay, az = a
-    bw, bx, by, bz = b
-    return (aw * bw - ax * bx - ay * by - az * bz, aw * bx + ax * bw + ay * bz - az * by,
-            aw * by - ax * bz + ay * bw + az * bx, aw * bz + ax * by - ay * bx + az * bw)
 
 
 def _half_angle(q0, q1) -> float:

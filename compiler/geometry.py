@@ -1,0 +1,94 @@
+"""Rotations and poses in plain floats: shared by the compiler (constant folding of pose
+arithmetic), the VM and the runtime's Cartesian paths, so every one computes the same bits.
+
+* **Quaternions** are ``(w, x, y, z)`` tuples, unit norm; ``q`` and ``-q`` are the same
+  rotation.
+* **Roll/pitch/yaw** in degrees: ``R = Rz(yaw) Ry(pitch) Rx(roll)``; returned angles
+  have pitch in [-90, 90], roll and yaw in [-180, 180].
+
+Imports only ``math``: the compiler and the loop both use it.
+"""
+from __future__ import annotations
+
+from math import atan2, cos, isfinite, pi, sin, sqrt
+
+_D2R = pi / 180.0
+_R2D = 180.0 / pi
+
+
+def rpy_to_quat(roll: float, pitch: float, yaw: float) -> tuple[float, float, float, float]:
+    """The unit quaternion ``(w, x, y, z)`` of ``Rz(yaw) Ry(pitch) Rx(roll)`` (degrees)."""
+    hr, hp, hy = 0.5 * roll * _D2R, 0.5 * pitch * _D2R, 0.5 * yaw * _D2R
+    cr, sr, cp, sp, cy, sy = cos(hr), sin(hr), cos(hp), sin(hp), cos(hy), sin(hy)
+    return (cr * cp * cy + sr * sp * sy, sr * cp * cy - cr * sp * sy,
+            cr * sp * cy + sr * cp * sy, cr * cp * sy - sr * sp * cy)
+
+
+def rotation_to_rpy(r00, r01, r02, r10, r11, r12, r20, r21, r22) -> tuple[float, float, float]:
+    """(roll, pitch, yaw) in degrees of a rotation matrix. Yaw first, then roll and pitch
+    from ``Rz(-yaw) R``: exact to rounding even next to gimbal lock."""
+    if abs(r00) + abs(r10) < 1e-12:  # gimbal lock: pitch = +-90, yaw taken as 0
+        cy, sy, yaw = 1.0, 0.0, 0.0
+    else:
+        yaw = atan2(r10, r00)
+        cy, sy = cos(yaw), sin(yaw)
+    roll = atan2(sy * r02 - cy * r12, cy * r11 - sy * r01)
+    pitch = atan2(-r20, cy * r00 + sy * r10)
+    return roll * _R2D, pitch * _R2D, yaw * _R2D
+
+
+def rpy_of_quat(w: float, x: float, y: float, z: float) -> tuple[float, float, float]:
+    """(roll, pitch, yaw) in degrees of a unit quaternion: the matrix entries that
+    :func:`rotation_to_rpy` uses, and its method (yaw first, then
+    roll and pitch from ``Rz(-yaw) R``; at gimbal lock yaw = 0)."""
+    r00 = 1.0 - 2.0 * (y * y + z * z)
+    r01 = 2.0 * (x * y - w * z)
+    r02 = 2.0 * (x * z + w * y)
+    r10 = 2.0 * (x * y + w * z)
+    r11 = 1.0 - 2.0 * (x * x + z * z)
+    r12 = 2.0 * (y * z - w * x)
+    r20 = 2.0 * (x * z - w * y)
+    r21 = 2.0 * (y * z + w * x)
+    r22 = 1.0 - 2.0 * (x * x + y * y)
+    return rotation_to_rpy(r00, r01, r02, r10, r11, r12, r20, r21, r22)
+
+
+def quat_to_rpy(q) -> tuple[float, float, float]:
+    """(roll, pitch, yaw) in degrees of a quaternion ``(w, x, y, z)`` (normalised here),
+    in the ranges of ``Kinematics.forward``."""
+    w, x, y, z = q
+    n = sqrt(w * w + x * x + y * y + z * z)
+    if not (n > 0.0 and isfinite(n)):
+        raise ValueError(f"the quaternion {tuple(q)} is not a rotation")
+    return rpy_of_quat(w / n, x / n, y / n, z / n)
+
+
+def quat_multiply(a, b) -> tuple[float, float, float, float]:
+    """The Hamilton product ``a b`` (the rotation ``b`` first, then ``a``)."""
+    aw, ax, ay, az = a
+    bw, bx, by, bz = b
+    return (aw * bw - ax * bx - ay * by - az * bz, aw * bx + ax * bw + ay * bz - az * by,
+            aw * by - ax * bz + ay * bw + az * bx, aw * bz + ax * by - ay * bx + az * bw)
+
+
+def quat_conjugate(q) -> tuple[float, float, float, float]:
+    """The inverse rotation of a unit quaternion."""
+    w, x, y, z = q
+    return (w, -x, -y, -z)
+
+
+def rotate(q, v) -> tuple[float, float, float]:
+    """The vector ``v`` turned by the unit quaternion ``q``."""
+    w, qx, qy, qz = q
+    vx, vy, vz = v
+    tx, ty, tz = 2.0 * (qy * vz - qz * vy), 2.0 * (qz * vx - qx * vz), 2.0 * (qx * vy - qy * vx)
+    return (vx + w * tx + (qy * tz - qz * ty), vy + w * ty + (qz * tx - qx * tz), vz + w * tz + (qx * ty - qy * tx))
+
+
+def unit(q) -> tuple[float, float, float, float]:
+    """``q`` normalised, with ``w >= 0`` (one of the two quaternions of a rotation)."""
+    w, x, y, z = q
+    n = sqrt(w * w + x * x + y * y + z * z)
+    if w < 0.0:
+        n = -n
+    return (w / n, x / n, y / n, z / n)

@@ -267,8 +267,14 @@ class Halt:
     span: Span
 
 
+@node
+class Return:
+    value: Expr | None  # None: 'return;' (a procedure)
+    span: Span
+
+
 Stmt = Union[Assign, OutSet, Move, If, While, Repeat, For, WaitTime, WaitFor,
-             CallProc, Print, Pause, Halt]
+             CallProc, Print, Pause, Halt, Return]
 
 
 # ---- declarations and the program ----------------------------------------------------
@@ -306,6 +312,7 @@ class Procedure:
     body: tuple[Stmt, ...]
     span: Span
     name_span: Span
+    result: TypeExpr | None = None  # a function's result type; None: a procedure
 
 
 Decl = Union[ConstDecl, VarDecl, Procedure]

@@ -87,14 +87,14 @@ def _literal_text(value: int) -> str:
 
 @dataclass
 class Symbol:
-    kind: str  # "const", "global", "local", "proc"
+    kind: str  # "const", "global", "local", "proc", "func"
     name: str
     type: object
     span: ast.Span
     slot: int = -1
     value: object = None
-    params: tuple = ()  # for procedures: parameter types
-    index: int = -1  # for procedures: index in the procedure table
+    params: tuple = ()  # for procedures and functions: parameter types
+    index: int = -1  # for procedures and functions: index in the procedure table
 
 
 @dataclass
@@ -103,6 +103,21 @@ class ProcScope:
     symbol: Symbol
     names: dict[str, Symbol] = field(default_factory=dict)
     slots: list[tuple[str, str]] = field(default_factory=list)
+    result: object = None  # a function's result type (None: a procedure)
+
+
+def always_returns(body) -> bool:
+    """Whether every path through ``body`` ends in a ``return`` (an ``if`` with an ``else``
+    whose every branch does; a ``repeat``, whose body runs at least once, whose body does)."""
+    for stmt in body:
+        if isinstance(stmt, ast.Return):
+            return True
+        if isinstance(stmt, ast.If) and always_returns(stmt.orelse) and \
+                all(always_returns(branch) for _cond, branch in stmt.branches):
+            return True
+        if isinstance(stmt, ast.Repeat) and always_returns(stmt.body):
+            return True
+    return False
 
 
 @dataclass
@@ -289,6 +304,10 @@ class Checker:
             self.error(node.span, f"'{node.name}' is a procedure, not a value",
                        f"call it as a statement: call {node.name}(...);")
             return ERROR
+        if symbol.kind == "func":
+            self.error(node.span, f"'{node.name}' is a function: call it with its arguments in parentheses",
+                       f"write {node.name}({', '.join(type_name(t) for t in symbol.params)})")
+            return ERROR
         self.symbols[id(node)] = symbol
         if symbol.kind == "const" and symbol.value is not _NO_VALUE:
             self.values[id(node)] = symbol.value
@@ -434,6 +453,10 @@ class Checker:
         if name in BUILTINS:
             return self.builtin(node)
         symbol = self.lookup(name)
+        if symbol is not None and symbol.kind == "func":
+            self.symbols[id(node)] = symbol
+            self.arguments(node, symbol, "function")
+            return symbol.type
         if symbol is not None and symbol.kind == "proc":
             self.error(node.name_span, f"procedure '{name}' has no value", f"call it as a statement: call {name}(...);")
         elif symbol is not None:
@@ -604,7 +627,12 @@ class Checker:
     # ---- statements ----
     def stmts(self, body) -> None:
         dispatch = self._stmt
+        function = self.scope is not None and self.scope.result is not None
         for stmt in body:
+            if function and type(stmt) in _NOT_IN_FUNCTIONS:
+                self.error(stmt.span, f"a function computes a value: '{_NOT_IN_FUNCTIONS[type(stmt)]}' is not "
+                                      f"allowed in function '{self.scope.node.name}'",
+                           "move, wait, set outputs, print, pause, halt and call procedures in a procedure")
             dispatch[type(stmt)](stmt)
 
     def variable(self, name: str, span: ast.Span, node) -> Symbol | None:
@@ -615,8 +643,10 @@ class Checker:
         if symbol.kind == "const":
             self.error(span, f"'{name}' is a constant and cannot be assigned")
             return None
-        if symbol.kind == "proc":
-            self.error(span, f"'{name}' is a procedure and cannot be assigned")
+        if symbol.kind in ("proc", "func"):
+            what = "procedure" if symbol.kind == "proc" else "function"
+            self.error(span, f"'{name}' is a {what} and cannot be assigned",
+                       "a function's result is given with 'return VALUE;'" if symbol.kind == "func" else None)
             return None
         self.symbols[id(node)] = symbol
         return symbol
@@ -751,9 +781,9 @@ class Checker:
         if symbol is None:
             self.error(node.var_span, f"undeclared loop variable '{node.var}'",
                        f"declare it: var {node.var} : integer;")
-        elif symbol.kind in ("const", "proc"):
-            self.error(node.var_span, f"'{node.var}' is a {'constant' if symbol.kind == 'const' else 'procedure'}"
-                                      f" and cannot be a loop variable")
+        elif symbol.kind in ("const", "proc", "func"):
+            what = {"const": "constant", "proc": "procedure", "func": "function"}[symbol.kind]
+            self.error(node.var_span, f"'{node.var}' is a {what} and cannot be a loop variable")
         elif symbol.type not in (INTEGER, ERROR):
             self.error(node.var_span, f"the loop variable '{node.var}' must be an integer, "
                                       f"not {type_name(symbol.type)}")
@@ -792,14 +822,21 @@ class Checker:
                 guess = did_you_mean(node.name, procs)
                 self.error(node.name_span, f"undeclared procedure '{node.name}'",
                            f"did you mean '{guess}'?" if guess else None)
+            elif symbol.kind == "func":
+                self.error(node.name_span, f"'{node.name}' is a function: use its value",
+                           f"for example: x := {node.name}(...);")
             else:
                 self.error(node.name_span, f"'{node.name}' is not a procedure")
             for arg in node.args:
                 self.expr(arg)
             return
         self.symbols[id(node)] = symbol
+        self.arguments(node, symbol, "procedure")
+
+    def arguments(self, node, symbol: Symbol, what: str) -> None:
+        """Check a call's arguments against the procedure's or function's parameters."""
         if len(node.args) != len(symbol.params):
-            self.error(node.span, f"procedure '{node.name}' takes {len(symbol.params)} argument"
+            self.error(node.span, f"{what} '{node.name}' takes {len(symbol.params)} argument"
                                   f"{'s' if len(symbol.params) != 1 else ''}, not {len(node.args)}")
             for arg in node.args:
                 self.expr(arg)
@@ -821,6 +858,27 @@ class Checker:
 
     def s_Halt(self, node):
         pass
+
+    def s_Return(self, node: ast.Return):
+        scope = self.scope
+        if scope is None:
+            self.error(node.span, "'return' outside a procedure or function", "to end the program, write 'halt;'")
+            if node.value is not None:
+                self.expr(node.value)
+            return
+        if scope.result is None:
+            if node.value is not None:
+                self.expr(node.value)
+                self.error(node.value.span, f"procedure '{scope.node.name}' has no result: write 'return;'",
+                           "a procedure that computes a value is a function: function NAME(...) : TYPE;")
+            return
+        if node.value is None:
+            self.error(node.span, f"function '{scope.node.name}' must return {a(scope.result)}: "
+                                  "write 'return VALUE;'")
+            return
+        t = self.expr(node.value)
+        if ERROR not in (t, scope.result) and not assignable(scope.result, t):
+            self.error(node.value.span, f"function '{scope.node.name}' returns {a(scope.result)}, not {a(t)}")
 
     # ---- declarations ----
     def const_decl(self, decl: ast.ConstDecl) -> None:
@@ -860,6 +918,10 @@ class Checker:
             for var in scope.node.variables:
                 self.var_decl(var, scope.names, scope.slots, "local")
             self.stmts(scope.node.body)
+            if scope.result is not None and not always_returns(scope.node.body):
+                self.error(scope.node.name_span, f"function '{scope.node.name}' can reach its end without "
+                                                 "'return'", "every path through a function must end in "
+                                                             "'return VALUE;'")
             self.scope = None
         self.stmts(program.body)
         if not self.robots:
@@ -868,10 +930,18 @@ class Checker:
                               self.global_slots, self.globals, self.procs, tuple(self.robots))
 
     def declare_procedure(self, node: ast.Procedure) -> None:
-        symbol = Symbol("proc", node.name, "procedure", node.name_span, index=len(self.procs))
+        """A procedure, or a function (a procedure with a result type)."""
+        result = None
+        if node.result is not None:
+            result = self.resolve_type(node.result)
+            if node.name in BUILTINS or node.name in CONSTRUCTORS:
+                self.error(node.name_span, f"'{node.name}' is a built-in function: a function needs another name")
+                return
+        symbol = Symbol("func" if node.result is not None else "proc", node.name,
+                        result if node.result is not None else "procedure", node.name_span, index=len(self.procs))
         if not self.declare(self.globals, symbol):
             return
-        scope = ProcScope(node, symbol)
+        scope = ProcScope(node, symbol, result=result)
         params = []
         for param in node.params:
             t = self.resolve_type(param.type)
@@ -886,7 +956,10 @@ class Checker:
 _EXPR_CLASSES = (ast.Number, ast.String, ast.Bool, ast.Ref, ast.Call, ast.Index, ast.Field, ast.Unary,
                  ast.Binary, ast.Input)
 _STMT_CLASSES = (ast.Assign, ast.OutSet, ast.Move, ast.If, ast.While, ast.Repeat, ast.For, ast.WaitTime,
-                 ast.WaitFor, ast.CallProc, ast.Print, ast.Pause, ast.Halt)
+                 ast.WaitFor, ast.CallProc, ast.Print, ast.Pause, ast.Halt, ast.Return)
+#: Statements a function may not hold (it computes a value; it does not act): the keyword.
+_NOT_IN_FUNCTIONS = {ast.Move: "move", ast.WaitTime: "wait", ast.WaitFor: "wait for", ast.OutSet: "out[...] :=",
+                     ast.CallProc: "call", ast.Print: "print", ast.Pause: "pause", ast.Halt: "halt"}
 
 CONSTRUCTORS = {
     "joint": Checker.c_joint,

@@ -9,7 +9,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from . import ast
-from .check import (BOOL, INTEGER, JOINT, ORIENTATION, POSE, POSITION, REAL, STRING, ArrayT,
+from .check import (BOOL, type_name, INTEGER, JOINT, ORIENTATION, POSE, POSITION, REAL, STRING, ArrayT,
                     CheckedProgram, Symbol)
 from .clauses import CLAUSES as CLAUSE_TABLE
 from .objcode import BUILTIN_NAMES, FIELDS, OP, ProcInfo, Program
@@ -34,11 +34,13 @@ class CodeGen:
         self.constant_index: dict = {}
         self.globals = list(checked.globals)
         self.locals: list | None = None  # slots of the procedure being generated
+        self.result = None  # the result type of the function being generated (None: not a function)
         self._expr = {cls: getattr(self, "e_" + cls.__name__)
                       for cls in (ast.Ref, ast.Unary, ast.Binary, ast.Index, ast.Field, ast.Input, ast.Call)}
         self._stmt = {cls: getattr(self, "s_" + cls.__name__)
                       for cls in (ast.Assign, ast.OutSet, ast.Move, ast.If, ast.While, ast.Repeat, ast.For,
-                                  ast.WaitTime, ast.WaitFor, ast.CallProc, ast.Print, ast.Pause, ast.Halt)}
+                                  ast.WaitTime, ast.WaitFor, ast.CallProc, ast.Print, ast.Pause, ast.Halt,
+                                  ast.Return)}
 
     # -- emitting --
     def emit(self, op: int, *operands: int) -> int:
@@ -139,7 +141,12 @@ class CodeGen:
 
     def e_Call(self, node: ast.Call) -> None:
         name = node.name
-        if name in _BUILTIN_INDEX:
+        symbol = self.symbols.get(id(node))
+        if symbol is not None and symbol.kind == "func":
+            for arg, param_t in zip(node.args, symbol.params):
+                self.value(arg, param_t)
+            self.emit(OP.CALL_FUNC, symbol.index)
+        elif name in _BUILTIN_INDEX:
             want = REAL if self.types[id(node)] == REAL else None
             for arg in node.args:
                 self.value(arg, want)
@@ -311,6 +318,13 @@ class CodeGen:
     def s_Halt(self, node) -> None:
         self.emit(OP.HALT)
 
+    def s_Return(self, node: ast.Return) -> None:
+        if node.value is None:
+            self.emit(OP.RET)
+            return
+        self.value(node.value, self.result)
+        self.emit(OP.RET_VALUE)
+
     # -- declarations --
     def default(self, t) -> None:
         if isinstance(t, ArrayT):
@@ -348,11 +362,15 @@ class CodeGen:
         for scope in checked.procedures:
             self.locals = scope.slots
             entry = len(self.code)
+            self.result = scope.result
             self.init_vars(scope.node.variables, scope.names.__getitem__)
             self.stmts(scope.node.body)
-            self.emit(OP.RET)
-            procedures.append(ProcInfo(scope.node.name, entry, len(scope.node.params), tuple(self.locals)))
-            self.locals = None
+            # a procedure returns at its end; a function never gets there (the checker saw a
+            # return on every path): HALT keeps any jump to its end inside the code
+            self.emit(OP.HALT if scope.result is not None else OP.RET)
+            procedures.append(ProcInfo(scope.node.name, entry, len(scope.node.params), tuple(self.locals),
+                                       type_name(scope.result) if scope.result is not None else ""))
+            self.locals = self.result = None
         spec = checked.spec
         return Program(program.name, source_name, spec.name, spec.hash, checked.robots,
                        tuple(self.constants), tuple(self.code), tuple(self.lines),

@@ -126,7 +126,8 @@ def format_text(program: Program, data: bytes | None = None, source: str | None 
             proc = entries[ins.offset]
             params = ", ".join(f"{n} : {t}" for n, t in proc.locals[:proc.params])
             out.append("")
-            out.append(f"procedure {proc.name}({params})")
+            out.append(f"function {proc.name}({params}) : {proc.result}" if proc.result else
+                       f"procedure {proc.name}({params})")
         if ins.starts_line and source_lines is not None and 1 <= ins.line <= len(source_lines):
             out.append(f"        ; {ins.line}: {source_lines[ins.line - 1].strip()}")
         line = f"{ins.line:6d}" if ins.starts_line else "      "
@@ -146,7 +147,8 @@ def format_json(program: Program, data: bytes | None = None) -> dict:
         "constants": [to_plain(c) for c in program.constants],
         "globals": [{"name": n, "type": t} for n, t in program.globals],
         "procedures": [{"name": p.name, "entry": p.entry, "params": p.params,
-                        "locals": [{"name": n, "type": t} for n, t in p.locals]} for p in program.procedures],
+                        "locals": [{"name": n, "type": t} for n, t in p.locals], "result": p.result or None}
+                       for p in program.procedures],
         "code": [{"offset": i.offset, "name": i.name, "operands": list(i.operands), "argrepr": i.argrepr,
                   "line": i.line, "column": i.column} for i in instructions(program)],
     }

@@ -188,6 +188,11 @@ _DEFS = [
     ("PAUSE", (), 0, 0, "Hold until the operator resumes.", "", "wait"),
     ("HALT", (), 0, 0, "End the program here.", "", "stop"),
     ("END", (), 0, 0, "The end of the main program.", "", "stop"),
+    ("CALL_FUNC", (("f", "proc"),), _call_pops, 1,
+     "Call function f (a routine with a result); its parameters are popped into its first local slots, and its "
+     "result is on the stack when it returns.", "args... -> result", "call"),
+    ("RET_VALUE", (), 1, 0, "Return from the current function with the value on top of the stack (left there for "
+                            "the caller).", "result ->", "return"),
 ]
 
 INSTRUCTIONS: tuple[InstrDef, ...] = tuple(
@@ -203,12 +208,14 @@ OP = type("OP", (), {d.name: d.code for d in INSTRUCTIONS})  # OP.CONST == 1, ..
 
 @dataclass(frozen=True)
 class ProcInfo:
-    """A procedure: where its code starts, how many parameters, its local slots."""
+    """A procedure or a function: where its code starts, how many parameters, its local
+    slots, and a function's result type (empty for a procedure)."""
 
     name: str
     entry: int
     params: int
     locals: tuple[tuple[str, str], ...]  # (name, type) per slot, parameters first
+    result: str = ""  # a function's result type; "" for a procedure
 
 
 @dataclass(frozen=True)
@@ -250,7 +257,8 @@ def _body(program: Program) -> dict:
         "code": flat_code,
         "lines": [x for entry in program.lines for x in entry],
         "globals": [list(g) for g in program.globals],
-        "procedures": [[p.name, p.entry, p.params, [list(l) for l in p.locals]] for p in program.procedures],
+        "procedures": [[p.name, p.entry, p.params, [list(l) for l in p.locals]] + ([p.result] if p.result else [])
+                       for p in program.procedures],
     }
 
 
@@ -343,9 +351,12 @@ def decode(data: bytes) -> Program:
     _expect(isinstance(procs, list), "body: procedures must be a list")
     procedures = []
     for i, p in enumerate(procs):
-        _expect(isinstance(p, list) and len(p) == 4 and _is_str(p[0]) and _is_int(p[1]) and _is_int(p[2]),
-                f"procedure {i}: expected [name, entry, params, locals]")
-        procedures.append(ProcInfo(p[0], p[1], p[2], _pairs(p[3], f"procedure {p[0]} locals")))
+        _expect(isinstance(p, list) and len(p) in (4, 5) and _is_str(p[0]) and _is_int(p[1]) and _is_int(p[2])
+                and (len(p) == 4 or (_is_str(p[4]) and p[4] != "")),
+                f"procedure {i}: expected [name, entry, params, locals] or, for a function, "
+                "[name, entry, params, locals, result type]")
+        procedures.append(ProcInfo(p[0], p[1], p[2], _pairs(p[3], f"procedure {p[0]} locals"),
+                                   p[4] if len(p) == 5 else ""))
     return Program(body["name"], body["source"], spec[0], spec[1], tuple(robots), tuple(constants),
                    tuple(code), line_table, _pairs(body["globals"], "globals"), tuple(procedures), version)
 
@@ -383,8 +394,9 @@ def _check_operand(kind: str, value: int, program: Program, nlocals: int | None)
     return None if ok else f"{value} is out of range ({limit})"
 
 
-def _verify_routine(program: Program, entry: int, nlocals: int | None, owner: list) -> int:
-    """Walk every path from ``entry``; returns the largest stack depth reached."""
+def _verify_routine(program: Program, entry: int, nlocals: int | None, owner: list, result: str = "") -> int:
+    """Walk every path from ``entry`` (a function's when ``result``); returns the largest
+    stack depth reached."""
     code = program.code
     depth_at: dict[int, int] = {entry: 0}
     work = [entry]
@@ -407,6 +419,13 @@ def _verify_routine(program: Program, entry: int, nlocals: int | None, owner: li
         if definition.name == "CALL_BUILTIN" and BUILTINS[BUILTIN_NAMES[operands[0]]] != operands[1]:
             raise ObjectCodeError(f"CALL_BUILTIN {BUILTIN_NAMES[operands[0]]} takes "
                                   f"{BUILTINS[BUILTIN_NAMES[operands[0]]]} arguments, not {operands[1]}", pc)
+        if definition.name in ("CALL", "CALL_FUNC") and \
+                bool(program.procedures[operands[0]].result) != (definition.name == "CALL_FUNC"):
+            callee = program.procedures[operands[0]]
+            raise ObjectCodeError(f"{definition.name} of {'function' if callee.result else 'procedure'} "
+                                  f"{callee.name!r}: a function is called with CALL_FUNC, a procedure with CALL", pc)
+        if flow_of_return(definition.name, nlocals, result):
+            raise ObjectCodeError(flow_of_return(definition.name, nlocals, result), pc)
         pops = definition.pop_count(operands, program)
         if pops > depth:
             raise ObjectCodeError(f"{definition.name} needs {pops} stack values but the stack holds {depth}", pc)
@@ -420,8 +439,6 @@ def _verify_routine(program: Program, entry: int, nlocals: int | None, owner: li
             successors.append(operands[0])
         elif flow == "branch":
             successors.extend((pc + 1, operands[0]))
-        elif flow == "return" and nlocals is None:
-            raise ObjectCodeError("RET outside a procedure", pc)
         elif flow == "stop" and definition.name == "END" and nlocals is not None:
             raise ObjectCodeError("END inside a procedure", pc)
         if flow in ("return", "stop") and depth != 0:
@@ -436,6 +453,20 @@ def _verify_routine(program: Program, entry: int, nlocals: int | None, owner: li
             elif known != depth:
                 raise ObjectCodeError(f"inconsistent stack depth: {known} on one path, {depth} on another", nxt)
     return deepest
+
+
+def flow_of_return(name: str, nlocals: int | None, result: str) -> str | None:
+    """Why a return instruction cannot be where it is (RET in a procedure, RET_VALUE in a
+    function, neither in the main program), or None."""
+    if name not in ("RET", "RET_VALUE"):
+        return None
+    if nlocals is None:
+        return f"{name} outside a procedure or function"
+    if name == "RET" and result:
+        return "RET in a function: a function returns its value with RET_VALUE"
+    if name == "RET_VALUE" and not result:
+        return "RET_VALUE in a procedure: a procedure returns with RET"
+    return None
 
 
 def verify(program: Program, spec_hash: str | None = None) -> int:
@@ -493,7 +524,7 @@ def verify(program: Program, spec_hash: str | None = None) -> int:
     for proc in program.procedures:
         if owner[proc.entry] is not None:
             raise ObjectCodeError(f"procedure {proc.name!r} starts inside other code", proc.entry)
-        deepest = max(deepest, _verify_routine(program, proc.entry, len(proc.locals), owner))
+        deepest = max(deepest, _verify_routine(program, proc.entry, len(proc.locals), owner, proc.result))
     return deepest
 
 

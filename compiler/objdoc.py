@@ -73,10 +73,11 @@ _BODY_KEYS = {
     "globals": "list of `[name, type]` pairs, one per global variable slot, in slot order. "
                "Names starting with `$` are hidden slots the compiler adds (a `for` loop's "
                "end value: `$end@LINE:COL`).",
-    "procedures": "list of `[name, entry, params, locals]`: the procedure's name, the offset "
-                  "of its first instruction, its number of parameters, and its local slots "
+    "procedures": "list of `[name, entry, params, locals]` (a procedure) or `[name, entry, params, "
+                  "locals, result]` (a function): the routine's name, the offset "
+                  "of its first instruction, its number of parameters, its local slots "
                   "as `[name, type]` pairs (the parameters first, in order; hidden `$` slots "
-                  "last).",
+                  "last), and a function's result type (a non-empty string).",
 }
 
 #: How control continues after an instruction (the ``flow`` column).
@@ -438,7 +439,8 @@ def _section_verifier() -> list[str]:
         "short by the end of the list;",
         "- `lines` is a list of integers whose length is a multiple of 3;",
         "- `globals` and every procedure's locals are `[name, type]` string pairs, and every "
-        "procedure is `[name, entry, params, locals]`.",
+        "procedure is `[name, entry, params, locals]` or `[name, entry, params, locals, result]` "
+        "with a non-empty `result`.",
         "",
         "Verification (`verify`) checks that the code is safe to run, without running it:",
         "",
@@ -457,8 +459,11 @@ def _section_verifier() -> list[str]:
         "  - no instruction pops more values than the stack holds;",
         "  - where paths meet, the stack depth is the same on each of them;",
         "  - no path runs past the end of the code;",
-        "  - `RET` only occurs in procedures and `END` only in the main program;",
-        "  - `RET`, `HALT` and `END` leave the stack empty;",
+        "  - `CALL` names a procedure and `CALL_FUNC` a function (one with a result);",
+        "  - `RET` only occurs in procedures, `RET_VALUE` only in functions, and `END` only in "
+        "the main program;",
+        "  - `RET`, `HALT` and `END` leave the stack empty, and `RET_VALUE` leaves it holding "
+        "exactly the result;",
         "  - no instruction belongs to two routines;",
         "- the result is the largest stack depth any path reaches (so a VM can size its "
         "stack before it starts).",

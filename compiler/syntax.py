@@ -123,6 +123,19 @@ class _Builder(Transformer):
         return ast.Procedure(name.value.lower(), params, tuple(variables), rest[-2],
                              _span(kw).to(_span(rest[-1])), _span(name))
 
+    def function(self, c):
+        kw, name, *rest = c
+        params, result, variables = (), None, []
+        for item in rest[:-2]:
+            if isinstance(item, list):
+                variables.extend(item)
+            elif isinstance(item, tuple):
+                params = item
+            else:
+                result = item
+        return ast.Procedure(name.value.lower(), params, tuple(variables), rest[-2],
+                             _span(kw).to(_span(rest[-1])), _span(name), result)
+
     def params(self, c):
         groups = c
         return tuple(p for group in groups if group is not None for p in group)
@@ -215,6 +228,10 @@ class _Builder(Transformer):
         kw, = c
         return ast.Halt(_span(kw))
 
+    def return_stmt(self, c):
+        kw, value = c
+        return ast.Return(value, _span(kw).to(value.span) if value is not None else _span(kw))
+
     # -- expressions --
     def binary(self, c):
         left, op, right = c
@@ -290,10 +307,10 @@ _REGEX_NAMES = {"NAME": "a name", "NUMBER": "a number", "STRING": "a string",
                 "$END": "end of file"}
 
 #: Tokens that open or close a block: resynchronising across one would only cascade.
-_STRUCTURE = {"PROGRAM", "ENDPROGRAM", "SEQ", "ENDSEQ", "PROCEDURE", "ENDPROCEDURE", "IF",
+_STRUCTURE = {"PROGRAM", "ENDPROGRAM", "SEQ", "ENDSEQ", "PROCEDURE", "ENDPROCEDURE", "FUNCTION", "ENDFUNCTION", "IF",
               "ELSIF", "ELSE", "ENDIF", "WHILE", "ENDWHILE", "REPEAT", "UNTIL", "FOR",
               "ENDFOR", "THEN", "DO", "VAR", "CONST"}
-_KEYWORD_TYPES = _STRUCTURE | {"MOVE", "WAIT", "OUT", "CALL", "PRINT", "PAUSE", "HALT", "ENDPROGRAM"}
+_KEYWORD_TYPES = _STRUCTURE | {"MOVE", "WAIT", "OUT", "CALL", "PRINT", "PAUSE", "HALT", "RETURN", "ENDPROGRAM"}
 _STMT_BOUNDARY = {"SEMICOLON", "SEQ", "THEN", "DO", "ELSE", "REPEAT"}
 
 
@@ -413,7 +430,11 @@ def _classify(err: UnexpectedInput, text: str, file: str, tokens: list[Token]):
     if "SEMICOLON" in expected and prev is not None and (prev.end_line < tok.line or is_keyword or tok.type == "NAME"):
         span = ast.Span(prev.end_line, prev.end_column, prev.end_line, prev.end_column + 1)
         return _diag(file, span, f"expected ';' after '{prev.value}'", hint), ("resync", tok.start_pos)
-    unclosed = _unclosed_block(tokens, tok)
+    unclosed = _unclosed_block(tokens, tok) or _unclosed_routine(tokens, tok, expected)
+    if unclosed is not None and tok.type not in _CLOSERS:
+        opener, closer = unclosed
+        return (_diag(file, _span(tok), f"the '{opener.value}' at line {opener.line} is not closed: expected "
+                      f"'{closer}' before '{tok.value}'", f"add '{closer};' before it"), None)
     if unclosed is not None:
         opener, closer = unclosed
         return (_diag(file, _span(tok), f"'{tok.value}' ends a block, but the '{opener.value}' at line "
@@ -427,7 +448,8 @@ def _classify(err: UnexpectedInput, text: str, file: str, tokens: list[Token]):
 
 
 #: Each block's opening keyword and the one that closes it.
-_BLOCKS = {"PROGRAM": "ENDPROGRAM", "PROCEDURE": "ENDPROCEDURE", "SEQ": "ENDSEQ", "IF": "ENDIF",
+_BLOCKS = {"PROGRAM": "ENDPROGRAM", "PROCEDURE": "ENDPROCEDURE", "FUNCTION": "ENDFUNCTION", "SEQ": "ENDSEQ",
+           "IF": "ENDIF",
            "WHILE": "ENDWHILE", "FOR": "ENDFOR", "REPEAT": "UNTIL"}
 _CLOSERS = set(_BLOCKS.values())
 
@@ -437,6 +459,14 @@ def _unclosed_block(tokens: list[Token], tok: Token) -> tuple[Token, str] | None
     ``for`` is open): the innermost opener and the keyword that closes it."""
     if tok.type not in _CLOSERS:
         return None
+    stack = _open_blocks(tokens, tok)
+    if not stack or _BLOCKS[stack[-1].type] == tok.type:
+        return None
+    return stack[-1], _BLOCKS[stack[-1].type].lower()
+
+
+def _open_blocks(tokens: list[Token], tok: Token) -> list[Token]:
+    """The blocks open before ``tok``, outermost first (their opening tokens)."""
     stack: list[Token] = []
     for candidate in tokens:
         if candidate.start_pos is None or tok.start_pos is None or candidate.start_pos >= tok.start_pos:
@@ -445,9 +475,20 @@ def _unclosed_block(tokens: list[Token], tok: Token) -> tuple[Token, str] | None
             stack.append(candidate)
         elif candidate.type in _CLOSERS and stack and _BLOCKS[stack[-1].type] == candidate.type:
             stack.pop()
-    if not stack or _BLOCKS[stack[-1].type] == tok.type:
+    return stack
+
+
+def _unclosed_routine(tokens: list[Token], tok: Token, expected) -> tuple[Token, str] | None:
+    """A procedure, function or program whose body has ended (its closing keyword is what
+    the parser expects) but whose closing keyword is missing before ``tok``, a keyword that
+    starts or ends another block: the opener and its closing keyword."""
+    if tok.type not in _BLOCKS and tok.type not in _CLOSERS:
         return None
-    return stack[-1], _BLOCKS[stack[-1].type].lower()
+    stack = _open_blocks(tokens, tok)
+    if not stack or stack[-1].type not in ("PROCEDURE", "FUNCTION", "PROGRAM"):
+        return None
+    closer = _BLOCKS[stack[-1].type]
+    return (stack[-1], closer.lower()) if closer in expected and tok.type != closer else None
 
 
 def _resync_region(tokens: list[Token], offset: int) -> tuple[int, int] | None:

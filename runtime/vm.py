@@ -668,7 +668,7 @@ class VM:
     def op_call(self, p, pc):
         entry, params, slots, name = self._procs[p]
         if len(self.frames) >= self.max_call_depth:
-            raise EvalError(f"too many nested procedure calls (more than {self.max_call_depth}) "
+            raise EvalError(f"too many nested procedure or function calls (more than {self.max_call_depth}) "
                             f"calling {name}: is the recursion endless?")
         frame = [None] * slots
         if params:
@@ -682,6 +682,11 @@ class VM:
     def op_ret(self, _, pc):
         back, self.locals = self.frames.pop()
         return back
+
+    # A function is called as a procedure is; its RET_VALUE leaves the result on the stack,
+    # where the caller's expression goes on from (the verifier checked the depths).
+    op_call_func = op_call
+    op_ret_value = op_ret
 
     # The host may report an I/O number out of range as EvalError, IndexError or
     # ValueError: each stops the program with the host's message.

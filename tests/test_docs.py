@@ -222,6 +222,7 @@ STATEMENT_SYNTAX = {
     "Print": ["print EXPR {, EXPR};"],
     "Pause": ["pause;"],
     "Halt": ["halt;"],
+    "Return": ["return;", "return EXPRESSION;"],
 }
 
 

@@ -770,7 +770,7 @@ def test_endless_recursion_is_an_error_not_a_crash(tmp_path, dispatch):
     text = program_text("  call down(1);", decls)
     machine, _ = run(compile_text(tmp_path, text), dispatch=dispatch)
     assert machine.status == VMStatus.ERROR
-    assert "too many nested procedure calls (more than 200)" in machine.error.message
+    assert "too many nested procedure or function calls (more than 200)" in machine.error.message
     assert "down" in machine.error.message
     assert machine.error.line == line_of(text, "-- rec")
     assert machine.globals[0] == 200

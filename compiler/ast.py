@@ -319,6 +319,23 @@ Decl = Union[ConstDecl, VarDecl, Procedure]
 
 
 @node
+class Import:
+    path: str  # the module's file, as written (relative to the importing file's folder)
+    span: Span
+
+
+@node
+class Module:
+    """A file of declarations (constants, variables, procedures, functions) that programs
+    and other modules import."""
+
+    name: str
+    imports: tuple[Import, ...]
+    decls: tuple["Decl", ...]
+    span: Span
+
+
+@node
 class Program:
     name: str
     spec: str | None  # the system_specification file, as written
@@ -326,3 +343,4 @@ class Program:
     decls: tuple[Decl, ...]  # in source order (a constant may use earlier ones)
     body: tuple[Stmt, ...]
     span: Span
+    imports: tuple[Import, ...] = ()

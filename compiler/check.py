@@ -95,6 +95,7 @@ class Symbol:
     value: object = None
     params: tuple = ()  # for procedures and functions: parameter types
     index: int = -1  # for procedures and functions: index in the procedure table
+    file: str = ""  # the file it is declared in
 
 
 @dataclass
@@ -133,14 +134,18 @@ class CheckedProgram:
     global_symbols: dict[str, Symbol]
     procedures: list[ProcScope]
     robots: tuple[str, ...]
+    decl_files: dict = field(default_factory=dict)  # id(declaration) -> the module file it is in
+    modules: dict = field(default_factory=dict)  # module path -> its name in the object code, in order
 
 
 _NO_VALUE = object()
 
 
 class Checker:
-    def __init__(self, program: ast.Program, spec: Spec, file: str):
+    def __init__(self, program: ast.Program, spec: Spec, file: str, decl_files: dict | None = None):
         self.program, self.spec, self.file = program, spec, file
+        self.main_file = file
+        self.decl_files = decl_files or {}  # id(declaration) -> its module's file (the others: file)
         self.diagnostics: list[Diagnostic] = []
         self.types: dict[int, object] = {}
         self.values: dict[int, object] = {}
@@ -182,9 +187,11 @@ class Checker:
             return False
         previous = table.get(symbol.name)  # a local may shadow a global: tables are per scope
         if previous is not None:
+            where = f" of {previous.file}" if previous.file and previous.file != self.file else ""
             self.error(symbol.span, f"'{symbol.name}' is already declared",
-                       f"the first declaration is at line {previous.span.line}")
+                       f"the first declaration is at line {previous.span.line}{where}")
             return False
+        symbol.file = self.file
         table[symbol.name] = symbol
         return True
 
@@ -907,14 +914,17 @@ class Checker:
         # Procedures first, so a call may come before the procedure's declaration.
         for decl in program.decls:
             if isinstance(decl, ast.Procedure):
+                self.file = self.decl_files.get(id(decl), self.main_file)
                 self.declare_procedure(decl)
         for decl in program.decls:
+            self.file = self.decl_files.get(id(decl), self.main_file)
             if isinstance(decl, ast.ConstDecl):
                 self.const_decl(decl)
             elif isinstance(decl, ast.VarDecl):
                 self.var_decl(decl, self.globals, self.global_slots, "global")
         for scope in self.procs:
             self.scope = scope
+            self.file = self.decl_files.get(id(scope.node), self.main_file)
             for var in scope.node.variables:
                 self.var_decl(var, scope.names, scope.slots, "local")
             self.stmts(scope.node.body)
@@ -923,11 +933,12 @@ class Checker:
                                                  "'return'", "every path through a function must end in "
                                                              "'return VALUE;'")
             self.scope = None
+        self.file = self.main_file
         self.stmts(program.body)
         if not self.robots:
             self.robots.append(self.spec.name)
         return CheckedProgram(program, self.spec, self.types, self.values, self.symbols,
-                              self.global_slots, self.globals, self.procs, tuple(self.robots))
+                              self.global_slots, self.globals, self.procs, tuple(self.robots), self.decl_files)
 
     def declare_procedure(self, node: ast.Procedure) -> None:
         """A procedure, or a function (a procedure with a result type)."""
@@ -972,8 +983,9 @@ CONSTRUCTORS = {
 }
 
 
-def check(program: ast.Program, spec: Spec, file: str) -> tuple[CheckedProgram, list[Diagnostic]]:
+def check(program: ast.Program, spec: Spec, file: str,
+          decl_files: dict | None = None) -> tuple[CheckedProgram, list[Diagnostic]]:
     """Check ``program`` against ``spec``; returns the result and every error found."""
-    checker = Checker(program, spec, file)
+    checker = Checker(program, spec, file, decl_files)
     checked = checker.check()
     return checked, checker.diagnostics

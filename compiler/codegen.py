@@ -35,6 +35,9 @@ class CodeGen:
         self.globals = list(checked.globals)
         self.locals: list | None = None  # slots of the procedure being generated
         self.result = None  # the result type of the function being generated (None: not a function)
+        self.line_files: list[int] = []  # per line entry: 0 the program's file, k its module k
+        self.file_index = 0
+        self.module_paths = list(checked.modules)  # module paths, in the order their code comes
         self._expr = {cls: getattr(self, "e_" + cls.__name__)
                       for cls in (ast.Ref, ast.Unary, ast.Binary, ast.Index, ast.Field, ast.Input, ast.Call)}
         self._stmt = {cls: getattr(self, "s_" + cls.__name__)
@@ -55,8 +58,15 @@ class CodeGen:
         entry = (len(self.code), span.line, span.col)
         if self.lines and self.lines[-1][0] == entry[0]:
             self.lines[-1] = entry
-        elif not self.lines or self.lines[-1][1:] != entry[1:]:
+            self.line_files[-1] = self.file_index
+        elif not self.lines or self.lines[-1][1:] != entry[1:] or self.line_files[-1] != self.file_index:
             self.lines.append(entry)
+            self.line_files.append(self.file_index)
+
+    def in_file_of(self, node) -> None:
+        """Code generated next comes from ``node``'s file (a module's, or the program's)."""
+        path = self.checked.decl_files.get(id(node))
+        self.file_index = 0 if path is None else 1 + self.module_paths.index(path)
 
     def constant(self, value) -> None:
         key = (type(value), value)
@@ -340,6 +350,7 @@ class CodeGen:
 
     def init_vars(self, decls, lookup) -> None:
         for decl in decls:
+            self.in_file_of(decl)
             self.mark(decl.span)
             for name in decl.names:
                 symbol = lookup(name)
@@ -354,6 +365,7 @@ class CodeGen:
         program = checked.program
         gvars = [d for d in program.decls if isinstance(d, ast.VarDecl)]
         self.init_vars(gvars, checked.global_symbols.__getitem__)
+        self.file_index = 0
         self.stmts(program.body)
         end = program.span
         self.mark(ast.Span(end.end_line, 1, end.end_line, end.end_col))
@@ -364,6 +376,7 @@ class CodeGen:
             entry = len(self.code)
             self.result = scope.result
             self.init_vars(scope.node.variables, scope.names.__getitem__)
+            self.in_file_of(scope.node)
             self.stmts(scope.node.body)
             # a procedure returns at its end; a function never gets there (the checker saw a
             # return on every path): HALT keeps any jump to its end inside the code
@@ -372,9 +385,11 @@ class CodeGen:
                                        type_name(scope.result) if scope.result is not None else ""))
             self.locals = self.result = None
         spec = checked.spec
+        modules = tuple(checked.modules.values())
         return Program(program.name, source_name, spec.name, spec.hash, checked.robots,
                        tuple(self.constants), tuple(self.code), tuple(self.lines),
-                       tuple(self.globals), tuple(procedures))
+                       tuple(self.globals), tuple(procedures),
+                       files=modules, line_files=tuple(self.line_files) if modules else ())
 
 
 def generate(checked: CheckedProgram, source_file: str) -> Program:

@@ -91,11 +91,13 @@ def _type_of(value) -> str:
     return type(value).__name__.lower()
 
 
-def format_text(program: Program, data: bytes | None = None, source: str | None = None) -> str:
+def format_text(program: Program, data: bytes | None = None, source: str | None = None,
+                modules: dict[str, str] | None = None) -> str:
     """The human-readable listing of ``irl dis``.
 
     With ``source`` (the program's text), each statement's source line is shown above
-    its instructions.
+    its instructions; with ``modules`` (a module's name in the object code -> its text),
+    those of the modules too, each after its file's name.
     """
     info = header(program, data)
     out = [
@@ -104,7 +106,7 @@ def format_text(program: Program, data: bytes | None = None, source: str | None 
         f"format         {info['format_version']}",
         f"specification  {info['spec_name']} sha256:{info['spec_hash'][:16]}",
         f"robots         {', '.join(info['robots'])}",
-    ]
+    ] + ([f"modules        {', '.join(program.files)}"] if program.files else [])
     if data is not None:
         out.append(f"checksum       {info['checksum']} ({info['size']} bytes)")
     out.append("")
@@ -117,6 +119,7 @@ def format_text(program: Program, data: bytes | None = None, source: str | None 
         for i, (name, type_) in enumerate(program.globals):
             out.append(f"  {i:4d}  {name} : {type_}")
     source_lines = source.split("\n") if source is not None else None  # as the parser counts lines
+    module_lines = {name: text.split("\n") for name, text in (modules or {}).items()}
     entries = {p.entry: p for p in program.procedures}
     out.append("")
     out.append("code:")
@@ -128,8 +131,13 @@ def format_text(program: Program, data: bytes | None = None, source: str | None 
             out.append("")
             out.append(f"function {proc.name}({params}) : {proc.result}" if proc.result else
                        f"procedure {proc.name}({params})")
-        if ins.starts_line and source_lines is not None and 1 <= ins.line <= len(source_lines):
-            out.append(f"        ; {ins.line}: {source_lines[ins.line - 1].strip()}")
+        if ins.starts_line:
+            where = program.file_at(ins.offset)
+            text_lines = module_lines.get(where) if where else source_lines
+            if text_lines is not None and 1 <= ins.line <= len(text_lines):
+                out.append(f"        ; {where + ':' if where else ''}{ins.line}: {text_lines[ins.line - 1].strip()}")
+            elif where:
+                out.append(f"        ; {where}:{ins.line}")
         line = f"{ins.line:6d}" if ins.starts_line else "      "
         marker = ">>" if ins.is_jump_target else "  "
         operands = " ".join(str(o) for o in ins.operands)
@@ -149,7 +157,9 @@ def format_json(program: Program, data: bytes | None = None) -> dict:
         "procedures": [{"name": p.name, "entry": p.entry, "params": p.params,
                         "locals": [{"name": n, "type": t} for n, t in p.locals], "result": p.result or None}
                        for p in program.procedures],
+        "modules": list(program.files),
         "code": [{"offset": i.offset, "name": i.name, "operands": list(i.operands), "argrepr": i.argrepr,
-                  "line": i.line, "column": i.column} for i in instructions(program)],
+                  "line": i.line, "column": i.column, "file": program.file_at(i.offset) or None}
+                 for i in instructions(program)],
     }
 

@@ -8,7 +8,8 @@ from __future__ import annotations
 import gc
 import sys
 from contextlib import contextmanager
-from dataclasses import dataclass
+import os
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 from .diagnostics import Diagnostic
@@ -25,6 +26,7 @@ class Result:
     program: Program | None
     diagnostics: list[Diagnostic]
     spec: Spec | None = None
+    modules: dict = field(default_factory=dict)  # a module's name in the object code -> its text
 
     @property
     def ok(self) -> bool:
@@ -96,19 +98,85 @@ def _compile_nested(source: str, file: str, spec_path, generate_code: bool) -> R
     from .codegen import generate
     from .syntax import parse_recovering
 
+    from . import ast
+
     tree, syntax_errors = parse_recovering(source, file)
     if tree is None:
         return Result(file, source, None, syntax_errors)
+    if isinstance(tree, ast.Module):
+        return Result(file, source, None, [_error(
+            file, f"'{tree.name}' is a module: it is not compiled or run by itself", tree.span,
+            f'import it from a program: import "{Path(file).name}";')])
+    modules, module_errors = load_modules(tree, file)
+    if module_errors:  # (checking without a module's declarations would only cascade)
+        module_errors.sort(key=lambda d: (d.file != file, d.file, d.line, d.column))
+        return Result(file, source, None, syntax_errors + module_errors)
     spec, diagnostics = resolve_spec(tree, file, spec_path)
     if spec is None:
-        return Result(file, source, None, syntax_errors + diagnostics)
-    checked, diagnostics = check(tree, spec, file)
-    diagnostics = syntax_errors + diagnostics
+        return Result(file, source, None, syntax_errors + module_errors + diagnostics)
+    decl_files = {id(decl): path for path, (_name, _text, module) in modules.items() for decl in module.decls}
+    merged = replace(tree, decls=tuple(d for _name, _text, m in modules.values() for d in m.decls) + tree.decls)
+    checked, diagnostics = check(merged, spec, file, decl_files)
+    checked.modules = {path: name for path, (name, _text, _m) in modules.items()}
+    texts = {name: text for name, text, _m in modules.values()}
+    diagnostics = syntax_errors + module_errors + diagnostics
     if diagnostics:
-        diagnostics.sort(key=lambda d: (d.line, d.column))
-        return Result(file, source, None, diagnostics, spec)
+        diagnostics.sort(key=lambda d: (d.file != file, d.file, d.line, d.column))
+        return Result(file, source, None, diagnostics, spec, texts)
     program = generate(checked, file) if generate_code else None
-    return Result(file, source, program, [], spec)
+    return Result(file, source, program, [], spec, texts)
+
+
+def load_modules(tree, file: str) -> tuple[dict, list[Diagnostic]]:
+    """Every module ``tree`` imports, directly or through other modules, each once, in the
+    order their declarations come (a module's imports before it): {path: (name in the
+    object code, text, Module)}, and the diagnostics of those that could not be read."""
+    from . import ast
+    from .syntax import parse_recovering
+
+    base = Path(file).parent
+    modules: dict = {}
+    diagnostics: list[Diagnostic] = []
+    done: set = set()  # resolved paths, loaded or failed
+
+    def visit(importer: str, imports, chain: tuple) -> None:
+        for imp in imports:
+            path = Path(importer).parent / imp.path
+            key = os.path.realpath(path)
+            if key in chain:
+                diagnostics.append(_error(importer, f"module '{imp.path}' imports itself (through "
+                                                    f"{' -> '.join(Path(k).name for k in chain)})", imp.span))
+                continue
+            if key in done:
+                continue
+            done.add(key)
+            if not path.is_file():  # (a directory, a device such as /dev/zero: never read)
+                diagnostics.append(_error(importer, f"cannot read module '{imp.path}': "
+                                                    f"{'no such file' if not path.exists() else 'not a file'}",
+                                          imp.span))
+                continue
+            try:
+                text = read_source(path)
+            except UnicodeDecodeError:
+                diagnostics.append(_error(importer, f"cannot read module '{imp.path}': it is not UTF-8 text",
+                                          imp.span))
+                continue
+            except OSError as exc:
+                diagnostics.append(_error(importer, f"cannot read module '{imp.path}': {exc.strerror or exc}",
+                                          imp.span))
+                continue
+            module, errors = parse_recovering(text, str(path))
+            diagnostics.extend(errors)
+            if module is None:
+                continue
+            if not isinstance(module, ast.Module):
+                diagnostics.append(_error(importer, f"'{imp.path}' is a program, not a module", imp.span,
+                                          "a module starts with 'module NAME;' and has no seq ... endseq"))
+                continue
+            visit(str(path), module.imports, chain + (key,))
+            modules[str(path)] = (Path(os.path.relpath(path, base)).as_posix(), text, module)
+    visit(file, tree.imports, (os.path.realpath(file),))
+    return modules, diagnostics
 
 
 def read_source(path: str | Path) -> str:

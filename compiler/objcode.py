@@ -233,6 +233,11 @@ class Program:
     globals: tuple[tuple[str, str], ...]  # (name, type) per slot
     procedures: tuple[ProcInfo, ...] = ()
     format_version: int = FORMAT_VERSION
+    #: The modules the program was made with (as imported, relative to its source), and
+    #: for each line-table entry the file it is in: 0 the program's source, k files[k - 1].
+    #: Both empty for a program of one file.
+    files: tuple[str, ...] = ()
+    line_files: tuple[int, ...] = ()
 
     def line_at(self, offset: int) -> tuple[int, int]:
         """The (line, column) of the statement that ``offset`` belongs to, or (0, 0)."""
@@ -240,6 +245,17 @@ class Program:
 
         i = bisect_right(self.lines, (offset, float("inf"), 0)) - 1
         return (self.lines[i][1], self.lines[i][2]) if i >= 0 else (0, 0)
+
+    def file_at(self, offset: int) -> str:
+        """The module file that ``offset``'s statement comes from, or "" for the program's
+        own source."""
+        if not self.line_files:
+            return ""
+        from bisect import bisect_right
+
+        i = bisect_right(self.lines, (offset, float("inf"), 0)) - 1
+        k = self.line_files[i] if i >= 0 else 0
+        return self.files[k - 1] if k else ""
 
 
 # ---- encoding ---------------------------------------------------------------------------
@@ -259,7 +275,7 @@ def _body(program: Program) -> dict:
         "globals": [list(g) for g in program.globals],
         "procedures": [[p.name, p.entry, p.params, [list(l) for l in p.locals]] + ([p.result] if p.result else [])
                        for p in program.procedures],
-    }
+    } | ({"files": list(program.files), "line_files": list(program.line_files)} if program.files else {})
 
 
 def encode(program: Program) -> bytes:
@@ -347,6 +363,13 @@ def decode(data: bytes) -> Program:
     _expect(isinstance(lines, list) and len(lines) % 3 == 0 and all(map(_is_int, lines)),
             "body: lines must be a flat list of (offset, line, column) integers")
     line_table = tuple(tuple(lines[i:i + 3]) for i in range(0, len(lines), 3))
+    files, line_files = body.get("files", []), body.get("line_files", [])
+    _expect(("files" in body) == ("line_files" in body), "body: files and line_files come together")
+    _expect(isinstance(files, list) and all(_is_str(f) and f for f in files) and ("files" not in body or files),
+            "body: files must be a non-empty list of file names")
+    _expect(isinstance(line_files, list) and all(_is_int(k) and 0 <= k <= len(files) for k in line_files)
+            and (not files or len(line_files) == len(line_table)),
+            f"body: line_files must give, for each of the {len(line_table)} line entries, a file 0..{len(files)}")
     procs = body["procedures"]
     _expect(isinstance(procs, list), "body: procedures must be a list")
     procedures = []
@@ -358,7 +381,8 @@ def decode(data: bytes) -> Program:
         procedures.append(ProcInfo(p[0], p[1], p[2], _pairs(p[3], f"procedure {p[0]} locals"),
                                    p[4] if len(p) == 5 else ""))
     return Program(body["name"], body["source"], spec[0], spec[1], tuple(robots), tuple(constants),
-                   tuple(code), line_table, _pairs(body["globals"], "globals"), tuple(procedures), version)
+                   tuple(code), line_table, _pairs(body["globals"], "globals"), tuple(procedures), version,
+                   tuple(files), tuple(line_files))
 
 
 # ---- verification ------------------------------------------------------------------------

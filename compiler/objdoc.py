@@ -295,6 +295,12 @@ def _section_format() -> list[str]:
         "",
         *_table(["key", "holds"], [[f"`{key}`", _BODY_KEYS.get(key, "(undocumented)")] for key in body]),
         "",
+        "A program made with modules (`import \"FILE\";`) has two more keys, together: `files`, the "
+        "module files (non-empty strings, as imported, relative to the program's source), and "
+        "`line_files`, one integer per `lines` entry: the file that statement is in (0 the "
+        "program's source, k `files[k - 1]`). A program of one file has neither, so its bytes "
+        "are what they were before modules. `Program.file_at(offset)` gives an offset's file.",
+        "",
         "Offsets (jump targets, procedure entries, line-table offsets) count *instructions*, "
         "not integers of the flat `code` list: offset 0 is the first instruction, offset 1 the "
         "instruction after it, however many operands the first one has. Execution starts at "
@@ -438,6 +444,8 @@ def _section_verifier() -> list[str]:
         "- `code` is a list of integers, every opcode is known and no instruction is cut "
         "short by the end of the list;",
         "- `lines` is a list of integers whose length is a multiple of 3;",
+        "- `files` and `line_files` come together or not at all; `files` is a non-empty list of "
+        "non-empty strings and `line_files` has one file number 0..len(files) per line entry;",
         "- `globals` and every procedure's locals are `[name, type]` string pairs, and every "
         "procedure is `[name, entry, params, locals]` or `[name, entry, params, locals, result]` "
         "with a non-empty `result`.",

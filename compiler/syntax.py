@@ -66,9 +66,12 @@ class _Builder(Transformer):
 
     # -- program structure --
     def start(self, c):
+        return c[0]
+
+    def program(self, c):
         program_kw, name, *rest = c
         spec = spec_span = None
-        decls = []
+        decls, imports = [], []
         for item in rest[:-2]:
             if isinstance(item, tuple) and item and item[0] == "spec":
                 spec, spec_span = item[1], item[2]
@@ -76,9 +79,27 @@ class _Builder(Transformer):
                 decls.extend(item)
             elif isinstance(item, ast.Procedure):
                 decls.append(item)
+            elif isinstance(item, ast.Import):
+                imports.append(item)
         body, end_kw = rest[-2], rest[-1]
         return ast.Program(name.value.lower(), spec, spec_span, tuple(decls), body,
-                           _span(program_kw).to(_span(end_kw)))
+                           _span(program_kw).to(_span(end_kw)), tuple(imports))
+
+    def module(self, c):
+        module_kw, name, *rest = c
+        decls, imports = [], []
+        for item in rest[:-1]:
+            if isinstance(item, list):
+                decls.extend(item)
+            elif isinstance(item, ast.Procedure):
+                decls.append(item)
+            elif isinstance(item, ast.Import):
+                imports.append(item)
+        return ast.Module(name.value.lower(), tuple(imports), tuple(decls), _span(module_kw).to(_span(rest[-1])))
+
+    def import_decl(self, c):
+        kw, string = c
+        return ast.Import(_unquote(string.value), _span(kw).to(_span(string)))
 
     def spec(self, c):
         kw, string = c
@@ -307,10 +328,11 @@ _REGEX_NAMES = {"NAME": "a name", "NUMBER": "a number", "STRING": "a string",
                 "$END": "end of file"}
 
 #: Tokens that open or close a block: resynchronising across one would only cascade.
-_STRUCTURE = {"PROGRAM", "ENDPROGRAM", "SEQ", "ENDSEQ", "PROCEDURE", "ENDPROCEDURE", "FUNCTION", "ENDFUNCTION", "IF",
+_STRUCTURE = {"PROGRAM", "ENDPROGRAM", "MODULE", "ENDMODULE", "SEQ", "ENDSEQ", "PROCEDURE", "ENDPROCEDURE", "FUNCTION", "ENDFUNCTION", "IF",
               "ELSIF", "ELSE", "ENDIF", "WHILE", "ENDWHILE", "REPEAT", "UNTIL", "FOR",
               "ENDFOR", "THEN", "DO", "VAR", "CONST"}
-_KEYWORD_TYPES = _STRUCTURE | {"MOVE", "WAIT", "OUT", "CALL", "PRINT", "PAUSE", "HALT", "RETURN", "ENDPROGRAM"}
+_KEYWORD_TYPES = _STRUCTURE | {"MOVE", "WAIT", "OUT", "CALL", "PRINT", "PAUSE", "HALT", "RETURN", "ENDPROGRAM",
+                                "IMPORT"}
 _STMT_BOUNDARY = {"SEMICOLON", "SEQ", "THEN", "DO", "ELSE", "REPEAT"}
 
 
@@ -448,7 +470,7 @@ def _classify(err: UnexpectedInput, text: str, file: str, tokens: list[Token]):
 
 
 #: Each block's opening keyword and the one that closes it.
-_BLOCKS = {"PROGRAM": "ENDPROGRAM", "PROCEDURE": "ENDPROCEDURE", "FUNCTION": "ENDFUNCTION", "SEQ": "ENDSEQ",
+_BLOCKS = {"PROGRAM": "ENDPROGRAM", "MODULE": "ENDMODULE", "PROCEDURE": "ENDPROCEDURE", "FUNCTION": "ENDFUNCTION", "SEQ": "ENDSEQ",
            "IF": "ENDIF",
            "WHILE": "ENDWHILE", "FOR": "ENDFOR", "REPEAT": "UNTIL"}
 _CLOSERS = set(_BLOCKS.values())
@@ -485,7 +507,7 @@ def _unclosed_routine(tokens: list[Token], tok: Token, expected) -> tuple[Token,
     if tok.type not in _BLOCKS and tok.type not in _CLOSERS:
         return None
     stack = _open_blocks(tokens, tok)
-    if not stack or stack[-1].type not in ("PROCEDURE", "FUNCTION", "PROGRAM"):
+    if not stack or stack[-1].type not in ("PROCEDURE", "FUNCTION", "PROGRAM", "MODULE"):
         return None
     closer = _BLOCKS[stack[-1].type]
     return (stack[-1], closer.lower()) if closer in expected and tok.type != closer else None

@@ -136,13 +136,13 @@ def cmd_dis(args, env: Environment) -> int:
     from compiler.disasm import format_json, format_text
     from compiler.objcode import ObjectCodeError, decode, encode, verify
 
-    source = None
+    source = modules = None
     if args.file.endswith(".irl"):
         result = _compile(args.file, args.spec)
         _report(env, result, False)
         if not result.ok:
             return EXIT_INVALID
-        program, source = result.program, result.source
+        program, source, modules = result.program, result.source, result.modules
         data = encode(program)
     else:
         data = _read_object(args.file)
@@ -157,7 +157,7 @@ def cmd_dis(args, env: Environment) -> int:
 
         _print(env, json.dumps(format_json(program, data), indent=2))
     else:
-        env.stdout.write(format_text(program, data, source))
+        env.stdout.write(format_text(program, data, source, modules))
     return EXIT_OK
 
 

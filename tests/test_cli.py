@@ -281,7 +281,8 @@ def test_dis_json(work):
     assert h["checksum"] == f"crc32:{zlib.crc32(data[10:]):08x}" and h["size"] == len(data)
     assert len(doc["code"]) == len(decode(data).code)
     assert doc["code"][0] == {"offset": 0, "name": "CONST", "operands": [0],
-                              "argrepr": "joint(mainjoint(45, 0, -45, 0, 0, 0))", "line": 4, "column": 4}
+                              "argrepr": "joint(mainjoint(45, 0, -45, 0, 0, 0))", "line": 4, "column": 4,
+                              "file": None}
     assert doc["constants"][2] == "lola_15"
     code, out2, _ = run("dis", "--json", work / "test.irl")
     assert code == 0 and json.loads(out2) == doc

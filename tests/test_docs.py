@@ -320,6 +320,7 @@ def test_every_program_in_the_docs_compiles_and_runs_to_completion(tmp_path, pag
     from runtime.cli import Environment, main
 
     shutil.copy(ROOT / "programs" / "lola15.spc", tmp_path / "lola15.spc")
+    shutil.copytree(ROOT / "programs" / "lib", tmp_path / "lib")  # the modules the examples import
     source = tmp_path / "example.irl"
     source.write_text(text, encoding="utf-8")
     out, err = io.StringIO(), io.StringIO()

@@ -76,6 +76,7 @@ def workdir(tmp_path_factory) -> Path:
     d = tmp_path_factory.mktemp("robust")
     for spec in PROGRAMS.glob("*.spc"):
         shutil.copy(spec, d / spec.name)
+    shutil.copytree(PROGRAMS / "lib", d / "lib")  # the modules programs import
     return d
 
 

@@ -84,6 +84,8 @@ class FakeHost:
 
 def compile_text(tmp_path: Path, text: str) -> Program:
     shutil.copy(SPEC, tmp_path / "lola15.spc")
+    if not (tmp_path / "lib").exists():
+        shutil.copytree(PROGRAMS / "lib", tmp_path / "lib")  # the modules the examples import
     src = tmp_path / "p.irl"
     src.write_text(text)
     result = compile_source(text, str(src))

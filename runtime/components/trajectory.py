@@ -205,7 +205,8 @@ class TrajectoryGenerator(Component):
         self._take_motion_events()
         if self.fault is None and vm is not None and vm.status is ERROR and motion.done():
             e = vm.error  # an error ends the program once the moves before it are done
-            self.fault = f"program error at line {e.line}: {e.message}"
+            where = vm.program.file_at(e.offset)
+            self.fault = f"program error at {f'{where} ' if where else ''}line {e.line}: {e.message}"
 
     def _take_motion_events(self) -> None:
         """A move that could not be planned in the background stops the program at its

@@ -70,32 +70,15 @@ class _Builder(Transformer):
 
     def program(self, c):
         program_kw, name, *rest = c
-        spec = spec_span = None
-        decls, imports = [], []
-        for item in rest[:-2]:
-            if isinstance(item, tuple) and item and item[0] == "spec":
-                spec, spec_span = item[1], item[2]
-            elif isinstance(item, list):
-                decls.extend(item)
-            elif isinstance(item, ast.Procedure):
-                decls.append(item)
-            elif isinstance(item, ast.Import):
-                imports.append(item)
+        spec, decls, imports = _header(rest[:-2])
         body, end_kw = rest[-2], rest[-1]
-        return ast.Program(name.value.lower(), spec, spec_span, tuple(decls), body,
-                           _span(program_kw).to(_span(end_kw)), tuple(imports))
+        return ast.Program(name.value.lower(), spec[0], spec[1], decls, body,
+                           _span(program_kw).to(_span(end_kw)), imports)
 
     def module(self, c):
         module_kw, name, *rest = c
-        decls, imports = [], []
-        for item in rest[:-1]:
-            if isinstance(item, list):
-                decls.extend(item)
-            elif isinstance(item, ast.Procedure):
-                decls.append(item)
-            elif isinstance(item, ast.Import):
-                imports.append(item)
-        return ast.Module(name.value.lower(), tuple(imports), tuple(decls), _span(module_kw).to(_span(rest[-1])))
+        _spec, decls, imports = _header(rest[:-1])
+        return ast.Module(name.value.lower(), imports, decls, _span(module_kw).to(_span(rest[-1])))
 
     def import_decl(self, c):
         kw, string = c
@@ -305,6 +288,24 @@ class _Builder(Transformer):
     def input(self, c):
         kw, index = c
         return ast.Input(index, _span(kw).to(index.span))
+
+
+def _header(items) -> tuple[tuple, tuple, tuple]:
+    """A program's or module's (system_specification (file, span), declarations, imports)
+    from the children between its name and its body."""
+    spec: tuple = (None, None)
+    decls: list = []
+    imports: list = []
+    for item in items:
+        if isinstance(item, tuple) and item and item[0] == "spec":
+            spec = (item[1], item[2])
+        elif isinstance(item, list):
+            decls.extend(item)
+        elif isinstance(item, ast.Procedure):
+            decls.append(item)
+        elif isinstance(item, ast.Import):
+            imports.append(item)
+    return spec, tuple(decls), tuple(imports)
 
 
 def _unquote(text: str) -> str:

@@ -180,3 +180,15 @@ def test_the_watch_itself_catches_each_kind_of_event(event, tmp_path):
     seen = watch_tasks(system)
     system.executive.step()
     assert any(name == "bad" and e.startswith(event) for name, e in seen), seen
+
+
+def test_the_rules_hold_in_a_fresh_interpreter():
+    """Run this file's tests again in an interpreter that has imported only what they
+    import: in the whole suite, a module that an earlier test imported hides a lazy
+    import inside a tick (numpy.ma, imported by np.unique's first call, read files in the
+    first lin move's tick, and this file passed in the suite and failed alone)."""
+    import subprocess
+
+    proc = subprocess.run([sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider", __file__, "-k",
+                           "not fresh_interpreter"], cwd=ROOT, capture_output=True, text=True, timeout=600)
+    assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-2000:]

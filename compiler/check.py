@@ -142,10 +142,19 @@ _NO_VALUE = object()
 
 
 class Checker:
-    def __init__(self, program: ast.Program, spec: Spec, file: str, decl_files: dict | None = None):
+    def __init__(self, program: ast.Program, spec: Spec, file: str, decl_files: dict | None = None,
+                 sees: dict | None = None):
         self.program, self.spec, self.file = program, spec, file
         self.main_file = file
         self.decl_files = decl_files or {}  # id(declaration) -> its module's file (the others: file)
+        self.sees = sees or {}  # module file -> the module files its code may use (it imports)
+        self.hidden: Symbol | None = None  # the last name lookup found in a file this one cannot see
+        # declarations in source order: the modules' (in the order they come), then the program's
+        ranks: dict[str, int] = {}
+        for decl in program.decls:
+            ranks.setdefault(self.decl_files.get(id(decl), file), len(ranks))
+        ranks.setdefault(file, len(ranks))
+        self.file_rank = ranks
         self.diagnostics: list[Diagnostic] = []
         self.types: dict[int, object] = {}
         self.values: dict[int, object] = {}
@@ -160,15 +169,32 @@ class Checker:
         self._stmt = {cls: getattr(self, "s_" + cls.__name__) for cls in _STMT_CLASSES}
 
     # -- reporting --
-    def error(self, span: ast.Span, message: str, hint: str | None = None) -> None:
-        self.diagnostics.append(Diagnostic(self.file, span.line, span.col, span.end_line, span.end_col,
+    def error(self, span: ast.Span, message: str, hint: str | None = None, file: str | None = None) -> None:
+        self.diagnostics.append(Diagnostic(file or self.file, span.line, span.col, span.end_line, span.end_col,
                                            "error", message, hint))
 
     # -- names --
     def lookup(self, name: str) -> Symbol | None:
         if self.scope is not None and name in self.scope.names:
             return self.scope.names[name]
-        return self.globals.get(name)
+        symbol = self.globals.get(name)
+        if symbol is not None and not self.can_see(symbol.file):
+            self.hidden = symbol
+            return None
+        return symbol
+
+    def can_see(self, file: str) -> bool:
+        """Whether the code being checked may use a name declared in ``file``: the program
+        sees every module; a module, itself and the modules it imports (directly or not)."""
+        return self.file == self.main_file or not file or file == self.file or file in self.sees.get(self.file, ())
+
+    def hidden_hint(self, name: str) -> tuple[str, str] | None:
+        """(message, hint) when ``name`` is declared, but in a file this code cannot see."""
+        hidden, self.hidden = self.hidden, None
+        if hidden is None or hidden.name != name:
+            return None
+        return (f"'{name}' is declared in {hidden.file}, which {self.file} does not import",
+                "a module sees its own declarations and those of the modules it imports: import it")
 
     def visible_names(self) -> list[str]:
         names = list(self.globals)
@@ -177,6 +203,10 @@ class Checker:
         return names
 
     def unknown(self, span: ast.Span, name: str, what: str = "name") -> None:
+        hidden = self.hidden_hint(name)
+        if hidden is not None:
+            self.error(span, *hidden)
+            return
         guess = did_you_mean(name, self.visible_names())
         self.error(span, f"undeclared {what} '{name}'", f"did you mean '{guess}'?" if guess else None)
 
@@ -186,14 +216,19 @@ class Checker:
                        "choose another name")
             return False
         previous = table.get(symbol.name)  # a local may shadow a global: tables are per scope
-        if previous is not None:
-            where = f" of {previous.file}" if previous.file and previous.file != self.file else ""
-            self.error(symbol.span, f"'{symbol.name}' is already declared",
-                       f"the first declaration is at line {previous.span.line}{where}")
-            return False
         symbol.file = self.file
+        if previous is not None:
+            # (procedures and functions are declared first: the error goes to the later one in the source)
+            first, later = sorted((previous, symbol), key=self.source_order)
+            where = f" of {first.file}" if first.file != later.file else ""
+            self.error(later.span, f"'{symbol.name}' is already declared",
+                       f"the first declaration is at line {first.span.line}{where}", file=later.file)
+            return False
         table[symbol.name] = symbol
         return True
+
+    def source_order(self, symbol: Symbol) -> tuple:
+        return (self.file_rank.get(symbol.file, len(self.file_rank)), symbol.span.line, symbol.span.col)
 
     # -- types --
     def resolve_type(self, node: ast.TypeExpr):
@@ -468,6 +503,10 @@ class Checker:
             self.error(node.name_span, f"procedure '{name}' has no value", f"call it as a statement: call {name}(...);")
         elif symbol is not None:
             self.error(node.name_span, f"'{name}' is {a(symbol.type)}, not a function")
+        elif self.hidden_hint(name) is not None:
+            self.error(node.name_span, f"'{name}' is declared in {self.globals[name].file}, which {self.file} "
+                                       "does not import", "a module sees its own declarations and those of the "
+                                                          "modules it imports: import it")
         else:
             guess = did_you_mean(name, list(BUILTINS) + list(CONSTRUCTORS))
             self.error(node.name_span, f"unknown function '{name}'", f"did you mean '{guess}'?" if guess else None)
@@ -824,7 +863,10 @@ class Checker:
     def s_CallProc(self, node: ast.CallProc):
         symbol = self.lookup(node.name)
         if symbol is None or symbol.kind != "proc":
-            if symbol is None:
+            hidden = self.hidden_hint(node.name) if symbol is None else None
+            if hidden is not None:
+                self.error(node.name_span, *hidden)
+            elif symbol is None:
                 procs = [s.name for s in self.globals.values() if s.kind == "proc"]
                 guess = did_you_mean(node.name, procs)
                 self.error(node.name_span, f"undeclared procedure '{node.name}'",
@@ -983,9 +1025,9 @@ CONSTRUCTORS = {
 }
 
 
-def check(program: ast.Program, spec: Spec, file: str,
-          decl_files: dict | None = None) -> tuple[CheckedProgram, list[Diagnostic]]:
+def check(program: ast.Program, spec: Spec, file: str, decl_files: dict | None = None,
+          sees: dict | None = None) -> tuple[CheckedProgram, list[Diagnostic]]:
     """Check ``program`` against ``spec``; returns the result and every error found."""
-    checker = Checker(program, spec, file, decl_files)
+    checker = Checker(program, spec, file, decl_files, sees)
     checked = checker.check()
     return checked, checker.diagnostics

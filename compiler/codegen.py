@@ -364,7 +364,18 @@ class CodeGen:
         checked = self.checked
         program = checked.program
         gvars = [d for d in program.decls if isinstance(d, ast.VarDecl)]
-        self.init_vars(gvars, checked.global_symbols.__getitem__)
+        lookup = checked.global_symbols.__getitem__
+        if any(scope.result is not None for scope in checked.procedures):
+            # a function called by an initialiser may read any global: every one holds its
+            # zero value first, then the initialisers run in order
+            for decl in gvars:
+                self.in_file_of(decl)
+                self.mark(decl.span)
+                for name in decl.names:
+                    self.default(lookup(name).type)
+                    self.emit(self.store_op(lookup(name)), lookup(name).slot)
+            gvars = [d for d in gvars if d.init is not None]
+        self.init_vars(gvars, lookup)
         self.file_index = 0
         self.stmts(program.body)
         end = program.span

@@ -63,8 +63,10 @@ def _render(d: Diagnostic, lines: list[str]) -> str:
     return "\n".join(out)
 
 
-def render_all(diagnostics, source: str | None) -> str:
-    """Every diagnostic rendered, in order. The source is split into lines once, so the
-    time is linear in the diagnostics and the source (not their product)."""
+def render_all(diagnostics, source: str | None, others: dict | None = None) -> str:
+    """Every diagnostic rendered, in order, with its line from ``source`` (the program's),
+    or from ``others`` (file -> text: the modules') for a diagnostic in another file. Each
+    text is split into lines once, so the time is linear in the diagnostics and the texts."""
     lines = source_lines(source)
-    return "\n".join(_render(d, lines) for d in diagnostics)
+    split = {file: source_lines(text) for file, text in (others or {}).items()}
+    return "\n".join(_render(d, split.get(d.file, lines) if d.file in split else lines) for d in diagnostics)

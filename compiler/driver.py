@@ -27,6 +27,7 @@ class Result:
     diagnostics: list[Diagnostic]
     spec: Spec | None = None
     modules: dict = field(default_factory=dict)  # a module's name in the object code -> its text
+    sources: dict = field(default_factory=dict)  # a module's path (as diagnostics name it) -> its text
 
     @property
     def ok(self) -> bool:
@@ -107,50 +108,66 @@ def _compile_nested(source: str, file: str, spec_path, generate_code: bool) -> R
         return Result(file, source, None, [_error(
             file, f"'{tree.name}' is a module: it is not compiled or run by itself", tree.span,
             f'import it from a program: import "{Path(file).name}";')])
-    modules, module_errors = load_modules(tree, file)
+    modules, module_errors, sources, sees = load_modules(tree, file)
     if module_errors:  # (checking without a module's declarations would only cascade)
         module_errors.sort(key=lambda d: (d.file != file, d.file, d.line, d.column))
-        return Result(file, source, None, syntax_errors + module_errors)
+        return Result(file, source, None, syntax_errors + module_errors, sources=sources)
     spec, diagnostics = resolve_spec(tree, file, spec_path)
     if spec is None:
         return Result(file, source, None, syntax_errors + module_errors + diagnostics)
     decl_files = {id(decl): path for path, (_name, _text, module) in modules.items() for decl in module.decls}
     merged = replace(tree, decls=tuple(d for _name, _text, m in modules.values() for d in m.decls) + tree.decls)
-    checked, diagnostics = check(merged, spec, file, decl_files)
+    checked, diagnostics = check(merged, spec, file, decl_files, sees)
     checked.modules = {path: name for path, (name, _text, _m) in modules.items()}
     texts = {name: text for name, text, _m in modules.values()}
     diagnostics = syntax_errors + module_errors + diagnostics
     if diagnostics:
         diagnostics.sort(key=lambda d: (d.file != file, d.file, d.line, d.column))
-        return Result(file, source, None, diagnostics, spec, texts)
+        return Result(file, source, None, diagnostics, spec, texts, sources)
     program = generate(checked, file) if generate_code else None
-    return Result(file, source, program, [], spec, texts)
+    return Result(file, source, program, [], spec, texts, sources)
 
 
-def load_modules(tree, file: str) -> tuple[dict, list[Diagnostic]]:
+def load_modules(tree, file: str) -> tuple[dict, list[Diagnostic], dict, dict]:
     """Every module ``tree`` imports, directly or through other modules, each once, in the
     order their declarations come (a module's imports before it): {path: (name in the
-    object code, text, Module)}, and the diagnostics of those that could not be read."""
+    object code, text, Module)}; the diagnostics of those that could not be read; the text
+    of every module read (for showing a diagnostic's line); and, per module path, the
+    module paths its code may use (itself and what it imports, directly or not)."""
     from . import ast
     from .syntax import parse_recovering
 
     base = Path(file).parent
     modules: dict = {}
+    texts: dict = {}
+    sees: dict = {}
     diagnostics: list[Diagnostic] = []
-    done: set = set()  # resolved paths, loaded or failed
+    done: dict = {}  # resolved path -> its module path (None: it could not be loaded)
 
-    def visit(importer: str, imports, chain: tuple) -> None:
+    def visit(importer: str, imports, chain: tuple) -> set:
+        seen: set = set()
         for imp in imports:
             path = Path(importer).parent / imp.path
-            key = os.path.realpath(path)
+            try:
+                key = os.path.realpath(path)
+                is_file = path.is_file()  # (a directory, a device such as /dev/zero: never read)
+            except (OSError, ValueError) as exc:  # a NUL byte, a name too long, a symlink loop
+                reason = "the file name contains a NUL byte" if isinstance(exc, ValueError) else \
+                    (exc.strerror or str(exc)).lower()
+                diagnostics.append(_error(importer, f"cannot read module '{imp.path[:200]}': {reason}", imp.span))
+                continue
             if key in chain:
-                diagnostics.append(_error(importer, f"module '{imp.path}' imports itself (through "
-                                                    f"{' -> '.join(Path(k).name for k in chain)})", imp.span))
+                what = "the program" if key == chain[0] else "a module that imports it"
+                names = " -> ".join([Path(k).name for k in chain] + [Path(key).name])
+                diagnostics.append(_error(importer, f"'{imp.path}' is {what}: the imports go round in a circle "
+                                                    f"({names})", imp.span))
                 continue
             if key in done:
+                if done[key] is not None:
+                    seen |= {done[key]} | sees[done[key]]
                 continue
-            done.add(key)
-            if not path.is_file():  # (a directory, a device such as /dev/zero: never read)
+            done[key] = None
+            if not is_file:
                 diagnostics.append(_error(importer, f"cannot read module '{imp.path}': "
                                                     f"{'no such file' if not path.exists() else 'not a file'}",
                                           imp.span))
@@ -165,6 +182,7 @@ def load_modules(tree, file: str) -> tuple[dict, list[Diagnostic]]:
                 diagnostics.append(_error(importer, f"cannot read module '{imp.path}': {exc.strerror or exc}",
                                           imp.span))
                 continue
+            texts[str(path)] = text
             module, errors = parse_recovering(text, str(path))
             diagnostics.extend(errors)
             if module is None:
@@ -173,10 +191,13 @@ def load_modules(tree, file: str) -> tuple[dict, list[Diagnostic]]:
                 diagnostics.append(_error(importer, f"'{imp.path}' is a program, not a module", imp.span,
                                           "a module starts with 'module NAME;' and has no seq ... endseq"))
                 continue
-            visit(str(path), module.imports, chain + (key,))
+            sees[str(path)] = visit(str(path), module.imports, chain + (key,))
+            done[key] = str(path)
+            seen |= {str(path)} | sees[str(path)]
             modules[str(path)] = (Path(os.path.relpath(path, base)).as_posix(), text, module)
+        return seen
     visit(file, tree.imports, (os.path.realpath(file),))
-    return modules, diagnostics
+    return modules, diagnostics, texts, sees
 
 
 def read_source(path: str | Path) -> str:

@@ -83,7 +83,7 @@ def _report(env: Environment, result, as_json: bool) -> None:
     elif result.diagnostics:
         from compiler.diagnostics import render_all
 
-        _err(env, render_all(result.diagnostics, result.source))
+        _err(env, render_all(result.diagnostics, result.source, result.sources))
         count = sum(1 for d in result.diagnostics if d.severity == "error")
         _err(env, f"{count} error{'s' if count != 1 else ''} in {result.file}")
 

@@ -170,3 +170,17 @@ def test_a_function_table_entry_is_decoded_strictly(tmp_path):
     plain = compile_text(tmp_path, program_text("  call p();\n", "procedure p;\nseq\n  print 1;\nendseq\n"
                                                                    "endprocedure;\n"))
     assert decode(encode(plain)).procedures[0].result == ""  # (4 fields: the format procedures had)
+
+
+def test_a_function_called_by_an_initialiser_sees_zero_values_not_nothing(tmp_path):
+    """Globals hold their zero values before any initialiser runs: a function an earlier
+    initialiser calls may read a later global."""
+    text = program_text('  print a, " ", b, " ", d;\n',
+                        "function getb : integer;\nseq\n  return b;\nendseq\nendfunction;\n"
+                        "function getc : real;\nseq\n  return c[2];\nendseq\nendfunction;\n"
+                        "var a : integer := getb();\n  b : integer := 5;\n  c : array[1..2] of real;\n"
+                        "  d : real := getc();\n")
+    for d in DISPATCHES:
+        machine, host = run(compile_text(tmp_path, text), dispatch=d)
+        assert machine.status.name == "DONE", machine.error
+        assert host.texts == ["0 5 0"]

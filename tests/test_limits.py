@@ -177,12 +177,12 @@ def test_rendering_20000_diagnostics_scans_the_source_a_bounded_number_of_times(
     original = compiler.diagnostics.render_all
     rendered = []
 
-    def counted(diagnostics, source):
+    def counted(diagnostics, source, others=None):
         assert isinstance(source, _CountingSource)  # the CLI renders the text it compiled
         _CountingSource.scanned, _CountingSource.counting = 0, True
         try:
             rendered.append(len(diagnostics))
-            return original(diagnostics, source)
+            return original(diagnostics, source, others)
         finally:
             _CountingSource.counting = False
 

@@ -69,12 +69,20 @@ def test_a_module_imported_twice_is_loaded_once_and_its_declarations_come_first(
 @pytest.mark.parametrize("files, imports, words, where", [
     ({}, 'import "lib/missing.irl";\n', "cannot read module 'lib/missing.irl': no such file", "main.irl:3"),
     ({}, 'import "/dev/zero";\n', "cannot read module '/dev/zero': not a file", "main.irl:3"),
+    ({}, 'import "a\x00b.irl";\n', "the file name contains a NUL byte", "main.irl:3"),
+    ({}, 'import "' + "y" * 300 + '.irl";\n', "file name too long", "main.irl:3"),
+    ({"lib/m.irl": "module m;\nprocedure p;\nseq\n  print secret;\nendseq\nendprocedure;\nendmodule;\n"},
+     'import "lib/m.irl";\nconst\n  secret := 1;\n', "'secret' is declared in", "m.irl:4"),
+    ({"lib/m.irl": "module m;\nconst\n  k := 1;\nendmodule;\n"}, 'import "lib/m.irl";\nfunction k : integer;\nseq\n'
+     "  return 2;\nendseq\nendfunction;\n", "the first declaration is at line 3 of", "main.irl:4"),
     ({"lib/m.irl": "module m;\nconst\n  k := 1 + true;\nendmodule;\n"}, 'import "lib/m.irl";\n',
      "'+' needs two numbers", "m.irl:3"),
     ({"lib/m.irl": "module m;\nconst\n  k := 1;\nendmodule;\n"}, 'import "lib/m.irl";\nconst\n  k := 2;\n',
      "the first declaration is at line 3 of", "main.irl:5"),
     ({"a.irl": 'module a;\nimport "b.irl";\nendmodule;\n', "b.irl": 'module b;\nimport "a.irl";\nendmodule;\n'},
-     'import "a.irl";\n', "imports itself", "b.irl:2"),
+     'import "a.irl";\n', "the imports go round in a circle (main.irl -> a.irl -> b.irl -> a.irl)", "b.irl:2"),
+    ({"a.irl": 'module a;\nimport "main.irl";\nendmodule;\n'}, 'import "a.irl";\n', "'main.irl' is the program",
+     "a.irl:2"),
     ({"other.irl": "program other;\nseq\nendseq\nendprogram;\n"}, 'import "other.irl";\n', "is a program, not a module",
      "main.irl:3"),
     ({"lib/m.irl": "module m;\nconst\n  k := ;\nendmodule;\n"}, 'import "lib/m.irl";\n', "unexpected ';'", "m.irl:3"),
@@ -111,3 +119,17 @@ def test_the_decoder_refuses_a_malformed_file_table():
                 dataclasses.replace(good, files=("",))):
         with pytest.raises(ObjectCodeError, match="files"):
             decode(encode(bad))
+
+
+def test_a_diagnostic_in_a_module_shows_the_modules_line(tmp_path):
+    write(tmp_path, "lib/m.irl", "module m;\nconst\n  k := 1;\nvar v : integer := \"text\";\nendmodule;\n")
+    main_file = program(tmp_path, "  print k;\n", 'import "lib/m.irl";\n')
+    code, _out, err = run_cli("check", main_file)
+    assert code != 0 and "m.irl:4:20: error: cannot initialise an integer with a string" in err
+    assert 'var v : integer := "text";' in err, err  # the module's line, not the program's line 4
+
+
+def test_a_name_declared_twice_in_one_file_is_blamed_on_the_later_declaration(tmp_path):
+    main_file = program(tmp_path, "  print c;\n", "", "const\n  c := 1;\nprocedure c;\nseq\nendseq\nendprocedure;\n")
+    code, _out, err = run_cli("check", main_file)
+    assert "main.irl:5:11: error: 'c' is already declared" in err and "first declaration is at line 4" in err, err

@@ -18,8 +18,8 @@ from .clauses import CLAUSES as CLAUSE_TABLE
 from .clauses import NAMES as CLAUSES
 from .clauses import Clause
 from .objcode import BUILTINS, MAX_ARRAY_ELEMENTS, MAX_COUNT, MAX_STRING_LENGTH
-from .semantics import (GEOMETRIC_BUILTINS, GEOMETRY, INT_MAX, INT_MIN, EvalError, binary, call_builtin, make_joint,
-                        make_pos, make_quat, make_rpy, unary)
+from .semantics import (GEOMETRIC_BUILTINS, GEOMETRY, INT_MAX, INT_MIN, EvalError, binary, call_builtin,
+                        geometric_result, make_joint, make_pos, make_quat, make_rpy, unary)
 from .spec import Spec
 from .values import AddJoint, Joint, MainJoint, Pose
 
@@ -50,6 +50,7 @@ class ArrayT:
 
 
 GEOMETRIC_KINDS = (POSITION, POSE, ORIENTATION)
+_KIND_WORDS = {"const": "constant", "proc": "procedure", "func": "function"}  # a symbol's kind, as messages say it
 
 
 def _kind(t) -> str:
@@ -503,10 +504,8 @@ class Checker:
             self.error(node.name_span, f"procedure '{name}' has no value", f"call it as a statement: call {name}(...);")
         elif symbol is not None:
             self.error(node.name_span, f"'{name}' is {a(symbol.type)}, not a function")
-        elif self.hidden_hint(name) is not None:
-            self.error(node.name_span, f"'{name}' is declared in {self.globals[name].file}, which {self.file} "
-                                       "does not import", "a module sees its own declarations and those of the "
-                                                          "modules it imports: import it")
+        elif (hidden := self.hidden_hint(name)) is not None:
+            self.error(node.name_span, *hidden)
         else:
             guess = did_you_mean(name, list(BUILTINS) + list(CONSTRUCTORS))
             self.error(node.name_span, f"unknown function '{name}'", f"did you mean '{guess}'?" if guess else None)
@@ -552,11 +551,8 @@ class Checker:
         types = [self.expr(arg) for arg in node.args]
         if ERROR in types:
             return ERROR
-        kinds = tuple(_kind(t) for t in types)
-        for wanted, result in GEOMETRIC_BUILTINS[name]:
-            if len(wanted) == len(kinds) and all(k in w.split("|") for k, w in zip(kinds, wanted)):
-                break
-        else:
+        result = geometric_result(name, tuple(_kind(t) for t in types))
+        if result is None:
             forms = " or ".join(f"{name}({', '.join(w.replace('|', ' or ') for w in wanted)})"
                                 for wanted, _r in GEOMETRIC_BUILTINS[name])
             self.error(node.span, f"{name} is not defined for {', '.join(map(a, types))}", f"it takes {forms}")
@@ -690,8 +686,7 @@ class Checker:
             self.error(span, f"'{name}' is a constant and cannot be assigned")
             return None
         if symbol.kind in ("proc", "func"):
-            what = "procedure" if symbol.kind == "proc" else "function"
-            self.error(span, f"'{name}' is a {what} and cannot be assigned",
+            self.error(span, f"'{name}' is a {_KIND_WORDS[symbol.kind]} and cannot be assigned",
                        "a function's result is given with 'return VALUE;'" if symbol.kind == "func" else None)
             return None
         self.symbols[id(node)] = symbol
@@ -828,8 +823,7 @@ class Checker:
             self.error(node.var_span, f"undeclared loop variable '{node.var}'",
                        f"declare it: var {node.var} : integer;")
         elif symbol.kind in ("const", "proc", "func"):
-            what = {"const": "constant", "proc": "procedure", "func": "function"}[symbol.kind]
-            self.error(node.var_span, f"'{node.var}' is a {what} and cannot be a loop variable")
+            self.error(node.var_span, f"'{node.var}' is a {_KIND_WORDS[symbol.kind]} and cannot be a loop variable")
         elif symbol.type not in (INTEGER, ERROR):
             self.error(node.var_span, f"the loop variable '{node.var}' must be an integer, "
                                       f"not {type_name(symbol.type)}")

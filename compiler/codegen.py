@@ -9,8 +9,8 @@ from __future__ import annotations
 from pathlib import Path
 
 from . import ast
-from .check import (BOOL, type_name, INTEGER, JOINT, ORIENTATION, POSE, POSITION, REAL, STRING, ArrayT,
-                    CheckedProgram, Symbol)
+from .check import (BOOL, INTEGER, JOINT, ORIENTATION, POSE, POSITION, REAL, STRING, ArrayT,
+                    CheckedProgram, Symbol, type_name)
 from .clauses import CLAUSES as CLAUSE_TABLE
 from .objcode import BUILTIN_NAMES, FIELDS, OP, ProcInfo, Program
 from .values import Joint, Pose, Position, Rpy
@@ -348,13 +348,15 @@ class CodeGen:
                  POSE: Pose(Position(0.0, 0.0, 0.0), Rpy(0.0, 0.0, 0.0))}
         self.constant(zeros[t])
 
-    def init_vars(self, decls, lookup) -> None:
+    def init_vars(self, decls, lookup, zeros: bool = False) -> None:
+        """Each variable of ``decls`` set to its initialiser (its zero value when it has
+        none, or for all of them with ``zeros``)."""
         for decl in decls:
             self.in_file_of(decl)
             self.mark(decl.span)
             for name in decl.names:
                 symbol = lookup(name)
-                if decl.init is not None:
+                if decl.init is not None and not zeros:
                     self.value(decl.init, symbol.type)
                 else:
                     self.default(symbol.type)
@@ -368,12 +370,7 @@ class CodeGen:
         if any(scope.result is not None for scope in checked.procedures):
             # a function called by an initialiser may read any global: every one holds its
             # zero value first, then the initialisers run in order
-            for decl in gvars:
-                self.in_file_of(decl)
-                self.mark(decl.span)
-                for name in decl.names:
-                    self.default(lookup(name).type)
-                    self.emit(self.store_op(lookup(name)), lookup(name).slot)
+            self.init_vars(gvars, lookup, zeros=True)
             gvars = [d for d in gvars if d.init is not None]
         self.init_vars(gvars, lookup)
         self.file_index = 0

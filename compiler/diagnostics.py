@@ -69,4 +69,4 @@ def render_all(diagnostics, source: str | None, others: dict | None = None) -> s
     text is split into lines once, so the time is linear in the diagnostics and the texts."""
     lines = source_lines(source)
     split = {file: source_lines(text) for file, text in (others or {}).items()}
-    return "\n".join(_render(d, split.get(d.file, lines) if d.file in split else lines) for d in diagnostics)
+    return "\n".join(_render(d, split.get(d.file, lines)) for d in diagnostics)

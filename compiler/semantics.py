@@ -185,10 +185,6 @@ GEOMETRY: dict[tuple[str, str, str], tuple[str, object, str]] = {
         "composition: the right rotation first, then the left one"),
 }
 GEOMETRY_OPS = frozenset(op for op, _l, _r in GEOMETRY)
-
-
-def _matches(kinds: tuple[str, ...], wanted: tuple[str, ...]) -> bool:
-    return len(kinds) == len(wanted) and all(k in w.split("|") for k, w in zip(kinds, wanted))
 _GEOMETRIC = (Position, Pose, Rpy, Quat)
 
 
@@ -302,10 +298,19 @@ GEOMETRIC_BUILTINS: dict[str, tuple[tuple[tuple[str, ...], str], ...]] = {
 }
 
 
+def geometric_result(name: str, kinds: tuple[str, ...]) -> str | None:
+    """The result kind of geometric built-in ``name`` given arguments of ``kinds`` (by
+    :data:`GEOMETRIC_BUILTINS`), or None when it is not defined for them."""
+    for wanted, result in GEOMETRIC_BUILTINS[name]:
+        if len(wanted) == len(kinds) and all(k in w.split("|") for k, w in zip(kinds, wanted)):
+            return result
+    return None
+
+
 def call_builtin(name: str, args):
     if name in GEOMETRIC_BUILTINS:  # (checked at compile time; object code is checked again here)
         kinds = tuple(kind(arg) for arg in args)
-        if not any(_matches(kinds, wanted) for wanted, _result in GEOMETRIC_BUILTINS[name]):
+        if geometric_result(name, kinds) is None:
             raise EvalError(f"{name}({', '.join(kinds)}) is not defined")
     result = BUILTIN_FUNCTIONS[name](*args)
     if isinstance(result, float):

@@ -206,7 +206,7 @@ def _print_summary(env: Environment, s: dict) -> None:
             blended = "  blended into the next" if m.get("blended") else ""
             _print(env, f"  {i:4d}  {m['line']:4d}  {m['planned_duration']:7.3f} s {actual}{blended}")
     for entry in s["log"]:
-        _print(env, f"  [{entry['time']:8.3f} s] line {entry['line']}: {entry['text']}")
+        _print(env, log_line(entry["time"], entry["line"], entry["text"]))
     _print(env, "")
     if s.get("stop"):
         _print(env, f"  stopped: category {s['stop']['category']} (docs/safety.md)")
@@ -235,6 +235,11 @@ def _on_pause(args, env: Environment):
         answer = stdin.readline()
         return "abort" if answer.strip().lower() == "abort" or not answer else "resume"
     return decide
+
+
+def log_line(at: float, line: int, text: str) -> str:
+    """One line of a program's ``print`` output, as ``irl run`` and ``irl submit --wait`` show it."""
+    return f"  [{at:8.3f} s] line {line}: {text}"
 
 
 def cmd_run(args, env: Environment) -> int:

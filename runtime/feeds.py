@@ -11,10 +11,11 @@ Not real-time: this runs in the server's process, never in the loop's.
 """
 from __future__ import annotations
 
-import difflib
 import hashlib
 import math
 import time
+
+from compiler.diagnostics import did_you_mean
 
 from . import protocol
 from .protocol import ProtocolError
@@ -83,9 +84,9 @@ class Feeds:
                                                + ", ".join(names))
         unknown = [f for f in fields if f not in names]
         if unknown:
-            close = difflib.get_close_matches(unknown[0], names, 1)
+            close = did_you_mean(unknown[0], names)
             raise ProtocolError("bad_request", f"feed: no sample field {unknown[0][:64]!r}"
-                                + (f" (did you mean {close[0]!r}?)" if close else "")
+                                + (f" (did you mean {close!r}?)" if close else "")
                                 + "; the fields: " + ", ".join(names))
         rate = float(args.get("rate", protocol.MAX_FEED_RATE))
         if not protocol.MIN_FEED_RATE <= rate <= protocol.MAX_FEED_RATE:

@@ -169,7 +169,7 @@ def cmd_submit(args, env) -> int:
             cli._print(env, json.dumps(final, default=str))
             return cli.EXIT_OK if final["state"] == "completed" else cli.EXIT_INVALID
         for entry in (final.get("summary") or {}).get("log", [])[shown:]:  # print output telemetry had lost
-            cli._print(env, _log_line(entry["time"], entry["line"], entry["text"]))
+            cli._print(env, cli.log_line(entry["time"], entry["line"], entry["text"]))
         if final["state"] == "completed":
             summary = final.get("summary") or {}
             cli._print(env, f"program {job} completed: {len(summary.get('moves', []))} moves, final position "
@@ -179,10 +179,6 @@ def cmd_submit(args, env) -> int:
         return cli.EXIT_INVALID
     finally:
         client.close()
-
-
-def _log_line(at: float, line: int, text: str) -> str:
-    return f"  [{at:8.3f} s] line {line}: {text}"
 
 
 def _wait(client, job: int, env, since: int, quiet: bool = False) -> tuple[dict, int]:
@@ -205,7 +201,7 @@ def _wait(client, job: int, env, since: int, quiet: bool = False) -> tuple[dict,
                     if tty and last:
                         env.stdout.write("\r\x1b[K")
                         last = None
-                    cli._print(env, _log_line(m["at"], m["line"], m["text"]))
+                    cli._print(env, cli.log_line(m["at"], m["line"], m["text"]))
                     shown += 1
         if status["state"] in TERMINAL:
             if tty and last:

@@ -135,6 +135,39 @@ class Input:
 Expr = Union[Number, String, Bool, Ref, Call, Index, Field, Unary, Binary, Input]
 
 
+def expression_text(expr) -> str:
+    """An expression written out again (names in lower case, numbers as the parser read
+    them, a binary operand that is itself binary in parentheses): what reports call a
+    frame or tool made active by ``use`` (``gripper``, ``pallet * shift``)."""
+    if isinstance(expr, Ref):
+        return expr.name
+    if isinstance(expr, Number):
+        return f"{expr.value:g}" if isinstance(expr.value, float) else str(expr.value)
+    if isinstance(expr, String):
+        return '"' + expr.value.replace("\\", "\\\\").replace('"', '\\"') + '"'
+    if isinstance(expr, Bool):
+        return "true" if expr.value else "false"
+    if isinstance(expr, Call):
+        return f"{expr.name}({', '.join(expression_text(arg) for arg in expr.args)})"
+    if isinstance(expr, Index):
+        return f"{expression_text(expr.base)}[{expression_text(expr.index)}]"
+    if isinstance(expr, Field):
+        return f"{expression_text(expr.base)}.{expr.name}"
+    if isinstance(expr, Input):
+        return f"in[{expression_text(expr.index)}]"
+    if isinstance(expr, Unary):
+        space = " " if expr.op == "not" else ""
+        return f"{expr.op}{space}{_operand_text(expr.operand)}"
+    if isinstance(expr, Binary):
+        return f"{_operand_text(expr.left)} {expr.op} {_operand_text(expr.right)}"
+    return "?"
+
+
+def _operand_text(expr) -> str:
+    text = expression_text(expr)
+    return f"({text})" if isinstance(expr, Binary) else text
+
+
 # ---- types ---------------------------------------------------------------------------
 
 @node
@@ -273,8 +306,16 @@ class Return:
     span: Span
 
 
+@node
+class Use:
+    kind: str  # "base" or "tool" (compiler.frames.BY_KEYWORD), as written, in lower case
+    kind_span: Span
+    value: Expr
+    span: Span
+
+
 Stmt = Union[Assign, OutSet, Move, If, While, Repeat, For, WaitTime, WaitFor,
-             CallProc, Print, Pause, Halt, Return]
+             CallProc, Print, Pause, Halt, Return, Use]
 
 
 # ---- declarations and the program ----------------------------------------------------

@@ -13,13 +13,17 @@ from grammar import keywords
 
 from . import ast
 from .diagnostics import Diagnostic, did_you_mean
+from .frames import BY_KEYWORD as FRAME_BY_KEYWORD
+from .frames import BY_TYPE as FRAME_BY_TYPE
+from .frames import FRAME_KINDS, describe_name, pose_of, values_of
+from .frames import problem as frame_problem
 from .clauses import BY_NAME as CLAUSE_BY_NAME
 from .clauses import CLAUSES as CLAUSE_TABLE
 from .clauses import NAMES as CLAUSES
 from .clauses import Clause
 from .objcode import BUILTINS, MAX_ARRAY_ELEMENTS, MAX_COUNT, MAX_STRING_LENGTH
 from .semantics import (GEOMETRIC_BUILTINS, GEOMETRY, INT_MAX, INT_MIN, EvalError, binary, call_builtin,
-                        geometric_result, make_joint, make_pos, make_quat, make_rpy, unary)
+                        compose, geometric_result, make_joint, make_pos, make_quat, make_rpy, unary)
 from .spec import Spec
 from .values import AddJoint, Joint, MainJoint, Pose
 
@@ -27,10 +31,12 @@ from .values import AddJoint, Joint, MainJoint, Pose
 
 INTEGER, REAL, BOOL, STRING = "integer", "real", "bool", "string"
 JOINT, POSITION, ORIENTATION, POSE = "joint", "position", "orientation", "pose"
+FRAME, TOOL = "frame", "tool"  # poses with a role (compiler.frames): a frame in the world, a TCP on the flange
+POSE_LIKE = (POSE, FRAME, TOOL)
 MAINJOINT, ADDJOINT = "mainjoint(...)", "addjoint(...)"
 ERROR = "<error>"  # the type of an expression already reported: suppresses follow-on errors
 
-NAMED_TYPES = (INTEGER, REAL, BOOL, STRING, JOINT, POSITION, ORIENTATION, POSE)
+NAMED_TYPES = (INTEGER, REAL, BOOL, STRING, JOINT, POSITION, ORIENTATION, POSE, FRAME, TOOL)
 NUMERIC = (INTEGER, REAL)
 MAX_ARRAY_LENGTH = MAX_ARRAY_ELEMENTS  # the object-code contract's limit
 
@@ -54,8 +60,9 @@ _KIND_WORDS = {"const": "constant", "proc": "procedure", "func": "function"}  # 
 
 
 def _kind(t) -> str:
-    """A checker type as compiler.semantics' operator tables name it."""
-    return "number" if t in NUMERIC else str(t)
+    """A checker type as compiler.semantics' operator tables name it (a frame or a tool
+    is a pose there)."""
+    return "number" if t in NUMERIC else POSE if t in POSE_LIKE else str(t)
 
 
 def type_name(t) -> str:
@@ -69,7 +76,11 @@ def a(t) -> str:
 
 
 def assignable(target, value) -> bool:
-    return target == value or (target == REAL and value == INTEGER) or ERROR in (target, value)
+    """Whether a value of type ``value`` may be stored where ``target`` is expected: the
+    same type, an integer where a real is, a pose where a frame or tool is (and a frame or
+    a tool where a pose is), but not a frame where a tool is or the other way round."""
+    return target == value or (target == REAL and value == INTEGER) or ERROR in (target, value) or \
+        (target in POSE_LIKE and value in POSE_LIKE and POSE in (target, value))
 
 
 def _literal_text(value: int) -> str:
@@ -97,6 +108,7 @@ class Symbol:
     params: tuple = ()  # for procedures and functions: parameter types
     index: int = -1  # for procedures and functions: index in the procedure table
     file: str = ""  # the file it is declared in
+    predeclared: bool = False  # by the language or the specification (world, default_tool, [[tool]] ...)
 
 
 @dataclass
@@ -168,6 +180,11 @@ class Checker:
         self.robots: list[str] = []
         self._expr = {cls: getattr(self, "e_" + cls.__name__) for cls in _EXPR_CLASSES}
         self._stmt = {cls: getattr(self, "s_" + cls.__name__) for cls in _STMT_CLASSES}
+        # the active base and tool where known: keyword -> (name, pose), or None (not known here)
+        self.active: dict[str, tuple | None] = {}
+        self._changes: dict[int, tuple] = {}  # (memo of _uses)
+        self.proc_changes: frozenset = frozenset()  # what some procedure may make active
+        self.all_changes: frozenset = frozenset()  # what some statement of the program may make active
 
     # -- reporting --
     def error(self, span: ast.Span, message: str, hint: str | None = None, file: str | None = None) -> None:
@@ -217,7 +234,15 @@ class Checker:
                        "choose another name")
             return False
         previous = table.get(symbol.name)  # a local may shadow a global: tables are per scope
+        if previous is None and table is not self.globals:
+            previous = self.globals.get(symbol.name)
+            previous = previous if previous is not None and previous.predeclared else None
         symbol.file = self.file
+        if previous is not None and previous.predeclared:
+            where = "the language" if previous.file == "" else f"the system specification ({previous.file})"
+            self.error(symbol.span, f"'{symbol.name}' is predeclared by {where}: {a(previous.type)}",
+                       "choose another name")
+            return False
         if previous is not None:
             # (procedures and functions are declared first: the error goes to the later one in the source)
             first, later = sorted((previous, symbol), key=self.source_order)
@@ -401,7 +426,7 @@ class Checker:
                        "use '/' for real division" if op == "div" else None)
             return ERROR
         if op in ("=", "<>"):
-            if lt == rt or (lt in NUMERIC and rt in NUMERIC):
+            if lt == rt or (lt in NUMERIC and rt in NUMERIC) or (lt in POSE_LIKE and rt in POSE_LIKE):
                 if isinstance(lt, ArrayT):
                     self.error(node.op_span, "arrays cannot be compared")
                     return ERROR
@@ -655,16 +680,17 @@ class Checker:
         return self.numeric_constructor(node, 4, "a component of quat", make_quat, ORIENTATION)
 
     def c_pose(self, node: ast.Call):
+        """``pose(P, O)``, and ``frame(P, O)`` and ``tool(P, O)``: the same value, typed."""
         if not self.arity(node, 2):
             return ERROR
-        p = self.expect(node.args[0], POSITION, "the first argument of pose")
-        o = self.expect(node.args[1], ORIENTATION, "the second argument of pose")
+        p = self.expect(node.args[0], POSITION, f"the first argument of {node.name}")
+        o = self.expect(node.args[1], ORIENTATION, f"the second argument of {node.name}")
         if ERROR in (p, o):
             return ERROR
         pv, ov = self.value_of(node.args[0]), self.value_of(node.args[1])
         if pv is not _NO_VALUE and ov is not _NO_VALUE:
             self.values[id(node)] = Pose(pv, ov)
-        return POSE
+        return node.name
 
     # ---- statements ----
     def stmts(self, body) -> None:
@@ -675,7 +701,66 @@ class Checker:
                 self.error(stmt.span, f"a function computes a value: '{_NOT_IN_FUNCTIONS[type(stmt)]}' is not "
                                       f"allowed in function '{self.scope.node.name}'",
                            "move, wait, set outputs, print, pause, halt and call procedures in a procedure")
+            changes = self.frame_changes(stmt) if type(stmt) in _COMPOUND else ()
+            for keyword in changes:  # inside: not known (a loop's second pass, a later branch)
+                self.active[keyword] = None
             dispatch[type(stmt)](stmt)
+            for keyword in changes:
+                self.active[keyword] = None
+
+    # ---- the active base and tool (for the reach of constant targets) ----
+    def frame_changes(self, stmt) -> frozenset:
+        """The kinds (``base``, ``tool``) that ``stmt`` may make active: its ``use``
+        statements, and those of every procedure when it calls one."""
+        uses, calls = _uses(stmt, self._changes)
+        return uses | self.proc_changes if calls else uses
+
+    def start_frames(self, known: bool) -> None:
+        """The active base and tool at the start of the main program (``known``) or of a
+        routine (known only where the program never changes them)."""
+        for kind in FRAME_KINDS:
+            changed = kind.keyword in self.all_changes
+            self.active[kind.keyword] = (kind.default, self.globals[kind.default].value) \
+                if known or not changed else None
+
+    def predeclare(self) -> None:
+        """``world``, ``default_tool`` and the specification's ``[[frame]]`` and ``[[tool]]``
+        (compiler.frames): constants every file sees."""
+        none = ast.Span(0, 0, 0, 0)
+        defaults = {"frame": (0.0,) * 6, "tool": tuple(self.spec.tool)}
+        for kind in FRAME_KINDS:
+            self.globals[kind.default] = Symbol("const", kind.default, kind.type, none,
+                                                value=pose_of(defaults[kind.type]), predeclared=True)
+        for type_, name, values in self.spec.named_frames:
+            self.globals[name] = Symbol("const", name, type_, none, value=pose_of(values),
+                                        file=self.spec.file.rsplit("/", 1)[-1] or self.spec.file, predeclared=True)
+
+    def s_Use(self, node: ast.Use):
+        kind = FRAME_BY_KEYWORD.get(node.kind)
+        if kind is None:
+            typed = FRAME_BY_TYPE.get(node.kind)  # 'use frame': the type's name, not the statement's
+            guess = typed.keyword if typed is not None else did_you_mean(node.kind, list(FRAME_BY_KEYWORD), cutoff=0.5)
+            self.error(node.kind_span, f"'use {node.kind}': expected 'use base FRAME;' or 'use tool TOOL;'",
+                       f"did you mean 'use {guess}'?" if guess else None)
+            self.expr(node.value)
+            return
+        self.active[kind.keyword] = None
+        t = self.expr(node.value)
+        if t == ERROR:
+            return
+        if t not in (kind.type, POSE):
+            other = FRAME_BY_TYPE.get(t)
+            self.error(node.value.span, f"'use {kind.keyword}' needs {a(kind.type)} (or a pose), not {a(t)}",
+                       f"{a(t)} is made active with 'use {other.keyword}'" if other is not None else None)
+            return
+        value = self.value_of(node.value)
+        if value is _NO_VALUE:
+            return
+        problem = frame_problem(kind, values_of(value))
+        if problem is not None:
+            self.error(node.value.span, problem)
+            return
+        self.active[kind.keyword] = (describe_name(ast.expression_text(node.value)), value)
 
     def variable(self, name: str, span: ast.Span, node) -> Symbol | None:
         symbol = self.lookup(name)
@@ -728,7 +813,7 @@ class Checker:
                 value = self.value_of(target)
                 if t == JOINT and value is not _NO_VALUE:
                     self.check_joint_limits(target, value)
-                elif t == POSE and value is not _NO_VALUE:
+                elif t in POSE_LIKE and value is not _NO_VALUE:
                     self.check_reach(target, value)
         self.clauses(node)
 
@@ -739,11 +824,20 @@ class Checker:
                 self.error(target.span, problem)
 
     def check_reach(self, target: ast.Expr, value: Pose) -> None:
-        p = value.position
-        distance, reach = self.spec.shoulder_distance(p.x, p.y, p.z), self.spec.arm_reach()
+        """A constant pose target within the arm's reach, in the active base with the
+        active tool where both are known here (else it is checked when the move runs)."""
+        base, tool = self.active["base"], self.active["tool"]
+        if base is None or tool is None:
+            return
+        p = compose(base[1], value).position
+        distance = self.spec.shoulder_distance(p.x, p.y, p.z)
+        reach = self.spec.arm_reach(values_of(tool[1]))
         if reach > 0 and distance > reach:
-            self.error(target.span, f"pose out of reach: its position is {distance:.1f} mm from the shoulder, "
-                                    f"but {self.spec.name}'s arm reaches at most {reach:.1f} mm")
+            frames = [f"{kind} '{name}'" for kind, (name, _v), default in
+                      (("base", base, "world"), ("tool", tool, "default_tool")) if name != default]
+            where = f" (in {' with '.join(frames)})" if frames else ""
+            self.error(target.span, f"pose out of reach{where}: its position is {distance:.1f} mm from the "
+                                    f"shoulder, but {self.spec.name}'s arm reaches at most {reach:.1f} mm")
 
     def clauses(self, node: ast.Move) -> None:
         """The move's clauses against the clause table (compiler.clauses): known, given
@@ -947,6 +1041,10 @@ class Checker:
 
     def check(self) -> CheckedProgram:
         program = self.program
+        self.predeclare()
+        bodies = [d.body for d in program.decls if isinstance(d, ast.Procedure)]
+        self.proc_changes = frozenset().union(*(_uses(s, self._changes)[0] for body in bodies for s in body))
+        self.all_changes = self.proc_changes.union(*(_uses(s, self._changes)[0] for s in program.body))
         # Procedures first, so a call may come before the procedure's declaration.
         for decl in program.decls:
             if isinstance(decl, ast.Procedure):
@@ -963,6 +1061,7 @@ class Checker:
             self.file = self.decl_files.get(id(scope.node), self.main_file)
             for var in scope.node.variables:
                 self.var_decl(var, scope.names, scope.slots, "local")
+            self.start_frames(known=False)
             self.stmts(scope.node.body)
             if scope.result is not None and not always_returns(scope.node.body):
                 self.error(scope.node.name_span, f"function '{scope.node.name}' can reach its end without "
@@ -970,6 +1069,7 @@ class Checker:
                                                              "'return VALUE;'")
             self.scope = None
         self.file = self.main_file
+        self.start_frames(known=True)
         self.stmts(program.body)
         if not self.robots:
             self.robots.append(self.spec.name)
@@ -1003,10 +1103,36 @@ class Checker:
 _EXPR_CLASSES = (ast.Number, ast.String, ast.Bool, ast.Ref, ast.Call, ast.Index, ast.Field, ast.Unary,
                  ast.Binary, ast.Input)
 _STMT_CLASSES = (ast.Assign, ast.OutSet, ast.Move, ast.If, ast.While, ast.Repeat, ast.For, ast.WaitTime,
-                 ast.WaitFor, ast.CallProc, ast.Print, ast.Pause, ast.Halt, ast.Return)
+                 ast.WaitFor, ast.CallProc, ast.Print, ast.Pause, ast.Halt, ast.Return, ast.Use)
 #: Statements a function may not hold (it computes a value; it does not act): the keyword.
 _NOT_IN_FUNCTIONS = {ast.Move: "move", ast.WaitTime: "wait", ast.WaitFor: "wait for", ast.OutSet: "out[...] :=",
-                     ast.CallProc: "call", ast.Print: "print", ast.Pause: "pause", ast.Halt: "halt"}
+                     ast.CallProc: "call", ast.Print: "print", ast.Pause: "pause", ast.Halt: "halt",
+                     ast.Use: "use"}
+_COMPOUND = (ast.If, ast.While, ast.Repeat, ast.For, ast.CallProc)  # statements that hold (or call) others
+
+
+def _uses(stmt, memo: dict) -> tuple[frozenset, bool]:
+    """The kinds of ``use`` inside ``stmt`` (itself included), and whether it calls a
+    procedure (memoized in ``memo`` by node)."""
+    found = memo.get(id(stmt))
+    if found is None:
+        if isinstance(stmt, ast.Use):
+            found = (frozenset((stmt.kind,)), False)
+        else:
+            inner = [_uses(s, memo) for s in _children(stmt)]
+            found = (frozenset().union(*(u for u, _c in inner)),
+                     isinstance(stmt, ast.CallProc) or any(c for _u, c in inner))
+        memo[id(stmt)] = found
+    return found
+
+
+def _children(stmt) -> tuple:
+    """The statements directly inside ``stmt``."""
+    if isinstance(stmt, ast.If):
+        return tuple(s for _cond, body in stmt.branches for s in body) + tuple(stmt.orelse)
+    if isinstance(stmt, (ast.While, ast.Repeat, ast.For)):
+        return tuple(stmt.body)
+    return ()
 
 CONSTRUCTORS = {
     "joint": Checker.c_joint,
@@ -1016,6 +1142,8 @@ CONSTRUCTORS = {
     "rpy": Checker.c_rpy,
     "quat": Checker.c_quat,
     "pose": Checker.c_pose,
+    "frame": Checker.c_pose,
+    "tool": Checker.c_pose,
 }
 
 

@@ -9,8 +9,10 @@ from __future__ import annotations
 from pathlib import Path
 
 from . import ast
-from .check import (BOOL, INTEGER, JOINT, ORIENTATION, POSE, POSITION, REAL, STRING, ArrayT,
+from .check import (BOOL, FRAME, INTEGER, JOINT, ORIENTATION, POSE, POSITION, REAL, STRING, TOOL, ArrayT,
                     CheckedProgram, Symbol, type_name)
+from .frames import BY_KEYWORD as FRAME_BY_KEYWORD
+from .frames import describe_name
 from .clauses import CLAUSES as CLAUSE_TABLE
 from .objcode import BUILTIN_NAMES, FIELDS, OP, ProcInfo, Program
 from .values import Joint, Pose, Position, Rpy
@@ -43,7 +45,7 @@ class CodeGen:
         self._stmt = {cls: getattr(self, "s_" + cls.__name__)
                       for cls in (ast.Assign, ast.OutSet, ast.Move, ast.If, ast.While, ast.Repeat, ast.For,
                                   ast.WaitTime, ast.WaitFor, ast.CallProc, ast.Print, ast.Pause, ast.Halt,
-                                  ast.Return)}
+                                  ast.Return, ast.Use)}
 
     # -- emitting --
     def emit(self, op: int, *operands: int) -> int:
@@ -69,12 +71,16 @@ class CodeGen:
         self.file_index = 0 if path is None else 1 + self.module_paths.index(path)
 
     def constant(self, value) -> None:
+        self.emit(OP.CONST, self.constant_slot(value))
+
+    def constant_slot(self, value) -> int:
+        """The index of ``value`` in the constant pool (added once)."""
         key = (type(value), value)
         index = self.constant_index.get(key)
         if index is None:
             index = self.constant_index[key] = len(self.constants)
             self.constants.append(value)
-        self.emit(OP.CONST, index)
+        return index
 
     def temp(self, name: str, type_: str) -> tuple[int, int]:
         """A hidden variable slot: (load op, slot)."""
@@ -172,7 +178,7 @@ class CodeGen:
             for arg in node.args:
                 self.value(arg, REAL)
             self.emit({"pos": OP.MAKE_POS, "rpy": OP.MAKE_RPY, "quat": OP.MAKE_QUAT}[name])
-        elif name == "pose":
+        elif name in ("pose", "frame", "tool"):
             self.value(node.args[0])
             self.value(node.args[1])
             self.emit(OP.MAKE_POSE)
@@ -335,6 +341,11 @@ class CodeGen:
         self.value(node.value, self.result)
         self.emit(OP.RET_VALUE)
 
+    def s_Use(self, node: ast.Use) -> None:
+        self.value(node.value)
+        name = self.constant_slot(describe_name(ast.expression_text(node.value)))
+        self.emit(getattr(OP, FRAME_BY_KEYWORD[node.kind].instruction), name)
+
     # -- declarations --
     def default(self, t) -> None:
         if isinstance(t, ArrayT):
@@ -346,6 +357,7 @@ class CodeGen:
                               tuple(0.0 for _ in self.checked.spec.additional_axes)),
                  POSITION: Position(0.0, 0.0, 0.0), ORIENTATION: Rpy(0.0, 0.0, 0.0),
                  POSE: Pose(Position(0.0, 0.0, 0.0), Rpy(0.0, 0.0, 0.0))}
+        zeros[FRAME] = zeros[TOOL] = zeros[POSE]
         self.constant(zeros[t])
 
     def init_vars(self, decls, lookup, zeros: bool = False) -> None:

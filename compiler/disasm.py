@@ -27,7 +27,7 @@ class Instruction:
 def _argrepr(program: Program, definition, operands: tuple[int, ...], routine_locals) -> str:
     parts = []
     for (op_name, kind), value in zip(definition.operands, operands):
-        if kind == "const":
+        if kind in ("const", "name"):
             parts.append(format_value(program.constants[value]))
         elif kind == "global":
             parts.append(program.globals[value][0])

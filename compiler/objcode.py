@@ -64,6 +64,7 @@ OPERAND_KINDS = {
     "field": "field number: 0 x, 1 y, 2 z",
     "clauses": "bit mask of the move's clauses (see below)",
     "flag": "0 or 1",
+    "name": "index into the constant pool of a string (a name)",
 }
 
 #: Built-in functions: name -> number of arguments. Angles in degrees.
@@ -193,6 +194,12 @@ _DEFS = [
      "result is on the stack when it returns.", "args... -> result", "call"),
     ("RET_VALUE", (), 1, 0, "Return from the current function with the value on top of the stack (left there for "
                             "the caller).", "result ->", "return"),
+    ("USE_BASE", (("name", "name"),), 1, 0,
+     "Make the pose on top of the stack the active base (the frame later pose targets are in), called name "
+     "(compiler.frames).", "pose ->", "next"),
+    ("USE_TOOL", (("name", "name"),), 1, 0,
+     "Make the pose on top of the stack the active tool (the TCP, in the flange frame, that later targets put in "
+     "place), called name (compiler.frames).", "pose ->", "next"),
 ]
 
 INSTRUCTIONS: tuple[InstrDef, ...] = tuple(
@@ -413,6 +420,10 @@ def _check_operand(kind: str, value: int, program: Program, nlocals: int | None)
         ok, limit = 0 <= value < (1 << len(CLAUSES)), f"a mask below {1 << len(CLAUSES)}"
     elif kind == "flag":
         ok, limit = value in (0, 1), "0 or 1"
+    elif kind == "name":
+        ok, limit = 0 <= value < len(program.constants), f"0..{len(program.constants) - 1}"
+        if ok and not isinstance(program.constants[value], str):
+            return f"constant {value} is not a string (a name)"
     else:  # pragma: no cover - the table only uses the kinds above
         return f"unknown operand kind {kind}"
     return None if ok else f"{value} is out of range ({limit})"

@@ -95,6 +95,7 @@ _FLOWS = {
 #: Valid values of the operand kinds whose range depends on the program's own tables.
 _TABLE_RANGES = {
     "const": "0 .. (number of constants − 1)",
+    "name": "0 .. (number of constants − 1), a string constant",
     "global": "0 .. (number of globals − 1)",
     "local": "0 .. (the procedure's number of local slots − 1); only inside a procedure",
     "target": "0 .. (number of instructions − 1)",

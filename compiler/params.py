@@ -47,7 +47,8 @@ PERIOD_MIN, PERIOD_MAX = 0.001, 1.0
 REPORT_COLUMNS = ("sens_pos", "desi_pos", "out_vel", "following_error", "tcp")
 #: Columns a report may also have (not by default): io, every digital input then output (0/1);
 #: move, the number and source line of the program's move under way (runtime.components.report).
-REPORT_COLUMNS_OPTIONAL = ("io", "move")
+#: frame, the names of the active tool and base and the tool centre point in that base.
+REPORT_COLUMNS_OPTIONAL = ("io", "move", "frame")
 
 
 class ParamError(ValueError):
@@ -279,7 +280,8 @@ PARAMS: tuple[Param, ...] = (
        doc="signals logged in each row, in this order (tcp: x, y, z, roll, pitch, yaw of the tool; io: every "
            "digital input, then output, 0 or 1; added by a cell scenario; move: move, the number of the program's "
            "move under way or last started (from 1; 0 before the first), and line, the source line of the move "
-           "under way (0 when none is))"),
+           "under way (0 when none is); frame: tool and base, the names of the tool and base of the move under way "
+           "or last started (use tool, use base), and base_x ... base_yaw, the tool centre point in that base)"),
 )
 
 _BY_SECTION: dict[str, dict[str, Param]] = {}

@@ -13,6 +13,7 @@ import hashlib
 import json
 import math
 import os
+import re
 import stat
 import tomllib
 from dataclasses import dataclass
@@ -119,6 +120,8 @@ class Spec:
     description: str = ""
     simulation: object = None  # [simulation], typed likewise: spec.simulation.brake_time
     safety: object = None  # [safety], typed likewise: spec.safety.stop_time_margin
+    #: The [[frame]] and [[tool]] tables: (type, name, (x, y, z, roll, pitch, yaw)) each.
+    named_frames: tuple = ()
 
     @property
     def main_axes(self) -> tuple[Axis, ...]:
@@ -128,20 +131,22 @@ class Spec:
     def additional_axes(self) -> tuple[Axis, ...]:
         return tuple(a for a in self.axes if a.group == "additional")
 
-    def arm_reach(self) -> float:
+    def arm_reach(self, tool: tuple | None = None) -> float:
         """An upper bound (mm) of the distance from the shoulder (axis 2) to any reachable
-        TCP: the links after the first, plus the tool. 0 when the DH data are missing."""
+        TCP: the links after the first, plus the tool (the specification's, or ``tool``:
+        x, y, z, ...). 0 when the DH data are missing."""
         links = self.main_axes[1:]
         if not links or any(axis.dh is None for axis in self.main_axes):
             return 0.0
-        return sum(math.hypot(axis.dh.a, axis.dh.d) for axis in links) + math.hypot(*self.tool[:3])
+        x, y, z = (self.tool if tool is None else tool)[:3]
+        return sum(math.hypot(axis.dh.a, axis.dh.d) for axis in links) + math.hypot(x, y, z)
 
     def shoulder_distance(self, x: float, y: float, z: float) -> float:
         """Distance (mm) from a point in the base frame to the nearest place the shoulder
         can be: a circle of radius a1 at height d1 around the vertical first axis."""
         first = self.main_axes[0].dh
         if first is None:
-            return math.sqrt(x * x + y * y + z * z)
+            return math.hypot(x, y, z)
         return math.hypot(math.hypot(x, y) - abs(first.a), z - first.d)
 
 
@@ -303,11 +308,12 @@ def parse_spec(text: str, file: str = "<spec>") -> Spec:
         k = _Reader(file, "kinematics", top.get("kinematics", "table"))
         raw_tool = k.get("tool", "table", {})
         t = _Reader(file, "kinematics.tool", raw_tool)
-        tool = tuple(t.get(key, "number", 0.0) for key in ("x", "y", "z", "roll", "pitch", "yaw"))
+        tool = _pose_values(t)
         t.finish()
         k.finish()
     else:
         top.get("kinematics", "table", None)
+    named = _named_frames(file, data, top)
 
     tables = {section: _parameters(file, section, top.get(section, "table", {})) for section in params.SPEC_SECTIONS}
     broken = params.check_spec_rules(tables)
@@ -316,7 +322,51 @@ def parse_spec(text: str, file: str = "<spec>") -> Spec:
     top.finish()
     typed = {section: params.settings(section, values) for section, values in tables.items()}
     return Spec(name, file, axes, defaults, max_speed, max_acc, inputs, outputs, tool, typed["controller"],
-                _canonical_hash(data), description, typed["simulation"], typed["safety"])
+                _canonical_hash(data), description, typed["simulation"], typed["safety"], named)
+
+
+_POSE_KEYS = ("x", "y", "z", "roll", "pitch", "yaw")
+
+
+def _pose_values(r: "_Reader") -> tuple[float, ...]:
+    """x, y, z (mm), roll, pitch, yaw (deg) of a table, each optional (0)."""
+    return tuple(r.get(key, "number", 0.0, expect=f"a number ({'mm' if i < 3 else 'deg'})")
+                 for i, key in enumerate(_POSE_KEYS))
+
+
+def _named_frames(file: str, data: dict, top: "_Reader") -> tuple:
+    """The ``[[frame]]`` and ``[[tool]]`` tables (:data:`compiler.frames.FRAME_KINDS`):
+    ``((type, name, values), ...)`` in file order, frames first. A name must be a name a
+    program can use, unique across both tables and not a predeclared one."""
+    from grammar import keywords
+
+    from .frames import FRAME_KINDS, offset_problem
+
+    named: list[tuple[str, str, tuple[float, ...]]] = []
+    taken = {kind.default: "predeclared" for kind in FRAME_KINDS}
+    for kind in FRAME_KINDS:
+        top.used.add(kind.table)
+        tables = data.get(kind.table, [])
+        if not isinstance(tables, list):
+            raise SpecError(file, kind.table, f"expected an array of tables ([[{kind.table}]])")
+        for i, table in enumerate(tables):
+            r = _Reader(file, f"{kind.table}[{i + 1}]", table)
+            name = r.get("name", "string", check=lambda n: re.fullmatch(r"[A-Za-z_][A-Za-z0-9_]*", n) is not None,
+                         expect=f"the {kind.type}'s name, a name a program can use (letters, digits, _)").lower()
+            key = f"{kind.table}[{i + 1}].name"
+            if name in keywords():
+                raise SpecError(file, key, f"{name!r} is a reserved word of the language")
+            if name in taken:
+                what = "is predeclared" if taken[name] == "predeclared" else f"already names {taken[name]}"
+                raise SpecError(file, key, f"{name!r} {what}: expected another name")
+            values = _pose_values(r)
+            r.finish()
+            offset = math.sqrt(sum(v * v for v in values[:3]))
+            if offset > kind.max_offset:
+                raise SpecError(file, f"{kind.table}[{i + 1}]", offset_problem(kind, offset))
+            taken[name] = f"a {kind.type}"
+            named.append((kind.type, name, values))
+    return tuple(named)
 
 
 def _parameters(file: str, section: str, table: dict) -> dict:

@@ -236,6 +236,10 @@ class _Builder(Transformer):
         kw, value = c
         return ast.Return(value, _span(kw).to(value.span) if value is not None else _span(kw))
 
+    def use_stmt(self, c):
+        kw, which, value = c
+        return ast.Use(which.value.lower(), _span(which), value, _span(kw).to(value.span))
+
     # -- expressions --
     def binary(self, c):
         left, op, right = c

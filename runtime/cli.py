@@ -332,9 +332,9 @@ def _report_columns(text: str, spec) -> tuple[bool, list[str]]:
     except ParamError as exc:
         raise UsageError(f"--report-columns {text}: {exc.reason}") from None
     if "tcp" in names:
-        from runtime.components.report import _forward_kinematics
+        from runtime.components.report import tcp_of
 
-        if _forward_kinematics(spec) is None:
+        if tcp_of(spec) is None:
             raise UsageError(f"--report-columns {text}: this robot's kinematics give no tool centre point (tcp)")
     return add, names
 

@@ -6,7 +6,8 @@ page of ``docs/``, and is rendered from its one declaration: the parameters from
 :mod:`compiler.clauses`, the stop categories from :data:`runtime.components.safety.CATEGORIES`, the simulated
 cell's rules from :data:`runtime.sim.cell.RULES`, the fieldbus file's fields from
 :data:`runtime.fieldbus.FIELDS`, the telemetry sample's fields from
-:data:`runtime.protocol.SAMPLE_FIELDS`, pose arithmetic from :data:`compiler.semantics.GEOMETRY`.
+:data:`runtime.protocol.SAMPLE_FIELDS`, pose arithmetic from :data:`compiler.semantics.GEOMETRY`, the bounds of frames and tools from
+:data:`compiler.frames.FRAME_KINDS`.
 A test fails while a page is stale. Not real-time; imports nothing the loop needs.
 """
 from __future__ import annotations
@@ -21,7 +22,7 @@ _BLOCK = re.compile(r"(<!-- generated: (?P<name>[a-z_]+) -->\n)(?P<body>.*?)(<!-
 
 
 def tables() -> dict[str, str]:
-    from compiler import clauses, semantics
+    from compiler import clauses, frames, semantics
     from compiler.params import COMPONENTS, markdown
 
     from . import fieldbus, protocol
@@ -31,7 +32,7 @@ def tables() -> dict[str, str]:
     return {"params": markdown(), "config": markdown(COMPONENTS), "categories": categories_markdown(),
             "clauses": clauses.markdown(), "defaults": clauses.defaults_markdown(), "cell": cell.markdown(),
             "fieldbus": fieldbus.markdown(), "sample": protocol.sample_markdown(),
-            "geometry": semantics.geometry_markdown()}
+            "geometry": semantics.geometry_markdown(), "frames": frames.markdown()}
 
 
 def render(text: str) -> str:

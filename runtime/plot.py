@@ -31,6 +31,8 @@ def read_report(path: str | Path):
     """(times, states, {column: values}) from a report CSV (NumPy arrays)."""
     import numpy as np
 
+    from .components.report import is_text  # (the frame group's names: not plotted)
+
     try:
         with open(path, newline="", encoding="utf-8") as f:
             rows = list(csv.reader(f))
@@ -41,7 +43,8 @@ def read_report(path: str | Path):
     header, body = rows[0], rows[1:]
     try:
         times = np.array([float(r[0]) for r in body])
-        columns = {name: np.array([float(r[i]) for r in body]) for i, name in enumerate(header) if i >= 2}
+        columns = {name: np.array([float(r[i]) for r in body]) for i, name in enumerate(header)
+                   if i >= 2 and not is_text(name)}
     except (ValueError, IndexError):
         raise PlotError(f"{path}: malformed row (not a complete irl report)") from None
     return times, [r[1] for r in body], columns

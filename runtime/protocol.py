@@ -61,6 +61,12 @@ SAMPLE_FIELDS: dict[str, tuple[str, str]] = {
     "moves_total": ("int or nil", "while a program runs: its moves (nil when it loops or calls procedures)"),
     "paused": ("bool", "while a program runs: it is paused"),
     "following_error": ("float", "while a program runs: the largest absolute following error (deg)"),
+    "tool": ("str", "the tool of the move under way or last started (its `use tool` name; `default_tool` before)"),
+    "base": ("str", "the base of the move under way or last started (its `use base` name; `world` before)"),
+    "tcp": ("[float] or nil", "the tool centre point of that tool in the world frame, from the measured "
+                              "position: x, y, z (mm), roll, pitch, yaw (deg); nil when the robot's kinematics "
+                              "give none"),
+    "tcp_base": ("[float] or nil", "the same in that base"),
 }
 
 ERRORS = {

@@ -242,6 +242,7 @@ class RobotLoop:
                 "state": system.supervisor.fsm.path() if self.job is not None else "Idle",
                 "position": list(system.robot.positions),
                 "inputs": list(system.io.inputs.read()), "outputs": list(system.io.outputs.read()),
+                "frames": list(system.trajectory.frames_now()),
                 "calibrated": memory.calibrated, "initialized": memory.initialized,
                 "calibration": memory.calibration_why, "initialization": memory.initialization_why}
         if self.job is not None:

@@ -39,7 +39,9 @@ import zmq
 from compiler.objcode import OP, ObjectCodeError, Program, load
 
 from . import protocol
+from .components.report import tcp_of
 from .feeds import Feeds
+from .motion.moves import Frames
 from .protocol import ProtocolError
 from .robotloop import EXIT_TIMEOUT
 from .system import RunOptions
@@ -208,6 +210,7 @@ class Server:
     def __init__(self, spec, options: ServeOptions, configurations=None):
         self.spec = spec
         self.options = options
+        self.tcp = tcp_of(spec)  # the sample's TCP (None: the robot's kinematics give none)
         state_dir = Path(options.state_dir) if options.state_dir else default_state_dir()
         self.state_dir = state_dir
         session = time.strftime("%Y%m%d-%H%M%S") + f"-{os.getpid()}"
@@ -502,6 +505,20 @@ class Server:
             except zmq.Again:
                 pass
 
+    def _tcp_fields(self, snap: dict) -> dict:
+        """The sample's tool, base and TCP (in the world frame and in that base), from the
+        loop's snapshot: its measured position and the move's frames."""
+        raw = snap.get("frames")
+        if not raw:
+            return {}
+        frames = Frames(raw[0], tuple(raw[1]), raw[2], tuple(raw[3]))
+        fields = {"tool": frames.tool_name, "base": frames.base_name, "tcp": None, "tcp_base": None}
+        if self.tcp is not None:
+            joints = snap["position"][:len(self.spec.main_axes)]
+            fields["tcp"] = list(self.tcp.world(joints, frames))
+            fields["tcp_base"] = list(self.tcp.in_base(joints, frames))
+        return fields
+
     def _poll_subscriptions(self) -> None:
         """Which telemetry topics have subscribers (XPUB's subscription messages)."""
         for _ in range(1000):
@@ -518,6 +535,7 @@ class Server:
                   "program": job.id if running else None, "queued": len(self.queue),
                   "override": self.override, "position": snap["position"], "inputs": snap["inputs"],
                   "outputs": snap["outputs"], "t": snap["t"]}
+        sample.update(self._tcp_fields(snap))
         if running and "line" in snap:
             sample.update(line=snap["line"], moves_done=snap["moves_done"], moves_total=job.moves_total,
                           paused=snap["paused"], following_error=snap["following_error"])

@@ -88,6 +88,7 @@ class RobotSystem:
         self.report = Report(spec, p["sens_pos"], p["drive_cmd"], self.servo, lambda: self.supervisor.fsm.path(),
                              history=lambda: self.supervisor.fsm.history, io=(self.io.inputs, self.io.outputs))
         self.report.motion = self.trajectory.motion  # the move columns: the program's moves as they run
+        self.report.frames_now = self.trajectory.frames_now  # the TCP of the move's tool, in its base
         if (options.cell is not None or options.fieldbus is not None) and "io" not in self.report.columns:
             self.report.columns.append("io")  # the cell's I/O in every row
         self.executive = Executive(self.clock, TICK)

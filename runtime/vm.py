@@ -130,6 +130,11 @@ class MotionHost(Protocol):
     def log(self, text: str, line: int) -> None:
         """The operator log: ``print`` statements and VM notices."""
 
+    def use_frame(self, keyword: str, name: str, value: object) -> str | None:
+        """``use base`` / ``use tool`` (``keyword``): make the pose ``value``, called
+        ``name``, the active base or tool for the moves after it. None when accepted, else
+        the problem (which stops the program at the statement's line)."""
+
 
 # What a step is waiting for before it can execute the next instruction.
 _NO_WAIT, _W_MOTION, _W_DWELL, _W_QUEUE = 0, 1, 2, 3
@@ -736,6 +741,18 @@ class VM:
 
     def op_move_circ(self, mask, pc):
         return self._move("circ", 2, mask, pc)
+
+    def _use(self, keyword: str, name: int, pc: int) -> int:
+        problem = self.host.use_frame(keyword, self.program.constants[name], self.stack.pop())
+        if problem is not None:
+            raise EvalError(problem)
+        return pc + 1
+
+    def op_use_base(self, name, pc):
+        return self._use("base", name, pc)
+
+    def op_use_tool(self, name, pc):
+        return self._use("tool", name, pc)
 
     def op_dwell(self, _, pc):
         seconds = self.stack.pop()

@@ -124,7 +124,7 @@ def test_every_operand_kind_is_described():
 # A valid value for an operand of each kind in the program built below.
 _OPERAND_VALUE = {
     "const": 0, "global": 0, "local": 0, "target": 0, "proc": 0, "count": 1, "int": 1,
-    "builtin": 0, "field": 0, "clauses": 0b100001, "flag": 1,
+    "builtin": 0, "field": 0, "clauses": 0b100001, "flag": 1, "name": 2,
 }
 
 
@@ -152,7 +152,7 @@ def test_every_instruction_has_a_disassembly_form():
         assert record.offset == d.code
         assert isinstance(record.argrepr, str)
         assert len(record.operands) == len(d.operands)
-        if any(kind in ("const", "global", "proc", "builtin", "field", "clauses", "target")
+        if any(kind in ("const", "global", "proc", "builtin", "field", "clauses", "target", "name")
                for _, kind in d.operands):
             assert record.argrepr, f"{d.name}: operands are not resolved in the disassembly"
 
@@ -223,6 +223,7 @@ STATEMENT_SYNTAX = {
     "Pause": ["pause;"],
     "Halt": ["halt;"],
     "Return": ["return;", "return EXPRESSION;"],
+    "Use": ["use base EXPR;", "use tool EXPR;"],
 }
 
 

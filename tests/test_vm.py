@@ -33,6 +33,7 @@ class FakeHost:
     def __init__(self, inputs=None, instant=True, all_inputs=False, move_error=None):
         self.t = 0.0
         self.moves: list[tuple] = []
+        self.frames: list[tuple] = []  # (use base / use tool): (keyword, name, pose)
         self.inputs: dict[int, bool] = dict(inputs or {})
         self.all_inputs = all_inputs
         self.outputs: dict[int, bool] = {}
@@ -52,6 +53,10 @@ class FakeHost:
         self.moves.append((kind, targets, clauses, line))
         if not self.instant:
             self.done = False
+        return None
+
+    def use_frame(self, keyword, name, value):
+        self.frames.append((keyword, name, value))
         return None
 
     def motion_done(self) -> bool:
@@ -83,7 +88,8 @@ class FakeHost:
 # ---- helpers ------------------------------------------------------------------------------
 
 def compile_text(tmp_path: Path, text: str) -> Program:
-    shutil.copy(SPEC, tmp_path / "lola15.spc")
+    for spec in PROGRAMS.glob("*.spc"):  # lola15.spc, and the cell's (its frames and tools)
+        shutil.copy(spec, tmp_path / spec.name)
     if not (tmp_path / "lib").exists():
         shutil.copytree(PROGRAMS / "lib", tmp_path / "lib")  # the modules the examples import
     src = tmp_path / "p.irl"

@@ -21,15 +21,19 @@ import threading
 from operator import sub as _sub
 from pathlib import Path
 
+from compiler.frames import IDENTITY, pose_of, values_of
 from compiler.params import component_params
+from compiler.semantics import compose, inverse
 
 from ..component import Component, DataPort
+from ..motion.moves import Frames
 from ..timing import REPORT_PERIOD
 
 FLUSH_PERIOD = 0.1  # s of rows per batch handed to the writer (10 rows at the default 10 ms)
 COLUMNS = ["sens_pos", "desi_pos", "out_vel", "following_error"]  # the per-axis quantities
 TCP = "tcp"  # the tool centre point: x, y, z (mm), roll, pitch, yaw (deg), from the measured joints
 TCP_FIELDS = ("x", "y", "z", "roll", "pitch", "yaw")
+FRAME = "frame"  # the active tool's and base's names, and the tool centre point in that base
 IO = "io"  # every digital input, then every output: in_1.., out_1.. (0 or 1)
 MOVE = "move"  # the move under way: its number (moves started so far) and source line (0: at rest)
 MOVE_FIELDS = ("move", "line")
@@ -41,6 +45,16 @@ def is_io(name: str) -> bool:
     return kind in ("in", "out") and number.isdigit()
 
 
+def is_text(name: str) -> bool:
+    """Whether a report column holds a name (the frame group's ``tool`` and ``base``)."""
+    return name in ("tool", "base")
+
+
+def _csv_text(text: str) -> str:
+    """A name as one CSV field (quoted when it holds a comma, a quote or a line break)."""
+    return '"' + text.replace('"', '""') + '"' if any(c in text for c in ',"\r\n') else text
+
+
 def is_integer(name: str) -> bool:
     """Whether a report column holds whole numbers (written with %d): an input or output,
     or the move group's ``move`` and ``line``."""
@@ -50,18 +64,19 @@ def is_integer(name: str) -> bool:
 class ReportWriter(threading.Thread):
     """Formats and writes batches of rows; not real-time (its own thread)."""
 
-    def __init__(self, path: Path, header: list[str], tcp=None):
+    def __init__(self, path: Path, header: list[str], expand=None):
         super().__init__(name="report-writer", daemon=True)
         self.path = path
         self.states_path = path.with_suffix(".states.csv")
         self.queue: queue.Queue = queue.Queue(maxsize=1000)
         self.header = header
-        self.tcp = tcp  # (start, count, forward): row[start:start + count] are joints -> the TCP
+        self.expand = expand  # when set: row -> the row written (joints -> the TCP, in the active tool and base)
         self.error: str | None = None
         self.rows_written = 0
         # one C-level format per row (time to the ms, the state, every value to 1e-6, I/O 0 or 1,
         # the move's number and line as integers)
-        self.row_format = "%.3f,%s," + ",".join(["%d" if is_integer(name) else "%.6f" for name in header[2:]]) + "\n"
+        self.row_format = "%.3f,%s," + ",".join(["%d" if is_integer(name) else "%s" if is_text(name) else "%.6f"
+                                                 for name in header[2:]]) + "\n"
 
     def run(self) -> None:
         try:
@@ -81,8 +96,8 @@ class ReportWriter(threading.Thread):
                         states.flush()
                     if not batch:
                         continue
-                    if self.tcp is not None:
-                        batch = [self._with_tcp(r) for r in batch]
+                    if self.expand is not None:
+                        batch = [self.expand(r) for r in batch]
                     row_format = self.row_format
                     f.write("".join([row_format % r for r in batch]))
                     f.flush()
@@ -90,11 +105,37 @@ class ReportWriter(threading.Thread):
         except OSError as exc:
             self.error = f"cannot write the report {self.path}: {exc.strerror or exc}"
 
-    def _with_tcp(self, row: tuple) -> tuple:
-        """The row with its joint segment replaced by the tool centre point (forward
-        kinematics here, in the writer's thread, not in the real-time loop)."""
-        start, count, forward = self.tcp
-        return (*row[:start], *forward(row[start:start + count]), *row[start + count:])
+
+class TcpOf:
+    """The tool centre point of joint values with a move's tool, in the world frame or in
+    its base (:class:`~runtime.motion.moves.Frames`). Not real-time: the report's writer
+    and the server call it; the arm with each tool is built once (the latest 16 kept)."""
+
+    def __init__(self, kinematics):
+        self.kinematics = kinematics
+        self._tools: dict = {}
+
+    def _arm(self, tool: tuple):
+        k = self.kinematics
+        if tool == k.tool:
+            return k
+        arm = self._tools.get(tool)
+        if arm is None:
+            if len(self._tools) >= 16:
+                self._tools.pop(next(iter(self._tools)))
+            arm = self._tools[tool] = k.with_tool(tool)
+        return arm
+
+    def world(self, joints, frames) -> tuple:
+        """x, y, z, roll, pitch, yaw of the TCP in the world frame (the spec's tool: None)."""
+        return self._arm(self.kinematics.tool if frames is None else frames.tool).forward(joints)
+
+    def in_base(self, joints, frames) -> tuple:
+        """The same in the move's base."""
+        world = self.world(joints, frames)
+        if frames is None or frames.base == IDENTITY:
+            return world
+        return values_of(compose(inverse(pose_of(frames.base)), pose_of(world)))
 
 
 class Report(Component):
@@ -117,9 +158,12 @@ class Report(Component):
         self.batch: list = []
         self.dropped = 0
         self.main = len(spec.main_axes)
-        self.forward = _forward_kinematics(spec)  # None when the spec's kinematics are not usable
+        self.tcp = tcp_of(spec)  # None when the spec's kinematics are not usable
+        # the base and tool of the move under way (the trajectory generator's; set by the system)
+        default_frames = Frames.default(spec)
+        self.frames_now = lambda: default_frames
         # which quantities the rows hold, in this order (the TCP when the kinematics allow)
-        self.columns = list(COLUMNS) + ([TCP] if self.forward is not None else [])
+        self.columns = list(COLUMNS) + ([TCP] if self.tcp is not None else [])
 
     def _names_of(self, kind: str) -> list[str]:
         if kind == TCP:
@@ -129,6 +173,8 @@ class Report(Component):
                 [f"out_{n}" for n in range(1, self.spec.outputs + 1)]
         if kind == MOVE:
             return list(MOVE_FIELDS)
+        if kind == FRAME:
+            return ["tool", "base"] + [f"base_{f}" for f in TCP_FIELDS]
         return [f"{kind}_{n}" for n in self.names]
 
     def header(self) -> list[str]:
@@ -149,12 +195,37 @@ class Report(Component):
                 self.path.parent.mkdir(parents=True, exist_ok=True)
             except OSError:
                 pass  # the writer reports the problem when it cannot open the file
-            tcp = None
-            if TCP in self.columns:
-                start = 2 + sum(len(self._names_of(kind)) for kind in self.columns[:self.columns.index(TCP)])
-                tcp = (start, self.main, self.forward)
-            self.writer = ReportWriter(self.path, self.header(), tcp)
+            self.writer = ReportWriter(self.path, self.header(), self._expander())
             self.writer.start()
+
+    def _expander(self):
+        """Not real-time: the writer's row -> written row, when the rows hold joints for the
+        TCP (the tcp and frame groups: the joints and the move's frames); else None."""
+        if TCP not in self.columns and FRAME not in self.columns:
+            return None
+        tcp = self.tcp
+        if tcp is None:  # (the configuration loader refuses tcp without kinematics)
+            return None
+        main = self.main
+        layout = []
+        for kind in self.columns:
+            if kind == TCP:
+                layout.append((main + 1, lambda seg: tcp.world(seg[:-1], seg[-1])))
+            elif kind == FRAME:
+                layout.append((main + 1, lambda seg: (_csv_text(seg[-1].tool_name), _csv_text(seg[-1].base_name),
+                                                      *tcp.in_base(seg[:-1], seg[-1]))))
+            else:
+                layout.append((len(self._names_of(kind)), None))
+
+        def expand(row: tuple) -> tuple:
+            out = [row[0], row[1]]
+            i = 2
+            for width, fn in layout:
+                segment = row[i:i + width]
+                i += width
+                out.extend(segment if fn is None else fn(segment))
+            return tuple(out)
+        return expand
 
     def update(self, now: float) -> None:
         """Real-time: append one row; hand a full batch to the writer (never blocks)."""
@@ -164,12 +235,14 @@ class Report(Component):
         reference = servo.reference
         values = {"sens_pos": pos, "desi_pos": reference, "out_vel": self.out_vel.value or zeros,
                   "following_error": tuple(map(_sub, reference, servo.position)),
-                  TCP: pos[:self.main]}  # the writer turns these joints into the TCP
+                  }
         if IO in self.columns:
             inputs, outputs = self.io
             values[IO] = (*inputs.value, *outputs.value)
         if MOVE in self.columns:
             values[MOVE] = self._move()
+        if TCP in self.columns or FRAME in self.columns:  # the writer turns these joints into the TCP
+            values[TCP] = values[FRAME] = (*pos[:self.main], self.frames_now())
         row = (now, self.state_of())
         for kind in self.columns:
             row += values[kind]
@@ -214,11 +287,13 @@ class Report(Component):
         return None
 
 
-def _forward_kinematics(spec):
+def tcp_of(spec) -> TcpOf | None:
+    """Not real-time: the TCP of the specification's arm, or None when its kinematics are
+    not usable (no DH data, not a six-axis arm with a spherical wrist)."""
     from ..motion.kinematics import Kinematics
 
     try:
-        return Kinematics(spec).forward
+        return TcpOf(Kinematics(spec))
     except ValueError:
         return None
 

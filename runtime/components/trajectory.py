@@ -24,15 +24,19 @@ from __future__ import annotations
 import time
 
 from compiler.clauses import MoveClauses, validate_move_clauses
+from compiler.frames import BY_KEYWORD as FRAME_BY_KEYWORD
+from compiler.frames import IDENTITY, describe_name, pose_of, values_of
+from compiler.frames import problem as frame_problem
 from compiler.objcode import Program
-from compiler.params import component_params
+from compiler.params import component_params, describe
 from compiler.spec import DEFAULT_LOOKAHEAD
+from compiler.semantics import compose
 from compiler.values import Joint, Pose
 
 from ..component import Component, DataPort
 from ..motion.kinematics import Kinematics
 from ..motion.motionqueue import MotionQueue, PlanningWorker
-from ..motion.moves import MoveRecord, MovePlanner, MoveRequest
+from ..motion.moves import Frames, MoveRecord, MovePlanner, MoveRequest
 from ..timing import SETPOINT_PERIOD
 from ..vm import DONE, ERROR, VM
 
@@ -96,6 +100,7 @@ class TrajectoryGenerator(Component):
         kinematics, problem = _build_kinematics(spec)
         self.planner = MovePlanner(spec.axes, spec.main_axes, motion_profile(spec), kinematics, problem)
         self.motion = MotionQueue(self.planner, spec.axes, holds=self._holds, program_line=self._program_line)
+        self.default_frames = Frames.default(spec)
         self._forget()
 
     def load(self, program: Program | None) -> None:
@@ -109,6 +114,7 @@ class TrajectoryGenerator(Component):
 
     def _forget(self) -> None:
         self.vm = None
+        self.frames = self.default_frames  # the active base and tool (use base, use tool)
         self.log_lines = []
         self.log_dropped = 0
         self.fault = None
@@ -134,6 +140,13 @@ class TrajectoryGenerator(Component):
         return self.vm.line if self.vm is not None else 0
 
     # ---- what the rest of the runtime reads ----
+    def frames_now(self) -> Frames:
+        """Real-time: the base and tool of the move under way or last started (what the
+        report and telemetry give the TCP in); the defaults before the first."""
+        moves = self.motion.moves
+        frames = moves[-1].frames if moves else None
+        return self.default_frames if frames is None else frames
+
     @property
     def moves(self) -> list[MoveRecord]:
         """The moves of the program so far, as they ran."""
@@ -266,6 +279,10 @@ class TrajectoryGenerator(Component):
         checked = validate_move_clauses(kind, clauses, self.spec)  # the clause table's rules and defaults
         if isinstance(checked, str):
             return checked
+        frames = self.frames
+        if frames.base != IDENTITY:  # pose targets are in the active base
+            base = pose_of(frames.base)
+            targets = tuple(compose(base, t) if isinstance(t, Pose) else t for t in targets)
         if kind == "ptp":
             target = targets[0]
             if isinstance(target, Pose):
@@ -273,12 +290,29 @@ class TrajectoryGenerator(Component):
                     return self.planner.kinematics_problem
             elif not isinstance(target, Joint) or len(target.axes) != self.n:
                 return f"the target must be a joint value with {self.n} axes"
-            request = MoveRequest(kind, (target,), checked.speed, checked.acc, checked.approx, line)
+            request = MoveRequest(kind, (target,), checked.speed, checked.acc, checked.approx, line, frames=frames)
         else:
             request, problem = self._cartesian_request(kind, targets, checked, line)
             if problem is not None:
                 return problem
         return self.motion.add(request)
+
+    def use_frame(self, keyword: str, name: object, value: object) -> str | None:
+        """The VM's ``USE_BASE`` / ``USE_TOOL``: make ``value`` the active base or tool for
+        the moves handed over after it (compiler.frames' bounds); the problem, else None.
+        Object code is untrusted: never raises."""
+        kind = FRAME_BY_KEYWORD.get(keyword)
+        if kind is None:  # pragma: no cover - the VM names one of the two
+            return f"unknown frame kind {keyword!r}"
+        if not isinstance(value, Pose):
+            return f"use {keyword}: expected a pose, not {describe(value)}"
+        values = values_of(value)
+        problem = frame_problem(kind, values)
+        if problem is not None:
+            return problem
+        self.frames = self.frames.using(keyword, describe_name(name if isinstance(name, str) else "?"),
+                                        tuple(float(v) for v in values))
+        return None
 
     def queue_ready(self) -> bool:
         """May the program hand over another move (is there room in the look-ahead)?
@@ -296,7 +330,8 @@ class TrajectoryGenerator(Component):
             return None, self.planner.kinematics_problem
         if not all(isinstance(target, (Joint, Pose)) for target in targets):
             return None, f"a {kind} target must be a pose or a joint value"
-        return MoveRequest(kind, tuple(targets), clauses.speed, clauses.acc, clauses.approx, line), None
+        return MoveRequest(kind, tuple(targets), clauses.speed, clauses.acc, clauses.approx, line,
+                           frames=self.frames), None
 
     def motion_done(self) -> bool:
         """Every move handed over has ended (and no stop is under way)."""

@@ -320,6 +320,11 @@ class Kinematics:
             *offs, *(v for lo_hi in limits for v in lo_hi),
         )
 
+    def with_tool(self, tool: Sequence[float]) -> "Kinematics":
+        """The same arm with another tool (x, y, z, roll, pitch, yaw in the flange frame):
+        what ``use tool`` plans with. Not for a tick (builds the tables, about 50 us)."""
+        return Kinematics(self.dh, tool=tool, limits=self.limits, names=self.names, home=self.home)
+
     # ---- geometry --------------------------------------------------------------------
     def _check_geometry(self) -> None:
         n = self.names

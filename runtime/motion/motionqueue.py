@@ -401,7 +401,8 @@ class MotionQueue:
         rate = max(self.rate, 1e-9)
         # it began (its time 0) between the last tick and this one: its first setpoint
         t_start = now - (self.t_move - segment.start) / rate
-        segment.record = MoveRecord(request.line, request.kind, segment.end, segment.duration / rate, t_start)
+        segment.record = MoveRecord(request.line, request.kind, segment.end, segment.duration / rate, t_start,
+                                    frames=request.frames)
         if segment.previous is not None and segment.offset is not None and segment.previous.record is not None:
             segment.previous.record.blended = True
         self.moves.append(segment.record)
@@ -500,7 +501,8 @@ class MotionQueue:
         move = self.interrupted
         request = move.request
         kind, targets = move.stop.rest(move.end)
-        rest = MoveRequest(kind, tuple(targets), request.speed, request.acc, 0.0, request.line, rest_of=move)
+        rest = MoveRequest(kind, tuple(targets), request.speed, request.acc, 0.0, request.line, rest_of=move,
+                           frames=request.frames)
         if kind == "ptp":
             self._take_plan(rest, *self.planner.plan(rest, self.positions, None, self.period))
             return

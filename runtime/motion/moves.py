@@ -22,7 +22,9 @@ and the program stops at the move's line.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import NamedTuple
 
+from compiler.frames import IDENTITY
 from compiler.values import Joint, Pose
 
 from .blend import Limits, blend_offset
@@ -33,7 +35,30 @@ from .pathcheck import JointLimits
 from .planner import PtpInput, plan_ptp, scaled_limits
 from .trajectory import Trajectory
 
-__all__ = ["MovePlanner", "MoveRecord", "MoveRequest", "Segment"]
+__all__ = ["Frames", "MovePlanner", "MoveRecord", "MoveRequest", "Segment"]
+
+
+class Frames(NamedTuple):
+    """The base and tool a move was handed with (``use base``, ``use tool``;
+    compiler.frames): each one's name and its x, y, z (mm), roll, pitch, yaw (deg), the
+    base in the world frame, the tool in the flange frame. The move's pose targets are
+    already in the world frame; the tool is the TCP its path and targets are of."""
+
+    base_name: str
+    base: tuple
+    tool_name: str
+    tool: tuple
+
+    @classmethod
+    def default(cls, spec) -> "Frames":
+        """What a program starts with: the world frame and the specification's tool."""
+        return cls("world", IDENTITY, "default_tool", tuple(float(v) for v in spec.tool))
+
+    def using(self, keyword: str, name: str, values: tuple) -> "Frames":
+        """These frames with ``keyword``'s (``"base"`` or ``"tool"``) replaced."""
+        if keyword == "base":
+            return self._replace(base_name=name, base=values)
+        return self._replace(tool_name=name, tool=values)
 
 
 @dataclass
@@ -48,6 +73,7 @@ class MoveRecord:
     t_start: float
     t_end: float | None = None
     blended: bool = False  # the move blended into the next one (it did not stop at its target)
+    frames: Frames | None = None  # its base and tool (None: the specification's tool in the world frame)
 
     @property
     def actual_duration(self) -> float | None:
@@ -59,14 +85,16 @@ class MoveRequest:
     ``"circ"``), ``targets`` (one target; a circ move's via pose first), ``speed`` and
     ``acc`` (fractions for ptp, mm/s and mm/s^2 for lin/circ), ``approx``, the source
     ``line``; ``rest_of``: the interrupted segment whose rest this is (planned from where
-    it stopped)."""
+    it stopped); ``frames``: its base and tool (:class:`Frames`; None: the
+    specification's tool; its pose targets are in the world frame either way)."""
 
-    __slots__ = ("kind", "targets", "speed", "acc", "approx", "line", "rest_of")
+    __slots__ = ("kind", "targets", "speed", "acc", "approx", "line", "rest_of", "frames")
 
     def __init__(self, kind: str, targets: tuple, speed: float, acc: float, approx: float, line: int,
-                 rest_of: "Segment | None" = None):
+                 rest_of: "Segment | None" = None, frames: Frames | None = None):
         self.kind, self.targets, self.speed, self.acc, self.approx, self.line = kind, targets, speed, acc, approx, line
         self.rest_of = rest_of
+        self.frames = frames
 
     def __repr__(self) -> str:
         return (f"MoveRequest({self.kind!r}, {self.targets!r}, {self.speed!r}, {self.acc!r}, {self.approx!r}, "
@@ -116,6 +144,7 @@ class MovePlanner:
         self.profile = profile
         self.kinematics = kinematics
         self.kinematics_problem = kinematics_problem
+        self._tools: dict[tuple, Kinematics] = {}  # the arm with other tools (use tool), the latest 16
         jerk = profile == "jerk"
         # what a blend must keep: every axis's limits (no jerk limit for a trapezoid)
         self.limits = Limits((a.max_velocity for a in self.axes), (a.max_acceleration for a in self.axes),
@@ -144,10 +173,24 @@ class MovePlanner:
             segment.previous = previous
         return segment, None
 
+    def kinematics_for(self, frames: Frames | None) -> Kinematics | None:
+        """The arm with the move's tool (built once per tool, on the planning worker where
+        there is one; the latest 16 are kept)."""
+        kinematics = self.kinematics
+        if kinematics is None or frames is None or frames.tool == kinematics.tool:
+            return kinematics
+        tools = self._tools
+        found = tools.get(frames.tool)
+        if found is None:
+            if len(tools) >= 16:
+                tools.pop(next(iter(tools)))
+            found = tools[frames.tool] = kinematics.with_tool(frames.tool)
+        return found
+
     def _plan_ptp(self, request: MoveRequest, start: tuple) -> tuple[Segment | None, str | None]:
         target = request.targets[0]
         if isinstance(target, Pose):
-            target, problem = self.joint_target(target, start)
+            target, problem = self.joint_target(target, start, request.frames)
             if problem is not None:
                 return None, problem
         values = target.axes if isinstance(target, Joint) else tuple(target)
@@ -168,7 +211,7 @@ class MovePlanner:
         return Segment(request, trajectory, values, self.limits), None
 
     def _plan_cartesian(self, request: MoveRequest, start: tuple, period: float):
-        kinematics = self.kinematics
+        kinematics = self.kinematics_for(request.frames)
         if kinematics is None:
             return None, self.kinematics_problem
         poses = tuple(kinematics.forward(t.axes[:self.main]) if isinstance(t, Joint) else t
@@ -181,14 +224,15 @@ class MovePlanner:
             return None, f"move {request.kind} refused: {message}"
         return Segment(request, stream, stream.target_position, self.cartesian_limits), None
 
-    def joint_target(self, pose: Pose, near: tuple) -> tuple[Joint | None, str | None]:
-        """The joint values that put the tool at ``pose``: the inverse kinematics'
-        configuration nearest the joints ``near`` (the additional axes stay)."""
-        if self.kinematics is None:
+    def joint_target(self, pose: Pose, near: tuple, frames: Frames | None = None) -> tuple[Joint | None, str | None]:
+        """The joint values that put the tool (``frames``' tool) at ``pose``: the inverse
+        kinematics' configuration nearest the joints ``near`` (the additional axes stay)."""
+        kinematics = self.kinematics_for(frames)
+        if kinematics is None:
             return None, self.kinematics_problem
         main = self.main
         try:
-            joints = self.kinematics.inverse(pose, near=near[:main])
+            joints = kinematics.inverse(pose, near=near[:main])
         except KinematicsError as exc:
             return None, f"the target pose cannot be reached: {exc}"
         return Joint(tuple(joints), tuple(near[main:])), None

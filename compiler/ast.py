@@ -307,6 +307,30 @@ class Return:
 
 
 @node
+class Enable:
+    """``enable NAME;`` (``on``) or ``disable NAME;``: an interrupt."""
+
+    name: str
+    on: bool
+    span: Span
+    name_span: Span
+
+
+@node
+class Trigger:
+    """``trigger when AMOUNT UNIT DIRECTION REFERENCE do ACTION;`` (compiler.triggers):
+    the words as written (in lower case); ``action`` is ``("out", index, value)`` or
+    ``("set", name, name_span, value)``."""
+
+    amount: Expr
+    unit: str
+    where: str  # "after start", "before end", ...
+    words_span: Span
+    action: tuple
+    span: Span
+
+
+@node
 class Use:
     kind: str  # "base" or "tool" (compiler.frames.BY_KEYWORD), as written, in lower case
     kind_span: Span
@@ -315,7 +339,7 @@ class Use:
 
 
 Stmt = Union[Assign, OutSet, Move, If, While, Repeat, For, WaitTime, WaitFor,
-             CallProc, Print, Pause, Halt, Return, Use]
+             CallProc, Print, Pause, Halt, Return, Use, Enable, Trigger]
 
 
 # ---- declarations and the program ----------------------------------------------------
@@ -354,6 +378,18 @@ class Procedure:
     span: Span
     name_span: Span
     result: TypeExpr | None = None  # a function's result type; None: a procedure
+    interrupt: "InterruptSpec | None" = None  # an interrupt's handler: when it runs
+
+
+@node
+class InterruptSpec:
+    """``interrupt NAME when COND OPTIONS;``: the condition, and the options as written
+    (``(word, number or None, span)``: ``priority 1``, ``stop``, ``continue``; ``then`` gives
+    ``("then", word, span)``), read by the checker."""
+
+    cond: Expr
+    options: tuple
+    span: Span
 
 
 Decl = Union[ConstDecl, VarDecl, Procedure]

@@ -17,6 +17,11 @@ from .frames import BY_KEYWORD as FRAME_BY_KEYWORD
 from .frames import BY_TYPE as FRAME_BY_TYPE
 from .frames import FRAME_KINDS, describe_name, pose_of, values_of
 from .frames import problem as frame_problem
+from .interrupts import ACTIONS, CONDITION_TEXT, DEFAULT_PRIORITY, DEFAULT_THEN, PRIORITY, THEN
+from .triggers import PLACES as TRIGGER_PLACES
+from .triggers import SET_TYPES as TRIGGER_SET_TYPES
+from .triggers import UNITS as TRIGGER_UNITS
+from .triggers import problem as trigger_problem
 from .clauses import BY_NAME as CLAUSE_BY_NAME
 from .clauses import CLAUSES as CLAUSE_TABLE
 from .clauses import NAMES as CLAUSES
@@ -56,7 +61,7 @@ class ArrayT:
 
 
 GEOMETRIC_KINDS = (POSITION, POSE, ORIENTATION)
-_KIND_WORDS = {"const": "constant", "proc": "procedure", "func": "function"}  # a symbol's kind, as messages say it
+_KIND_WORDS = {"const": "constant", "proc": "procedure", "func": "function", "interrupt": "interrupt"}  # a symbol's kind, as messages say it
 
 
 def _kind(t) -> str:
@@ -118,6 +123,17 @@ class ProcScope:
     names: dict[str, Symbol] = field(default_factory=dict)
     slots: list[tuple[str, str]] = field(default_factory=list)
     result: object = None  # a function's result type (None: a procedure)
+    interrupt: "InterruptDecl | None" = None  # an interrupt's handler: its options, resolved
+
+
+@dataclass
+class InterruptDecl:
+    """An interrupt's options as the checker resolved them (compiler.interrupts)."""
+
+    index: int  # in the object code's interrupt table
+    priority: int = DEFAULT_PRIORITY
+    stop: bool = True
+    then: str = DEFAULT_THEN
 
 
 def always_returns(body) -> bool:
@@ -149,6 +165,7 @@ class CheckedProgram:
     robots: tuple[str, ...]
     decl_files: dict = field(default_factory=dict)  # id(declaration) -> the module file it is in
     modules: dict = field(default_factory=dict)  # module path -> its name in the object code, in order
+    interrupts: list = field(default_factory=list)  # the interrupts' ProcScopes, in table order
 
 
 _NO_VALUE = object()
@@ -184,6 +201,8 @@ class Checker:
         self.active: dict[str, tuple | None] = {}
         self._changes: dict[int, tuple] = {}  # (memo of _uses)
         self.proc_changes: frozenset = frozenset()  # what some procedure may make active
+        self.interrupts: list[ProcScope] = []  # in the order of the object code's interrupt table
+        self.moving: dict[str, str] = {}  # procedures a handler may not call: name -> what they do
         self.all_changes: frozenset = frozenset()  # what some statement of the program may make active
 
     # -- reporting --
@@ -371,6 +390,10 @@ class Checker:
         if symbol.kind == "proc":
             self.error(node.span, f"'{node.name}' is a procedure, not a value",
                        f"call it as a statement: call {node.name}(...);")
+            return ERROR
+        if symbol.kind == "interrupt":
+            self.error(node.span, f"'{node.name}' is an interrupt, not a value",
+                       f"switch it with 'enable {node.name};' and 'disable {node.name};'")
             return ERROR
         if symbol.kind == "func":
             self.error(node.span, f"'{node.name}' is a function: call it with its arguments in parentheses",
@@ -696,11 +719,19 @@ class Checker:
     def stmts(self, body) -> None:
         dispatch = self._stmt
         function = self.scope is not None and self.scope.result is not None
-        for stmt in body:
+        handler = self.scope is not None and self.scope.interrupt is not None
+        for k, stmt in enumerate(body):
+            if type(stmt) is ast.Trigger:
+                self.trigger_belongs(stmt, body[k + 1:])
             if function and type(stmt) in _NOT_IN_FUNCTIONS:
                 self.error(stmt.span, f"a function computes a value: '{_NOT_IN_FUNCTIONS[type(stmt)]}' is not "
                                       f"allowed in function '{self.scope.node.name}'",
                            "move, wait, set outputs, print, pause, halt and call procedures in a procedure")
+            elif handler and type(stmt) in _NOT_IN_HANDLERS:
+                self.error(stmt.span, f"'{_NOT_IN_HANDLERS[type(stmt)]}' is not allowed in interrupt "
+                                      f"'{self.scope.node.name}'",
+                           "a handler runs beside the motion or its stop: it may not move, pause or use a frame "
+                           "or tool (end with 'then halt' and move in the program)")
             changes = self.frame_changes(stmt) if type(stmt) in _COMPOUND else ()
             for keyword in changes:  # inside: not known (a loop's second pass, a later branch)
                 self.active[keyword] = None
@@ -962,6 +993,9 @@ class Checker:
             elif symbol.kind == "func":
                 self.error(node.name_span, f"'{node.name}' is a function: use its value",
                            f"for example: x := {node.name}(...);")
+            elif symbol.kind == "interrupt":
+                self.error(node.name_span, f"'{node.name}' is an interrupt: it runs when its condition becomes true",
+                           f"switch it on with 'enable {node.name};'")
             else:
                 self.error(node.name_span, f"'{node.name}' is not a procedure")
             for arg in node.args:
@@ -969,6 +1003,81 @@ class Checker:
             return
         self.symbols[id(node)] = symbol
         self.arguments(node, symbol, "procedure")
+        handler = self.scope.interrupt if self.scope is not None else None
+        if handler is not None and symbol.name in self.moving:
+            self.error(node.name_span, f"an interrupt's handler may not call '{node.name}': it "
+                                       f"{self.moving[symbol.name]}",
+                       "a handler runs beside the motion or its stop: it may not move, pause or use a frame or tool")
+
+    def trigger_belongs(self, node: ast.Trigger, after) -> None:
+        """A trigger belongs to the next move: the statements after it are triggers, then
+        a move; a distance is for a lin or circ move."""
+        move = next((s for s in after if type(s) is not ast.Trigger), None)
+        if type(move) is not ast.Move:
+            self.error(node.span, "a trigger belongs to the next move: the statement after it must be a move (or "
+                                  "another trigger)", "put the trigger right before its move")
+            return
+        unit = next((u for u in TRIGGER_UNITS if u.name == node.unit), None)
+        if unit is not None and move.kind not in unit.motions:
+            self.error(node.words_span, f"a trigger in {unit.name} is for {' and '.join(unit.motions)} moves: the "
+                                        f"move at line {move.span.line} is a {move.kind} move",
+                       "give a ptp move's trigger in ms")
+
+    def s_Trigger(self, node: ast.Trigger):
+        place = next((i for i, p in enumerate(TRIGGER_PLACES) if p.words == node.where), None)
+        unit = next((i for i, u in enumerate(TRIGGER_UNITS) if u.name == node.unit), None)
+        if unit is None:
+            guess = did_you_mean(node.unit, [u.name for u in TRIGGER_UNITS], cutoff=0.3)
+            self.error(node.words_span, f"unknown trigger unit '{node.unit}': expected "
+                                        f"{' or '.join(u.name for u in TRIGGER_UNITS)}",
+                       f"did you mean '{guess}'?" if guess else None)
+        elif place is None:
+            words = [p.words for p in TRIGGER_PLACES]
+            guess = did_you_mean(node.where, words, cutoff=0.5)
+            self.error(node.words_span, f"'{node.where}': a trigger is counted {', '.join(words)}",
+                       "a trigger cannot fire before its move starts: give it to the move before, counted from "
+                       "that move's end" if node.where == "before start" else
+                       f"did you mean '{guess}'?" if guess else None)
+        if self.expect(node.amount, NUMERIC, "a trigger's amount") != ERROR and None not in (place, unit):
+            value = self.value_of(node.amount)
+            problem = trigger_problem(place, unit, value if value is not _NO_VALUE else 0)
+            if problem is not None:
+                self.error(node.amount.span if "amount" in problem else node.words_span, problem)
+        if node.action[0] == "out":
+            _kind, index, value = node.action
+            if self.expect(index, INTEGER, "an output number") != ERROR:
+                self.check_io_index(index, self.spec.outputs, "output")
+            self.expect(value, BOOL, "a digital output's value")
+            return
+        _kind, name, span, value = node.action
+        symbol = self.lookup(name)
+        vt = self.expr(value)
+        if symbol is None:
+            self.unknown(span, name, "variable")
+        elif symbol.kind != "global" or symbol.type not in TRIGGER_SET_TYPES:
+            local = symbol.kind == "local"
+            what = "a local variable" if local else a(symbol.type) if symbol.kind == "global" else \
+                a(_KIND_WORDS.get(symbol.kind, symbol.kind))
+            self.error(span, f"a trigger sets a global variable of type {', '.join(TRIGGER_SET_TYPES)}: '{name}' "
+                             f"is {what}",
+                       "the trigger fires later, when the robot is there: a local may be gone by then" if local
+                       else None)
+        else:
+            self.symbols[id(node)] = symbol
+            if vt != ERROR and not assignable(symbol.type, vt):
+                self.error(value.span, f"cannot assign {a(vt)} to '{name}', which is {a(symbol.type)}")
+
+    def s_Enable(self, node: ast.Enable):
+        symbol = self.lookup(node.name)
+        if symbol is None or symbol.kind != "interrupt":
+            names = [s.name for s in self.globals.values() if s.kind == "interrupt"]
+            guess = did_you_mean(node.name, names)
+            kind = _KIND_WORDS.get(symbol.kind, "variable") if symbol is not None else ""
+            what = f"'{node.name}' is {a(kind)}, not an interrupt" if symbol is not None \
+                else f"undeclared interrupt '{node.name}'"
+            self.error(node.name_span, what, f"did you mean '{guess}'?" if guess else None)
+            return
+        self.symbols[id(node)] = symbol
 
     def arguments(self, node, symbol: Symbol, what: str) -> None:
         """Check a call's arguments against the procedure's or function's parameters."""
@@ -1056,6 +1165,10 @@ class Checker:
                 self.const_decl(decl)
             elif isinstance(decl, ast.VarDecl):
                 self.var_decl(decl, self.globals, self.global_slots, "global")
+        self.moving = _moving_procedures(self.procs)
+        for scope in self.interrupts:  # conditions: in the global scope (checked every 5 ms, anywhere)
+            self.file = self.decl_files.get(id(scope.node), self.main_file)
+            self.interrupt_condition(scope.node.interrupt.cond)
         for scope in self.procs:
             self.scope = scope
             self.file = self.decl_files.get(id(scope.node), self.main_file)
@@ -1074,7 +1187,63 @@ class Checker:
         if not self.robots:
             self.robots.append(self.spec.name)
         return CheckedProgram(program, self.spec, self.types, self.values, self.symbols,
-                              self.global_slots, self.globals, self.procs, tuple(self.robots), self.decl_files)
+                              self.global_slots, self.globals, self.procs, tuple(self.robots), self.decl_files,
+                              interrupts=self.interrupts)
+
+    def interrupt_options(self, node: ast.Procedure, index: int) -> InterruptDecl:
+        """``priority N``, ``stop`` or ``continue``, ``then resume`` or ``then halt``
+        (compiler.interrupts): each known, given once; stop or continue given."""
+        decl = InterruptDecl(index)
+        seen: dict[str, ast.Span] = {}
+        action = None
+        unknown = False
+        for word, value, span in node.interrupt.options:
+            group = "then" if word == "then" else "action" if word in ACTIONS else word
+            if group not in ("then", "action", "priority"):
+                guess = did_you_mean(word, ["priority", *ACTIONS])
+                self.error(span, f"unknown interrupt option '{word}': expected priority N, "
+                                 f"{' or '.join(ACTIONS)}, then {' or '.join(THEN)}",
+                           f"did you mean '{guess}'?" if guess else None)
+                unknown = True
+                continue
+            if group in seen:
+                self.error(span, f"'{node.name}' gives {'stop or continue' if group == 'action' else group} twice",
+                           f"the first is at column {seen[group].col}")
+                continue
+            seen[group] = span
+            if group == "then":
+                if value not in THEN:
+                    guess = did_you_mean(str(value), list(THEN))
+                    self.error(span, f"'then {value}': expected then {' or then '.join(THEN)}",
+                               f"did you mean 'then {guess}'?" if guess else None)
+                else:
+                    decl.then = value
+            elif group == "action":
+                if value is not None:
+                    self.error(span, f"'{word}' takes no number")
+                action = word
+            else:
+                low, high = PRIORITY
+                if not isinstance(value, int) or not low <= value <= high:
+                    self.error(span, f"an interrupt's priority must be a whole number {low}..{high} ({low} the "
+                                     f"highest), not {value if value is not None else 'missing'}")
+                else:
+                    decl.priority = value
+        if action is None and not unknown:
+            self.error(node.interrupt.span, f"interrupt '{node.name}' must say what the robot does when it fires: "
+                                            f"'stop' or 'continue'", "for example: ... when in[5] stop;")
+        decl.stop = action != "continue"
+        return decl
+
+    def interrupt_condition(self, cond: ast.Expr) -> None:
+        """A bool expression of inputs and global bool variables only (compiler.interrupts)."""
+        if self.expect(cond, BOOL, "an interrupt's condition") == ERROR:
+            return
+        bad = _not_a_condition(cond, self)
+        if bad is not None:
+            self.error(bad.span, f"an interrupt's condition may use only {CONDITION_TEXT}, not "
+                                 f"'{ast.expression_text(bad)}'",
+                       "compute it in the program into a global bool variable, and test that")
 
     def declare_procedure(self, node: ast.Procedure) -> None:
         """A procedure, or a function (a procedure with a result type)."""
@@ -1084,11 +1253,15 @@ class Checker:
             if node.name in BUILTINS or node.name in CONSTRUCTORS:
                 self.error(node.name_span, f"'{node.name}' is a built-in function: a function needs another name")
                 return
-        symbol = Symbol("func" if node.result is not None else "proc", node.name,
-                        result if node.result is not None else "procedure", node.name_span, index=len(self.procs))
+        kind = "func" if node.result is not None else "interrupt" if node.interrupt is not None else "proc"
+        symbol = Symbol(kind, node.name, result if node.result is not None else _KIND_WORDS[kind], node.name_span,
+                        index=len(self.procs))
         if not self.declare(self.globals, symbol):
             return
         scope = ProcScope(node, symbol, result=result)
+        if node.interrupt is not None:
+            scope.interrupt = self.interrupt_options(node, len(self.interrupts))
+            self.interrupts.append(scope)
         params = []
         for param in node.params:
             t = self.resolve_type(param.type)
@@ -1103,11 +1276,14 @@ class Checker:
 _EXPR_CLASSES = (ast.Number, ast.String, ast.Bool, ast.Ref, ast.Call, ast.Index, ast.Field, ast.Unary,
                  ast.Binary, ast.Input)
 _STMT_CLASSES = (ast.Assign, ast.OutSet, ast.Move, ast.If, ast.While, ast.Repeat, ast.For, ast.WaitTime,
-                 ast.WaitFor, ast.CallProc, ast.Print, ast.Pause, ast.Halt, ast.Return, ast.Use)
+                 ast.WaitFor, ast.CallProc, ast.Print, ast.Pause, ast.Halt, ast.Return, ast.Use, ast.Enable,
+                 ast.Trigger)
 #: Statements a function may not hold (it computes a value; it does not act): the keyword.
 _NOT_IN_FUNCTIONS = {ast.Move: "move", ast.WaitTime: "wait", ast.WaitFor: "wait for", ast.OutSet: "out[...] :=",
                      ast.CallProc: "call", ast.Print: "print", ast.Pause: "pause", ast.Halt: "halt",
-                     ast.Use: "use"}
+                     ast.Use: "use", ast.Enable: "enable", ast.Trigger: "trigger"}
+#: Statements an interrupt's handler may not hold (it runs beside the motion or its stop).
+_NOT_IN_HANDLERS = {ast.Move: "move", ast.Pause: "pause", ast.Use: "use", ast.Trigger: "trigger"}
 _COMPOUND = (ast.If, ast.While, ast.Repeat, ast.For, ast.CallProc)  # statements that hold (or call) others
 
 
@@ -1124,6 +1300,51 @@ def _uses(stmt, memo: dict) -> tuple[frozenset, bool]:
                      isinstance(stmt, ast.CallProc) or any(c for _u, c in inner))
         memo[id(stmt)] = found
     return found
+
+
+def _not_a_condition(node, checker):
+    """The first part of ``node`` an interrupt's condition may not hold, or None."""
+    if isinstance(node, ast.Bool):
+        return None
+    if isinstance(node, ast.Ref):
+        symbol = checker.symbols.get(id(node))
+        return None if symbol is not None and symbol.kind in ("global", "const") else node
+    if isinstance(node, ast.Input):
+        return None if id(node.index) in checker.values else node
+    if isinstance(node, ast.Unary) and node.op == "not":
+        return _not_a_condition(node.operand, checker)
+    if isinstance(node, ast.Binary) and node.op in ("and", "or"):
+        return _not_a_condition(node.left, checker) or _not_a_condition(node.right, checker)
+    return node
+
+
+def _moving_procedures(procs) -> dict[str, str]:
+    """The procedures that move, pause or use a frame or tool, directly or through the
+    procedures they call: name -> what (for the message)."""
+    direct: dict[str, str] = {}
+    calls: dict[str, set] = {}
+    for scope in procs:
+        name = scope.node.name
+        calls[name] = set()
+        stack = list(scope.node.body)
+        while stack:
+            stmt = stack.pop()
+            if type(stmt) in _NOT_IN_HANDLERS and name not in direct:
+                direct[name] = f"has '{_NOT_IN_HANDLERS[type(stmt)]}' at line {stmt.span.line}"
+            if isinstance(stmt, ast.CallProc):
+                calls[name].add(stmt.name)
+            stack.extend(_children(stmt))
+    moving = dict(direct)
+    changed = True
+    while changed:
+        changed = False
+        for name, called in calls.items():
+            if name not in moving:
+                via = next((c for c in sorted(called) if c in moving), None)
+                if via is not None:
+                    moving[name] = f"calls '{via}', which {moving[via]}"
+                    changed = True
+    return moving
 
 
 def _children(stmt) -> tuple:

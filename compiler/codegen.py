@@ -13,8 +13,10 @@ from .check import (BOOL, FRAME, INTEGER, JOINT, ORIENTATION, POSE, POSITION, RE
                     CheckedProgram, Symbol, type_name)
 from .frames import BY_KEYWORD as FRAME_BY_KEYWORD
 from .frames import describe_name
+from .triggers import PLACES as TRIGGER_PLACES
+from .triggers import UNITS as TRIGGER_UNITS
 from .clauses import CLAUSES as CLAUSE_TABLE
-from .objcode import BUILTIN_NAMES, FIELDS, OP, ProcInfo, Program
+from .objcode import BUILTIN_NAMES, FIELDS, OP, InterruptInfo, ProcInfo, Program
 from .values import Joint, Pose, Position, Rpy
 
 _BINARY_OPS = {"+": OP.ADD, "-": OP.SUB, "*": OP.MUL, "/": OP.DIV, "div": OP.IDIV, "mod": OP.MOD,
@@ -45,7 +47,7 @@ class CodeGen:
         self._stmt = {cls: getattr(self, "s_" + cls.__name__)
                       for cls in (ast.Assign, ast.OutSet, ast.Move, ast.If, ast.While, ast.Repeat, ast.For,
                                   ast.WaitTime, ast.WaitFor, ast.CallProc, ast.Print, ast.Pause, ast.Halt,
-                                  ast.Return, ast.Use)}
+                                  ast.Return, ast.Use, ast.Enable, ast.Trigger)}
 
     # -- emitting --
     def emit(self, op: int, *operands: int) -> int:
@@ -341,6 +343,23 @@ class CodeGen:
         self.value(node.value, self.result)
         self.emit(OP.RET_VALUE)
 
+    def s_Trigger(self, node: ast.Trigger) -> None:
+        place = next(i for i, p in enumerate(TRIGGER_PLACES) if p.words == node.where)
+        unit = next(i for i, u in enumerate(TRIGGER_UNITS) if u.name == node.unit)
+        self.value(node.amount, REAL)
+        if node.action[0] == "out":
+            self.value(node.action[1])
+            self.value(node.action[2])
+            self.emit(OP.TRIGGER_OUT, place, unit)
+            return
+        symbol = self.symbols[id(node)]
+        self.value(node.action[3], symbol.type)
+        self.emit(OP.TRIGGER_SET, place, unit, symbol.slot)
+
+    def s_Enable(self, node: ast.Enable) -> None:
+        scope = self.checked.procedures[self.symbols[id(node)].index]
+        self.emit(OP.INT_ENABLE if node.on else OP.INT_DISABLE, scope.interrupt.index)
+
     def s_Use(self, node: ast.Use) -> None:
         self.value(node.value)
         name = self.constant_slot(describe_name(ast.expression_text(node.value)))
@@ -404,12 +423,25 @@ class CodeGen:
             procedures.append(ProcInfo(scope.node.name, entry, len(scope.node.params), tuple(self.locals),
                                        type_name(scope.result) if scope.result is not None else ""))
             self.locals = self.result = None
+        interrupts = []
+        for scope in checked.interrupts:  # each condition: a function of its own, straight-line code
+            self.in_file_of(scope.node)
+            spec_node = scope.node.interrupt
+            self.mark(spec_node.cond.span)
+            entry = len(self.code)
+            self.value(spec_node.cond)
+            self.emit(OP.RET_VALUE)
+            procedures.append(ProcInfo(f"{scope.node.name}.when", entry, 0, (), "bool"))
+            decl = scope.interrupt
+            interrupts.append(InterruptInfo(scope.node.name, len(procedures) - 1, scope.symbol.index, decl.priority,
+                                            decl.stop, decl.then == "halt"))
         spec = checked.spec
         modules = tuple(checked.modules.values())
         return Program(program.name, source_name, spec.name, spec.hash, checked.robots,
                        tuple(self.constants), tuple(self.code), tuple(self.lines),
                        tuple(self.globals), tuple(procedures),
-                       files=modules, line_files=tuple(self.line_files) if modules else ())
+                       files=modules, line_files=tuple(self.line_files) if modules else (),
+                       interrupts=tuple(interrupts))
 
 
 def generate(checked: CheckedProgram, source_file: str) -> Program:

@@ -9,6 +9,7 @@ from dataclasses import dataclass
 from typing import Iterator
 
 from .objcode import BUILTIN_NAMES, BY_CODE, FIELDS, Program, checksum_of, clause_names
+from .triggers import PLACES, UNITS
 from .values import format_value, to_plain
 
 
@@ -43,6 +44,12 @@ def _argrepr(program: Program, definition, operands: tuple[int, ...], routine_lo
             parts.append(FIELDS[value])
         elif kind == "clauses":
             parts.append(", ".join(clause_names(value)) or "no clauses")
+        elif kind == "interrupt":
+            parts.append(program.interrupts[value].name)
+        elif kind == "place":
+            parts.append(PLACES[value].words)
+        elif kind == "unit":
+            parts.append(UNITS[value].name)
     return "; ".join(parts)
 
 
@@ -118,6 +125,13 @@ def format_text(program: Program, data: bytes | None = None, source: str | None 
         out.append(f"globals ({len(program.globals)}):")
         for i, (name, type_) in enumerate(program.globals):
             out.append(f"  {i:4d}  {name} : {type_}")
+    if program.interrupts:
+        out.append("")
+        out.append(f"interrupts ({len(program.interrupts)}):")
+        for i, x in enumerate(program.interrupts):
+            out.append(f"  {i:4d}  {x.name}: when {program.procedures[x.condition].name}, priority {x.priority}, "
+                       f"{'stop' if x.stop else 'continue'}, then {'halt' if x.halt else 'resume'}")
+    handlers = {program.procedures[x.handler].entry: x for x in program.interrupts}
     source_lines = source.split("\n") if source is not None else None  # as the parser counts lines
     module_lines = {name: text.split("\n") for name, text in (modules or {}).items()}
     entries = {p.entry: p for p in program.procedures}
@@ -130,7 +144,7 @@ def format_text(program: Program, data: bytes | None = None, source: str | None 
             params = ", ".join(f"{n} : {t}" for n, t in proc.locals[:proc.params])
             out.append("")
             out.append(f"function {proc.name}({params}) : {proc.result}" if proc.result else
-                       f"procedure {proc.name}({params})")
+                       f"interrupt {proc.name}" if ins.offset in handlers else f"procedure {proc.name}({params})")
         if ins.starts_line:
             where = program.file_at(ins.offset)
             text_lines = module_lines.get(where) if where else source_lines
@@ -158,6 +172,8 @@ def format_json(program: Program, data: bytes | None = None) -> dict:
                         "locals": [{"name": n, "type": t} for n, t in p.locals], "result": p.result or None}
                        for p in program.procedures],
         "modules": list(program.files),
+        "interrupts": [{"name": x.name, "condition": x.condition, "handler": x.handler, "priority": x.priority,
+                        "stop": x.stop, "halt": x.halt} for x in program.interrupts],
         "code": [{"offset": i.offset, "name": i.name, "operands": list(i.operands), "argrepr": i.argrepr,
                   "line": i.line, "column": i.column, "file": program.file_at(i.offset) or None}
                  for i in instructions(program)],

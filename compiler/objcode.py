@@ -65,6 +65,9 @@ OPERAND_KINDS = {
     "clauses": "bit mask of the move's clauses (see below)",
     "flag": "0 or 1",
     "name": "index into the constant pool of a string (a name)",
+    "interrupt": "index into the interrupt table",
+    "place": "where a trigger is counted from: 0 after start, 1 before end, 2 after end (compiler.triggers)",
+    "unit": "a trigger's unit: 0 ms, 1 mm (compiler.triggers)",
 }
 
 #: Built-in functions: name -> number of arguments. Angles in degrees.
@@ -200,6 +203,15 @@ _DEFS = [
     ("USE_TOOL", (("name", "name"),), 1, 0,
      "Make the pose on top of the stack the active tool (the TCP, in the flange frame, that later targets put in "
      "place), called name (compiler.frames).", "pose ->", "next"),
+    ("INT_ENABLE", (("i", "interrupt"),), 0, 0,
+     "Switch interrupt i on: its condition is checked every period from now on (compiler.interrupts).", "", "next"),
+    ("INT_DISABLE", (("i", "interrupt"),), 0, 0, "Switch interrupt i off.", "", "next"),
+    ("TRIGGER_OUT", (("place", "place"), ("unit", "unit")), 3, 0,
+     "A path trigger of the next move: set digital output n to value when the robot is amount (unit) from "
+     "place (compiler.triggers).", "amount n value ->", "next"),
+    ("TRIGGER_SET", (("place", "place"), ("unit", "unit"), ("g", "global")), 2, 0,
+     "A path trigger of the next move: store value into global variable g when the robot is amount (unit) from "
+     "place.", "amount value ->", "next"),
 ]
 
 INSTRUCTIONS: tuple[InstrDef, ...] = tuple(
@@ -226,6 +238,21 @@ class ProcInfo:
 
 
 @dataclass(frozen=True)
+class InterruptInfo:
+    """An interrupt (compiler.interrupts): its name, its condition (a function of the
+    procedure table: no parameters, a bool result, only the instructions of
+    ``CONDITION_OPS``), its handler (a procedure without parameters), its priority (1 the
+    highest), whether the robot stops when it fires, and whether the program then ends."""
+
+    name: str
+    condition: int
+    handler: int
+    priority: int
+    stop: bool
+    halt: bool
+
+
+@dataclass(frozen=True)
 class Program:
     """Object code as plain data. ``code`` holds (opcode, operand, ...) tuples."""
 
@@ -245,6 +272,8 @@ class Program:
     #: Both empty for a program of one file.
     files: tuple[str, ...] = ()
     line_files: tuple[int, ...] = ()
+    #: The interrupts (empty for a program without: then the object code has no such key).
+    interrupts: tuple[InterruptInfo, ...] = ()
 
     def line_at(self, offset: int) -> tuple[int, int]:
         """The (line, column) of the statement that ``offset`` belongs to, or (0, 0)."""
@@ -282,7 +311,9 @@ def _body(program: Program) -> dict:
         "globals": [list(g) for g in program.globals],
         "procedures": [[p.name, p.entry, p.params, [list(l) for l in p.locals]] + ([p.result] if p.result else [])
                        for p in program.procedures],
-    } | ({"files": list(program.files), "line_files": list(program.line_files)} if program.files else {})
+    } | ({"files": list(program.files), "line_files": list(program.line_files)} if program.files else {}) \
+      | ({"interrupts": [[i.name, i.condition, i.handler, i.priority, i.stop, i.halt] for i in program.interrupts]}
+         if program.interrupts else {})
 
 
 def encode(program: Program) -> bytes:
@@ -387,9 +418,17 @@ def decode(data: bytes) -> Program:
                 "[name, entry, params, locals, result type]")
         procedures.append(ProcInfo(p[0], p[1], p[2], _pairs(p[3], f"procedure {p[0]} locals"),
                                    p[4] if len(p) == 5 else ""))
+    interrupts = []
+    raw = body.get("interrupts", [])
+    _expect(isinstance(raw, list) and ("interrupts" not in body or raw), "body: interrupts must be a non-empty list")
+    for i, x in enumerate(raw):
+        _expect(isinstance(x, list) and len(x) == 6 and _is_str(x[0]) and all(map(_is_int, x[1:4]))
+                and all(isinstance(v, bool) for v in x[4:]),
+                f"interrupt {i}: expected [name, condition, handler, priority, stop, halt]")
+        interrupts.append(InterruptInfo(*x))
     return Program(body["name"], body["source"], spec[0], spec[1], tuple(robots), tuple(constants),
                    tuple(code), line_table, _pairs(body["globals"], "globals"), tuple(procedures), version,
-                   tuple(files), tuple(line_files))
+                   tuple(files), tuple(line_files), tuple(interrupts))
 
 
 # ---- verification ------------------------------------------------------------------------
@@ -420,6 +459,16 @@ def _check_operand(kind: str, value: int, program: Program, nlocals: int | None)
         ok, limit = 0 <= value < (1 << len(CLAUSES)), f"a mask below {1 << len(CLAUSES)}"
     elif kind == "flag":
         ok, limit = value in (0, 1), "0 or 1"
+    elif kind == "place":
+        from .triggers import PLACES
+
+        ok, limit = 0 <= value < len(PLACES), f"0..{len(PLACES) - 1}"
+    elif kind == "unit":
+        from .triggers import UNITS
+
+        ok, limit = 0 <= value < len(UNITS), f"0..{len(UNITS) - 1}"
+    elif kind == "interrupt":
+        ok, limit = 0 <= value < len(program.interrupts), f"0..{len(program.interrupts) - 1}"
     elif kind == "name":
         ok, limit = 0 <= value < len(program.constants), f"0..{len(program.constants) - 1}"
         if ok and not isinstance(program.constants[value], str):
@@ -554,6 +603,10 @@ def verify(program: Program, spec_hash: str | None = None) -> int:
             problem = _check_operand(kind, value, program, most_locals)
             if problem:
                 raise ObjectCodeError(f"{definition.name} operand {name}: {problem}", offset)
+    for interrupt in program.interrupts:
+        problem = _interrupt_problem(program, interrupt)
+        if problem is not None:
+            raise ObjectCodeError(f"interrupt {interrupt.name!r}: {problem}")
     owner: list = [None] * len(program.code)
     deepest = _verify_routine(program, 0, None, owner)
     for proc in program.procedures:
@@ -561,6 +614,31 @@ def verify(program: Program, spec_hash: str | None = None) -> int:
             raise ObjectCodeError(f"procedure {proc.name!r} starts inside other code", proc.entry)
         deepest = max(deepest, _verify_routine(program, proc.entry, len(proc.locals), owner, proc.result))
     return deepest
+
+
+def _interrupt_problem(program: Program, interrupt: InterruptInfo) -> str | None:
+    """What is wrong with an interrupt table entry (compiler.interrupts), or None."""
+    from .interrupts import CONDITION_OPS, MAX_CONDITION_CODE, PRIORITY
+
+    procs = program.procedures
+    if not (0 <= interrupt.condition < len(procs) and 0 <= interrupt.handler < len(procs)):
+        return f"its condition and handler must be procedures 0..{len(procs) - 1}"
+    cond, handler = procs[interrupt.condition], procs[interrupt.handler]
+    if cond.result != "bool" or cond.params or cond.locals:
+        return f"its condition {cond.name!r} must be a function without parameters or locals, of result bool"
+    if handler.result or handler.params:
+        return f"its handler {handler.name!r} must be a procedure without parameters"
+    if not PRIORITY[0] <= interrupt.priority <= PRIORITY[1]:
+        return f"priority {interrupt.priority} is out of range ({PRIORITY[0]}..{PRIORITY[1]})"
+    allowed = {BY_NAME[name].code for name in CONDITION_OPS}
+    for offset in range(cond.entry, min(cond.entry + MAX_CONDITION_CODE, len(program.code))):
+        op = program.code[offset][0]
+        if op not in allowed:
+            return (f"its condition holds {BY_CODE[op].name} at {offset}: a condition may hold only "
+                    f"{', '.join(CONDITION_OPS)}")
+        if op == BY_NAME["RET_VALUE"].code:
+            return None
+    return f"its condition does not end in RET_VALUE within {MAX_CONDITION_CODE} instructions"
 
 
 def load(data: bytes, spec_hash: str | None = None) -> Program:

@@ -140,6 +140,29 @@ class _Builder(Transformer):
         return ast.Procedure(name.value.lower(), params, tuple(variables), rest[-2],
                              _span(kw).to(_span(rest[-1])), _span(name), result)
 
+    def interrupt(self, c):
+        kw, name, _when, cond, *rest = c
+        options, variables = [], []
+        for item in rest[:-2]:  # the options, then the var sections; then the block and endinterrupt
+            if isinstance(item, list):
+                variables.extend(item)
+            else:
+                options.append(item)
+        head_end = options[-1][2] if options else cond.span
+        spec = ast.InterruptSpec(cond, tuple(options), _span(kw).to(head_end))
+        return ast.Procedure(name.value.lower(), (), tuple(variables), rest[-2], _span(kw).to(_span(rest[-1])),
+                             _span(name), None, spec)
+
+    def interrupt_option(self, c):
+        word, *number = c
+        value = number[0] if number else None
+        span = _span(word).to(_span(number[0])) if number else _span(word)
+        return (word.value.lower(), int(value) if value is not None and value.isdigit() else value, span)
+
+    def interrupt_then(self, c):
+        word, = c
+        return ("then", word.value.lower(), _span(word))
+
     def params(self, c):
         groups = c
         return tuple(p for group in groups if group is not None for p in group)
@@ -235,6 +258,23 @@ class _Builder(Transformer):
     def return_stmt(self, c):
         kw, value = c
         return ast.Return(value, _span(kw).to(value.span) if value is not None else _span(kw))
+
+    def trigger_stmt(self, c):
+        kw, _when, amount, unit, direction, reference, action = c
+        return ast.Trigger(amount, unit.value.lower(), f"{direction.value.lower()} {reference.value.lower()}",
+                           _span(unit).to(_span(reference)), action, _span(kw).to(action[-1].span))
+
+    def trigger_out(self, c):
+        _kw, index, value = c
+        return ("out", index, value)
+
+    def trigger_set(self, c):
+        name, value = c
+        return ("set", name.value.lower(), _span(name), value)
+
+    def enable_stmt(self, c):
+        kw, name = c
+        return ast.Enable(name.value.lower(), kw.type == "ENABLE", _span(kw).to(_span(name)), _span(name))
 
     def use_stmt(self, c):
         kw, which, value = c
@@ -333,11 +373,12 @@ _REGEX_NAMES = {"NAME": "a name", "NUMBER": "a number", "STRING": "a string",
                 "$END": "end of file"}
 
 #: Tokens that open or close a block: resynchronising across one would only cascade.
-_STRUCTURE = {"PROGRAM", "ENDPROGRAM", "MODULE", "ENDMODULE", "SEQ", "ENDSEQ", "PROCEDURE", "ENDPROCEDURE", "FUNCTION", "ENDFUNCTION", "IF",
+_STRUCTURE = {"PROGRAM", "ENDPROGRAM", "MODULE", "ENDMODULE", "SEQ", "ENDSEQ", "PROCEDURE", "ENDPROCEDURE", "FUNCTION",
+              "ENDFUNCTION", "INTERRUPT", "ENDINTERRUPT", "IF",
               "ELSIF", "ELSE", "ENDIF", "WHILE", "ENDWHILE", "REPEAT", "UNTIL", "FOR",
               "ENDFOR", "THEN", "DO", "VAR", "CONST"}
 _KEYWORD_TYPES = _STRUCTURE | {"MOVE", "WAIT", "OUT", "CALL", "PRINT", "PAUSE", "HALT", "RETURN", "ENDPROGRAM",
-                                "IMPORT"}
+                                "IMPORT", "USE", "ENABLE", "DISABLE", "TRIGGER"}
 _STMT_BOUNDARY = {"SEMICOLON", "SEQ", "THEN", "DO", "ELSE", "REPEAT"}
 
 
@@ -475,7 +516,8 @@ def _classify(err: UnexpectedInput, text: str, file: str, tokens: list[Token]):
 
 
 #: Each block's opening keyword and the one that closes it.
-_BLOCKS = {"PROGRAM": "ENDPROGRAM", "MODULE": "ENDMODULE", "PROCEDURE": "ENDPROCEDURE", "FUNCTION": "ENDFUNCTION", "SEQ": "ENDSEQ",
+_BLOCKS = {"PROGRAM": "ENDPROGRAM", "MODULE": "ENDMODULE", "PROCEDURE": "ENDPROCEDURE", "FUNCTION": "ENDFUNCTION",
+           "INTERRUPT": "ENDINTERRUPT", "SEQ": "ENDSEQ",
            "IF": "ENDIF",
            "WHILE": "ENDWHILE", "FOR": "ENDFOR", "REPEAT": "UNTIL"}
 _CLOSERS = set(_BLOCKS.values())
@@ -512,7 +554,7 @@ def _unclosed_routine(tokens: list[Token], tok: Token, expected) -> tuple[Token,
     if tok.type not in _BLOCKS and tok.type not in _CLOSERS:
         return None
     stack = _open_blocks(tokens, tok)
-    if not stack or stack[-1].type not in ("PROCEDURE", "FUNCTION", "PROGRAM", "MODULE"):
+    if not stack or stack[-1].type not in ("PROCEDURE", "FUNCTION", "INTERRUPT", "PROGRAM", "MODULE"):
         return None
     closer = _BLOCKS[stack[-1].type]
     return (stack[-1], closer.lower()) if closer in expected and tok.type != closer else None

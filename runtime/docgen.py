@@ -22,7 +22,7 @@ _BLOCK = re.compile(r"(<!-- generated: (?P<name>[a-z_]+) -->\n)(?P<body>.*?)(<!-
 
 
 def tables() -> dict[str, str]:
-    from compiler import clauses, frames, semantics
+    from compiler import clauses, frames, semantics, triggers
     from compiler.params import COMPONENTS, markdown
 
     from . import fieldbus, protocol
@@ -32,7 +32,8 @@ def tables() -> dict[str, str]:
     return {"params": markdown(), "config": markdown(COMPONENTS), "categories": categories_markdown(),
             "clauses": clauses.markdown(), "defaults": clauses.defaults_markdown(), "cell": cell.markdown(),
             "fieldbus": fieldbus.markdown(), "sample": protocol.sample_markdown(),
-            "geometry": semantics.geometry_markdown(), "frames": frames.markdown()}
+            "geometry": semantics.geometry_markdown(), "frames": frames.markdown(),
+            "triggers": triggers.markdown()}
 
 
 def render(text: str) -> str:

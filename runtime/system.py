@@ -112,6 +112,7 @@ class RobotSystem:
         ex.add("supervisor", self.supervisor.step, TICK, "decide")
         ex.add("initialization", self.init.update, SETPOINT_PERIOD, "plan", component=self.init)
         ex.add("trajectory", self.trajectory.update, SETPOINT_PERIOD, "plan", component=self.trajectory)
+        ex.add("triggers", self.trajectory.fire_triggers, TICK, "plan", component=self.trajectory)
         ex.add("servo", self.servo.update, TICK, "control", policy=servo_policy, component=self.servo)
         ex.add("safety", self.safety.update, TICK, "guard", component=self.safety)
         ex.add("robot.write", robot.write, TICK, "act", component=robot)

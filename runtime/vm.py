@@ -130,6 +130,24 @@ class MotionHost(Protocol):
     def log(self, text: str, line: int) -> None:
         """The operator log: ``print`` statements and VM notices."""
 
+    def trigger(self, place: int, unit: int, amount: object, action: tuple) -> str | None:
+        """A path trigger of the next move (compiler.triggers): ``action`` is ``("out", n,
+        value)`` or ``("set", global slot, value)``. None when accepted, else the problem."""
+
+    def motion_line(self) -> int | None:
+        """The source line of the move the robot is executing, or None (what an
+        interrupt's log line names: the program itself may have run ahead)."""
+
+    def interrupt_stop(self) -> None:
+        """An interrupt fired with ``stop``: bring the motion to a stop on its path and hold
+        it until :meth:`interrupt_release`."""
+
+    def interrupt_release(self) -> None:
+        """The handler of an interrupt with ``stop`` ended (``then resume``): go on."""
+
+    def interrupt_halt(self, reason: str) -> None:
+        """The program ends by an interrupt: stop on the path, drop the moves not made."""
+
     def use_frame(self, keyword: str, name: str, value: object) -> str | None:
         """``use base`` / ``use tool`` (``keyword``): make the pose ``value``, called
         ``name``, the active base or tool for the moves after it. None when accepted, else
@@ -138,6 +156,9 @@ class MotionHost(Protocol):
 
 # What a step is waiting for before it can execute the next instruction.
 _NO_WAIT, _W_MOTION, _W_DWELL, _W_QUEUE = 0, 1, 2, 3
+
+# The return offset of an interrupt handler's frame: its RET goes back to the program.
+_FROM_INTERRUPT = -1
 
 _CLAUSE_NAMES = tuple(tuple(clause_names(mask)) for mask in range(1 << 6))
 
@@ -219,6 +240,16 @@ class VM:
         self._dwell_until: float | None = None
         self._deadline: float | None = None  # of the current 'wait for', or None
         self._timeout = 0.0
+        # interrupts (compiler.interrupts): per entry (name, condition entry, handler, stop, halt)
+        self._ints = [(x.name, program.procedures[x.condition].entry, x.handler, x.stop, x.halt)
+                      for x in program.interrupts]
+        self._int_order = sorted(range(len(self._ints)), key=lambda i: (program.interrupts[i].priority, i))
+        self._enabled = [False] * len(self._ints)
+        self._was = [False] * len(self._ints)  # its condition at the last check
+        self._pending = [False] * len(self._ints)  # fired, its handler not run yet
+        self._armed = 0  # how many are enabled
+        self._handling: tuple | None = None  # (interrupt, the program's state to go back to, its line)
+        self._back_here: int | None = None  # the program's offset, when a handler has just returned
 
     # -- the operator's side (real-time) ------------------------------------------------
     @property
@@ -268,9 +299,19 @@ class VM:
         status = self.status
         if status >= DONE:
             return status
+        if self._back_here is not None:  # (the loop that ran the handler's RET ended at the handler)
+            self._here, self._back_here = self._back_here, None
+        if self._armed:
+            try:
+                self._check_interrupts()
+            except Exception as exc:  # an input the host refuses: stop, never raise
+                self._stop_with(_describe(exc), self._here)
+                return ERROR
         if self.paused:
             self.status = WAITING
             return WAITING
+        if self._handling is None and True in self._pending:
+            self._fire()
         if self._wait:
             try:
                 if not self._wait_over():
@@ -292,6 +333,113 @@ class VM:
             if self.status is not RUNNING or perf_counter() > deadline:
                 break
         return self.status
+
+    # -- interrupts (real-time) ----------------------------------------------------------
+    def _check_interrupts(self) -> None:
+        """Every enabled interrupt's condition: an edge (true now, not at the last check)
+        makes it pending, except while its own handler runs."""
+        handling = self._handling[0] if self._handling is not None else -1
+        for i, enabled in enumerate(self._enabled):
+            if enabled:
+                now = self._condition(i)
+                if now and not self._was[i] and i != handling:
+                    self._pending[i] = True
+                self._was[i] = now
+
+    def _condition(self, i: int) -> bool:
+        """Evaluate interrupt ``i``'s condition: straight-line code of the few instructions
+        the verifier allows there (compiler.interrupts.CONDITION_OPS); reads the inputs now."""
+        ops, args, consts, globals_ = self._ops, self._args, self._consts, self.globals
+        pc = self._ints[i][1]
+        stack: list = []
+        while True:
+            op = ops[pc]
+            if op == OP.CONST:
+                stack.append(consts[args[pc]])
+            elif op == OP.LOAD_GLOBAL:
+                stack.append(globals_[args[pc]])
+            elif op == OP.IN_GET:
+                n = stack.pop()
+                try:
+                    stack.append(self.host.read_input(n))
+                except (IndexError, ValueError, KeyError) as exc:
+                    raise EvalError(f"interrupt {self._ints[i][0]}: {exc}") from None
+            elif op == OP.NOT:
+                stack.append(not stack.pop())
+            elif op == OP.AND:
+                b = stack.pop()
+                stack[-1] = stack[-1] and b
+            elif op == OP.OR:
+                b = stack.pop()
+                stack[-1] = stack[-1] or b
+            else:  # RET_VALUE
+                value = stack.pop()
+                if type(value) is not bool:
+                    raise EvalError(f"interrupt {self._ints[i][0]}: its condition is not a bool")
+                return value
+            pc += 1
+
+    def _fire(self) -> None:
+        """Run the handler of the pending interrupt of the highest priority: the program's
+        state is kept, the motion stops on its path (``stop``), the handler starts."""
+        i = next(k for k in self._int_order if self._pending[k])
+        self._pending[i] = False
+        name, _cond, handler, stop, _halt = self._ints[i]
+        moving = self.host.motion_line()
+        line = self.line if moving is None else moving
+        if stop:
+            self.host.interrupt_stop()
+        self.host.log(f"interrupt {name} fired {'at' if moving is None else 'during the move at'} line {line}"
+                      f"{'' if stop else ' (the robot goes on)'}", line)
+        self._handling = (i, (self.pc, self._here, self._wait, self._dwell_seconds, self._dwell_until,
+                              self._deadline, self._timeout), line)
+        entry, _params, slots, _name = self._procs[handler]
+        self.frames.append((_FROM_INTERRUPT, self.locals))
+        self.locals = [None] * slots
+        self.pc = entry
+        self._wait = _NO_WAIT
+
+    def _handler_done(self) -> int:
+        """The handler returned: the program goes on where it was (``then resume``), or
+        ends (``then halt``). Ends the step (the inline loop's locals change)."""
+        i, saved, line = self._handling
+        self._handling = None
+        name, _cond, _handler, stop, halt = self._ints[i]
+        if halt:
+            return self._halt_by_interrupt(name, line)
+        if stop:
+            self.host.interrupt_release()
+        pc, self._back_here, self._wait, self._dwell_seconds, self._dwell_until, self._deadline, self._timeout = saved
+        self._yield = True
+        return pc
+
+    def _halt_by_interrupt(self, name: str, line: int) -> int:
+        """The program ends by interrupt ``name`` (which fired at ``line``)."""
+        self.host.interrupt_halt(f"ended by interrupt {name}")
+        self.host.log(f"interrupt {name} ended the program (it fired at line {line})", line)
+        self._enabled = [False] * len(self._ints)
+        self._armed = 0
+        return self._end(self._here)
+
+    # enable and disable act where the robot is (as out[...] does): an interrupt guards the
+    # moves after its enable, and the moves before its disable
+    def op_int_enable(self, i, pc):
+        if not self._at_robot():
+            return pc
+        if not self._enabled[i]:
+            self._enabled[i] = True
+            self._armed += 1
+        self._was[i] = False  # a condition already true fires at the next check
+        return pc + 1
+
+    def op_int_disable(self, i, pc):
+        if not self._at_robot():
+            return pc
+        if self._enabled[i]:
+            self._enabled[i] = False
+            self._armed -= 1
+        self._pending[i] = False
+        return pc + 1
 
     def _wait_over(self) -> bool:
         """Is the wait started by the last instruction over? (Asks the host.)"""
@@ -325,8 +473,9 @@ class VM:
         """For an instruction that must happen where the robot really is (I/O, print,
         ``wait for``, ``pause``): True when every move handed over has ended; else the
         step ends waiting for the motion, and the instruction runs again after it (its
-        handler returns its own offset and has not touched the stack)."""
-        if self.host.motion_done():
+        handler returns its own offset and has not touched the stack). In an interrupt's
+        handler, at once: it acts beside the motion."""
+        if self._handling is not None or self.host.motion_done():
             return True
         self._wait = _W_MOTION
         self._block()
@@ -686,6 +835,8 @@ class VM:
 
     def op_ret(self, _, pc):
         back, self.locals = self.frames.pop()
+        if back == _FROM_INTERRUPT:
+            return self._handler_done()
         return back
 
     # A function is called as a procedure is; its RET_VALUE leaves the result on the stack,
@@ -742,6 +893,24 @@ class VM:
     def op_move_circ(self, mask, pc):
         return self._move("circ", 2, mask, pc)
 
+    def op_trigger_out(self, operands, pc):
+        place, unit = operands
+        stack = self.stack
+        value, n, amount = stack.pop(), stack.pop(), stack.pop()
+        problem = self.host.trigger(place, unit, amount, ("out", n, value))
+        if problem is not None:
+            raise EvalError(problem)
+        return pc + 1
+
+    def op_trigger_set(self, operands, pc):
+        place, unit, g = operands
+        stack = self.stack
+        value, amount = stack.pop(), stack.pop()
+        problem = self.host.trigger(place, unit, amount, ("set", g, value))
+        if problem is not None:
+            raise EvalError(problem)
+        return pc + 1
+
     def _use(self, keyword: str, name: int, pc: int) -> int:
         problem = self.host.use_frame(keyword, self.program.constants[name], self.stack.pop())
         if problem is not None:
@@ -759,7 +928,8 @@ class VM:
         if seconds < 0:
             raise EvalError(f"wait {format_number(seconds)} sec: a wait cannot be negative")
         self._dwell_seconds = float(seconds)
-        self._dwell_until = None
+        # (in an interrupt's handler the wait starts at once, beside the motion)
+        self._dwell_until = self.host.now() + seconds if self._handling is not None else None
         self._await(_W_DWELL)
         return pc + 1
 
@@ -820,9 +990,23 @@ class VM:
         return pc
 
     def op_halt(self, _, pc):
-        return self._end(pc)
+        if self._handling is not None:  # 'halt' in a handler: as 'then halt'
+            self._here = pc
+            i, _saved, line = self._handling
+            self._handling = None
+            return self._halt_by_interrupt(self._ints[i][0], line)
+        return self._armed_end(pc)
 
     def op_end(self, _, pc):
+        return self._armed_end(pc)
+
+    def _armed_end(self, pc: int) -> int:
+        """The program's end: with interrupts enabled, not before the motion has ended (so
+        they can still fire during the last moves)."""
+        if self._armed and not self.host.motion_done():
+            self._wait = _W_MOTION
+            self._block()
+            return pc
         return self._end(pc)
 
 

@@ -21,6 +21,7 @@ from compiler.objcode import (
     BUILTINS,
     BY_CODE,
     BY_NAME,
+    InterruptInfo,
     CLAUSES,
     FIELDS,
     INSTRUCTIONS,
@@ -124,7 +125,7 @@ def test_every_operand_kind_is_described():
 # A valid value for an operand of each kind in the program built below.
 _OPERAND_VALUE = {
     "const": 0, "global": 0, "local": 0, "target": 0, "proc": 0, "count": 1, "int": 1,
-    "builtin": 0, "field": 0, "clauses": 0b100001, "flag": 1, "name": 2,
+    "builtin": 0, "field": 0, "clauses": 0b100001, "flag": 1, "name": 2, "interrupt": 0, "place": 1, "unit": 0,
 }
 
 
@@ -141,6 +142,7 @@ def _one_of_each() -> Program:
         code=tuple(code), lines=((0, 1, 1),),
         globals=(("g", "integer"),),
         procedures=(ProcInfo("p", 0, 1, (("a", "real"),)),),
+        interrupts=(InterruptInfo("i", 0, 0, 1, True, False),),
     )
 
 
@@ -152,7 +154,7 @@ def test_every_instruction_has_a_disassembly_form():
         assert record.offset == d.code
         assert isinstance(record.argrepr, str)
         assert len(record.operands) == len(d.operands)
-        if any(kind in ("const", "global", "proc", "builtin", "field", "clauses", "target", "name")
+        if any(kind in ("const", "global", "proc", "builtin", "field", "clauses", "target", "name", "interrupt", "place", "unit")
                for _, kind in d.operands):
             assert record.argrepr, f"{d.name}: operands are not resolved in the disassembly"
 
@@ -224,6 +226,8 @@ STATEMENT_SYNTAX = {
     "Halt": ["halt;"],
     "Return": ["return;", "return EXPRESSION;"],
     "Use": ["use base EXPR;", "use tool EXPR;"],
+    "Enable": ["enable NAME;", "disable NAME;"],
+    "Trigger": ["trigger when AMOUNT mm|ms after start|before end|after end do out[N] := BOOL;"],
 }
 
 

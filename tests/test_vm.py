@@ -34,6 +34,9 @@ class FakeHost:
         self.t = 0.0
         self.moves: list[tuple] = []
         self.frames: list[tuple] = []  # (use base / use tool): (keyword, name, pose)
+        self.interrupt_log: list = []  # what interrupts asked of the motion
+        self.triggers: list = []  # path triggers handed over: (place, unit, amount, action)
+        self.vm = None  # the machine (run() sets it): an instant host's triggers set its globals
         self.inputs: dict[int, bool] = dict(inputs or {})
         self.all_inputs = all_inputs
         self.outputs: dict[int, bool] = {}
@@ -54,6 +57,24 @@ class FakeHost:
         if not self.instant:
             self.done = False
         return None
+
+    def motion_line(self):
+        return None
+
+    def trigger(self, place, unit, amount, action):
+        self.triggers.append((place, unit, amount, action))
+        if action[0] == "set" and self.vm is not None and self.instant:  # (its moves end at once: so do these)
+            self.vm.globals[action[1]] = action[2]
+        return None
+
+    def interrupt_stop(self):
+        self.interrupt_log.append("stop")
+
+    def interrupt_release(self):
+        self.interrupt_log.append("release")
+
+    def interrupt_halt(self, reason):
+        self.interrupt_log.append(("halt", reason))
 
     def use_frame(self, keyword, name, value):
         self.frames.append((keyword, name, value))
@@ -116,6 +137,7 @@ def run(program: Program, host: FakeHost | None = None, *, dispatch: str = "inli
         dt: float = 0.005, max_steps: int = 100_000) -> tuple[VM, FakeHost]:
     host = host or FakeHost()
     machine = VM(program, host, budget, dispatch=dispatch)
+    host.vm = machine
     for _ in range(max_steps):
         status = machine.step()
         if status >= VMStatus.DONE:

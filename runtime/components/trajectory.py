@@ -31,6 +31,8 @@ from compiler.objcode import Program
 from compiler.params import component_params, describe
 from compiler.spec import DEFAULT_LOOKAHEAD
 from compiler.semantics import compose
+from compiler.triggers import MAX_PENDING as MAX_TRIGGERS
+from compiler.triggers import problem as trigger_problem
 from compiler.values import Joint, Pose
 
 from ..component import Component, DataPort
@@ -114,6 +116,7 @@ class TrajectoryGenerator(Component):
 
     def _forget(self) -> None:
         self.vm = None
+        self.triggers: list = []  # handed over by the program, for its next move
         self.frames = self.default_frames  # the active base and tool (use base, use tool)
         self.log_lines = []
         self.log_dropped = 0
@@ -265,6 +268,30 @@ class TrajectoryGenerator(Component):
             self._take_motion_events()
         return True
 
+    # ---- the VM's interrupts (real-time safe) ----
+    def motion_line(self) -> int | None:
+        """The source line of the move the robot is executing (None: none is)."""
+        return self.motion.line
+
+    def interrupt_stop(self) -> None:
+        """An interrupt fired with ``stop``: the motion stops on its path (held while its
+        handler runs)."""
+        self._expect_rest(self.motion.interrupt_stop())
+
+    def interrupt_release(self) -> None:
+        """Its handler ended with ``then resume``: the motion goes on (the rest of the
+        interrupted move from where the robot stopped)."""
+        if self.safety is not None and not self.motion.paused:
+            self.safety.rest_not_expected()
+        self.motion.interrupt_release()
+        self._take_motion_events()
+
+    def interrupt_halt(self, reason: str) -> None:
+        """The program ends by an interrupt (``then halt``, or ``halt`` in a handler): the
+        motion stops on its path and the moves not yet made are dropped, without a fault."""
+        self._expect_rest(self.motion.abort(reason, fault=False))
+        self._take_motion_events()
+
     def _expect_rest(self, within: float | None) -> None:
         if within is not None and self.safety is not None:
             self.safety.expect_rest_within(within)
@@ -290,12 +317,50 @@ class TrajectoryGenerator(Component):
                     return self.planner.kinematics_problem
             elif not isinstance(target, Joint) or len(target.axes) != self.n:
                 return f"the target must be a joint value with {self.n} axes"
-            request = MoveRequest(kind, (target,), checked.speed, checked.acc, checked.approx, line, frames=frames)
+            request = MoveRequest(kind, (target,), checked.speed, checked.acc, checked.approx, line, frames=frames,
+                                  triggers=self._take_triggers())
         else:
             request, problem = self._cartesian_request(kind, targets, checked, line)
             if problem is not None:
                 return problem
         return self.motion.add(request)
+
+    def _take_triggers(self) -> tuple:
+        triggers, self.triggers = tuple(self.triggers), []
+        return triggers
+
+    def trigger(self, place: int, unit: int, amount: object, action: tuple) -> str | None:
+        """The VM's ``TRIGGER_OUT`` / ``TRIGGER_SET``: a trigger of the next move
+        (compiler.triggers); the problem, else None. Object code is untrusted: never raises."""
+        problem = trigger_problem(place, unit, amount)
+        if problem is not None:
+            return problem
+        if len(self.triggers) >= MAX_TRIGGERS:
+            return f"more than {MAX_TRIGGERS} triggers for one move"
+        if action[0] == "out":
+            _kind, n, value = action
+            if not (isinstance(n, int) and not isinstance(n, bool) and 1 <= n <= self.spec.outputs):
+                return f"digital output {describe(n)} does not exist (1..{self.spec.outputs})"
+            if not isinstance(value, bool):
+                return f"a digital output's value must be true or false, not {describe(value)}"
+        self.triggers.append((place, unit, float(amount), action))
+        return None
+
+    def fire_triggers(self, now: float) -> None:
+        """Real-time, every 1 ms: the triggers whose place the servo's reference has reached
+        (within this tick): an output switched, or a variable set."""
+        due = self.motion.due
+        if not due:
+            return
+        keep = []
+        for at, action in due:
+            if at > now + 1e-9:
+                keep.append((at, action))
+            elif action[0] == "out":
+                self.io.set_output(action[1], action[2])
+            elif self.vm is not None:
+                self.vm.globals[action[1]] = action[2]
+        due[:] = keep
 
     def use_frame(self, keyword: str, name: object, value: object) -> str | None:
         """The VM's ``USE_BASE`` / ``USE_TOOL``: make ``value`` the active base or tool for
@@ -331,7 +396,7 @@ class TrajectoryGenerator(Component):
         if not all(isinstance(target, (Joint, Pose)) for target in targets):
             return None, f"a {kind} target must be a pose or a joint value"
         return MoveRequest(kind, tuple(targets), clauses.speed, clauses.acc, clauses.approx, line,
-                           frames=self.frames), None
+                           frames=self.frames, triggers=self._take_triggers()), None
 
     def motion_done(self) -> bool:
         """Every move handed over has ended (and no stop is under way)."""

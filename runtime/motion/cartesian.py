@@ -35,7 +35,7 @@ from compiler.values import Joint
 
 from ..timing import SETPOINT_PERIOD, TICK
 from .kinematics import Kinematics, KinematicsError
-from .stops import DERIVATIVE_STEP, PathStop
+from .stops import DERIVATIVE_STEP, MIN_DERIVATIVE_STEP, PathStop
 from .trajectory import Result, Trajectory
 from .pathcheck import CheckedPath, PathError, _percent, check_path, joint_limits
 from .paths import CircPath, LinPath, CartesianMove, _positive
@@ -113,6 +113,18 @@ class JointStream(Trajectory):
         """How long the path parameter accelerates."""
         return self.checked.move.profile.t_acc
 
+    def tool_path_length(self) -> float:
+        """The length (mm) of the tool's path."""
+        return self.checked.move.path.position_length
+
+    def path_distance(self, t: float, stop: PathStop | None = None) -> float:
+        """How far (mm) along the tool's path the move is at its time ``t`` (or, with
+        ``stop``, where that stop of it ends)."""
+        move = self.checked.move
+        length = move.path.length
+        s = stop.s_end if stop is not None else move.profile.sample(t)[0]
+        return s * move.path.position_length / length if length > 0.0 else 0.0
+
     def path_time(self, distance: float, at_end: bool) -> float:
         """The time (s) for the first (``at_end`` False) or last ``distance`` mm of tool
         path (the whole move when it is shorter)."""
@@ -142,6 +154,8 @@ class JointStream(Trajectory):
         """Velocities and accelerations of the six main axes at ``t`` (q: the joints at
         ``t``): central differences over +-DERIVATIVE_STEP; may raise KinematicsError."""
         e = min(DERIVATIVE_STEP, 0.5 * t, 0.5 * (self.duration - t))
+        if not e > MIN_DERIVATIVE_STEP:  # a rounding error from an end, where the path is at rest
+            return self._zeros[:6], self._zeros[:6]
         joints_at = self.checked.joints_at
         before, after = joints_at(t - e, q), joints_at(t + e, q)
         k1, k2 = 0.5 / e, 1.0 / (e * e)

@@ -56,6 +56,8 @@ import threading
 from collections import deque
 from typing import Callable
 
+from compiler.triggers import PLACES, UNITS
+
 from .moves import MovePlanner, MoveRecord, MoveRequest, Segment
 from .trajectory import Trajectory
 
@@ -150,6 +152,7 @@ class MotionQueue:
         self.moves: list[MoveRecord] = []
         self.completed = 0  # moves that reached their end (telemetry reads it every 10 ms)
         self.abort_reason: str | None = None  # set by abort(): end once at rest
+        self._abort_fault = True  # the abort ends the program with a fault (else: quietly, an interrupt's halt)
         self.failed: tuple[str, int] | None = None
         self.ended: str | None = None
         self.clear()
@@ -165,6 +168,9 @@ class MotionQueue:
         self.interrupted: Segment | None = None  # a move stopped before its end (pause/abort)
         self._hold = False  # stopping (or stopped) by bringing the timeline's rate to 0
         self._paused = False  # by the operator (the program may have handed over all its moves)
+        self._interrupt = False  # stopped for an interrupt's handler (compiler.interrupts: stop)
+        self._armed: list = []  # triggers of moves on the timeline: [timeline time, action, trigger, segment]
+        self.due: list = []  # triggers reached: (real time the servo's reference is there, action), for the host
 
     def start(self, positions: tuple, period: float) -> None:
         """A new program starts with the robot at ``positions``, setpoints every ``period``."""
@@ -210,9 +216,10 @@ class MotionQueue:
         return self._paused
 
     def done(self) -> bool:
-        """Every move handed over has ended (and no stop is under way)."""
+        """Every move handed over has ended (and no stop is under way), and its triggers have
+        fired (the servo's reference is where they are)."""
         return (not self._segments and not self._requests and self._planning is None
-                and self._stop is None and self.interrupted is None)
+                and self._stop is None and self.interrupted is None and not self._armed and not self.due)
 
     def at_rest(self) -> bool:
         return self.current is None or (self._hold and self.rate == 0.0 and not self._rate_T)
@@ -220,7 +227,8 @@ class MotionQueue:
     def _holding(self) -> bool:
         """No new move may start: held by the host, paused, aborting, stopping, or a move
         to resume first."""
-        return (self.holds() or self._paused or self.abort_reason is not None or self._stop is not None
+        return (self.holds() or self._paused or self._interrupt or self.abort_reason is not None
+                or self._stop is not None
                 or self.interrupted is not None or self._hold)
 
     # ---- the speed override: a rate of trajectory time (real-time safe) ----
@@ -312,6 +320,10 @@ class MotionQueue:
             self._sample_stop()
         elif self._segments:
             self._sample_timeline(now)
+        elif self._armed:  # at rest with triggers 'after end' to come: the timeline goes on
+            before = self.t_move
+            self.t_move += self.period * self.rate
+            self._fire(before, self.t_move, now)
 
     def _sample_stop(self) -> None:
         stop = self._stop
@@ -321,6 +333,7 @@ class MotionQueue:
         if self.t_stop >= stop.duration - 1e-12:
             self._stop = None
             self.velocities = (0.0,) * self.n
+            self.accelerations = self.velocities  # at rest (not the stop's value a rounding error before its end)
             self._at_rest_after_stop()
 
     def _sample_timeline(self, now: float) -> None:
@@ -330,6 +343,7 @@ class MotionQueue:
             if self._holding():
                 return
             first.start = self.t_move  # starts now: its first sample one period on
+            self._arm(first)
             self._schedule()
         held = False
         if self._rate_T:
@@ -342,6 +356,7 @@ class MotionQueue:
         else:
             rate = self.rate
             step = self.period * rate
+        t_before = self.t_move
         tm = self.t_move = self.t_move + step
         if first.record is None:
             self._started(first, now)
@@ -359,6 +374,8 @@ class MotionQueue:
         else:
             self.accelerations = self._exact_accelerations((first,), tm, rate)
         self.positions = positions
+        if self._armed:
+            self._fire(t_before, tm, now)
         if step > 1e-9:  # the path's acceleration, for the next change of rate
             self._path_acceleration = tuple([(v - w) / step for v, w in zip(velocities, self._path_velocity)])
         self._path_velocity = velocities
@@ -407,6 +424,23 @@ class MotionQueue:
             segment.previous.record.blended = True
         self.moves.append(segment.record)
 
+    def _arm(self, segment: Segment) -> None:
+        """A move placed on the timeline: its triggers at their times there."""
+        if segment.triggers:
+            self._armed.extend([[segment.start + t, action, trigger, segment] for t, action, trigger in segment.triggers])
+            self._armed.sort(key=lambda x: x[0])
+
+    def _fire(self, t_before: float, t_now: float, now: float) -> None:
+        """The armed triggers the timeline reached from ``t_before`` to ``t_now`` (this
+        tick's setpoint): each is due when the servo's reference passes it, between this
+        tick and the next (it runs a period behind, interpolating these two setpoints)."""
+        armed = self._armed
+        span = t_now - t_before
+        while armed and armed[0][0] <= t_now + 1e-12:
+            at, action, _trigger, _segment = armed.pop(0)
+            fraction = min(max((at - t_before) / span, 0.0), 1.0) if span > 0.0 else 1.0
+            self.due.append((now + fraction * self.period, action))
+
     def _schedule(self) -> None:
         """Put the next segment on the timeline if it is blended into the running one
         and its start is still ahead (else it starts after the running one has stopped)."""
@@ -419,6 +453,7 @@ class MotionQueue:
         start = first.start + second.offset
         if first.blendable and second.previous is first and start >= self.t_move - _SAME_TIME and not self._holding():
             second.start = start
+            self._arm(second)
         else:
             second.offset = None  # too late (or interrupted): the corner is a stop
 
@@ -434,21 +469,41 @@ class MotionQueue:
     def resume(self) -> None:
         """Continue after :meth:`pause` (or the host's hold): the rest of an interrupted
         move is re-planned from where the robot stopped (at once, or when its stop ends);
-        a blend stopped on the timeline speeds up again on it."""
+        a blend stopped on the timeline speeds up again on it. Not while an interrupt's
+        stop holds it (:meth:`interrupt_stop`)."""
         self._paused = False
+        self._release()
+
+    def interrupt_stop(self) -> float | None:
+        """An interrupt fired with ``stop``: the motion stops on its path as for
+        :meth:`pause`, held until :meth:`interrupt_release` (and the operator's resume, if
+        the operator paused too). Returns the time within which the robot is at rest."""
+        self._interrupt = True
+        return self._stop_on_path()
+
+    def interrupt_release(self) -> None:
+        """The interrupt's handler ended (``then resume``): go on as :meth:`resume` does."""
+        self._interrupt = False
+        self._release()
+
+    def _release(self) -> None:
+        if self._paused or self._interrupt:
+            return
         if self._hold:
             self._hold = False
             self._change_rate(self._override)
         elif self.interrupted is not None and self._stop is None:
             self._resume_move()
 
-    def abort(self, reason: str) -> float | None:
+    def abort(self, reason: str, fault: bool = True) -> float | None:
         """A controlled stop as for :meth:`pause`, then ``ended`` is ``reason at line N``
-        (at once when the robot is at rest). Returns the time within which it will be at
-        rest (None: already, or an abort is already under way)."""
+        (at once when the robot is at rest); without ``fault`` (an interrupt's ``then
+        halt``) the moves are dropped and nothing ends with a fault. Returns the time
+        within which it will be at rest (None: already, or an abort is already under way)."""
         if self.abort_reason is not None:
             return None
         self.abort_reason = reason
+        self._abort_fault = fault
         within = self._stop_on_path()
         if self.at_rest():
             self._at_rest_after_stop()
@@ -469,6 +524,7 @@ class MotionQueue:
             self._change_rate(0.0)
             return self._rate_T
         stop = first.trajectory.stop(self.t_move - first.start, self.positions, self.velocities, self.rate)
+        self._disarm(first, self.t_move - first.start, stop)
         segs.popleft()
         first.blendable = False
         if second is not None:
@@ -477,6 +533,21 @@ class MotionQueue:
         self.interrupted = first
         self._stop, self.t_stop = stop, 0.0
         return stop.duration
+
+    def _disarm(self, segment: Segment, t: float, stop: Trajectory) -> None:
+        """A move stops on its path from its time ``t`` (``stop``): its triggers not reached
+        go with the rest of the move (counted from its end as before; from its start, the
+        distance left after the stop, or the time left when it began; at once where the
+        robot has passed them)."""
+        left = []
+        for entry in [e for e in self._armed if e[3] is segment]:
+            self._armed.remove(entry)
+            place, unit, amount, action = entry[2]
+            if PLACES[place].words == "after start":
+                done = segment.trajectory.path_distance(t, stop) if UNITS[unit].name == "mm" else t * 1000.0
+                amount = max(amount - (done if done is not None else amount), 0.0)
+            left.append((place, unit, amount, action))
+        segment.request.carried = tuple(left)
 
     def _held(self) -> None:
         """The timeline's rate reached 0 (a stop inside a blend): at rest."""
@@ -490,8 +561,9 @@ class MotionQueue:
             self.clear()
             self.rate = self._override
             self._rate_T = 0.0
-            self.ended = self.ended or f"{self.abort_reason} at line {self.program_line() if line is None else line}"
-        elif not (self._paused or self.holds()):
+            if self._abort_fault:
+                self.ended = self.ended or f"{self.abort_reason} at line {self.program_line() if line is None else line}"
+        elif not (self._paused or self._interrupt or self.holds()):
             self._resume_move()
 
     def _resume_move(self) -> None:
@@ -502,7 +574,7 @@ class MotionQueue:
         request = move.request
         kind, targets = move.stop.rest(move.end)
         rest = MoveRequest(kind, tuple(targets), request.speed, request.acc, 0.0, request.line, rest_of=move,
-                           frames=request.frames)
+                           frames=request.frames, triggers=request.carried)
         if kind == "ptp":
             self._take_plan(rest, *self.planner.plan(rest, self.positions, None, self.period))
             return

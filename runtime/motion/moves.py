@@ -25,6 +25,7 @@ from dataclasses import dataclass
 from typing import NamedTuple
 
 from compiler.frames import IDENTITY
+from compiler.triggers import PLACES, UNITS
 from compiler.values import Joint, Pose
 
 from .blend import Limits, blend_offset
@@ -88,13 +89,15 @@ class MoveRequest:
     it stopped); ``frames``: its base and tool (:class:`Frames`; None: the
     specification's tool; its pose targets are in the world frame either way)."""
 
-    __slots__ = ("kind", "targets", "speed", "acc", "approx", "line", "rest_of", "frames")
+    __slots__ = ("kind", "targets", "speed", "acc", "approx", "line", "rest_of", "frames", "triggers", "carried")
 
     def __init__(self, kind: str, targets: tuple, speed: float, acc: float, approx: float, line: int,
-                 rest_of: "Segment | None" = None, frames: Frames | None = None):
+                 rest_of: "Segment | None" = None, frames: Frames | None = None, triggers: tuple = ()):
         self.kind, self.targets, self.speed, self.acc, self.approx, self.line = kind, targets, speed, acc, approx, line
         self.rest_of = rest_of
         self.frames = frames
+        self.triggers = triggers  # (place, unit, amount, action) each: compiler.triggers
+        self.carried: tuple = ()  # the triggers not reached when it was stopped on its path: the rest's
 
     def __repr__(self) -> str:
         return (f"MoveRequest({self.kind!r}, {self.targets!r}, {self.speed!r}, {self.acc!r}, {self.approx!r}, "
@@ -108,7 +111,7 @@ class Segment:
     the timeline once scheduled."""
 
     __slots__ = ("request", "trajectory", "duration", "end", "limits", "offset", "start", "record",
-                 "blendable", "previous", "stop")
+                 "blendable", "previous", "stop", "triggers")
 
     def __init__(self, request: MoveRequest, trajectory: Trajectory, end, limits: Limits):
         self.request = request
@@ -122,10 +125,40 @@ class Segment:
         self.blendable = True  # cleared when the move is interrupted (its blend is off)
         self.previous: Segment | None = None  # the segment it was planned after (its blend partner)
         self.stop: Trajectory | None = None  # the controlled stop that interrupted it
+        self.triggers: list = []  # (time after its start, action, trigger) of its triggers, in time order
 
     @property
     def kind(self) -> str:
         return self.request.kind
+
+
+def place_triggers(segment: Segment) -> str | None:
+    """Each of the move's triggers (compiler.triggers) as a time of its own trajectory
+    (``segment.triggers``), or the problem (a distance beyond its path)."""
+    trajectory, duration = segment.trajectory, segment.duration
+    placed = []
+    for trigger in segment.request.triggers:
+        place, unit, amount, action = trigger
+        words, name = PLACES[place].words, UNITS[unit].name
+        if name == "mm":
+            length = trajectory.tool_path_length()
+            if length is None:  # (the checker allows mm for lin and circ only)
+                return f"a trigger in mm is for lin and circ moves, not {segment.kind}"
+            if amount > length + 1e-9:
+                return (f"trigger when {amount:g} mm {words}: the tool's path of this move is only {length:.6g} mm "
+                        "long")
+            at = trajectory.path_time(amount, words == "before end")
+            t = duration - at if words == "before end" else at
+        else:
+            seconds = amount / 1000.0
+            if words != "after end" and seconds > duration + 1e-9:
+                return f"trigger when {amount:g} ms {words}: the move takes only {duration * 1000.0:.0f} ms"
+            t = seconds if words == "after start" else duration - seconds if words == "before end" \
+                else duration + seconds
+        placed.append((min(max(t, 0.0), duration) if words != "after end" else t, action, trigger))
+    placed.sort(key=lambda x: x[0])
+    segment.triggers = placed
+    return None
 
 
 class MovePlanner:
@@ -163,6 +196,10 @@ class MovePlanner:
             segment, problem = self._plan_cartesian(request, start, period)
         if segment is None:
             return None, problem
+        if request.triggers:
+            problem = place_triggers(segment)
+            if problem is not None:
+                return None, problem
         if previous is not None and previous.request.approx > 0.0 and previous.blendable:
             overlap_before = (previous.previous.duration - previous.offset
                               if previous.offset is not None and previous.previous is not None else 0.0)

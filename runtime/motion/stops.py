@@ -26,6 +26,11 @@ from .trajectory import Trajectory
 #: The half-width (s) of the central differences that give the joint velocities and
 #: accelerations of a move along a path (lin, circ, and their stops) at a setpoint.
 DERIVATIVE_STEP = 1e-4
+#: The smallest half-width used: closer to a path's end than this (a sample time a rounding
+#: error before it), the differences would divide rounding noise by its square (1e-12 s
+#: gave accelerations of 1e16 deg/s^2, which the servo's interpolator turned into a jump
+#: the safety supervisor stopped): the path is at rest there, so 0.
+MIN_DERIVATIVE_STEP = 1e-7
 
 if TYPE_CHECKING:
     from .cartesian import JointStream
@@ -290,7 +295,7 @@ class PathStop(Trajectory):
         (less near the ends), central differences."""
         q = self._solve(self._s_at(t), near)
         e = min(DERIVATIVE_STEP, 0.5 * t, 0.5 * (self.duration - t))
-        if not e > 0.0:
+        if not e > MIN_DERIVATIVE_STEP:
             return q, self._zeros[:6], self._zeros[:6]
         before, after = self._solve(self._s_at(t - e), q), self._solve(self._s_at(t + e), q)
         k1, k2 = 0.5 / e, 1.0 / (e * e)

@@ -121,6 +121,15 @@ class Trajectory:
         exceeds it."""
         return 0.0
 
+    def tool_path_length(self) -> float | None:
+        """The length (mm) of the tool's path of a lin or circ move; None for others."""
+        return None
+
+    def path_distance(self, t: float, stop: "Trajectory | None" = None) -> float | None:
+        """How far (mm) along the tool's path a lin or circ move is at its time ``t`` (or,
+        with ``stop``, where that stop of it ends); None for others."""
+        return None
+
     def path_time(self, distance: float, at_end: bool) -> float | None:
         """A Cartesian move's time (s) for its first (``at_end`` False) or last
         ``distance`` mm of tool path; None for a move in joint space."""

@@ -342,3 +342,41 @@ def test_then_halt_stops_on_the_path_and_drops_the_moves_not_made(tmp_path):
     moves = {m["line"]: m for m in summary["moves"]}
     assert moves[line]["actual_duration"] is None and line + 1 not in moves  # stopped, and the rest dropped
     assert watch.acceleration_ratio <= 1.0 + 1e-6 and watch.velocity_ratio <= 1.0 + 1e-6
+
+
+SHORT = """var
+  n : integer;
+
+interrupt blip when in[5] stop;
+seq
+  n := n + 1;
+endseq
+endinterrupt;
+"""
+
+
+@pytest.mark.parametrize("kind, into", [("lin", 0.5), ("circ", 0.5), ("circ", 0.97), ("lin", 0.97)])
+def test_a_short_handler_still_stops_the_robot_and_a_stop_that_ends_at_the_target_completes_the_move(
+        tmp_path, kind, into):
+    """'stop' stops: the handler ends at once, the motion goes on only from rest. A stop that
+    cannot come sooner than the target ends there: the move is done (before: the rest of
+    zero length was planned, and refused: 'the via point coincides with the start point').
+    A trigger counted from the end whose place the stop passed fires as the move goes on."""
+    down = "rpy(180, 30, 180)"
+    target = (f"pose(pos(750, -300, 500), {down}), pose(pos(900, -150, 500), {down})" if kind == "circ"
+              else f"pose(pos(900, -150, 500), {down})")
+    body = (f"  move ptp pose(pos(600, -150, 500), {down});\n  enable blip;\n"
+            f"  trigger when 100 mm before end do out[3] := true;\n"
+            f"  move {kind} {target} speed := 400;\n  disable blip;\n")
+    line = line_of(program_text(body, SHORT), f"move {kind}")
+    dry, _w, _s, dry_system = run_with_curtain(tmp_path, body, SHORT, [])
+    assert dry["fault"] is None, dry["fault"]
+    move = next(m for m in dry_system.trajectory.moves if m.line == line)
+    t_break = round(move.t_start + into * move.planned_duration, 3)
+    summary, watch, setpoints, system = run_with_curtain(tmp_path, body, SHORT, [t_break, t_break + 0.02])
+    assert summary["fault"] is None, summary["fault"]
+    assert watch.velocity_ratio <= 1.0 + 1e-6 and watch.acceleration_ratio <= 1.0 + 1e-6
+    stopped = next(m for m in system.trajectory.moves if m.line == line)
+    assert any(max(map(abs, v)) == 0.0 for t, _q, v in setpoints if t_break < t <= stopped.t_end + 1e-9)
+    assert np.allclose(summary["final_position"][:6], dry["final_position"][:6], atol=5e-3)
+    assert system.io.outputs.value[2] is True  # the trigger fired, before or after the stop

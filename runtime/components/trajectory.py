@@ -219,7 +219,7 @@ class TrajectoryGenerator(Component):
         if failed is not None:
             vm.fail(*failed)
         self._take_motion_events()
-        if self.fault is None and vm is not None and vm.status is ERROR and motion.done():
+        if self.fault is None and vm is not None and vm.status is ERROR and motion.done(triggers=False):
             e = vm.error  # an error ends the program once the moves before it are done
             where = vm.program.file_at(e.offset)
             self.fault = f"program error at {f'{where} ' if where else ''}line {e.line}: {e.message}"

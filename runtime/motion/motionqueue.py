@@ -145,6 +145,7 @@ class MotionQueue:
         self._path_velocity: tuple = (0.0,) * self.n  # the timeline's velocity per trajectory second
         self._path_acceleration: tuple = (0.0,) * self.n  # ... and acceleration (estimated)
         self._accelerations = tuple(a.max_acceleration * RATE_CHANGE_MARGIN for a in self.axes)
+        self._now = 0.0  # the time of the last sample
         self.reset()
 
     def reset(self) -> None:
@@ -169,8 +170,10 @@ class MotionQueue:
         self._hold = False  # stopping (or stopped) by bringing the timeline's rate to 0
         self._paused = False  # by the operator (the program may have handed over all its moves)
         self._interrupt = False  # stopped for an interrupt's handler (compiler.interrupts: stop)
+        self._release_at_rest = False
         self._armed: list = []  # triggers of moves on the timeline: [timeline time, action, trigger, segment]
         self.due: list = []  # triggers reached: (real time the servo's reference is there, action), for the host
+        self._release_at_rest = False  # an interrupt's handler ended before its stop did: go on at rest
 
     def start(self, positions: tuple, period: float) -> None:
         """A new program starts with the robot at ``positions``, setpoints every ``period``."""
@@ -215,11 +218,12 @@ class MotionQueue:
         """Paused by the operator (:meth:`pause`)."""
         return self._paused
 
-    def done(self) -> bool:
-        """Every move handed over has ended (and no stop is under way), and its triggers have
-        fired (the servo's reference is where they are)."""
+    def done(self, triggers: bool = True) -> bool:
+        """Every move handed over has ended (and no stop is under way), and (``triggers``)
+        its triggers have fired (the servo's reference is where they are)."""
         return (not self._segments and not self._requests and self._planning is None
-                and self._stop is None and self.interrupted is None and not self._armed and not self.due)
+                and self._stop is None and self.interrupted is None
+                and (not triggers or (not self._armed and not self.due)))
 
     def at_rest(self) -> bool:
         return self.current is None or (self._hold and self.rate == 0.0 and not self._rate_T)
@@ -314,6 +318,7 @@ class MotionQueue:
     def sample(self, now: float) -> None:
         """Real-time: take a finished plan, then advance the motion by one period:
         ``positions`` and ``velocities`` are the setpoint for ``now``."""
+        self._now = now
         if self._planning is not None and self._planning.done:
             self._planned()
         if self._stop is not None:
@@ -482,7 +487,11 @@ class MotionQueue:
         return self._stop_on_path()
 
     def interrupt_release(self) -> None:
-        """The interrupt's handler ended (``then resume``): go on as :meth:`resume` does."""
+        """The interrupt's handler ended (``then resume``): go on as :meth:`resume` does,
+        once the robot is at rest (the stop is never cut short: ``stop`` stops)."""
+        if self._stop is not None or (self._hold and (self.rate > 0.0 or self._rate_T)):
+            self._release_at_rest = True
+            return
         self._interrupt = False
         self._release()
 
@@ -554,6 +563,9 @@ class MotionQueue:
         self.velocities = (0.0,) * self.n
         if self.abort_reason is not None:
             self._at_rest_after_stop()
+        elif self._release_at_rest:
+            self._release_at_rest = self._interrupt = False
+            self._release()
 
     def _at_rest_after_stop(self) -> None:
         if self.abort_reason is not None:
@@ -563,7 +575,10 @@ class MotionQueue:
             self._rate_T = 0.0
             if self._abort_fault:
                 self.ended = self.ended or f"{self.abort_reason} at line {self.program_line() if line is None else line}"
-        elif not (self._paused or self._interrupt or self.holds()):
+            return
+        if self._release_at_rest:
+            self._release_at_rest = self._interrupt = False
+        if not (self._paused or self._interrupt or self.holds()):
             self._resume_move()
 
     def _resume_move(self) -> None:
@@ -572,7 +587,17 @@ class MotionQueue:
         worker, else first in the planning queue)."""
         move = self.interrupted
         request = move.request
-        kind, targets = move.stop.rest(move.end)
+        left = move.stop.rest(move.end)
+        if left is None:  # the stop ended at the move's target: the move is done
+            self.interrupted = None
+            if move.record is not None:
+                move.record.t_end = self._now
+            self.completed += 1
+            if self._last is move:
+                self._last = None
+            self.due.extend([(self._now, action) for _place, _unit, _amount, action in request.carried])
+            return
+        kind, targets = left
         rest = MoveRequest(kind, tuple(targets), request.speed, request.acc, 0.0, request.line, rest_of=move,
                            frames=request.frames, triggers=request.carried)
         if kind == "ptp":

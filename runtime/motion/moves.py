@@ -136,6 +136,7 @@ def place_triggers(segment: Segment) -> str | None:
     """Each of the move's triggers (compiler.triggers) as a time of its own trajectory
     (``segment.triggers``), or the problem (a distance beyond its path)."""
     trajectory, duration = segment.trajectory, segment.duration
+    rest = segment.request.rest_of is not None  # carried over a stop: a place passed fires as the rest starts
     placed = []
     for trigger in segment.request.triggers:
         place, unit, amount, action = trigger
@@ -144,15 +145,16 @@ def place_triggers(segment: Segment) -> str | None:
             length = trajectory.tool_path_length()
             if length is None:  # (the checker allows mm for lin and circ only)
                 return f"a trigger in mm is for lin and circ moves, not {segment.kind}"
-            if amount > length + 1e-9:
-                return (f"trigger when {amount:g} mm {words}: the tool's path of this move is only {length:.6g} mm "
+            if amount > length + 1e-9 and not rest:
+                return (f"trigger when {amount:.10g} mm {words}: the tool's path of this move is only {length:.10g} mm "
                         "long")
+            amount = min(amount, length)
             at = trajectory.path_time(amount, words == "before end")
             t = duration - at if words == "before end" else at
         else:
             seconds = amount / 1000.0
-            if words != "after end" and seconds > duration + 1e-9:
-                return f"trigger when {amount:g} ms {words}: the move takes only {duration * 1000.0:.0f} ms"
+            if words != "after end" and seconds > duration + 1e-9 and not rest:
+                return f"trigger when {amount:.10g} ms {words}: the move takes only {duration * 1000.0:.10g} ms"
             t = seconds if words == "after start" else duration - seconds if words == "before end" \
                 else duration + seconds
         placed.append((min(max(t, 0.0), duration) if words != "after end" else t, action, trigger))

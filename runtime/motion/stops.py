@@ -312,11 +312,14 @@ class PathStop(Trajectory):
             self.fault = self.fault or f"the stop left the arm's reach ({exc})"
             return near
 
-    def rest(self, end: tuple = ()) -> tuple[str, tuple]:
+    def rest(self, end: tuple = ()) -> tuple[str, tuple] | None:
         """What is left of the path after the stop: ``("lin", (end,))`` or
         ``("circ", (via, end))`` -- the arguments of :func:`plan_lin` / :func:`plan_circ`
-        from the stop on (the via point halfway along the rest of the arc)."""
+        from the stop on (the via point halfway along the rest of the arc); None when the
+        stop ends at the path's end (no sooner stop kept the limits: nothing is left)."""
         path = self.path
+        if self.s_end >= path.length - 1e-9 * max(path.length, 1.0):
+            return None
         end = path.pose_at(path.length)
         if path.kind == "circ":
             return "circ", (path.pose_at(0.5 * (self.s_end + path.length)), end)

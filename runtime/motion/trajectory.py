@@ -142,10 +142,10 @@ class Trajectory:
         Cartesian line or arc), within the move's acceleration limits."""
         raise NotImplementedError
 
-    def rest(self, end: tuple) -> tuple[str, tuple]:
+    def rest(self, end: tuple) -> tuple[str, tuple] | None:
         """For a stop: what is left of the interrupted move whose end is ``end`` (all
         axes), as ``(kind, targets)`` to plan from where the stop ends: by default a
-        ``"ptp"`` move to ``end``."""
+        ``"ptp"`` move to ``end``; None when nothing is left."""
         return "ptp", (tuple(end),)
 
 

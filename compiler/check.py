@@ -199,6 +199,7 @@ class Checker:
         self._stmt = {cls: getattr(self, "s_" + cls.__name__) for cls in _STMT_CLASSES}
         # the active base and tool where known: keyword -> (name, pose), or None (not known here)
         self.active: dict[str, tuple | None] = {}
+        self._reach: dict[int, float] = {}  # the arm's reach with a tool (by the tool's value object)
         self._changes: dict[int, tuple] = {}  # (memo of _uses)
         self.proc_changes: frozenset = frozenset()  # what some procedure may make active
         self.interrupts: list[ProcScope] = []  # in the order of the object code's interrupt table
@@ -860,9 +861,11 @@ class Checker:
         base, tool = self.active["base"], self.active["tool"]
         if base is None or tool is None:
             return
-        p = compose(base[1], value).position
+        p = (value if base[0] == "world" else compose(base[1], value)).position  # (world: the identity)
         distance = self.spec.shoulder_distance(p.x, p.y, p.z)
-        reach = self.spec.arm_reach(values_of(tool[1]))
+        reach = self._reach.get(id(tool[1]))
+        if reach is None:
+            reach = self._reach[id(tool[1])] = self.spec.arm_reach(values_of(tool[1]))
         if reach > 0 and distance > reach:
             frames = [f"{kind} '{name}'" for kind, (name, _v), default in
                       (("base", base, "world"), ("tool", tool, "default_tool")) if name != default]

@@ -18,8 +18,10 @@ from .frames import BY_TYPE as FRAME_BY_TYPE
 from .frames import FRAME_KINDS, describe_name, pose_of, values_of
 from .frames import problem as frame_problem
 from .interrupts import ACTIONS, CONDITION_TEXT, DEFAULT_PRIORITY, DEFAULT_THEN, PRIORITY, THEN
+from .triggers import PLACE_INDEX as TRIGGER_PLACE_INDEX
 from .triggers import PLACES as TRIGGER_PLACES
 from .triggers import SET_TYPES as TRIGGER_SET_TYPES
+from .triggers import UNIT_INDEX as TRIGGER_UNIT_INDEX
 from .triggers import UNITS as TRIGGER_UNITS
 from .triggers import problem as trigger_problem
 from .clauses import BY_NAME as CLAUSE_BY_NAME
@@ -1020,15 +1022,15 @@ class Checker:
             self.error(node.span, "a trigger belongs to the next move: the statement after it must be a move (or "
                                   "another trigger)", "put the trigger right before its move")
             return
-        unit = next((u for u in TRIGGER_UNITS if u.name == node.unit), None)
+        k = TRIGGER_UNIT_INDEX.get(node.unit)
+        unit = TRIGGER_UNITS[k] if k is not None else None
         if unit is not None and move.kind not in unit.motions:
             self.error(node.words_span, f"a trigger in {unit.name} is for {' and '.join(unit.motions)} moves: the "
                                         f"move at line {move.span.line} is a {move.kind} move",
                        "give a ptp move's trigger in ms")
 
     def s_Trigger(self, node: ast.Trigger):
-        place = next((i for i, p in enumerate(TRIGGER_PLACES) if p.words == node.where), None)
-        unit = next((i for i, u in enumerate(TRIGGER_UNITS) if u.name == node.unit), None)
+        place, unit = TRIGGER_PLACE_INDEX.get(node.where), TRIGGER_UNIT_INDEX.get(node.unit)
         if unit is None:
             guess = did_you_mean(node.unit, [u.name for u in TRIGGER_UNITS], cutoff=0.3)
             self.error(node.words_span, f"unknown trigger unit '{node.unit}': expected "

@@ -13,8 +13,7 @@ from .check import (BOOL, FRAME, INTEGER, JOINT, ORIENTATION, POSE, POSITION, RE
                     CheckedProgram, Symbol, type_name)
 from .frames import BY_KEYWORD as FRAME_BY_KEYWORD
 from .frames import describe_name
-from .triggers import PLACES as TRIGGER_PLACES
-from .triggers import UNITS as TRIGGER_UNITS
+from .triggers import PLACE_INDEX, UNIT_INDEX
 from .clauses import CLAUSES as CLAUSE_TABLE
 from .objcode import BUILTIN_NAMES, FIELDS, OP, InterruptInfo, ProcInfo, Program
 from .values import Joint, Pose, Position, Rpy
@@ -344,8 +343,7 @@ class CodeGen:
         self.emit(OP.RET_VALUE)
 
     def s_Trigger(self, node: ast.Trigger) -> None:
-        place = next(i for i, p in enumerate(TRIGGER_PLACES) if p.words == node.where)
-        unit = next(i for i, u in enumerate(TRIGGER_UNITS) if u.name == node.unit)
+        place, unit = PLACE_INDEX[node.where], UNIT_INDEX[node.unit]
         self.value(node.amount, REAL)
         if node.action[0] == "out":
             self.value(node.action[1])

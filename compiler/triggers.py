@@ -13,7 +13,8 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-__all__ = ["PLACES", "UNITS", "Place", "Unit", "markdown", "problem", "MAX_PENDING", "SET_TYPES"]
+__all__ = ["PLACES", "PLACE_INDEX", "UNITS", "UNIT_INDEX", "Place", "Unit", "markdown", "problem", "MAX_PENDING",
+           "SET_TYPES"]
 
 
 @dataclass(frozen=True)
@@ -58,6 +59,10 @@ PLACES: tuple[Place, ...] = (
     Place("after end", ("ms",), "that long after the move reached its target (on the next move's path, or at "
                                 "rest)"),
 )
+
+#: Index in the object code of a place (by its words) and of a unit (by its name).
+PLACE_INDEX: dict[str, int] = {p.words: i for i, p in enumerate(PLACES)}
+UNIT_INDEX: dict[str, int] = {u.name: i for i, u in enumerate(UNITS)}
 
 #: The types a trigger may store into (a global variable; the value is evaluated when the
 #: trigger statement runs).

@@ -205,17 +205,22 @@ def _print_summary(env: Environment, s: dict) -> None:
             actual = f"{m['actual_duration']:8.3f} s" if m["actual_duration"] is not None else "     (unfinished)"
             blended = "  blended into the next" if m.get("blended") else ""
             _print(env, f"  {i:4d}  {m['line']:4d}  {m['planned_duration']:7.3f} s {actual}{blended}")
-    for entry in s["log"]:
-        _print(env, log_line(entry["time"], entry["line"], entry["text"]))
     _print(env, "")
     if s.get("stop"):
         _print(env, f"  stopped: category {s['stop']['category']} (docs/safety.md)")
     _print(env, "  final position: " + ", ".join(f"{x:.3f}" for x in s["final_position"]))
     _print(env, f"  largest following error: {s['max_following_error']:.4f}")
-    _print(env, f"  deadline misses: {s['deadline_misses']}; ticks {s['ticks']}")
+    servo = s["deadlines"].get("servo", {}).get("misses", 0)
+    _print(env, f"  deadline misses: {s['deadline_misses']} of {s['ticks']} ticks late (the servo's: {servo})")
     ratio = s["sim_time"] / s["wall_time"] if s["wall_time"] > 0 else float("inf")
     _print(env, f"  simulated {s['sim_time']:.3f} s in {s['wall_time']:.3f} s wall ({ratio:.1f}x; "
                 f"kernels: {s['kernels']})")
+
+
+def _flush(env: Environment) -> None:
+    flush = getattr(env.stdout, "flush", None)
+    if flush is not None:
+        flush()
 
 
 def _on_pause(args, env: Environment):
@@ -269,8 +274,10 @@ def cmd_run(args, env: Environment) -> int:
         wanted = realtime.scheduling(args)
     except ValueError as exc:
         raise UsageError(str(exc)) from None
-    if wanted.requested and not args.realtime:
-        raise UsageError("--rt-priority, --lock-memory and --cpu are for the wall clock: add --realtime")
+    given = realtime.given(args)
+    if given and not args.realtime:
+        raise UsageError(f"{' and '.join(given)} {'is' if len(given) == 1 else 'are'} for the wall clock: "
+                         "add --realtime")
     cell = None
     if args.cell_scenario:
         from runtime.sim.cell import ScenarioError, load_scenario
@@ -295,19 +302,29 @@ def cmd_run(args, env: Environment) -> int:
     options = RunOptions(seed=args.seed, realtime=args.realtime, report=args.report, state_dir=args.state_dir,
                          max_time=args.max_time, faults=faults, override=args.override,
                          deadline_policy=args.deadline_policy, cell=cell, fieldbus=fieldbus)
-    if args.realtime:
-        _err(env, f"irl run: {realtime.apply(wanted)}")
     on_pause = _on_pause(args, env)
-    try:
-        system = RobotSystem(spec, options)
-        if columns is not None:
-            add, names = columns
-            system.report.columns = [*system.report.columns, *(n for n in names if n not in system.report.columns)] \
-                if add else names
-        summary = system.run(program, on_pause)
-    except ValueError as exc:  # refused at load time (e.g. a move kind not supported yet)
-        _err(env, f"{args.file}: {exc}")
-        return EXIT_INVALID
+
+    def on_log(at: float, line: int, text: str) -> None:  # the program's print output, as it comes
+        _print(env, log_line(at, line, text))
+        _flush(env)
+
+    # the loop's thread is this one: on the wall clock it asks for real-time scheduling (by
+    # default SCHED_FIFO, memory locked; says what it got) and gives it back when the run ends
+    from contextlib import nullcontext
+
+    with realtime.Applied(wanted) if args.realtime else nullcontext() as got:
+        if got is not None:
+            _err(env, f"irl run: {got.text}")
+        try:
+            system = RobotSystem(spec, options)
+            if columns is not None:
+                add, names = columns
+                system.report.columns = [*system.report.columns,
+                                         *(n for n in names if n not in system.report.columns)] if add else names
+            summary = system.run(program, on_pause, None if args.json else on_log)
+        except ValueError as exc:  # refused at load time (e.g. a move kind not supported yet)
+            _err(env, f"{args.file}: {exc}")
+            return EXIT_INVALID
     plot_status = _plot(args.report, args.plot, env) if args.plot else EXIT_OK  # files first, then words
     if args.json:
         import json
@@ -392,8 +409,9 @@ def cmd_latency(args, env: Environment) -> int:
         except SpecError as exc:
             raise UsageError(str(exc)) from None
         limit, window = spec.controller.servo_miss_limit, spec.controller.servo_miss_window
-    got = realtime.apply(wanted)
-    result = realtime.measure(args.period / 1000.0, args.duration)
+    with realtime.Applied(wanted) as applied:  # (given back afterwards: a test runs it in-process)
+        got = applied.text
+        result = realtime.measure(args.period / 1000.0, args.duration)
     policy, why = realtime.verdict(result, limit, window)
     ms = 1000.0
     figures = {"period_ms": args.period, "duration_s": args.duration, "scheduling": got,

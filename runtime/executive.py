@@ -171,6 +171,10 @@ class Executive:
         self.tasks: list[Task] = []
         self.fault: str | None = None
         self.wakeups = TaskStats(_WAKE_BIN, _WAKE_BINS)  # how late each tick started (wall clock)
+        # the ticks in which at least one task missed its deadline (a late tick makes every
+        # task due in it miss: summing the tasks' misses counts one late tick many times)
+        self.missed_ticks = 0
+        self._last_missed_tick = -1
         self._last_tick_late = 0.0  # how late the last tick started (wall clock)
         self._hyper = 1  # ticks in the schedule table (0: no table)
         self._due: list[tuple[Task, ...]] = [()]  # tasks due on each tick of the table
@@ -336,6 +340,9 @@ class Executive:
     def _missed(self, task: Task, k: int) -> None:
         stats = task.stats
         stats.misses += 1
+        if k != self._last_missed_tick:
+            self._last_missed_tick = k
+            self.missed_ticks += 1
         policy = task.policy
         if policy.kind == "hard":
             self.fault = self.fault or (f"deadline: {task.name} missed its {task.period * self.tick * 1000:g} ms "
@@ -354,6 +361,8 @@ class Executive:
         the misses and the execution-time and lateness statistics."""
         self.fault = None
         self.wakeups = TaskStats(_WAKE_BIN, _WAKE_BINS)
+        self.missed_ticks = 0
+        self._last_missed_tick = -1
         self._runnable_ticks = [0] * len(self._runnable_ticks)
         for task in self.tasks:
             task.stats = TaskStats()

@@ -60,14 +60,15 @@ def cmd_serve(args, env) -> int:
     from compiler.spec import SpecError, load_spec
     from runtime.server import InsecureEndpoint, ServeOptions, check_endpoints, serve
 
-    from runtime.realtime import scheduling
+    from runtime.realtime import given, scheduling
 
     try:
-        wanted = scheduling(args)
+        wanted = scheduling(args)  # (by default SCHED_FIFO, memory locked, where the host permits it)
     except ValueError as exc:
         raise cli.UsageError(str(exc)) from None
-    if wanted.requested and args.sim_clock:
-        raise cli.UsageError("--rt-priority, --lock-memory and --cpu are for the wall clock: drop --sim-clock")
+    if given(args) and args.sim_clock:
+        raise cli.UsageError(f"{' and '.join(given(args))} {'is' if len(given(args)) == 1 else 'are'} for the wall "
+                             "clock: drop --sim-clock")
     options = ServeOptions(endpoint=args.endpoint, telemetry=args.telemetry, state_dir=args.state_dir,
                            sim_clock=args.sim_clock, seed=args.seed, keys=args.keys,
                            allow_insecure_remote=args.insecure_allow_remote_without_encryption,

@@ -6,8 +6,11 @@ measured, not assumed:
 
 * :func:`apply` asks for real-time scheduling for the calling thread (the loop's):
   ``SCHED_FIFO`` at a priority, memory locked (``mlockall``: no page fault in a tick), a
-  CPU of its own; it never fails, it says what it got ("SCHED_FIFO 80, memory locked,
-  CPU 1", or "normal scheduling: no permission for SCHED_FIFO; grant it with ...").
+  CPU of its own; it never fails, it says what it got in one line ("SCHED_FIFO 50, memory
+  locked, CPU 1", or "normal scheduling: no permission for SCHED_FIFO 50, memory not
+  locked (...); grant it with ..."). By default (no flag) the wall clock's loop asks for
+  SCHED_FIFO :data:`DEFAULT_PRIORITY` with memory locked, as ros2_control's controller
+  manager does; ``--rt-priority 0`` asks for normal scheduling.
 * :func:`measure` wakes up every ``period`` for ``duration`` the way the loop does
   (:class:`runtime.executive.WallClock`: sleep, then spin to the deadline) and records
   how late each wake-up was; :func:`verdict` says which deadline policy a 1 ms servo
@@ -18,6 +21,7 @@ serve`` and ``irl latency``.
 """
 from __future__ import annotations
 
+import argparse
 import ctypes
 import ctypes.util
 import math
@@ -29,8 +33,8 @@ from functools import cached_property
 from .executive import WallClock
 from .timing import TICK
 
-__all__ = ["FLAGS", "GRANT", "Latency", "Scheduling", "add_arguments", "apply", "measure", "rank_helpers",
-           "scheduling", "verdict"]
+__all__ = ["DEFAULT", "DEFAULT_PRIORITY", "FLAGS", "GRANT", "Applied", "Latency", "Scheduling", "add_arguments",
+           "apply", "given", "measure", "rank_helpers", "scheduling", "verdict"]
 
 #: How a user grants real-time scheduling and memory locking to the runtime.
 GRANT = ("grant it with 'sudo setcap cap_sys_nice,cap_ipc_lock+ep \"$(readlink -f .venv/bin/python)\"', or an "
@@ -39,14 +43,28 @@ GRANT = ("grant it with 'sudo setcap cap_sys_nice,cap_ipc_lock+ep \"$(readlink -
 #: SCHED_FIFO priorities Linux accepts.
 PRIORITIES = (1, 99)
 
-#: The scheduling flags: (flag, dest, argparse keywords).
+#: The loop's SCHED_FIFO priority unless a command is told otherwise: real-time scheduling
+#: (with memory locked) is asked for by default wherever the host permits it, as
+#: ros2_control's controller manager does (its update thread: SCHED_FIFO 50, memory
+#: locked); where it is refused the loop runs at normal scheduling and says why.
+DEFAULT_PRIORITY = 50
+
+#: ``--rt-priority 0``: normal scheduling (no SCHED_FIFO, memory not locked unless asked).
+NORMAL = 0
+
+#: The scheduling flags: (flag, dest, argparse keywords). A default of None means "not
+#: given": :func:`scheduling` resolves it (:data:`DEFAULT_PRIORITY`, memory locked with
+#: SCHED_FIFO).
 FLAGS = (
     ("--rt-priority", "rt_priority",
      dict(type=int, metavar="N", default=None,
-          help=f"run the loop at SCHED_FIFO priority N ({PRIORITIES[0]}-{PRIORITIES[1]}) when permitted "
-               "(default: normal scheduling)")),
+          help=f"the loop's SCHED_FIFO priority, {PRIORITIES[0]}-{PRIORITIES[1]}, or {NORMAL}: normal scheduling "
+               f"(default: SCHED_FIFO {DEFAULT_PRIORITY} where the host permits it, else normal scheduling; the "
+               "command says which it got)")),
     ("--lock-memory", "lock_memory",
-     dict(action="store_true", help="lock the process's memory (no page faults in a tick) when permitted")),
+     dict(action=argparse.BooleanOptionalAction, default=None,
+          help="lock the process's memory (no page faults in a tick) where permitted (default: locked with "
+               "SCHED_FIFO, not with --rt-priority 0)")),
     ("--cpu", "cpu", dict(type=int, metavar="N", default=None, help="run the loop on CPU N only")),
 )
 
@@ -63,7 +81,7 @@ class Scheduling:
     def __post_init__(self):
         if self.priority is not None and not PRIORITIES[0] <= self.priority <= PRIORITIES[1]:
             raise ValueError(f"--rt-priority {self.priority}: expected {PRIORITIES[0]} to {PRIORITIES[1]} "
-                             "(SCHED_FIFO priorities)")
+                             f"(SCHED_FIFO priorities), or {NORMAL} for normal scheduling")
         if self.cpu is not None and not 0 <= self.cpu < (os.cpu_count() or 1):
             raise ValueError(f"--cpu {self.cpu}: expected 0 to {(os.cpu_count() or 1) - 1} (this host's CPUs)")
 
@@ -72,15 +90,30 @@ class Scheduling:
         return self.priority is not None or self.lock_memory or self.cpu is not None
 
 
+#: What the wall clock's loop asks for when no flag says otherwise.
+DEFAULT = Scheduling(DEFAULT_PRIORITY, True, None)
+
+
 def add_arguments(parser) -> None:
     """The scheduling flags (:data:`FLAGS`) on a command's parser."""
     for flag, dest, keywords in FLAGS:
         parser.add_argument(flag, dest=dest, **keywords)
 
 
+def given(args) -> list[str]:
+    """The scheduling flags given on a command line (the others keep their defaults)."""
+    return [flag for flag, dest, _keywords in FLAGS if getattr(args, dest, None) is not None]
+
+
 def scheduling(args) -> Scheduling:
-    """The :class:`Scheduling` a command's parsed flags ask for (ValueError: out of range)."""
-    return Scheduling(*(getattr(args, dest) for _flag, dest, _keywords in FLAGS))
+    """The :class:`Scheduling` a command's parsed flags ask for, the defaults filled in:
+    SCHED_FIFO :data:`DEFAULT_PRIORITY` unless ``--rt-priority`` says otherwise (0:
+    normal scheduling), memory locked with SCHED_FIFO unless ``--lock-memory`` /
+    ``--no-lock-memory`` says otherwise (ValueError: out of range)."""
+    priority = DEFAULT_PRIORITY if args.rt_priority is None else args.rt_priority
+    priority = None if priority == NORMAL else priority
+    lock = args.lock_memory if args.lock_memory is not None else priority is not None
+    return Scheduling(priority, lock, args.cpu)
 
 
 _MCL_CURRENT, _MCL_FUTURE = 1, 2
@@ -97,31 +130,82 @@ def _mlockall() -> str | None:
         return str(exc)
 
 
-def apply(wanted: Scheduling) -> str:
-    """Ask for ``wanted`` for the calling thread (the loop's: call it there, after any
-    thread that must stay at normal priority has started); returns what it got, in words.
-    Never raises."""
-    parts = []
+def _munlockall() -> None:
+    try:
+        ctypes.CDLL(ctypes.util.find_library("c") or "libc.so.6", use_errno=True).munlockall()
+    except (OSError, AttributeError):
+        pass
+
+
+def _apply(wanted: Scheduling) -> tuple[str, bool]:
+    """:func:`apply`, and whether the memory was locked."""
+    parts, refused, locked = [], False, False
     if wanted.priority is not None:
         try:
             os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(wanted.priority))
             parts.append(f"SCHED_FIFO {wanted.priority}")
         except PermissionError:
-            parts.append(f"normal scheduling: no permission for SCHED_FIFO; {GRANT}")
+            parts.append(f"normal scheduling: no permission for SCHED_FIFO {wanted.priority}")
+            refused = True
         except (OSError, AttributeError) as exc:
-            parts.append(f"normal scheduling: SCHED_FIFO refused ({exc})")
+            parts.append(f"normal scheduling: SCHED_FIFO {wanted.priority} refused ({exc})")
+            refused = True
     else:
         parts.append("normal scheduling")
     if wanted.lock_memory:
         why = _mlockall()
-        parts.append("memory locked" if why is None else f"memory not locked ({why}; {GRANT})")
+        locked = why is None
+        parts.append("memory locked" if locked else f"memory not locked ({why})")
+        refused = refused or not locked
     if wanted.cpu is not None:
         try:
             os.sched_setaffinity(0, {wanted.cpu})
             parts.append(f"CPU {wanted.cpu}")
         except (OSError, AttributeError) as exc:
             parts.append(f"any CPU (CPU {wanted.cpu} refused: {exc})")
-    return ", ".join(parts)
+    return ", ".join(parts) + (f"; {GRANT}" if refused else ""), locked
+
+
+def apply(wanted: Scheduling) -> str:
+    """Ask for ``wanted`` for the calling thread (the loop's: call it there, after any
+    thread that must stay at normal priority has started); returns what it got, in one
+    line ("SCHED_FIFO 50, memory locked"; where refused, the fallback and how to grant it:
+    "normal scheduling: no permission for SCHED_FIFO 50, memory not locked (...); grant it
+    with ..."). Never raises."""
+    return _apply(wanted)[0]
+
+
+class Applied:
+    """``with Applied(wanted) as got:`` :func:`apply` for the calling thread (``got.text``
+    says what it got), and the thread's scheduling, CPUs and the process's memory as they
+    were afterwards: for a command run in a process that goes on (``irl run``, ``irl
+    latency`` called in-process). Never raises."""
+
+    def __init__(self, wanted: Scheduling):
+        self.wanted = wanted
+        self.text = ""
+        self._before: tuple | None = None
+        self._locked = False
+
+    def __enter__(self) -> "Applied":
+        try:
+            self._before = (os.sched_getscheduler(0), os.sched_getparam(0), os.sched_getaffinity(0))
+        except (OSError, AttributeError):
+            self._before = None
+        self.text, self._locked = _apply(self.wanted)
+        return self
+
+    def __exit__(self, *_exc) -> None:
+        if self._before is not None:
+            policy, param, cpus = self._before
+            try:
+                os.sched_setscheduler(0, policy, param)
+                if self.wanted.cpu is not None:
+                    os.sched_setaffinity(0, cpus)
+            except OSError:
+                pass
+        if self._locked:
+            _munlockall()
 
 
 def rank_helpers() -> int:

@@ -321,10 +321,10 @@ def _child(spec, options: RunOptions, scheduling, channel, servers_end) -> None:
         os._exit(1)
     loop_ref.append(loop)
     got = None
-    if options.realtime:
-        from .realtime import Scheduling, apply
+    if options.realtime:  # by default (none given) the real-time scheduling irl serve asks for
+        from .realtime import DEFAULT, apply
 
-        got = apply(scheduling or Scheduling())
+        got = apply(scheduling if scheduling is not None else DEFAULT)
     sys.setswitchinterval(0.0005)  # a helper thread (a planner, the report writer) hands the GIL back quickly
     channel.send(loop.ready(got))
     try:

@@ -64,7 +64,8 @@ class ServeOptions:
     allow_insecure_remote: bool = False
     #: The servo's deadline policy ("hard", "firm", "soft"); None: the specification's.
     deadline_policy: str | None = None
-    #: Real-time scheduling for the loop (wall clock only): runtime.realtime.Scheduling.
+    #: Real-time scheduling for the loop process (wall clock only): a runtime.realtime.Scheduling;
+    #: None: runtime.realtime.DEFAULT (SCHED_FIFO, memory locked, where the host permits it).
     scheduling: object = None
     #: The loop in a process of its own (False: in this one, driven by ``Server.turn``: tests).
     loop_process: bool = True

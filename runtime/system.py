@@ -225,12 +225,18 @@ class RobotSystem:
             summary["fault"] = summary["fault"] or error
         return summary
 
-    def run(self, program: Program, on_pause=None) -> dict:
+    def run(self, program: Program, on_pause=None, on_log=None) -> dict:
         """Power-up to Stop Robot with ``program``; returns the summary (see ``summary``).
         ``on_pause(line) -> "resume" | "abort"`` decides what each ``pause;`` of the
         program leads to (None: the program waits for a resume that nothing here sends,
         until ``max_time``). On the simulated clock time stands still while it decides; on
-        the wall clock the loop runs on (the robot held) and it decides on a thread."""
+        the wall clock the loop runs on (the robot held) and it decides on a thread.
+        ``on_log(time, line, text)`` is handed each line of the program's ``print``
+        output as it comes, never by the loop (see :class:`LogFeed`); every line comes
+        before the ``on_pause`` of a pause that follows it, and before this returns."""
+        feed = LogFeed(self.trajectory, on_log) if on_log is not None else None
+        if feed is not None and not self.clock.simulated:
+            feed.start()  # (before begin: ranked with the loop's other helper threads)
         self.begin(program, self.options.report)
         max_ticks = int(self.options.max_time / TICK)
         sup = self.supervisor
@@ -246,17 +252,21 @@ class RobotSystem:
         switch_interval = sys.getswitchinterval()
         if self.options.realtime:
             sys.setswitchinterval(0.0005)
+        held = self._held_by_program if on_pause is not None else (lambda: False)
+        # On the simulated clock the run stops between two ticks to hand over print output
+        # (time stands still meanwhile); on the wall clock the feed's thread does.
+        fresh = feed.pending if feed is not None and self.clock.simulated else (lambda: False)
+        before_pause = feed.drain if feed is not None else None
         try:
-            if on_pause is None:
-                self.executive.run(lambda: sup.done, max_ticks)
-            else:
-                held = self._held_by_program
-                left = max_ticks
-                while True:
-                    left -= self.executive.run(lambda: sup.done or held(), left)
-                    if sup.done or left <= 0:
-                        break
-                    left -= self._decide(on_pause, left)
+            left = max_ticks
+            while True:
+                left -= self.executive.run(lambda: sup.done or held() or fresh(), left)
+                if fresh():
+                    feed.drain()
+                if sup.done or left <= 0:
+                    break
+                if held():
+                    left -= self._decide(on_pause, left, before_pause)
             if not sup.done:  # the time limit: stop through Stop Robot like any other fault
                 sup.request_stop(f"the run did not end within {self.options.max_time:g} s")
                 self.executive.run(lambda: sup.done, int(5.0 / TICK))
@@ -268,23 +278,35 @@ class RobotSystem:
             if gc_was_enabled:
                 gc.enable()
             gc.unfreeze()
-        return self.finish()
+            if feed is not None:
+                feed.stop()
+        summary = self.finish()
+        if feed is not None:
+            feed.close()  # the lines not handed over yet (a print just before the end)
+        return summary
 
     def _held_by_program(self) -> bool:
         vm = self.trajectory.vm
         return vm is not None and vm.paused and not self.trajectory.motion.paused
 
-    def _decide(self, on_pause, left: int) -> int:
-        """Not real-time: the program paused itself: ask ``on_pause``, then resume or
-        abort; returns the ticks run meanwhile (wall clock: the loop goes on)."""
+    def _decide(self, on_pause, left: int, before=None) -> int:
+        """Not real-time: the program paused itself: ask ``on_pause`` (after ``before()``:
+        the print output so far), then resume or abort; returns the ticks run meanwhile
+        (wall clock: the loop goes on)."""
         line = self.trajectory.line
+
+        def decide() -> str:
+            if before is not None:
+                before()
+            return on_pause(line)
+
         if self.clock.simulated:
-            choice, ticks = on_pause(line), 0
+            choice, ticks = decide(), 0
         else:
             import threading
 
             box: list = []
-            threading.Thread(target=lambda: box.append(on_pause(line)), name="irl-pause", daemon=True).start()
+            threading.Thread(target=lambda: box.append(decide()), name="irl-pause", daemon=True).start()
             ticks = self.executive.run(lambda: self.supervisor.done or bool(box), left)
             choice = box[0] if box else "abort"
         if self.supervisor.done:
@@ -320,7 +342,74 @@ class RobotSystem:
             "wall_time": wall_time,
             "kernels": accel.DESCRIPTION,
             "ticks": self.executive.ticks - self._ticks0,
-            "deadline_misses": sum(s["misses"] for s in stats.values()),
+            # the ticks late for some task (at most ``ticks``; each task's own in ``deadlines``)
+            "deadline_misses": self.executive.missed_ticks,
             "deadlines": stats,
             "wakeups": self.executive.wakeup_statistics(),
         }
+
+
+class LogFeed:
+    """A program's ``print`` output handed to ``on_log(time, line, text)`` as it comes
+    (``irl run`` shows it so), never by the loop: the lines are read from the Trajectory
+    Generator's log, which only the loop appends to. On the wall clock a thread of its own
+    looks every :data:`POLL` s (:meth:`start`); on the simulated clock the run calls
+    :meth:`drain` between ticks. Whoever hands lines over holds the feed's lock, so each
+    line is handed over once, in order."""
+
+    #: s between two looks of the wall clock's thread.
+    POLL = 0.02
+
+    def __init__(self, trajectory: TrajectoryGenerator, on_log):
+        import threading
+
+        self.trajectory = trajectory
+        self.on_log = on_log
+        self.seen = 0
+        self.error: BaseException | None = None  # what on_log raised on the thread (a closed pipe)
+        self._lock = threading.Lock()
+        self._stop = threading.Event()
+        self._thread: threading.Thread | None = None
+
+    def pending(self) -> bool:
+        """Real-time safe: whether a line has come since the last hand-over."""
+        return len(self.trajectory.log_lines) > self.seen
+
+    def drain(self) -> None:
+        """Not real-time: hand over every line not handed over yet."""
+        with self._lock:
+            if self.error is not None:
+                return
+            lines = self.trajectory.log_lines  # (load() makes a new list: read it each time)
+            while self.seen < len(lines):
+                at, line, text = lines[self.seen]
+                self.seen += 1
+                self.on_log(at, line, text)
+
+    def start(self) -> None:
+        import threading
+
+        self._thread = threading.Thread(target=self._poll, name="irl-print", daemon=True)
+        self._thread.start()
+
+    def _poll(self) -> None:
+        while not self._stop.wait(self.POLL):
+            try:
+                self.drain()
+            except Exception as exc:  # noqa: BLE001 (re-raised by close, off the thread)
+                self.error = exc
+                return
+
+    def stop(self) -> None:
+        """The thread ends (the lines it has not handed over wait for :meth:`close`)."""
+        self._stop.set()
+        if self._thread is not None:
+            self._thread.join()
+            self._thread = None
+
+    def close(self) -> None:
+        """After the run: the rest of the lines; what ``on_log`` raised on the thread."""
+        self.stop()
+        if self.error is not None:
+            raise self.error
+        self.drain()

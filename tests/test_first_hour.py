@@ -177,3 +177,62 @@ def test_on_a_terminal_a_pause_waits_for_enter_and_abort_aborts(tmp_path):
         code = main(["run", str(path)], Environment(stdout=out, stderr=err, stdin=Terminal(answer)))
         assert code == code_wanted, (answer, out.getvalue(), err.getvalue())
         assert "paused by the program. Enter resumes" in err.getvalue()
+
+
+PRINTING = """program printing;
+system_specification "{spec}";
+seq
+  print "before the pause";
+  pause;
+  print "after the pause";
+endseq
+endprogram;
+"""
+
+
+def _printing(tmp_path) -> Path:
+    path = tmp_path / "printing.irl"
+    path.write_text(PRINTING.format(spec=ROOT / "programs" / "lola15.spc"), encoding="utf-8")
+    return path
+
+
+def test_irl_run_shows_print_output_as_it_happens_before_the_pause_that_follows_it(tmp_path):
+    """Simulated clock: each print line is shown when the program prints it, once: before
+    the pause after it asks, and before the summary (before: all of them in the summary
+    at the end, after the pause's prompt)."""
+    both = io.StringIO()  # stdout and stderr in one stream: the order a terminal shows
+    code = main(["run", str(_printing(tmp_path)), "--on-pause", "resume"], Environment(stdout=both, stderr=both))
+    text = both.getvalue()
+    assert code == 0, text
+    before, paused = text.find("line 4: before the pause"), text.find("irl run: line 5: paused by the program")
+    after, summary = text.find("line 6: after the pause"), text.find("program printing on lola_15: completed")
+    assert -1 < before < paused < after < summary, text
+    assert text.count("before the pause") == 1 and text.count("after the pause") == 1, text
+
+
+def test_on_the_wall_clock_print_output_is_handed_over_as_it_comes_and_never_by_the_loop(tmp_path):
+    """RobotSystem.run on the wall clock (calibrated and homed already, so that the cycle
+    is short): the lines come before the pause's question and are handed over by a thread
+    other than the loop's while the cycle runs."""
+    import threading
+
+    from compiler.driver import compile_file
+    from runtime.supervisor import RobotMemory
+    from runtime.system import RobotSystem, RunOptions
+
+    result = compile_file(str(_printing(tmp_path)), None)
+    n = len(result.spec.axes)
+    memory = RobotMemory(calibrated=True, compensation=[0.0] * n, initialized=True, encoder_offsets=[0.0] * n)
+    system = RobotSystem(result.spec, RunOptions(realtime=True, deadline_policy="soft"), memory=memory)
+    events = []
+    loop = threading.current_thread()
+
+    def on_log(at, line, text):
+        events.append(("log", line, text, threading.current_thread() is loop))
+
+    summary = system.run(result.program, lambda line: events.append(("pause", line)) or "resume", on_log)
+    assert summary["fault"] is None, summary["fault"]
+    assert [e[:3] for e in events] == [("log", 4, "before the pause"),
+                                       ("log", 5, "paused by the program: resume to continue"),
+                                       ("pause", 5), ("log", 6, "after the pause")], events
+    assert not any(e[3] for e in events[:2]), events  # (the last may come after the cycle, from the caller)

@@ -83,15 +83,129 @@ def test_scheduling_says_what_it_got_and_never_raises():
     try:
         got = realtime.apply(realtime.Scheduling(priority=10, cpu=0))
         if os.sched_getscheduler(0) == os.SCHED_FIFO:
-            assert got.startswith("SCHED_FIFO 10") and os.sched_getparam(0).sched_priority == 10
+            assert got == "SCHED_FIFO 10, CPU 0" and os.sched_getparam(0).sched_priority == 10
         else:
-            assert got.startswith("normal scheduling: no permission for SCHED_FIFO; grant it with ")
-        assert got.endswith("CPU 0") and os.sched_getaffinity(0) == {0}
+            assert got == f"normal scheduling: no permission for SCHED_FIFO 10, CPU 0; {realtime.GRANT}"
+        assert os.sched_getaffinity(0) == {0}
     finally:
         os.sched_setscheduler(0, before[0], os.sched_param(before[1]))
         os.sched_setaffinity(0, before[2])
     with pytest.raises(ValueError, match="expected 1 to 99"):
         realtime.Scheduling(priority=0)
+
+
+def test_real_time_scheduling_is_asked_for_by_default_and_the_flags_choose_a_priority_or_turn_it_off():
+    """As ros2_control's controller manager: SCHED_FIFO 50 with memory locked unless told
+    otherwise; --rt-priority 0 is normal scheduling (memory not locked unless asked)."""
+    from runtime.cli import build_parser
+
+    parser = build_parser()
+    for command in (["run", "x.irl", "--realtime"], ["serve", "--spec", "x.spc"], ["latency"]):
+        def wanted(*flags):
+            return realtime.scheduling(parser.parse_args([*command, *flags]))
+
+        assert wanted() == realtime.DEFAULT == realtime.Scheduling(50, True, None)
+        assert wanted("--rt-priority", "80") == realtime.Scheduling(80, True, None)
+        assert wanted("--rt-priority", "0") == realtime.Scheduling(None, False, None)
+        assert wanted("--rt-priority", "0", "--lock-memory") == realtime.Scheduling(None, True, None)
+        assert wanted("--no-lock-memory", "--cpu", "0") == realtime.Scheduling(50, False, 0)
+    code, _, err = run("run", ROOT / "programs" / "test.irl", "--rt-priority", "0")
+    assert code == 2 and "--rt-priority is for the wall clock: add --realtime" in err
+
+
+def _refuse_real_time(monkeypatch) -> None:
+    """The host as an unprivileged user finds it: no SCHED_FIFO, no memory locking."""
+    def refuse(*_args):
+        raise PermissionError(1, "Operation not permitted")
+
+    monkeypatch.setattr(os, "sched_setscheduler", refuse)
+    monkeypatch.setattr(realtime, "_mlockall", lambda: "Operation not permitted")
+
+
+def test_where_real_time_scheduling_is_refused_the_loop_falls_back_and_says_so_in_one_line(monkeypatch):
+    _refuse_real_time(monkeypatch)
+    got = realtime.apply(realtime.DEFAULT)
+    assert got == ("normal scheduling: no permission for SCHED_FIFO 50, memory not locked (Operation not "
+                   f"permitted); {realtime.GRANT}")
+    assert "\n" not in got
+    code, out, err = run("run", ROOT / "programs" / "test.irl", "--realtime", "--max-time", "0.05",
+                         "--deadline-policy", "soft")
+    assert err.splitlines()[0] == f"irl run: {got}", err  # the run goes on at normal scheduling
+    assert code == 1 and "the run did not end within 0.05 s" in out, out
+
+
+def test_irl_run_on_the_wall_clock_asks_for_real_time_scheduling_and_gives_it_back():
+    """irl run --realtime (no flag) asks for SCHED_FIFO 50 and locked memory for its loop,
+    the calling thread, says what it got, and restores the thread's scheduling when the
+    run ends (main() runs in a process that goes on: a test's, an embedding program's)."""
+    before = os.sched_getscheduler(0), os.sched_getparam(0).sched_priority
+    cpus = os.sched_getaffinity(0)
+    code, out, err = run("run", ROOT / "programs" / "test.irl", "--realtime", "--max-time", "0.05",
+                         "--deadline-policy", "soft")
+    first = err.splitlines()[0]
+    assert first in ("irl run: SCHED_FIFO 50, memory locked",) or \
+        first.startswith("irl run: normal scheduling: no permission for SCHED_FIFO 50"), err
+    assert code == 1 and "the run did not end within 0.05 s" in out, out
+    assert (os.sched_getscheduler(0), os.sched_getparam(0).sched_priority) == before
+    with realtime.Applied(realtime.Scheduling(10, False, 0)) as got:
+        inside = os.sched_getscheduler(0), os.sched_getaffinity(0)
+    if got.text.startswith("SCHED_FIFO"):
+        assert inside == (os.SCHED_FIFO, {0})
+    assert (os.sched_getscheduler(0), os.sched_getparam(0).sched_priority) == before
+    assert os.sched_getaffinity(0) == cpus
+
+
+# ---- deadline misses ------------------------------------------------------------------------------
+
+class _LateClock(SimClock):
+    """Simulated time, read as a wall clock would be on a host that starts tick k late by
+    ``late[k % len(late)]`` s: the executive times and judges every tick."""
+
+    simulated = False
+
+    def __init__(self, tick: float, late: list[float]):
+        super().__init__(tick)
+        self.late = late
+
+    def now(self) -> float:
+        return self.ticks * self.tick + self.late[self.ticks % len(self.late)]
+
+
+from hypothesis import given, settings  # noqa: E402
+from hypothesis import strategies as st  # noqa: E402
+
+
+@settings(max_examples=15, deadline=None)
+@given(st.lists(st.sampled_from([0.0, 0.0002, 0.0011, 0.003, 0.012]), min_size=1, max_size=40))
+def test_the_summary_counts_each_late_tick_once_never_more_misses_than_ticks(late):
+    """A late tick makes every task due in it miss; the summary's deadline misses are the
+    ticks late for some task (before: the tasks' misses summed, up to 9 per tick, so a
+    --realtime summary said more misses than ticks)."""
+    from unittest import mock
+
+    with mock.patch("runtime.system.SimClock", lambda tick: _LateClock(tick, late)):
+        system = RobotSystem(SPEC, RunOptions(max_time=0.06, deadline_policy="soft"))
+    assert system.clock.late is late
+    ran: list[int] = []
+    step = system.executive.step
+
+    def counting_step():
+        ran.append(system.executive.ticks)
+        step()
+
+    system.executive.step = counting_step
+    summary = system.run(load_program())
+    servo_misses = summary["deadlines"]["servo"]["misses"]
+    assert summary["ticks"] == len(ran)
+    missed = sum(1 for k in ran if late[k % len(late)] > TICK)  # a 1 ms task runs in every tick
+    assert summary["deadline_misses"] == missed <= summary["ticks"], (summary["deadline_misses"], missed)
+    assert servo_misses <= summary["deadline_misses"]
+
+
+def load_program():
+    from compiler.driver import compile_file
+
+    return compile_file(str(ROOT / "programs" / "test.irl"), None).program
 
 
 # ---- latency ----------------------------------------------------------------------------------
@@ -126,7 +240,7 @@ def test_measure_wakes_up_every_period_and_records_how_late():
 
 
 def test_irl_latency_prints_the_figures_and_the_policy_and_as_json():
-    code, out, _ = run("latency", "--duration", "0.2", "--spec", SPEC_FILE)
+    code, out, _ = run("latency", "--duration", "0.2", "--spec", SPEC_FILE, "--rt-priority", "0")
     assert code == 0 and "200 wake-ups every 1 ms for 0.2 s (normal scheduling)" in out
     assert "late by: max" in out and "p99.9" in out and "this host can hold: " in out
     code, out, _ = run("latency", "--duration", "0.1", "--period", "2", "--json")

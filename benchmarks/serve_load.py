@@ -14,13 +14,13 @@ what the host gave the loop) and the servo's deadline misses (its work finished 
   (32 in flight) and a subscriber process reading the telemetry.
 
 Goal (issue 15): the loop's misses and p99 lateness within 1.2x of the bare loop's under
-each load; with SCHED_FIFO granted (``--rt-priority 80 --lock-memory``), the ``cpu`` load
-at most a tenth of its misses at normal priority. The bare loop's "misses" are wake-ups
+each load; with SCHED_FIFO granted (the default: SCHED_FIFO 50, memory locked), the ``cpu`` load
+at most a tenth of its misses at normal priority (``--rt-priority 0``). The bare loop's "misses" are wake-ups
 later than 0.9 ms (irl latency's rule: too late for a tick's work).
 One run of the program swings by 2-3x on a shared host (a stall of the host hits either
 loop): each load is measured ``--rounds`` times, misses summed, p99 ratios' median.
 Run: .venv/bin/python benchmarks/serve_load.py [--rounds N] [--seconds S] [--loads idle,cpu,flood]
-     [--rt-priority N] [--lock-memory] [--cpu N]
+     [--rt-priority N|0] [--[no-]lock-memory] [--cpu N]
 """
 from __future__ import annotations
 
@@ -55,11 +55,12 @@ def free_port() -> int:
 
 
 def flags(args) -> list[str]:
+    """The scheduling flags given (none: both commands' default, SCHED_FIFO 50 with memory locked)."""
     out = []
     if args.rt_priority is not None:
         out += ["--rt-priority", str(args.rt_priority)]
-    if args.lock_memory:
-        out.append("--lock-memory")
+    if args.lock_memory is not None:
+        out.append("--lock-memory" if args.lock_memory else "--no-lock-memory")
     if args.cpu is not None:
         out += ["--cpu", str(args.cpu)]
     return out

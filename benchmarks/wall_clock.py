@@ -10,12 +10,13 @@ host (10+ ms seen on a shared machine) makes 10+ late ticks in whichever loop it
 so a single round's ratio swings either way: the rounds are repeated (a fresh system each)
 and the median ratio is the figure.
 Loads (issue 15): ``--load N`` starts N CPU-bound processes beside both loops for the
-whole measurement; ``--rt-priority N`` / ``--lock-memory`` / ``--cpu N`` put both loops'
-thread under the same real-time scheduling (``runtime/realtime.py``; the line printed says
-what the host granted). Compare, for example, ``--load 2`` with and without
-``--rt-priority 50``.
+whole measurement; both loops' thread runs under the same scheduling, by default the
+runtime's (SCHED_FIFO 50, memory locked, where permitted), chosen with ``--rt-priority N``
+(0: normal scheduling) / ``--[no-]lock-memory`` / ``--cpu N`` (``runtime/realtime.py``; the
+line printed says what the host granted). Compare, for example, ``--load 2`` with and
+without ``--rt-priority 0``.
 Run: .venv/bin/python benchmarks/wall_clock.py [--seconds S] [--blocks N] [--rounds N] [--load N]
-     [--rt-priority N] [--lock-memory] [--cpu N]
+     [--rt-priority N|0] [--[no-]lock-memory] [--cpu N]
 """
 from __future__ import annotations
 

@@ -253,13 +253,13 @@ def test_irl_latency_prints_the_figures_and_the_policy_and_as_json():
 
 
 def test_irl_serve_on_the_wall_clock_says_what_scheduling_its_loop_got(tmp_path):
-    """End to end: `irl serve --rt-priority 10 --deadline-policy soft` answers on loopback
-    and its log says what the loop's thread got (SCHED_FIFO where permitted, else why not
-    and how to grant it)."""
+    """End to end: `irl serve --deadline-policy soft` answers on loopback and its log says
+    in one line what the loop's thread got by default (SCHED_FIFO 50 with memory locked
+    where permitted, else the fallback, why and how to grant it)."""
     from test_server import ServerProcess
 
     server = ServerProcess(tmp_path / "server", tmp_path / "state", sim_clock=False,
-                           extra=("--rt-priority", "10", "--deadline-policy", "soft"))
+                           extra=("--deadline-policy", "soft"))
     try:
         server.start()
         assert server.client().request("hello")
@@ -269,7 +269,9 @@ def test_irl_serve_on_the_wall_clock_says_what_scheduling_its_loop_got(tmp_path)
         while "loop: " not in server.log() and time.monotonic() < deadline:
             time.sleep(0.05)
         log = server.log()
-        assert "loop: SCHED_FIFO 10" in log or "loop: normal scheduling: no permission for SCHED_FIFO" in log, log
+        assert "loop: SCHED_FIFO 50, memory locked (process" in log \
+            or "loop: normal scheduling: no permission for SCHED_FIFO 50" in log, log
+        assert server.client().request("hello")["loop_scheduling"] in log
     finally:
         assert server.stop() == 0, server.log()
 
@@ -390,7 +392,7 @@ def test_a_server_killed_mid_move_leaves_its_loop_to_stop_the_robot_and_end(tmp_
 
 def test_the_paper_program_completes_on_the_wall_clock_while_a_client_floods_status_requests(tmp_path):
     """Issue 15's end-to-end check: `irl serve` on the wall clock, the firm deadline
-    policy of the specification, the loop at SCHED_FIFO: the paper's program completes
+    policy of the specification, the loop at SCHED_FIFO (by default): the paper's program completes
     while another client sends status requests as fast as it can and a subscriber reads
     the telemetry."""
     import sys
@@ -398,8 +400,7 @@ def test_the_paper_program_completes_on_the_wall_clock_while_a_client_floods_sta
 
     from test_server import ServerProcess, wait_end
 
-    server = ServerProcess(tmp_path / "server", tmp_path / "state", sim_clock=False,
-                           extra=("--rt-priority", "50", "--lock-memory")).start()
+    server = ServerProcess(tmp_path / "server", tmp_path / "state", sim_clock=False).start()  # (the default)
     deadline = time.monotonic() + 10.0
     while "loop: " not in server.log() and time.monotonic() < deadline:
         time.sleep(0.05)

@@ -299,6 +299,7 @@ def cmd_run(args, env: Environment) -> int:
         except FieldbusError as exc:
             raise UsageError(f"--fieldbus: {exc}") from None
     columns = _report_columns(args.report_columns, spec) if args.report_columns is not None else None
+    settings = _run_settings(args)
     options = RunOptions(seed=args.seed, realtime=args.realtime, report=args.report, state_dir=args.state_dir,
                          max_time=args.max_time, faults=faults, override=args.override,
                          deadline_policy=args.deadline_policy, cell=cell, fieldbus=fieldbus)
@@ -317,6 +318,8 @@ def cmd_run(args, env: Environment) -> int:
             _err(env, f"irl run: {got.text}")
         try:
             system = RobotSystem(spec, options)
+            if settings:
+                _apply_settings(system, settings, args)
             if columns is not None:
                 add, names = columns
                 system.report.columns = [*system.report.columns,
@@ -335,6 +338,45 @@ def cmd_run(args, env: Environment) -> int:
     if plot_status:
         return plot_status
     return EXIT_INVALID if summary["fault"] else EXIT_OK
+
+
+def _run_settings(args) -> dict:
+    """The component settings ``--config`` (the file's default configuration) and
+    ``--report-period`` ask for, each checked as a configuration's are (compiler.params)."""
+    settings: dict = {}
+    if args.config:
+        from runtime.config import ConfigError, load_configurations
+
+        try:
+            configurations = load_configurations(args.config)
+        except ConfigError as exc:
+            raise UsageError(str(exc)) from None
+        settings = {component: dict(values)
+                    for component, values in configurations.default_configuration.settings.items()}
+    if args.report_period is not None:
+        from compiler.params import ParamError, component_params
+
+        seconds = args.report_period / 1000.0
+        try:
+            seconds = component_params("report")["period"].check(seconds)
+        except ParamError as exc:
+            raise UsageError(f"--report-period {args.report_period:g} (ms): report.period would be {seconds:g} s: "
+                             f"{exc.reason}") from None
+        settings.setdefault("report", {})["period"] = seconds
+    return settings
+
+
+def _apply_settings(system, settings: dict, args) -> None:
+    """Lay ``settings`` over the system's own and apply them (before the run starts)."""
+    from runtime.config import ConfigError, merge_settings, validate_settings
+
+    where = " and ".join(x for x in (f"{args.config}: configuration" if args.config else "",
+                                      "--report-period" if args.report_period is not None else "") if x)
+    try:
+        merged = validate_settings(merge_settings(system.settings(), settings), where)
+    except ConfigError as exc:
+        raise UsageError(str(exc)) from None
+    system.apply_settings(merged)
 
 
 def _report_columns(text: str, spec) -> tuple[bool, list[str]]:
@@ -488,6 +530,12 @@ def build_parser() -> argparse.ArgumentParser:
                    help="the report's column groups, comma-separated, in order (default: sens_pos,desi_pos,out_vel,"
                         "following_error,tcp, and io with a cell or fieldbus); +LIST adds to them: +move records "
                         "each move's number and line, which irl plot marks")
+    p.add_argument("--report-period", type=float, metavar="MS",
+                   help="time between two report rows, ms: report.period's range, a whole number of 1 ms ticks "
+                        "(default: the configuration's, 10; 1 records every tick, e.g. to check triggers)")
+    p.add_argument("--config", metavar="FILE.toml",
+                   help="component configurations (as irl serve --config): the run uses the file's default "
+                        "configuration (see docs/runtime.md); --report-period and --report-columns apply over it")
     p.add_argument("--realtime", action="store_true", help="run on the wall clock (default: simulated clock)")
     p.add_argument("--cell-scenario", metavar="FILE.toml",
                    help="what the simulated cell does with the digital I/O: inputs that follow outputs, latch or "

@@ -67,6 +67,7 @@ __all__ = [
     "Configurations",
     "Setting",
     "load_configurations",
+    "merge_settings",
     "parse_configurations",
     "schema_markdown",
     "validate_settings",
@@ -215,6 +216,14 @@ def _check_rules(settings: dict[str, dict[str, object]], where: str) -> None:
         raise ConfigError(f"{where}: trajectory.period: expected the same period as initialization.period "
                           f"({initialization:g} s; the servo interpolates both setpoint streams with one period), "
                           f"got {trajectory:g}")
+
+
+def merge_settings(base: dict, settings: dict) -> dict:
+    """``base`` (component -> key -> value) with ``settings`` laid over it."""
+    merged = {component: dict(values) for component, values in base.items()}
+    for component, values in settings.items():
+        merged.setdefault(component, {}).update(values)
+    return merged
 
 
 def validate_settings(settings: dict, where: str) -> dict:

@@ -39,6 +39,7 @@ import zmq
 from compiler.objcode import OP, ObjectCodeError, Program, load
 
 from . import protocol
+from .config import merge_settings
 from .components.report import tcp_of
 from .feeds import Feeds
 from .motion.moves import Frames
@@ -997,14 +998,6 @@ def envelope(frames: list[bytes]) -> tuple[list[bytes], bytes | None]:
     if frames[-2] == b"" and len(frames) - 1 <= protocol.MAX_ENVELOPE_FRAMES:
         return frames[:-1], frames[-1]
     return frames[:1] + ([b""] if frames[1] == b"" else []), None
-
-
-def merge_settings(base: dict, settings: dict) -> dict:
-    """``base`` (component -> key -> value) with ``settings`` laid over it."""
-    merged = {component: dict(values) for component, values in base.items()}
-    for component, values in settings.items():
-        merged.setdefault(component, {}).update(values)
-    return merged
 
 
 def default_state_dir() -> Path:

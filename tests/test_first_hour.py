@@ -236,3 +236,38 @@ def test_on_the_wall_clock_print_output_is_handed_over_as_it_comes_and_never_by_
                                        ("log", 5, "paused by the program: resume to continue"),
                                        ("pause", 5), ("log", 6, "after the pause")], events
     assert not any(e[3] for e in events[:2]), events  # (the last may come after the cycle, from the caller)
+
+
+def _report_times(path: Path) -> list[float]:
+    import csv
+
+    with open(path, newline="") as f:
+        return [float(row["time"]) for row in csv.DictReader(f)]
+
+
+def test_irl_run_reports_every_1_ms_with_report_period_or_a_configuration(tmp_path):
+    """A report every tick (to check triggers) without a server: --report-period MS, or
+    --config FILE.toml as irl serve takes it (its default configuration); the flag applies
+    over the file; values outside report.period's declared range are refused with it."""
+    program = ROOT / "programs" / "test.irl"
+    short = ("--max-time", "0.2")  # (calibration only: the rows' spacing is what is checked)
+    code, out, err = run("run", program, "--report-period", "1", "--report", tmp_path / "a.csv", *short)
+    times = _report_times(tmp_path / "a.csv")
+    steps = {round(b - a, 6) for a, b in zip(times, times[1:])}
+    assert steps == {0.001} and len(times) > 100, (steps, err)
+    config = tmp_path / "fine.toml"
+    config.write_text('default = "fine"\n[configurations.fine.report]\nperiod = 0.002\n'
+                      '[configurations.other.report]\nperiod = 0.5\n', encoding="utf-8")
+    run("run", program, "--config", config, "--report", tmp_path / "b.csv", *short)
+    times = _report_times(tmp_path / "b.csv")
+    assert {round(b - a, 6) for a, b in zip(times, times[1:])} == {0.002}
+    run("run", program, "--config", config, "--report-period", "5", "--report", tmp_path / "c.csv", *short)
+    times = _report_times(tmp_path / "c.csv")
+    assert {round(b - a, 6) for a, b in zip(times, times[1:])} == {0.005}
+    for bad, says in (("0.5", "expected a period of 0.001 to 1 s"), ("1.5", "a whole multiple of the 1 ms tick"),
+                      ("nan", "expected a period of 0.001 to 1 s"), ("2000", "expected a period of 0.001 to 1 s")):
+        code, out, err = run("run", program, "--report-period", bad)
+        assert code == 2 and f"irl: --report-period {bad} (ms): report.period would be" in err and says in err, err
+    config.write_text('[configurations.x.servo]\nkp = -1\n', encoding="utf-8")
+    code, _, err = run("run", program, "--config", config)
+    assert code == 2 and "servo.kp" in err and "expected" in err and "Traceback" not in err, err

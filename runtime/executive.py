@@ -40,8 +40,9 @@ MAX_HYPERPERIOD = 10_000
 
 #: What a deadline fault's message adds: how to find out what this host can hold, and what
 #: to do about it.
-DEADLINE_HINT = ("; measure what this host can hold with 'irl latency', ask for real-time scheduling "
-                 "(--rt-priority N), or count misses only (--deadline-policy soft)")
+DEADLINE_HINT = ("; measure what this host can hold with 'irl latency', let the loop have real-time "
+                 "scheduling (asked for by default: the line at start says whether the host granted it, and how "
+                 "to grant it), or count misses only (--deadline-policy soft)")
 
 #: Lateness histogram: 10 us bins up to 20 ms (the last bin holds everything later).
 _BIN = 10e-6

@@ -318,7 +318,8 @@ def verdict(latency: Latency, limit: int, window: int) -> tuple[str, str]:
         return "firm", (f"{_late(len(misses))}, at most {worst} within {window} ticks "
                         f"(firm allows {limit})")
     return "soft", (f"{_late(len(misses))}, {worst} within {window} ticks: firm (at most {limit}) "
-                    "would fault; use --deadline-policy soft, or real-time scheduling (--rt-priority)")
+                    "would fault; use --deadline-policy soft, or real-time scheduling (the default: --rt-priority N, where "
+                    "the host grants it)")
 
 
 def _late(n: int) -> str:

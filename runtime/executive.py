@@ -19,6 +19,7 @@ run on which tick is the same on both paths.
 from __future__ import annotations
 
 import math
+import os
 import time
 from array import array
 from dataclasses import dataclass, field
@@ -77,12 +78,33 @@ class SimClock:
             self.ticks = target
 
 
+#: How long before a deadline the wall clock stops sleeping and spins: at normal scheduling
+#: a sleep may wake up late by the kernel's timer slack and by other processes, so it stops
+#: early; a SCHED_FIFO/SCHED_RR thread wakes within tens of microseconds (no timer slack, it
+#: preempts normal threads), and a long spin would only take a core from the rest of the
+#: host (two spinning loops on a 2-core machine starve everything else).
+SPIN_NORMAL = 0.0008
+SPIN_REALTIME = 0.00025
+
+
+def _spin_for_this_thread() -> float:
+    try:
+        policy = os.sched_getscheduler(0)
+    except (OSError, AttributeError):
+        return SPIN_NORMAL
+    return SPIN_REALTIME if policy in (getattr(os, "SCHED_FIFO", -1), getattr(os, "SCHED_RR", -1)) else SPIN_NORMAL
+
+
 class WallClock:
-    """Wall time since construction: sleep until shortly before a deadline, then spin."""
+    """Wall time since construction: sleep until shortly before a deadline, then spin.
+
+    The spin's length is chosen at the first wait, in the thread that runs the loop (after it
+    has asked for its scheduling): :data:`SPIN_REALTIME` under SCHED_FIFO/SCHED_RR, else
+    :data:`SPIN_NORMAL`; ``spin=`` fixes it."""
 
     simulated = False
 
-    def __init__(self, spin: float = 0.0008):
+    def __init__(self, spin: float | None = None):
         self.spin = spin  # how long before the deadline sleeping stops and spinning starts
         self._t0 = time.perf_counter()
         self.tick_time = 0.0  # the time the current tick is scheduled for (the last wait_until)
@@ -95,6 +117,8 @@ class WallClock:
         interpreter lock away on every turn, so other threads are not shut out for the
         spin's whole length."""
         self.tick_time = t
+        if self.spin is None:
+            self.spin = _spin_for_this_thread()
         remaining = t - self.now()
         if remaining > self.spin:
             time.sleep(remaining - self.spin)

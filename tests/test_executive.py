@@ -521,3 +521,35 @@ def test_run_counts_survive_a_period_change_and_a_statistics_reset():
     ex.reset_statistics()
     ex.run(lambda: False, 10)
     assert ex.statistics()["t"]["runs"] == 5
+
+
+def test_the_wall_clock_spins_briefly_only_where_its_thread_runs_real_time():
+    """A SCHED_FIFO loop wakes on time without a long spin; a long one would take most of a
+    core from the host. At normal scheduling the spin stays long (late wake-ups)."""
+    import os
+    import threading
+
+    from runtime.executive import SPIN_NORMAL, SPIN_REALTIME
+
+    clock = WallClock()
+    clock.wait_until(clock.now())
+    assert clock.spin == (SPIN_NORMAL if os.sched_getscheduler(0) == os.SCHED_OTHER else SPIN_REALTIME)
+    got: list[float] = []
+
+    def loop() -> None:
+        try:
+            os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(1))
+        except (PermissionError, OSError):
+            got.append(-1.0)
+            return
+        c = WallClock()
+        c.wait_until(c.now() + 0.002)
+        got.append(c.spin)
+
+    t = threading.Thread(target=loop)
+    t.start()
+    t.join()
+    if got == [-1.0]:
+        pytest.skip("this host refuses SCHED_FIFO")
+    assert got == [SPIN_REALTIME]
+    assert WallClock(spin=0.0005).spin == 0.0005

@@ -1,5 +1,6 @@
 """CURVE authentication for ``irl serve`` and its clients (ZeroMQ's CurveZMQ, through
-pyzmq's own certificate files and authenticator).
+pyzmq's own certificate files; the server's ZAP handler, runtime.connections, accepts
+the authorized keys).
 
 A key directory, as ``irl keys DIR`` makes it::
 
@@ -146,21 +147,23 @@ def check_server_keys(directory: str | Path) -> tuple[bytes, bytes]:
     return public, secret
 
 
-def server_security(ctx, directory: str | Path, sockets):
-    """Start the authenticator and make ``sockets`` CURVE servers; returns the
-    authenticator (stop it when closing)."""
-    from zmq.auth.thread import ThreadAuthenticator
+def server_security(directory: str | Path, sockets) -> frozenset[bytes]:
+    """Make ``sockets`` CURVE servers with the server's key pair in ``directory``; returns
+    the public keys (z85) of ``directory/authorized``, the clients to accept (the
+    server's ZAP handler, runtime.connections, checks each connection against them)."""
+    import zmq.auth
 
     d = Path(directory)
     public, secret = check_server_keys(d)
-    auth = ThreadAuthenticator(ctx)
-    auth.start()
-    auth.configure_curve(domain="*", location=str(d / "authorized"))
+    try:
+        authorized = frozenset(zmq.auth.load_certificates(d / "authorized"))
+    except (OSError, ValueError) as exc:
+        raise KeyError_(f"{d / 'authorized'}: cannot read its public keys ({exc})") from None
     for sock in sockets:
         sock.curve_secretkey = secret
         sock.curve_publickey = public
         sock.curve_server = True
-    return auth
+    return authorized
 
 
 def client_security(sock, directory: str | Path) -> None:

@@ -24,6 +24,10 @@ MAX_WAIT = 3600.0
 TELEMETRY_HISTORY = 10_000
 #: Control's lease (s): it ends this long after its holder's last request.
 MIN_LEASE, DEFAULT_LEASE, MAX_LEASE = 0.5, 10.0, 3600.0
+#: A request's ``token`` (the one ``control`` with ``take: true`` returned: the request is
+#: then the holder's, whatever connection it came on): the version that brought it, and
+#: the longest one the server reads.
+TOKEN_SINCE, MAX_TOKEN_LENGTH = 2, 256
 
 #: Largest request the server takes (bytes); bigger ones get a ``too_large`` error.
 MAX_REQUEST_BYTES = 1 << 20
@@ -105,7 +109,7 @@ OPS: dict[str, tuple[dict[str, tuple[tuple, bool, str]], str]] = {
     "estop": ({}, "emergency stop: brakes on and drives off now; the running program and the queue are ended"),
     "override": ({"percent": (_NUM, True, "1 to 100")},
                  "speed override: the move under way changes smoothly, the next ones follow"),
-    "call": ({"text": (_STR, True, "a scripting command, e.g. servo.kp = 2.5 (see 'help')")},
+    "call": ({"text": (_STR, True, "a scripting command, e.g. trajectory.budget = 500 (see 'help')")},
              "the scripting interface: read or set a property, call an operation"),
     "reconfigure": ({"name": (_STR, True, "a configuration of the server's configuration file")},
                     "switch configuration between programs (in the Robot Reconfiguration state)"),
@@ -118,8 +122,8 @@ OPS: dict[str, tuple[dict[str, tuple[tuple, bool, str]], str]] = {
              "answer when the program has ended (its status, with the summary), or at the timeout (its status "
              "then, with \"timed_out\": true)"),
     "control": ({"take": (_BOOL, True, "true: take control of the robot; false: give it back"),
-                 "name": (_STR, False, "who you are, shown to the clients that are refused (default: your "
-                                       "connection's id)"),
+                 "name": (_STR, False, "who you are, shown in status and to the clients that are refused "
+                                       "(default: \"client #N\", N counting the times control was taken)"),
                  "lease": (_NUM, False, f"seconds the control lasts without a request from you, "
                                         f"{MIN_LEASE:g} to {MAX_LEASE:g} (default {DEFAULT_LEASE:g})")},
                 "one controlling client at a time: while one holds control, the others may only read (and "
@@ -171,13 +175,14 @@ def _valid_id(value) -> bool:
 
 def decode_request(payload: bytes) -> tuple[object, str, dict]:
     """``(request id, op, args)`` of a request, or ProtocolError with what is wrong."""
-    request_id, op, args, _version = decode(payload)
+    request_id, op, args, _version, _token = decode(payload)
     return request_id, op, args
 
 
-def decode(payload: bytes) -> tuple[object, str, dict, int]:
-    """``(request id, op, args, version)`` of a request, or ProtocolError with what is
-    wrong (its ``version``: the request's when it could be read, for the reply)."""
+def decode(payload: bytes) -> tuple[object, str, dict, int, str | None]:
+    """``(request id, op, args, version, token)`` of a request (``token``: the control
+    token it carries, or None), or ProtocolError with what is wrong (its ``version``: the
+    request's when it is one this server speaks, for the reply; else VERSION)."""
     try:
         return _decode(payload)
     except ProtocolError as exc:
@@ -186,7 +191,7 @@ def decode(payload: bytes) -> tuple[object, str, dict, int]:
         raise
 
 
-def _decode(payload: bytes) -> tuple[object, str, dict, int]:
+def _decode(payload: bytes) -> tuple[object, str, dict, int, str | None]:
     if len(payload) > MAX_REQUEST_BYTES:
         raise ProtocolError("too_large", f"the request has {len(payload)} bytes; the limit is {MAX_REQUEST_BYTES}")
     try:
@@ -196,20 +201,29 @@ def _decode(payload: bytes) -> tuple[object, str, dict, int]:
         raise ProtocolError("bad_message", f"not valid msgpack ({type(exc).__name__})") from None
     if not isinstance(message, dict):
         raise ProtocolError("bad_message", f"expected a msgpack map, got {type(message).__name__}")
-    request_id = message.get("id")
-    if not _valid_id(request_id):  # answered with id nil: the client's id cannot be echoed
-        raise ProtocolError("bad_request", f"\"id\" must be an integer or a string of at most 256 characters, got "
-                                           f"{_shown(request_id)}: this reply's id is nil")
     version = message.get("v")
-    if version not in VERSIONS or isinstance(version, bool):
-        raise ProtocolError("bad_version", f"protocol version {version!r} is not supported; this server speaks "
-                                           f"versions {', '.join(map(str, VERSIONS))}", request_id)
+    known = version in VERSIONS and not isinstance(version, bool)
+    request_id = message.get("id")
     try:
+        if not _valid_id(request_id):  # answered with id nil: the client's id cannot be echoed
+            raise ProtocolError("bad_request", f"\"id\" must be an integer (signed or unsigned, 64-bit) or a "
+                                               f"string of at most 256 characters, got {_shown(request_id)}: this "
+                                               "reply's id is nil")
+        if not known:
+            raise ProtocolError("bad_version", f"protocol version {repr(version)[:40]} is not supported; this server "
+                                               f"speaks versions {', '.join(map(str, VERSIONS))}", request_id)
+        token = message.get("token")
+        if token is not None and (version < TOKEN_SINCE or not isinstance(token, str) or
+                                  not 0 < len(token) <= MAX_TOKEN_LENGTH):
+            raise ProtocolError("bad_request", f"\"token\" must be a string of 1 to {MAX_TOKEN_LENGTH} characters "
+                                               f"(a control token), in a request of version {TOKEN_SINCE} or later; "
+                                               f"got {_shown(token)} with \"v\": {version}", request_id)
         op, args = _operation(message, request_id, version)
     except ProtocolError as exc:
-        exc.version = version
+        if known:
+            exc.version = version
         raise
-    return request_id, op, args, version
+    return request_id, op, args, version, token
 
 
 def _operation(message: dict, request_id, version: int) -> tuple[str, dict]:
@@ -251,7 +265,7 @@ def _kind(types: tuple) -> str:
 
 def _shown(value) -> str:
     """A malformed value, for an error message: its type, and its text when short."""
-    kind = {bool: "bool", float: "float", int: "an integer out of range", str: "a string of "
+    kind = {bool: "bool", float: "float", int: "an integer out of range", type(None): "nil", str: "a string of "
             f"{len(value) if isinstance(value, str) else 0} characters"}.get(type(value), type(value).__name__)
     text = repr(value)
     return f"{kind} {text}" if len(text) <= 40 and not isinstance(value, str) else kind
@@ -265,10 +279,13 @@ def error(request_id, code: str, message: str, version: int = VERSION) -> bytes:
     return pack({"v": version, "id": request_id, "ok": False, "error": {"code": code, "message": message}})
 
 
-def request(op: str, args: dict | None = None, request_id=None, version: int = VERSION) -> bytes:
+def request(op: str, args: dict | None = None, request_id=None, version: int = VERSION,
+            token: str | None = None) -> bytes:
     message = {"v": version, "op": op, "args": args or {}}
     if request_id is not None:
         message["id"] = request_id
+    if token is not None:
+        message["token"] = token
     return pack(message)
 
 

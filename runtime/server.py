@@ -25,9 +25,11 @@ turn by turn: one turn is one tick.
 from __future__ import annotations
 
 import collections
+import hmac
 import itertools
 import logging
 import os
+import secrets
 import signal
 import sys
 import time
@@ -204,6 +206,28 @@ class Wait:
         self.deadline = deadline
 
 
+class Control:
+    """Control's holder (protocol 2, ``control``): the connection that took it (the
+    identity the server gave it, runtime.connections), the token ``take`` returned, the
+    name shown, the lease and the time of its last request."""
+
+    __slots__ = ("connection", "token", "name", "lease", "last")
+
+    def __init__(self, connection: str | None, token: str, name: str, lease: float):
+        self.connection = connection
+        self.token = token
+        self.name = name
+        self.lease = lease
+        self.last = time.monotonic()
+
+    def owns(self, connection: str | None, token: str | None) -> bool:
+        """Whether a request from ``connection`` carrying ``token`` is the holder's (a
+        connection without an identity is nobody's)."""
+        if connection is not None and connection == self.connection:
+            return True
+        return token is not None and hmac.compare_digest(token.encode(), self.token.encode())
+
+
 class LoopGone(Exception):
     """The loop process ended, or never became ready."""
 
@@ -237,11 +261,12 @@ class Server:
         self.last_sample: dict | None = None
         self.feeds = Feeds()  # the subscribers' chosen fields and rates (the feed request)
         self.waiters: list = []  # (Wait, identity, request id, version) of unanswered waits
-        self.controller: tuple | None = None  # (client id, name, lease s, last request) of control's holder
+        self.controller: Control | None = None  # control's holder (protocol 2)
+        self.controls_taken = 0  # (an unnamed holder is shown as "client #N")
         self.loop_scheduling: str | None = None
         self.loop_gone: str | None = None  # why the loop process ended (then no program runs)
         self.loop = self.process = self.channel = None
-        self.router = self.pub = self.authenticator = None
+        self.router = self.pub = self.connections = None
         run_options = RunOptions(seed=options.seed, realtime=not options.sim_clock, state_dir=state_dir,
                                  deadline_policy=options.deadline_policy, cell=options.cell,
                                  fieldbus=options.fieldbus)
@@ -547,16 +572,28 @@ class Server:
     def bind(self) -> None:
         """Bind the request and telemetry sockets (raises zmq.ZMQError when taken)."""
         check_endpoints(self.options)
+        from .connections import Connections
+
         ctx = self.ctx
         self.router = ctx.socket(zmq.ROUTER)
         self.pub = ctx.socket(zmq.XPUB)  # a PUB that says which topics have subscribers (feeds)
+        authorized = None
         if self.options.keys:
             from .keys import server_security
 
-            self.authenticator = server_security(ctx, self.options.keys, (self.router, self.pub))
+            authorized = server_security(self.options.keys, (self.router, self.pub))
+        # every connection's handshake is answered here: each gets an identity of its own
+        # (control is bound to it, not to a routing id a client can choose; and with CURVE,
+        # only the authorized keys connect)
+        self.connections = Connections(ctx, authorized)
+        self.connections.protect(self.router)
+        if authorized is not None:
+            self.connections.protect(self.pub)
         self.router.setsockopt(zmq.MAXMSGSIZE, protocol.TRANSPORT_MAX_BYTES)
         self.router.setsockopt(zmq.LINGER, 0)
-        self.router.setsockopt(zmq.ROUTER_HANDOVER, 1)
+        # no handover: a client that connects with a routing id another connection has does
+        # not take it over (it would get that connection's replies); libzmq ignores it
+        self.router.setsockopt(zmq.ROUTER_HANDOVER, 0)
         self.router.setsockopt(zmq.SNDHWM, 10_000)
         self.router.bind(self.options.endpoint)
         self.pub.setsockopt(zmq.SNDHWM, 1000)  # bounded: a slow subscriber loses messages
@@ -568,8 +605,8 @@ class Server:
         for sock in (self.router, self.pub):
             if sock is not None:
                 sock.close(linger=0)
-        if self.authenticator is not None:
-            self.authenticator.stop()
+        if self.connections is not None:
+            self.connections.close()
         self.ctx.term()
 
     def _stop_loop(self) -> None:
@@ -602,6 +639,7 @@ class Server:
         poller.register(self.router, zmq.POLLIN)
         poller.register(self.channel.fileno(), zmq.POLLIN)
         poller.register(self.pub, zmq.POLLIN)
+        poller.register(self.connections.socket, zmq.POLLIN)
         while self._dispatch():
             if self.loop_gone is not None:  # keep answering (status says why), refuse work
                 self._poll_requests(200, poller)
@@ -623,20 +661,32 @@ class Server:
     def _poll_requests(self, timeout: int, poller=None) -> None:
         if poller is not None:
             events = dict(poller.poll(timeout))
+            if self.connections.socket in events:
+                self.connections.answer()
             if self.pub in events:
                 self._poll_subscriptions()
             if self.router not in events:
                 return
         elif self.pub is not None:
+            self.connections.answer()
             self._poll_subscriptions()
         for _ in range(100):
             try:
-                frames = self.router.recv_multipart(zmq.NOBLOCK, copy=True)
+                parts = self.router.recv_multipart(zmq.NOBLOCK, copy=False)
             except zmq.Again:
                 return
             except zmq.ZMQError:
                 return
-            self._handle(frames)
+            self._handle([part.bytes for part in parts], self._connection(parts[0]))
+
+    def _connection(self, frame) -> str | None:
+        """Who sent a message: the identity the server gave its connection (see
+        runtime.connections); an ``inproc://`` connection (no handshake, no identity: only
+        this process can make one) is known by its routing id."""
+        identity = self.connections.of(frame)
+        if identity is None and self.options.endpoint.startswith("inproc://"):
+            identity = "inproc:" + frame.bytes.hex()
+        return identity
 
     def _fail_all(self, reason: str) -> None:
         """The loop is gone: the running program faulted, the waiting ones cancelled."""
@@ -658,8 +708,9 @@ class Server:
         except zmq.ZMQError:
             pass  # the client went away or its queue is full: the reply is dropped
 
-    def _handle(self, frames: list[bytes]) -> None:
-        """One request: reply now, or forward a command whose reply the loop makes."""
+    def _handle(self, frames: list[bytes], connection: str | None = None) -> None:
+        """One request (``connection``: the identity of the connection it came on, see
+        _connection): reply now, or forward a command whose reply the loop makes."""
         # ROUTER frames: identity, [envelope ending in an empty delimiter (REQ clients, proxies)], payload
         if len(frames) < 2:
             return
@@ -672,11 +723,10 @@ class Server:
                                                    f"{len(frames) - len(identity)} frames (an envelope ends with an "
                                                    "empty frame, and holds at most "
                                                    f"{protocol.MAX_ENVELOPE_FRAMES} frames)")
-            request_id, op, args, version = protocol.decode(payload)
-            client = frames[0]
-            self._check_control(client, op, args)
+            request_id, op, args, version, token = protocol.decode(payload)
+            holder = self._check_control(connection, token, op, args)
             handler = getattr(self, f"op_{op}")
-            result = self.op_control(args, client) if op == "control" else handler(args)
+            result = self.op_control(args, connection, holder) if op == "control" else handler(args)
             if isinstance(result, LoopCommand):  # to be carried out by the loop
                 if self.loop_gone is not None:
                     raise ProtocolError("refused", f"{self.loop_gone}: restart irl serve")
@@ -696,26 +746,33 @@ class Server:
             reply = protocol.error(request_id, "internal", f"{type(exc).__name__}: {exc}", version)
         self._reply(identity, reply)
 
-    def _check_control(self, client: bytes, op: str, args: dict) -> None:
-        """Refuse a controlling request from a client that does not hold control while
-        another one does; a request from the holder renews its lease."""
+    def _holder(self) -> Control | None:
+        """Control's holder, once its lease is checked (it ends ``lease`` seconds after the
+        holder's last request)."""
         holder = self.controller
+        if holder is not None and time.monotonic() - holder.last > holder.lease:
+            log.info("control of %s ended: no request from it for %g s", holder.name, holder.lease)
+            self.controller = holder = None
+        return holder
+
+    def _check_control(self, connection: str | None, token: str | None, op: str, args: dict) -> bool:
+        """Whether the request is control's holder's (it came on the connection that took
+        control, or carries its token; then it renews the lease). Refuses a controlling
+        request from anyone else while a client holds control."""
+        holder = self._holder()
         if holder is None:
-            return
-        owner, name, lease, last = holder
-        now = time.monotonic()
-        if now - last > lease:  # the holder went quiet (or away): control ends
-            log.info("control of %s ended: no request for %g s", name, lease)
-            self.controller = None
-            return
-        if client == owner:
-            self.controller = (owner, name, lease, now)
-            return
-        if op in protocol.CONTROLLING and not (op == "call" and self._reads_only(args)):
-            raise ProtocolError("refused", f"{name} holds control of the robot (for {lease - (now - last):.1f} s "
-                                           "more without a request from it): this client may read, and estop")
-        if op == "control" and args.get("take"):
-            raise ProtocolError("refused", f"{name} holds control of the robot")
+            return False
+        if holder.owns(connection, token):
+            holder.last = time.monotonic()
+            return True
+        if op in protocol.CONTROLLING and not (op == "call" and self._reads_only(args)) or \
+                (op == "control" and args.get("take")):
+            left = holder.lease - (time.monotonic() - holder.last)
+            stale = " (the token this request carries is not the holder's: control was given back, or its lease " \
+                    "ended, since it was taken with it)" if token is not None else ""
+            raise ProtocolError("refused", f"{holder.name} holds control of the robot (for {left:.1f} s more "
+                                           f"without a request from it): this client may read, and estop{stale}")
+        return False
 
     @staticmethod
     def _reads_only(args: dict) -> bool:
@@ -726,20 +783,34 @@ class Server:
         except ScriptError:
             return True  # (answered with its script_error)
 
-    def op_control(self, args: dict, client: bytes = b"") -> dict:
+    def op_control(self, args: dict, connection: str | None = None, holder: bool = False) -> dict:
+        """``take: true``: this connection (and whoever sends the token returned) holds
+        control; the holder taking it again changes its name and lease. ``take: false``:
+        the holder gives it back (refused from another client while one holds it)."""
+        current = self._holder()
         if not args["take"]:
-            if self.controller is not None and self.controller[0] == client:
-                log.info("control given back by %s", self.controller[1])
+            if current is not None:
+                if not holder:
+                    raise ProtocolError("refused", f"{current.name} holds control of the robot, not this client: "
+                                                   "only the holder (its connection, or a request with its token) "
+                                                   "gives it back")
+                log.info("control given back by %s", current.name)
                 self.controller = None
             return {"control": False}
         lease = float(args.get("lease", protocol.DEFAULT_LEASE))
         if not protocol.MIN_LEASE <= lease <= protocol.MAX_LEASE:
             raise ProtocolError("bad_request", f"control: lease must be from {protocol.MIN_LEASE:g} to "
                                                f"{protocol.MAX_LEASE:g} s, got {lease:g}")
-        name = str(args.get("name") or f"client {client.hex()[:16]}")[:100]
-        self.controller = (client, name, lease, time.monotonic())
-        log.info("control taken by %s (lease %g s)", name, lease)
-        return {"control": True, "name": name, "lease": lease}
+        if current is None:
+            self.controls_taken += 1
+            name = str(args.get("name") or f"client #{self.controls_taken}")[:100]
+            current = self.controller = Control(connection, secrets.token_urlsafe(32), name, lease)
+        else:  # the holder again (anyone else was refused): a new name or lease, the same token
+            current.name = str(args.get("name") or current.name)[:100]
+            current.lease = lease
+            current.last = time.monotonic()
+        log.info("control taken by %s (lease %g s)", current.name, lease)
+        return {"control": True, "name": current.name, "lease": lease, "token": current.token}
 
     def _answer_waiters(self, now: float | None = None) -> None:
         """Answer every ``wait`` whose program has ended, or whose deadline has passed."""
@@ -805,7 +876,7 @@ class Server:
                 "calibration": snap.get("calibration"), "initialization": snap.get("initialization"),
                 "position": snap.get("position"), "inputs": snap.get("inputs"), "outputs": snap.get("outputs"),
                 "shutting_down": self.stop_reason is not None,
-                "control": self.controller[1] if self.controller is not None else None,
+                "control": holder.name if (holder := self._holder()) is not None else None,
                 "loop_gone": self.loop_gone}
 
     def _check_queue_room(self) -> None:
@@ -995,7 +1066,7 @@ def envelope(frames: list[bytes]) -> tuple[list[bytes], bytes | None]:
     proxy); anything else is answered as a ``bad_message`` to the identity alone."""
     if len(frames) == 2:
         return frames[:1], frames[1]
-    if frames[-2] == b"" and len(frames) - 1 <= protocol.MAX_ENVELOPE_FRAMES:
+    if frames[-2] == b"" and len(frames) - 2 <= protocol.MAX_ENVELOPE_FRAMES:  # (identity, envelope, request)
         return frames[:-1], frames[-1]
     return frames[:1] + ([b""] if frames[1] == b"" else []), None
 

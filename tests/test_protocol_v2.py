@@ -124,7 +124,7 @@ def test_one_controlling_client_at_a_time_observers_read_and_estop_and_the_lease
     owner, other = RawClient(server.endpoint, 2), RawClient(server.endpoint, 2)
     try:
         taken = owner.call("control", take=True, name="cell PLC gateway", lease=1.0)["result"]
-        assert taken == {"control": True, "name": "cell PLC gateway", "lease": 1.0}
+        assert taken == {"control": True, "name": "cell PLC gateway", "lease": 1.0, "token": taken["token"]}
         assert other.call("status")["result"]["control"] == "cell PLC gateway"
         for op, args in (("submit", {"object": objcode(PROGRAMS / "short.irl")}), ("pause", {}),
                          ("override", {"percent": 50}), ("call", {"text": "trajectory.budget = 500"}),
@@ -269,4 +269,160 @@ def test_a_cancelled_program_is_said_on_telemetry(tmp_path):
         assert client.call("abort", program=999)["error"]["code"] == "not_found"
     finally:
         client.close()
+        assert server.stop() == 0, server.log()
+
+
+def _dealer(endpoint: str, routing_id: bytes | None = None):
+    sock = zmq.Context.instance().socket(zmq.DEALER)
+    if routing_id is not None:
+        sock.setsockopt(zmq.ROUTING_ID, routing_id)
+    sock.connect(endpoint)
+    return sock
+
+
+def _ask(sock, request_id, op: str, wait: float = 10.0, **extra) -> dict | None:
+    """One request on a raw DEALER (``extra``: more fields of the request map); the reply,
+    or None when none came within ``wait`` seconds."""
+    sock.send(msgpack.packb({"v": 2, "id": request_id, "op": op, **extra}))
+    while sock.poll(int(wait * 1000)):
+        reply = msgpack.unpackb(sock.recv(), raw=False)
+        if reply["id"] == request_id:
+            return reply
+    return None
+
+
+def test_control_is_bound_to_the_connection_and_its_token_not_to_a_routing_id_a_client_can_copy(tmp_path):
+    """Issue 26, fault 3: a client that copies the holder's ZeroMQ routing id onto its own
+    socket does not become the holder; status shows no id or token; the token that
+    ``take`` returned makes a request the holder's from any connection."""
+    server = ServerProcess(tmp_path / "server", tmp_path / "state", sim_clock=True).start()
+    observer = RawClient(server.endpoint, 2)
+    holder = _dealer(server.endpoint, b"hmi-1")
+    thieves = []
+    try:
+        taken = _ask(holder, 1, "control", args={"take": True, "lease": 60})["result"]
+        token = taken["token"]
+        assert taken["control"] and isinstance(token, str) and len(token) >= 32
+        shown = observer.call("status")["result"]
+        text = repr(shown)
+        assert shown["control"] and token not in text and "hmi-1" not in text and b"hmi-1".hex() not in text
+
+        # the holder still connected: a thief on the holder's routing id takes neither its
+        # control nor its replies (libzmq ignores a second connection with an id in use)
+        thief = _dealer(server.endpoint, b"hmi-1")
+        thieves.append(thief)
+        stolen = _ask(thief, 100, "override", wait=1.0, args={"percent": 5})
+        assert stolen is None or stolen["error"]["code"] == "refused", stolen
+        assert _ask(holder, 2, "override", args={"percent": 90})["result"] == {"override": 90.0}
+        assert _ask(holder, 3, "status")["result"]["override"] == 90.0
+
+        # the holder gone (a CLI process that took control and exited): its id copied again
+        holder.close(linger=0)
+        thief2 = _dealer(server.endpoint, b"hmi-1")
+        thieves.append(thief2)
+        copied = _ask(thief2, 200, "override", args={"percent": 5})
+        assert copied["error"]["code"] == "refused" and "client #1 holds control" in copied["error"]["message"]
+        assert observer.call("status")["result"]["override"] == 90.0
+
+        # the token makes any connection's request the holder's; a wrong one does not
+        other = _dealer(server.endpoint)
+        thieves.append(other)
+        bad = _ask(other, 1, "override", args={"percent": 10}, token="x" * 32)
+        assert bad["error"]["code"] == "refused" and "token" in bad["error"]["message"]
+        assert _ask(other, 2, "override", args={"percent": 80}, token=token)["result"] == {"override": 80.0}
+        assert _ask(other, 3, "control", args={"take": False}, token=token)["result"] == {"control": False}
+        assert observer.call("status")["result"]["control"] is None
+    finally:
+        for sock in thieves:
+            sock.close(linger=0)
+        holder.close(linger=0)
+        observer.close()
+        assert server.stop() == 0, server.log()
+
+
+from hypothesis import example, given, strategies as st  # noqa: E402
+
+
+@given(st.lists(st.binary(min_size=1, max_size=4), max_size=24), st.booleans())
+@example([b"hop"] * 15, True)
+@example([b"hop"] * 16, True)
+def test_an_envelope_of_at_most_16_frames_is_a_request_and_a_longer_one_is_not(hops, delimited):
+    """docs/protocol.md, Framing: a request frame alone, or after an envelope of at most
+    MAX_ENVELOPE_FRAMES frames whose last is the empty delimiter; the reply goes back with
+    that envelope. Anything else is not a request."""
+    from runtime.protocol import MAX_ENVELOPE_FRAMES
+    from runtime.server import envelope
+
+    assert MAX_ENVELOPE_FRAMES == 16
+    frames = [b"peer", *hops, *([b""] if delimited else []), b"request"]
+    count = len(hops) + 1 if delimited else len(hops)  # the envelope's frames
+    head, payload = envelope(frames)
+    if count == 0 or (delimited and count <= MAX_ENVELOPE_FRAMES):
+        assert payload == b"request" and head == frames[:-1]
+    else:
+        assert payload is None and head == [b"peer"]
+
+
+def test_every_answer_the_protocol_document_gives_is_the_running_servers(tmp_path):
+    """Issue 26, fault 9: what docs/protocol.md says a client gets, checked against a
+    running server: ids signed and unsigned, the envelope's limit, the range of ``since``,
+    the feed topic format, a non-holder's ``take: false``, ``estop`` and control, the
+    ``v`` of a ``bad_version`` reply, a version-1 request for a version-2 operation."""
+    import re
+
+    server = ServerProcess(tmp_path / "server", tmp_path / "state", sim_clock=True).start()
+    sock = _dealer(server.endpoint)
+    holder, other = RawClient(server.endpoint, 2), RawClient(server.endpoint, 2)
+
+    def exchange(*frames):
+        sock.send_multipart(list(frames))
+        assert sock.poll(10_000), f"no reply to {frames!r}"
+        reply = sock.recv_multipart()
+        return reply[:-1], msgpack.unpackb(reply[-1], raw=False)
+
+    try:
+        # ids: any msgpack integer, signed or unsigned 64-bit, echoed as sent
+        for rid in (-(1 << 63), -1, 0, (1 << 63), (1 << 64) - 1):
+            _, reply = exchange(msgpack.packb({"v": 2, "id": rid, "op": "hello"}))
+            assert reply["ok"] and reply["id"] == rid, reply
+        # an envelope of 16 frames (the delimiter its last) is one; 17 is not
+        request = msgpack.packb({"v": 2, "id": 5, "op": "status"})
+        head, reply = exchange(*[b"hop"] * 15, b"", request)
+        assert reply["ok"] and reply["id"] == 5 and head == [b"hop"] * 15 + [b""]
+        _, reply = exchange(*[b"hop"] * 16, b"", request)
+        assert reply["error"]["code"] == "bad_message" and reply["id"] is None
+        # v of an error reply: the request's when it is 1 or 2, else 2; bad_version: 2
+        for v, code, shown in ((9, "bad_version", 2), ("2", "bad_version", 2), (1, "bad_request", 1)):
+            _, reply = exchange(msgpack.packb({"v": v, "id": 1.5 if code == "bad_request" else 1, "op": "status"}))
+            assert reply["error"]["code"] == code and reply["v"] == shown, (v, reply)
+        # a version-1 request for a version-2 operation: unknown_op, naming the version
+        v1 = RawClient(server.endpoint, 1)
+        for op in ("wait", "telemetry", "control", "feed"):
+            reply = v1.call(op)
+            assert reply["v"] == 1 and reply["error"]["code"] == "unknown_op" and "version 2" in \
+                reply["error"]["message"], reply
+        v1.close()
+        # since: 0 (everything held) to the latest seq; beyond or negative is bad_request
+        latest = holder.call("telemetry")["result"]["seq"]
+        assert holder.call("telemetry", since=0)["ok"] and holder.call("telemetry", since=latest)["ok"]
+        for since in (-1, latest + 1000):
+            bad = holder.call("telemetry", since=since)["error"]
+            assert bad["code"] == "bad_request" and "from 0 to the latest" in bad["message"], bad
+        # a feed's topic: "feed:" and 16 lowercase hexadecimal digits
+        topic = holder.call("feed", fields=["position"])["result"]["topic"]
+        assert re.fullmatch(r"feed:[0-9a-f]{16}", topic), topic
+        # take: false from a client that does not hold control is refused, naming the holder;
+        # while nobody holds it, it answers control false
+        assert other.call("control", take=False)["result"] == {"control": False}
+        assert holder.call("control", take=True, name="pendant", lease=60)["ok"]
+        refused = other.call("control", take=False)["error"]
+        assert refused["code"] == "refused" and "pendant" in refused["message"]
+        # estop is open to every client and does not end control
+        assert other.call("estop")["ok"]
+        assert other.call("status")["result"]["control"] == "pendant"
+        assert holder.call("control", take=False)["result"] == {"control": False}
+    finally:
+        sock.close(linger=0)
+        holder.close()
+        other.close()
         assert server.stop() == 0, server.log()

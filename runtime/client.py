@@ -3,6 +3,7 @@ telemetry over a SUB socket. Used by the ``irl`` commands that talk to ``irl ser
 from __future__ import annotations
 
 import itertools
+import os
 from pathlib import Path
 
 import zmq
@@ -11,6 +12,13 @@ from . import protocol
 
 DEFAULT_ENDPOINT = "tcp://127.0.0.1:5555"
 DEFAULT_TELEMETRY = "tcp://127.0.0.1:5556"
+
+
+def default_state_dir() -> Path:
+    """Where irl keeps its state (calibration, reports, a control token):
+    ``$XDG_STATE_HOME/irl``, else ``~/.local/state/irl``."""
+    base = os.environ.get("XDG_STATE_HOME") or os.path.join(os.path.expanduser("~"), ".local", "state")
+    return Path(base) / "irl"
 
 
 class ClientError(Exception):
@@ -36,9 +44,11 @@ def _secure(sock, keys) -> None:
 
 
 class Client:
-    def __init__(self, endpoint: str = DEFAULT_ENDPOINT, keys: str | Path | None = None, timeout: float = 5.0):
+    def __init__(self, endpoint: str = DEFAULT_ENDPOINT, keys: str | Path | None = None, timeout: float = 5.0,
+                 token: str | None = None):
         self.endpoint = endpoint
         self.timeout = timeout
+        self.token = token  # a control token (protocol 2): sent with every request
         self.ctx = zmq.Context.instance()
         self.sock = self.ctx.socket(zmq.DEALER)
         self.sock.setsockopt(zmq.LINGER, 0)
@@ -54,7 +64,7 @@ class Client:
     def request(self, op: str, args: dict | None = None, timeout: float | None = None):
         """Send one request and return its result; ClientError for an error reply or no reply."""
         request_id = next(self._ids)
-        self.sock.send(protocol.request(op, args, request_id))
+        self.sock.send(protocol.request(op, args, request_id, token=self.token))
         wait_ms = int(1000 * (self.timeout if timeout is None else timeout))
         while True:
             if not self.sock.poll(wait_ms, zmq.POLLIN):
@@ -88,16 +98,25 @@ class Client:
 
 
 class Subscriber:
-    """Telemetry: ``receive(timeout)`` returns the next message (a dict) or None."""
+    """Telemetry: ``receive(timeout)`` returns the next message (a dict) or None. ``topic``:
+    the full telemetry (default) or a feed's; ``missed`` counts the gaps in ``seq`` (in a
+    feed's ``feed_seq``)."""
 
-    def __init__(self, endpoint: str = DEFAULT_TELEMETRY, keys: str | Path | None = None):
+    def __init__(self, endpoint: str = DEFAULT_TELEMETRY, keys: str | Path | None = None,
+                 topic: bytes = protocol.TELEMETRY_TOPIC):
         self.ctx = zmq.Context.instance()
         self.sock = self.ctx.socket(zmq.SUB)
         self.sock.setsockopt(zmq.LINGER, 0)
         if keys:
             _secure(self.sock, keys)
-        self.sock.setsockopt(zmq.SUBSCRIBE, protocol.TELEMETRY_TOPIC)
-        self.sock.connect(endpoint)
+        self.topic = topic
+        self.counter = "seq" if topic == protocol.TELEMETRY_TOPIC else "feed_seq"
+        self.sock.setsockopt(zmq.SUBSCRIBE, topic)
+        try:
+            self.sock.connect(endpoint)
+        except zmq.ZMQError as exc:
+            self.sock.close()
+            raise ClientError("unreachable", f"cannot connect to {endpoint}: {exc}") from None
         self.last_seq: int | None = None
         self.missed = 0
 
@@ -105,12 +124,12 @@ class Subscriber:
         if not self.sock.poll(int(timeout * 1000), zmq.POLLIN):
             return None
         frames = self.sock.recv_multipart()
-        if len(frames) != 2:
+        if len(frames) != 2 or frames[0] != self.topic:
             return None
         message = protocol.decode_telemetry(frames[1])
-        if message is None:
+        if message is None or not isinstance(message.get(self.counter), int):
             return None
-        seq = message["seq"]
+        seq = message[self.counter]
         if self.last_seq is not None and seq > self.last_seq + 1:
             self.missed += seq - self.last_seq - 1
         self.last_seq = seq

@@ -1,6 +1,11 @@
 """The ``irl`` commands that serve a robot or talk to one over the network: serve,
 submit, status, pause, resume, abort, estop, override, watch, call, console, reconfigure,
-keys. ZeroMQ is imported only when one of them runs (``irl check`` stays light)."""
+control, keys. ZeroMQ is imported only when one of them runs (``irl check`` stays light).
+
+Control (protocol 2): ``irl control take`` stores the token the server returned in a file
+of the user's state directory, one per endpoint (``control_file``); every ``irl`` command
+to that endpoint sends it, so it acts as the holder though each runs in a process (and a
+connection) of its own. ``$IRL_CONTROL_TOKEN``, when set, is sent instead."""
 from __future__ import annotations
 
 import json
@@ -11,6 +16,13 @@ from pathlib import Path
 DEFAULT_ENDPOINT = "tcp://127.0.0.1:5555"
 DEFAULT_TELEMETRY = "tcp://127.0.0.1:5556"
 TERMINAL = ("completed", "faulted", "aborted", "cancelled")
+#: Seconds a command waits for a reply (``--timeout``), and ``irl watch`` for telemetry
+#: (a server sends an idle sample every 0.5 s, so a silence this long means none is there).
+REPLY_TIMEOUT = 5.0
+#: ``irl control take``'s default lease (s): the irl commands after it are its requests, and
+#: a person types them minutes apart (the protocol's own default, 10 s, suits programs).
+CONTROL_LEASE = 300.0
+TOKEN_VARIABLE = "IRL_CONTROL_TOKEN"
 
 
 def _cli():
@@ -19,11 +31,11 @@ def _cli():
     return cli
 
 
-def _client(args):
+def _client(args, timeout: float | None = None):
     from runtime.client import Client, ClientError
 
     try:
-        return Client(args.endpoint, keys=args.keys, timeout=args.timeout)
+        return Client(args.endpoint, keys=args.keys, timeout=timeout or args.timeout, token=_token(args.endpoint))
     except ClientError as exc:
         raise _cli().UsageError(exc.message) from None
 
@@ -52,6 +64,88 @@ def _guard(fn):
             _cli()._err(env, f"irl {args.command}: {exc}")
             return _cli().EXIT_INVALID
     return run
+
+
+# ---- control's token ----------------------------------------------------------------------------
+def control_file(endpoint: str) -> Path:
+    """Where ``irl control take`` keeps the token for ``endpoint`` (as written on the
+    command line): ``STATE/control/<hash of the endpoint>.json`` (STATE: $XDG_STATE_HOME/irl,
+    else ~/.local/state/irl)."""
+    import hashlib
+
+    from runtime.client import default_state_dir
+
+    return default_state_dir() / "control" / (hashlib.sha256(endpoint.encode()).hexdigest()[:16] + ".json")
+
+
+def _token(endpoint: str) -> str | None:
+    """The control token to send: $IRL_CONTROL_TOKEN, else the stored one for ``endpoint``."""
+    token = os.environ.get(TOKEN_VARIABLE)
+    if token:
+        return token
+    path = control_file(endpoint)
+    try:
+        data = json.loads(path.read_text(encoding="utf-8"))
+    except FileNotFoundError:
+        return None
+    except (OSError, ValueError) as exc:
+        raise _cli().UsageError(f"{path}: not a control token file ({exc}): remove it (it is remade by "
+                                "'irl control take')") from None
+    token = data.get("token") if isinstance(data, dict) else None
+    if not isinstance(token, str) or not 0 < len(token) <= 256 or data.get("endpoint") != endpoint:
+        raise _cli().UsageError(f"{path}: not a control token file for {endpoint}: remove it (it is remade by "
+                                "'irl control take')")
+    return token
+
+
+def _store_token(endpoint: str, result: dict) -> Path:
+    """Write the token (mode 0600, its directory 0700; atomically) for later commands."""
+    path = control_file(endpoint)
+    path.parent.mkdir(mode=0o700, parents=True, exist_ok=True)
+    tmp = path.with_name(f".{path.name}.{os.getpid()}")
+    fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o600)
+    with os.fdopen(fd, "w", encoding="utf-8") as f:
+        json.dump({"endpoint": endpoint, "token": result["token"], "name": result["name"],
+                   "lease": result["lease"], "taken": time.time()}, f)
+    os.replace(tmp, path)
+    return path
+
+
+@_guard
+def cmd_control(args, env) -> int:
+    """``irl control take|release``: take control of the robot (the token stored for the
+    commands after it) or give it back."""
+    cli = _cli()
+    client = _client(args)
+    try:
+        if args.action == "take":
+            request = {"take": True, "lease": args.lease, **({"name": args.name} if args.name else {})}
+            result = _call(client, "control", request)
+            try:
+                path = _store_token(args.endpoint, result)
+            except OSError as exc:
+                raise cli.UsageError(f"cannot store the control token: {exc.strerror or exc} (give it to the "
+                                     f"commands in ${TOKEN_VARIABLE} instead: 'irl control take --json' prints "
+                                     "it)") from None
+            if args.json:
+                cli._print(env, json.dumps({**result, "file": str(path)}))
+            else:
+                cli._print(env, f"control of {args.endpoint} taken as {result['name']!r} (lease {result['lease']:g} s: "
+                                "it ends that long after the last irl command to this server)")
+                cli._print(env, f"token stored in {path}: the irl commands to this endpoint act as the holder "
+                                f"until 'irl control release' (or set ${TOKEN_VARIABLE})")
+            return cli.EXIT_OK
+        if args.name is not None:
+            raise cli.UsageError("--name is for 'irl control take'")
+        _call(client, "control", {"take": False})
+        control_file(args.endpoint).unlink(missing_ok=True)
+        if args.json:
+            cli._print(env, json.dumps({"control": False}))
+        else:
+            cli._print(env, f"control of {args.endpoint} given back (or nobody held it)")
+        return cli.EXIT_OK
+    finally:
+        client.close()
 
 
 # ---- serve ----------------------------------------------------------------------------------
@@ -208,13 +302,7 @@ def _wait(client, job: int, env, since: int, quiet: bool = False) -> tuple[dict,
             if tty and last:
                 env.stdout.write("\n")
             return status, shown
-        if status["state"] == "queued":
-            line = f"program {job}: queued"
-        else:
-            total = status.get("moves_total")
-            moves = f"{status.get('moves_done', 0)}/{total if total is not None else '?'}"
-            paused = " (paused)" if status.get("paused") else ""
-            line = f"program {job}: {status.get('fsm', '')}  line {status.get('line', 0)}  moves {moves}{paused}"
+        line = _progress_line(job, status)
         if line != last and not quiet:
             if tty:
                 env.stdout.write("\r\x1b[K" + line)
@@ -223,6 +311,18 @@ def _wait(client, job: int, env, since: int, quiet: bool = False) -> tuple[dict,
                 cli._print(env, line)
             last = line
         time.sleep(0.1)
+
+
+def _progress_line(job: int, status: dict) -> str:
+    """``irl submit --wait``'s line: where the program is (without a line while the
+    server does not know it yet: the program has just started)."""
+    if status["state"] == "queued":
+        return f"program {job}: queued"
+    total = status.get("moves_total")
+    moves = f"{status.get('moves_done') or 0}/{total if total is not None else '?'}"
+    paused = " (paused)" if status.get("paused") else ""
+    at = f"  line {status['line']}" if status.get("line") is not None else ""
+    return f"program {job}: {status.get('fsm') or ''}{at}  moves {moves}{paused}"
 
 
 def _cell_endpoint(path: str, robots: tuple) -> str:
@@ -286,7 +386,8 @@ def _job_line(job: dict) -> str:
     text = f"program {job['id']} ({job['name']}): {job['state']}"
     if job["state"] == "running":
         total = job.get("moves_total")
-        text += (f", {job.get('fsm', '')}, line {job.get('line', 0)}, moves {job.get('moves_done', 0)}/"
+        at = f", line {job['line']}" if job.get("line") is not None else ""
+        text += (f", {job.get('fsm') or ''}{at}, moves {job.get('moves_done') or 0}/"
                  f"{total if total is not None else '?'}" + (" (paused)" if job.get("paused") else ""))
     elif job.get("fault") and job["state"] != "running":
         text += f": {job['fault']}"
@@ -322,34 +423,118 @@ cmd_reconfigure = _simple("reconfigure", lambda r: f"reconfiguration to {r['requ
 
 # ---- watch ---------------------------------------------------------------------------------------
 def cmd_watch(args, env) -> int:
+    """Print the telemetry (or a feed of some fields, ``--feed``), after replaying what the
+    server still holds since a ``seq`` (``--since``). A server sends a message at least
+    every 0.5 s: no message for REPLY_TIMEOUT seconds (plus a slow feed's period) means no
+    server there, or it went away: exit 2."""
     cli = _cli()
+    from runtime import protocol
     from runtime.client import ClientError, Subscriber
 
+    if args.since is not None and args.feed:
+        raise cli.UsageError("--since replays the full telemetry: it does not combine with --feed")
+    if args.since is not None and args.since < 0:
+        raise cli.UsageError(f"--since must be a telemetry seq, 0 or more, got {args.since}")
+    if (args.rate is not None or args.events) and not args.feed:
+        raise cli.UsageError("--rate and --events are for a feed: give --feed FIELDS")
+    topic, fields, silence = protocol.TELEMETRY_TOPIC, None, REPLY_TIMEOUT
+    client = None
     try:
-        sub = Subscriber(args.telemetry, keys=args.keys)
-    except ClientError as exc:
-        raise cli.UsageError(exc.message) from None
-    received = 0
-    deadline = time.monotonic() + args.timeout if args.timeout else None
-    try:
-        while args.count is None or received < args.count:
-            remaining = None if deadline is None else deadline - time.monotonic()
-            if remaining is not None and remaining <= 0:
-                break
-            message = sub.receive(min(remaining, 0.5) if remaining is not None else 0.5)
-            if message is None:
-                continue
-            received += 1
-            if args.json:
-                cli._print(env, json.dumps(message, default=_bytes_hex))
-            else:
-                cli._print(env, _telemetry_line(message))
-            env.stdout.flush()
+        if args.feed or args.since is not None:
+            client = _client(args, REPLY_TIMEOUT)
+        if args.feed:
+            request = {"fields": [f.strip() for f in args.feed.split(",") if f.strip()]}
+            if args.rate is not None:
+                request["rate"] = args.rate
+            if args.events:
+                request["events"] = True
+            feed = _call(client, "feed", request)
+            topic, fields = feed["topic"].encode(), feed["fields"]
+            silence += 1.0 / feed["rate"]
+        try:
+            sub = Subscriber(args.telemetry, keys=args.keys, topic=topic)
+        except ClientError as exc:
+            raise cli.UsageError(exc.message) from None
+        try:
+            return _watch(args, env, sub, client, fields, silence)
+        finally:
+            sub.close()
+    except _Refused as exc:
+        cli._err(env, f"irl watch: {exc}")
+        return cli.EXIT_INVALID
     finally:
-        sub.close()
+        if client is not None:
+            client.close()
+
+
+def _watch(args, env, sub, client, fields, silence: float) -> int:
+    cli = _cli()
+    received = 0
+    start = time.monotonic()
+    deadline = start + args.timeout if args.timeout else None
+    last_heard = start
+    shown = -1  # the last seq printed (replayed messages are not printed twice)
+
+    def show(message: dict) -> None:
+        nonlocal received
+        received += 1
+        if args.json:
+            cli._print(env, json.dumps(message, default=_bytes_hex))
+        elif fields is not None and message.get("kind") == "sample":
+            cli._print(env, _feed_line(message, fields))
+        else:
+            cli._print(env, _telemetry_line(message))
+        env.stdout.flush()
+
+    if args.since is not None:  # subscribed first: nothing between the replay and the live stream is lost
+        since, more = args.since, True
+        while more and (args.count is None or received < args.count):
+            replay = _call(client, "telemetry", {"since": since})
+            if replay.get("missing"):
+                cli._err(env, f"irl watch: {replay['missing']} telemetry messages after {since} are no longer held "
+                              "by the server")
+            for message in replay["messages"]:
+                if args.count is not None and received >= args.count:
+                    break
+                show(message)
+                since = shown = message["seq"]
+            more = replay.get("more", False)
+        last_heard = time.monotonic()
+    while args.count is None or received < args.count:
+        now = time.monotonic()
+        if deadline is not None and now >= deadline:
+            break
+        if now - last_heard > silence:
+            what = "no telemetry" if not received and args.since is None else "no more telemetry"
+            raise cli.UsageError(f"{what} from {args.telemetry} within {silence:g} s (is 'irl serve' running "
+                                 "there, with the same --keys?)")
+        wait = min(0.5, silence - (now - last_heard) + 0.01)
+        message = sub.receive(max(0.01, wait if deadline is None else min(wait, deadline - now)))
+        if message is None:
+            continue
+        last_heard = time.monotonic()
+        if message["seq"] <= shown:
+            continue
+        show(message)
+        if message.get("kind") == "event" and message.get("event") == "shutdown":
+            break  # the server said it is going
     if sub.missed:
         cli._err(env, f"irl watch: {sub.missed} telemetry messages were missed (sequence gaps)")
     return cli.EXIT_OK
+
+
+def _feed_line(m: dict, fields: list) -> str:
+    """A feed's sample: its fields as ``name=value``."""
+    values = " ".join(f"{name}={_shown_value(m[name])}" for name in fields if name in m)
+    return f"#{m.get('seq')} t={m.get('t', 0):.3f} {values}".rstrip()
+
+
+def _shown_value(value) -> str:
+    if isinstance(value, float):
+        return f"{value:.3f}"
+    if isinstance(value, list):
+        return "[" + " ".join(_shown_value(v) for v in value) + "]"
+    return str(value)
 
 
 def _bytes_hex(value):
@@ -372,12 +557,16 @@ def _telemetry_line(m: dict) -> str:
     text = f"{head} {m.get('state')}"
     if m.get("program") is not None:
         total = m.get("moves_total")
-        text += (f" program {m['program']} line {m.get('line')} moves {m.get('moves_done')}/"
+        at = f" line {m['line']}" if m.get("line") is not None else ""
+        text += (f" program {m['program']}{at} moves {m.get('moves_done') or 0}/"
                  f"{total if total is not None else '?'}" + (" paused" if m.get("paused") else ""))
     return f"{text} override {m.get('override', 100):g}% pos [{position}]"
 
 
 # ---- scripting ------------------------------------------------------------------------------------
+#: ``irl call``'s help: its examples are sent to a server by tests/test_netcli.py (each is accepted).
+CALL_HELP = "one scripting command, e.g. 'servo.kp', 'trajectory.budget = 500' or 'help servo'"
+
 @_guard
 def cmd_call(args, env) -> int:
     cli = _cli()
@@ -444,10 +633,12 @@ def cmd_keys(args, env) -> int:
 
 # ---- the parsers ----------------------------------------------------------------------------------
 def add_commands(sub) -> None:
+    from runtime import protocol
+
     endpoint = os.environ.get("IRL_ENDPOINT") or DEFAULT_ENDPOINT
     telemetry_endpoint = os.environ.get("IRL_TELEMETRY") or DEFAULT_TELEMETRY
 
-    def connection(p, telemetry: bool = False):
+    def connection(p, telemetry: bool = False, reply_timeout: bool = True):
         p.add_argument("--endpoint", default=endpoint, metavar="E",
                        help=f"the server's request endpoint (default: $IRL_ENDPOINT, else {DEFAULT_ENDPOINT}; "
                             f"now {endpoint})")
@@ -456,7 +647,9 @@ def add_commands(sub) -> None:
                            help=f"the server's telemetry endpoint (default: $IRL_TELEMETRY, else "
                                 f"{DEFAULT_TELEMETRY}; now {telemetry_endpoint})")
         p.add_argument("--keys", metavar="DIR", help="CURVE keys (made by 'irl keys DIR')")
-        p.add_argument("--timeout", type=float, default=5.0, metavar="S", help="seconds to wait for a reply")
+        if reply_timeout:
+            p.add_argument("--timeout", type=float, default=REPLY_TIMEOUT, metavar="S",
+                           help="seconds to wait for a reply")
 
     p = sub.add_parser("serve", help="serve a robot (the simulated one) on the network")
     p.add_argument("--endpoint", default=DEFAULT_ENDPOINT, metavar="E", help="request endpoint to bind (default: "
@@ -515,21 +708,39 @@ def add_commands(sub) -> None:
              "PCT", "1 to 100"),
             ("reconfigure", cmd_reconfigure, "switch to another named configuration between programs", "name", str,
              "NAME", "a configuration of the server's --config file"),
-            ("call", cmd_call, "one scripting command, e.g. 'servo.kp' or 'servo.kp = 30'", "text", str, "TEXT",
-             "the command ('help' lists the forms)")):
+            ("call", cmd_call, CALL_HELP, "text", str, "TEXT", "the command ('help' lists the forms)")):
         p = sub.add_parser(name, help=text)
         p.add_argument(arg, type=kind, metavar=metavar, help=what, **({"nargs": "?"} if name == "abort" else {}))
         connection(p)
         p.set_defaults(run=fn)
 
-    p = sub.add_parser("watch", help="print the server's telemetry")
+    p = sub.add_parser("watch", help="print the server's telemetry (exit 2 when none comes within "
+                                     f"{REPLY_TIMEOUT:g} s)")
     p.add_argument("--json", action="store_true", help="one JSON object per line")
     p.add_argument("--count", type=int, metavar="N", help="stop after N messages")
     p.add_argument("--timeout", type=float, metavar="S", help="stop after S seconds")
-    p.add_argument("--telemetry", default=DEFAULT_TELEMETRY, metavar="E",
-                   help=f"the server's telemetry endpoint (default {DEFAULT_TELEMETRY})")
-    p.add_argument("--keys", metavar="DIR", help="CURVE keys (made by 'irl keys DIR')")
+    p.add_argument("--since", type=int, metavar="SEQ",
+                   help="first the messages after telemetry seq SEQ that the server still holds (0: all of them), "
+                        "then the live ones")
+    p.add_argument("--feed", metavar="FIELDS",
+                   help="only these sample fields (comma-separated, e.g. position,line; docs/protocol.md, feed)")
+    p.add_argument("--rate", type=float, metavar="HZ", help=f"with --feed: samples per second, "
+                   f"{protocol.MIN_FEED_RATE:g} to {protocol.MAX_FEED_RATE:g} (default: every sample)")
+    p.add_argument("--events", action="store_true", help="with --feed: the events too")
+    connection(p, telemetry=True, reply_timeout=False)
     p.set_defaults(run=cmd_watch)
+
+    p = sub.add_parser("control", help="take control of the robot (other clients may then only read and "
+                                       "estop) or give it back")
+    p.add_argument("action", choices=("take", "release"), help="take: hold control (the token is stored for the "
+                                                                "irl commands after it); release: give it back")
+    p.add_argument("--name", metavar="N", help="with take: the name other clients see (default: 'client #N')")
+    p.add_argument("--lease", type=float, default=CONTROL_LEASE, metavar="S",
+                   help=f"with take: control ends S seconds after the last irl command to the server, "
+                        f"{protocol.MIN_LEASE:g} to {protocol.MAX_LEASE:g}")
+    p.add_argument("--json", action="store_true", help="the reply as one JSON object (with take: the token)")
+    connection(p)
+    p.set_defaults(run=cmd_control)
 
     p = sub.add_parser("console", help="an interactive scripting session")
     connection(p)

@@ -46,9 +46,9 @@ HELP_TEXT = r"""Commands, one per line:
   components                       list the components
   help [component]                 this text, or what a component offers
   component.property               read a property, e.g. servo.kp
-  component.property = value       write a property, e.g. servo.kp = 2.5
+  component.property = value       write a property, e.g. trajectory.budget = 500
   component.property[n] (= value)  one element, e.g. io.in[3] = true (simulation only)
-  component.operation(value, ...)  call an operation, e.g. fsm.request_state("Calibrate Offsets")
+  component.operation(value, ...)  call an operation, e.g. trajectory.configure() (while no program runs)
 Values: numbers (3, -2, 2.5, 1e-3), true, false, and strings in double or single quotes
 with the escapes \\ \" \' \n \t \r.
 """

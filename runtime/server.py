@@ -41,6 +41,7 @@ import zmq
 from compiler.objcode import OP, ObjectCodeError, Program, load
 
 from . import protocol
+from .client import default_state_dir
 from .config import merge_settings
 from .components.report import tcp_of
 from .feeds import Feeds
@@ -1069,11 +1070,6 @@ def envelope(frames: list[bytes]) -> tuple[list[bytes], bytes | None]:
     if frames[-2] == b"" and len(frames) - 2 <= protocol.MAX_ENVELOPE_FRAMES:  # (identity, envelope, request)
         return frames[:-1], frames[-1]
     return frames[:1] + ([b""] if frames[1] == b"" else []), None
-
-
-def default_state_dir() -> Path:
-    base = os.environ.get("XDG_STATE_HOME") or os.path.join(os.path.expanduser("~"), ".local", "state")
-    return Path(base) / "irl"
 
 
 def serve(spec, options: ServeOptions, configurations=None, stderr=None) -> int:

@@ -115,3 +115,130 @@ def test_keys_that_others_may_write_or_read_are_refused_with_the_fix(tmp_path):
     os.chmod(d / "server.key_secret", 0o600)
     check_server_keys(d)
     assert run("keys", d, "--name", "second")[0] == 0
+
+
+from hypothesis import given, strategies as st  # noqa: E402
+
+_STATUS = st.fixed_dictionaries(
+    {"id": st.integers(1, 10**6), "name": st.text(max_size=10), "state": st.sampled_from(["queued", "running"])},
+    optional={"fsm": st.sampled_from(["Start Robot", "Move Robot", "Initialization Sequence/Find Index"]),
+              "line": st.none() | st.integers(1, 10**5), "moves_done": st.integers(0, 99),
+              "moves_total": st.none() | st.integers(0, 99), "paused": st.booleans()})
+
+
+@given(_STATUS)
+def test_a_progress_line_never_says_none(status):
+    """``irl submit --wait`` and ``irl status``: a program that has started but whose line
+    the server does not know yet (its first snapshot not in) is shown without a line, not
+    as 'line None'."""
+    from runtime.netcli import _job_line, _progress_line, _telemetry_line
+
+    texts = [_job_line(status), _progress_line(status["id"], status)]
+    sample = {"seq": 1, "t": 0.0, "kind": "sample", "state": status.get("fsm", "Idle"), "program": status["id"],
+              "position": [0.0] * 6, **{k: status[k] for k in ("line", "moves_done", "moves_total") if k in status}}
+    texts.append(_telemetry_line(sample))
+    for text in texts:
+        assert "None" not in text, text
+        if status["state"] == "running" and status.get("line") is not None:
+            assert f"line {status['line']}" in text, text
+
+
+def test_watch_with_no_server_says_so_and_exits_2(monkeypatch):
+    """Issue 26, first hour: ``irl watch`` with nothing at the endpoint no longer waits in
+    silence: no telemetry within the reply timeout (5 s; shortened here) is exit 2."""
+    import socket
+
+    from runtime import netcli
+
+    monkeypatch.setattr(netcli, "REPLY_TIMEOUT", 0.3)
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        unused = f"tcp://127.0.0.1:{s.getsockname()[1]}"
+    code, out, err = run("watch", "--telemetry", unused, "--timeout", "3")
+    assert code == 2 and f"no telemetry from {unused} within 0.3 s" in err and "Traceback" not in err, (code, err)
+
+
+def _examples() -> list[str]:
+    """Every example that ``irl call --help`` and the console's ``help`` give."""
+    import re
+
+    from runtime.netcli import CALL_HELP
+    from runtime.scripting import HELP_TEXT
+
+    found = re.findall(r"'([^']+)'", CALL_HELP)
+    for line in HELP_TEXT.splitlines():
+        if "e.g. " in line:
+            found.append(line.split("e.g. ", 1)[1].split(" (", 1)[0].strip())
+    return found
+
+
+def test_control_replay_feeds_and_the_help_examples_from_the_irl_command(tmp_path, monkeypatch):
+    """Issue 26, first hour: ``irl control take`` stores a token that the later irl commands
+    (processes of their own) send, so an HMI's control does not lock them out once they hold
+    it; ``irl watch --since`` replays, ``--feed`` chooses fields; every example of the call
+    help is accepted by a server."""
+    import json
+    import os
+    import stat
+
+    import msgpack
+    import zmq
+
+    from runtime.netcli import control_file
+    from test_server import ServerProcess
+
+    monkeypatch.setenv("XDG_STATE_HOME", str(tmp_path / "xdg"))
+    monkeypatch.delenv("IRL_CONTROL_TOKEN", raising=False)
+    server = ServerProcess(tmp_path / "server", tmp_path / "state", sim_clock=True).start()
+    e = ("--endpoint", server.endpoint)
+    hmi = zmq.Context.instance().socket(zmq.DEALER)
+    hmi.connect(server.endpoint)
+
+    def hmi_call(op, **args):
+        hmi.send(msgpack.packb({"v": 2, "id": 1, "op": op, "args": args}))
+        assert hmi.poll(10_000)
+        return msgpack.unpackb(hmi.recv(), raw=False)
+
+    try:
+        examples = _examples()
+        assert "trajectory.budget = 500" in examples and not any("servo.kp =" in x for x in examples)
+        for example in examples:
+            code, out, err = run("call", example, *e)
+            assert code == 0, (example, out, err)
+
+        code, out, err = run("control", "take", "--name", "line 3 operator", "--lease", "60", *e)
+        assert code == 0 and "taken as 'line 3 operator'" in out, (out, err)
+        stored = control_file(server.endpoint)
+        assert stat.S_IMODE(os.stat(stored).st_mode) == 0o600
+        assert json.loads(stored.read_text())["token"] not in out  # (printed with --json only)
+        refused = hmi_call("override", percent=20)["error"]
+        assert refused["code"] == "refused" and "line 3 operator" in refused["message"]
+        code, out, err = run("override", "40", *e)  # another process, another connection: the token
+        assert code == 0 and "override 40 %" in out, err
+        monkeypatch.setenv("IRL_CONTROL_TOKEN", "not-the-token")
+        code, out, err = run("override", "30", *e)
+        assert code == 1 and "refused" in err and "not the holder's" in err, err
+        monkeypatch.delenv("IRL_CONTROL_TOKEN")
+        code, out, err = run("control", "release", *e)
+        assert code == 0 and not stored.exists(), err
+        assert hmi_call("status")["result"]["control"] is None
+
+        # an HMI holds control: the irl commands are refused, and say who holds it
+        assert hmi_call("control", take=True, name="HMI", lease=60)["ok"]
+        code, out, err = run("pause", *e)
+        assert code == 1 and "HMI holds control" in err, err
+        assert hmi_call("control", take=False)["ok"]
+
+        code, out, err = run("watch", "--since", "0", "--count", "3", "--json", "--telemetry", server.telemetry, *e)
+        assert code == 0, err
+        assert [json.loads(line)["seq"] for line in out.splitlines()] == [1, 2, 3]
+        code, out, err = run("watch", "--feed", "position,state", "--rate", "10", "--count", "2", "--json",
+                             "--telemetry", server.telemetry, *e)
+        assert code == 0, err
+        for line in out.splitlines():
+            assert set(json.loads(line)) == {"v", "seq", "feed_seq", "t", "kind", "position", "state"}, line
+        code, out, err = run("watch", "--feed", "postion", "--telemetry", server.telemetry, *e)
+        assert code == 1 and "did you mean 'position'" in err, err
+    finally:
+        hmi.close(linger=0)
+        assert server.stop() == 0, server.log()

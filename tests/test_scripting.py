@@ -225,10 +225,10 @@ def test_commands_are_frozen():
 
 def test_help_text_lists_the_forms():
     assert "\n" in HELP_TEXT.strip()
-    for form in ("components", "help", "servo.kp", "servo.kp = 2.5", 'fsm.request_state("Calibrate Offsets")', "true"):
+    for form in ("components", "help", "servo.kp", "trajectory.budget = 500", "trajectory.configure()", "true"):
         assert form in HELP_TEXT
-    # the examples in the help text parse
-    assert parse("servo.kp = 2.5") and parse('fsm.request_state("Calibrate Offsets")')
+    # the examples in the help text parse (and a server accepts them: tests/test_netcli.py)
+    assert parse("trajectory.budget = 500") and parse("trajectory.configure()")
 
 
 # ---- format_value ------------------------------------------------------------------------

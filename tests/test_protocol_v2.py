@@ -9,6 +9,7 @@ from pathlib import Path
 import msgpack
 import zmq
 
+from runtime import protocol
 from test_server import PROGRAMS, ServerProcess, objcode
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -426,3 +427,66 @@ def test_every_answer_the_protocol_document_gives_is_the_running_servers(tmp_pat
         holder.close()
         other.close()
         assert server.stop() == 0, server.log()
+
+
+_SERVER = {}
+
+
+def _in_process_server():
+    """One server with its loop in this process and no sockets (requests handed to
+    ``_handle`` with the connection they came on; replies read from ``outbox``)."""
+    if "server" not in _SERVER:
+        from compiler.spec import load_spec
+        from runtime.server import Server, ServeOptions
+
+        import tempfile
+
+        state = Path(tempfile.mkdtemp(prefix="irl-control-"))
+        _SERVER["server"] = Server(load_spec(ROOT / "programs" / "lola15.spc"),
+                                   ServeOptions(sim_clock=True, loop_process=False, state_dir=state))
+    return _SERVER["server"]
+
+
+_CONNECTIONS = ("a", "b", "c", None)  # identities the server gave (None: a connection without one)
+_STEPS = st.lists(st.tuples(st.sampled_from(_CONNECTIONS), st.sampled_from([b"hmi-1", b"\x00\x01\x02\x03\x04", b"x"]),
+                            st.sampled_from(["none", "holder's", "wrong"]),
+                            st.sampled_from(["take", "release", "override", "status", "estop"])),
+                  min_size=1, max_size=25)
+
+
+@given(_STEPS)
+def test_a_request_is_the_holders_exactly_when_it_comes_on_its_connection_or_carries_its_token(steps):
+    """Issue 26, fault 3, as a property over any sequence of requests from any connection
+    with any routing id (copied or not) and any token: a controlling request is accepted
+    exactly when nobody holds control, or it came on the holder's connection, or it carries
+    the holder's token; the routing id plays no part; no reply shows the token but take's."""
+    server = _in_process_server()
+    server.controller = None
+    server.commands.clear()
+    server.outbox.clear()
+    holder = None  # the model: (connection, token)
+    for i, (connection, routing_id, token_kind, op) in enumerate(steps):
+        token = {"none": None, "holder's": holder[1] if holder else "t" * 43, "wrong": "w" * 43}[token_kind]
+        owns = holder is not None and ((connection is not None and connection == holder[0]) or token == holder[1])
+        args = {"take": {"take": True, "lease": 3600}, "release": {"take": False},
+                "override": {"percent": 50}}.get(op, {})
+        wire = "control" if op in ("take", "release") else op
+        server._handle([routing_id, protocol.request(wire, args, i, token=token)], connection)
+        queued = bool(server.commands)
+        server.commands.clear()
+        reply = protocol.decode_reply(server.outbox.popleft()[1]) if server.outbox else None
+        assert not server.outbox
+        if op in ("override", "estop"):  # carried out by the loop (queued), or refused at once
+            allowed = op == "estop" or holder is None or owns
+            assert queued == allowed and (reply is None) == allowed, (op, holder, connection, token_kind, reply)
+        elif op == "status":
+            assert reply["ok"] and (holder is None) == (reply["result"]["control"] is None)
+            assert holder is None or holder[1] not in repr(reply)
+        elif op == "take":
+            assert reply["ok"] == (holder is None or owns), (holder, connection, token_kind, reply)
+            if holder is None:
+                holder = (connection, reply["result"]["token"])
+        else:  # release
+            assert reply["ok"] == (holder is None or owns), (holder, connection, token_kind, reply)
+            if reply["ok"]:
+                holder = None

@@ -858,6 +858,25 @@ def test_curve_keys(start_server, tmp_path):
     assert good.request("hello")["robot"] == "lola_15"  # still serving the keyed client
     assert server.alive()
 
+    # the server's own handshake handler (runtime.connections) guards the telemetry too
+    subscribers = [Subscriber(server.telemetry, keys=keys), Subscriber(server.telemetry, keys=other),
+                   Subscriber(server.telemetry)]
+    try:
+        assert subscribers[0].receive(10.0) is not None
+        assert subscribers[1].receive(1.0) is None and subscribers[2].receive(0.1) is None
+    finally:
+        for sub in subscribers:
+            sub.close()
+    # control is the connection's, not the key's: another connection with the same key is
+    # refused, unless it sends the token
+    token = good.request("control", {"take": True, "lease": 60})["token"]
+    same_key = server.client(keys=keys)
+    with pytest.raises(ClientError) as err:
+        same_key.request("override", {"percent": 50})
+    assert err.value.code == "refused"
+    same_key.token = token
+    assert same_key.request("override", {"percent": 50}) == {"override": 50.0}
+
 
 # ---- 10. bad input from the CLI ---------------------------------------------------------------------
 def test_cli_bad_inputs_without_tracebacks(tmp_path):

@@ -374,6 +374,8 @@ def cmd_status(args, env) -> int:
     for key in ("calibration", "initialization"):  # why each is (or is not) remembered
         if status.get(key):
             cli._print(env, f"  {status[key]}")
+    if status.get("control"):
+        cli._print(env, f"control: held by {status['control']} (other clients may only read and estop)")
     if status["running"]:
         cli._print(env, "running: " + _job_line(status["running"]))
     cli._print(env, "queue: " + (", ".join(map(str, status["queue"])) or "empty"))

@@ -227,6 +227,8 @@ def test_control_replay_feeds_and_the_help_examples_from_the_irl_command(tmp_pat
         assert hmi_call("control", take=True, name="HMI", lease=60)["ok"]
         code, out, err = run("pause", *e)
         assert code == 1 and "HMI holds control" in err, err
+        code, out, err = run("status", *e)
+        assert code == 0 and "control: held by HMI" in out, out
         assert hmi_call("control", take=False)["ok"]
 
         code, out, err = run("watch", "--since", "0", "--count", "3", "--json", "--telemetry", server.telemetry, *e)

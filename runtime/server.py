@@ -769,8 +769,8 @@ class Server:
         if op in protocol.CONTROLLING and not (op == "call" and self._reads_only(args)) or \
                 (op == "control" and args.get("take")):
             left = holder.lease - (time.monotonic() - holder.last)
-            stale = " (the token this request carries is not the holder's: control was given back, or its lease " \
-                    "ended, since it was taken with it)" if token is not None else ""
+            stale = " (the token this request carries is not the holder's: a token is void once control is given " \
+                    "back or its lease ends)" if token is not None else ""
             raise ProtocolError("refused", f"{holder.name} holds control of the robot (for {left:.1f} s more "
                                            f"without a request from it): this client may read, and estop{stale}")
         return False

@@ -592,9 +592,11 @@ class Server:
             self.connections.protect(self.pub)
         self.router.setsockopt(zmq.MAXMSGSIZE, protocol.TRANSPORT_MAX_BYTES)
         self.router.setsockopt(zmq.LINGER, 0)
-        # no handover: a client that connects with a routing id another connection has does
-        # not take it over (it would get that connection's replies); libzmq ignores it
-        self.router.setsockopt(zmq.ROUTER_HANDOVER, 0)
+        # handover: a connection with a routing id another one has takes it over (libzmq closes
+        # the older one); without it libzmq ignores the newer connection for good when the older
+        # one has not closed yet (a client that reconnects at once would be locked out, and
+        # anyone could squat on a client's id). Control does not depend on routing ids.
+        self.router.setsockopt(zmq.ROUTER_HANDOVER, 1)
         self.router.setsockopt(zmq.SNDHWM, 10_000)
         self.router.bind(self.options.endpoint)
         self.pub.setsockopt(zmq.SNDHWM, 1000)  # bounded: a slow subscriber loses messages

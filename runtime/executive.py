@@ -394,8 +394,10 @@ class Executive:
 
     def resync(self) -> None:
         """Not real-time: after a pause in stepping (a server idle between programs), skip
-        to the next tick boundary of the clock instead of catching up tick by tick."""
+        to the next tick boundary of the clock instead of catching up tick by tick; the
+        clock's ``tick_time`` is then that tick's (what the components count in)."""
         self.ticks = max(self.ticks, math.ceil(self.clock.now() / self.tick))
+        self.clock.wait_until(self.ticks * self.tick)
 
     def run(self, until: Callable[[], bool], max_ticks: int) -> int:
         """Step until ``until()`` holds or ``max_ticks`` ticks have run; returns ticks run."""

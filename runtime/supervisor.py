@@ -229,11 +229,11 @@ class Supervisor:
         trusted (whatever ended the cycle early may have moved the robot unobserved)."""
         if self.fault is None:
             self.fault = message
-            why = f"the cycle at {self.clock.now():.3f} s ended early: {message}"
+            why = f"the cycle at {self.clock.tick_time:.3f} s ended early: {message}"
             self.memory.forget_initialization(why)
             if self.provisional is not None:  # measured, never confirmed: measured again next time
                 self.provisional = None
-                self.memory.forget_calibration(f"the calibration measured in the cycle at {self.clock.now():.3f} s "
+                self.memory.forget_calibration(f"the calibration measured in the cycle at {self.clock.tick_time:.3f} s "
                                                f"was never confirmed: {message}")
 
     def reconfiguring(self) -> bool:
@@ -265,7 +265,7 @@ class Supervisor:
 
     # ---- helpers ----
     def _elapsed(self) -> float:
-        return self.clock.now() - self.t_state
+        return self.clock.tick_time - self.t_state
 
     def _start_servo_and_report(self) -> None:
         if not self.servo.running:
@@ -287,7 +287,7 @@ class Supervisor:
             self.memory.calibration_why = f"not calibrated: {why}"
 
     def start_entry(self) -> None:
-        self.t_state = self.clock.now()
+        self.t_state = self.clock.tick_time
         self.robot.enable_drives()  # torque on (a stop of the last cycle took it off)
         if self.memory.calibrated:
             self.robot.compensation[:] = self.memory.compensation
@@ -300,7 +300,7 @@ class Supervisor:
 
     # ---- Calibrate Offsets ----
     def calibrate_entry(self) -> None:
-        self.t_state = self.clock.now()
+        self.t_state = self.clock.tick_time
         self.servo.set_mode("zero")
         self._start_servo_and_report()
         self.robot.compensation[:] = [0.0] * self.n
@@ -339,7 +339,7 @@ class Supervisor:
             compensation, self.provisional = self.provisional, None
             self.memory.calibrated, self.memory.compensation = True, compensation
             self.memory.calibration_why = (f"calibrated: measured and confirmed by the cycle at "
-                                           f"{self.clock.now():.3f} s")
+                                           f"{self.clock.tick_time:.3f} s")
             self.state_file.save(compensation)
 
     def calibrate_exit(self) -> None:
@@ -359,7 +359,7 @@ class Supervisor:
         if self.init.completed and self.fault is None:  # the sequence itself reached Done
             self.memory.initialized = True
             self.memory.encoder_offsets = list(self.robot.offset)
-            self.memory.initialization_why = f"initialized: homing completed at {self.clock.now():.3f} s"
+            self.memory.initialization_why = f"initialized: homing completed at {self.clock.tick_time:.3f} s"
             self._confirm_calibration()
             self.servo.hold_at(self.init.positions)  # exactly the start position
         else:
@@ -398,7 +398,7 @@ class Supervisor:
         """A fault (or anything but a normal end): the safety supervisor stops the robot
         (category 1, unless a stricter stop is under way). A normal end: the servo
         settles on the last reference, then the brakes close (standstill monitored)."""
-        self.t_state = self.clock.now()
+        self.t_state = self.clock.tick_time
         self.settled_since = None
         self.braking = False
         if self.fault is not None:
@@ -427,7 +427,7 @@ class Supervisor:
             if not safety.at_rest:
                 return
         elif not self.braking:
-            now = self.clock.now()
+            now = self.clock.tick_time
             worst = max((abs(e) * a.counts_per_unit for e, a in zip(self.servo.following_error, robot.axes)),
                         default=0.0)
             if worst <= SETTLE_TOLERANCE_COUNTS:
@@ -488,7 +488,10 @@ class Supervisor:
             t(MOVE, STOP, faulted, label="fault"),
             t(MOVE, STOP, self.program_finished, label="program finished"),
         ]
-        return FSM("supervisor", states, transitions, initial=START, final=STOP, clock=self.clock.now)
+        # the machine's times are the ticks' (runtime.executive): after a stall of the host the
+        # catch-up ticks are 1 ms apart, as the robot's samples are
+        return FSM("supervisor", states, transitions, initial=START, final=STOP,
+                   clock=lambda: self.clock.tick_time)
 
     def step(self, now: float) -> None:
         """Real-time (decide): one step of the machine."""

@@ -45,10 +45,12 @@ class RunOptions:
 
 
 class RobotSystem:
-    def __init__(self, spec, options: RunOptions, backend=None, memory: RobotMemory | None = None):
+    def __init__(self, spec, options: RunOptions, backend=None, memory: RobotMemory | None = None, clock=None):
         self.spec = spec
         self.options = options
-        self.clock = WallClock() if options.realtime else SimClock(TICK)
+        # ``clock``: another clock with the same interface (``now``, ``tick_time``,
+        # ``wait_until``, ``simulated``); the tests' stalling clock (tests/test_stall.py)
+        self.clock = clock if clock is not None else WallClock() if options.realtime else SimClock(TICK)
         n = len(spec.axes)
         self.ports = {name: DataPort(name) for name in ("sens_pos", "desi_pos", "init_pos", "out_vel", "drive_cmd")}
         p = self.ports
@@ -144,7 +146,7 @@ class RobotSystem:
         self.trajectory.override = self.options.override
         self.report.open(report)
         if self.cell is not None:
-            self.cell.reset(self.clock.now())
+            self.cell.reset(self.clock.tick_time)
         self.io.start()  # the inputs as the cycle begins (the cell reset), its outputs; a loss taken anew
         if self.options.realtime:  # the threads beside the loop (now all started) one below it
             from .realtime import rank_helpers
@@ -153,9 +155,9 @@ class RobotSystem:
         self.robot.configure()
         self.robot.start()
         self.safety.start()
-        self.supervisor.fsm.start()
         if self.options.realtime:  # the wall clock ran on while this set-up (or a server's idle time) took
             self.executive.resync()  # its time: the first tick is the next one due, not a burst of late ones
+        self.supervisor.fsm.start()  # at that tick's time (the components count in tick time)
         self._ticks0 = self.executive.ticks  # (a server's executive counts on across cycles)
 
     def _encoder_reset(self, axis: int, delta: float) -> None:
@@ -318,7 +320,7 @@ class RobotSystem:
     def summary(self, wall_time: float) -> dict:
         sup = self.supervisor
         history = sup.fsm.history
-        end = self.clock.now()
+        end = self.clock.tick_time
         states = []
         for i, (t, _source, name) in enumerate(history):
             t_exit = history[i + 1][0] if i + 1 < len(history) else end

@@ -148,7 +148,8 @@ class Initialization(Component):
             Transition("Find Index", "Go To Start", seq.all_found_at_rest, label="all index pulses found, at rest"),
             Transition("Go To Start", "Done", self.at_start, program=seq.complete, label="at the start position"),
         ]
-        return FSM("initialization", states, transitions, initial="Find Sensors", final="Done", clock=clock.now)
+        return FSM("initialization", states, transitions, initial="Find Sensors", final="Done",
+                   clock=lambda: clock.tick_time)
 
 
 class _Sequence:

@@ -259,7 +259,7 @@ class SafetySupervisor(Component):
     def expect_rest_within(self, seconds: float) -> None:
         """Real-time safe: a stop on the path began; it must reach rest (see
         :meth:`expect_standstill`) within ``seconds`` plus ``stop_time_margin``."""
-        deadline = self.clock.now() + seconds + self.stop_time_margin
+        deadline = self.clock.tick_time + seconds + self.stop_time_margin
         if self.rest_deadline is None or deadline < self.rest_deadline:
             self.rest_deadline = deadline
 
@@ -309,7 +309,7 @@ class SafetySupervisor(Component):
         under way only ever gets stricter). Category 1 ramps every axis's command from
         the last one passed to the drives to zero at the axis's max_acceleration, then
         applies the brakes, then takes the torque off; category 0 does both at once."""
-        now = self.clock.now() if now is None else now
+        now = self.clock.tick_time if now is None else now
         if self.category is not None and self.category <= category:
             return
         if self.category is None:

@@ -131,7 +131,11 @@ class TrajectoryGenerator(Component):
         position = self.start_position or self.sens_pos.read() or (0.0,) * self.n
         self.motion.start(position, self.period)
         self.vm = VM(self.program, self, self.budget)
-        self.desi_pos.write((self.clock.now(), self.motion.positions, self.motion.velocities), self.clock.now())
+        # the first setpoint at this tick's time, as every later one (never the wall clock's
+        # now: after a stall of the host that lies ahead of the ticks, and the servo would
+        # interpolate from it to where the move is by then)
+        now = self.clock.tick_time
+        self.desi_pos.write((now, self.motion.positions, self.motion.velocities), now)
         return True
 
     def _holds(self) -> bool:
@@ -298,7 +302,8 @@ class TrajectoryGenerator(Component):
 
     # ---- the VM's motion host ----
     def now(self) -> float:
-        return self.clock.now()
+        """The program's time (waits, timeouts): the tick's, as the motion's."""
+        return self.clock.tick_time
 
     def move(self, kind: str, targets: tuple, clauses: dict, line: int) -> str | None:
         """The VM's move instruction: check the move, hand it to the motion queue; the
@@ -416,9 +421,9 @@ class TrajectoryGenerator(Component):
         """The operator log: at most MAX_LOG_LINES lines per program (then one line that
         says how many more were not kept)."""
         if len(self.log_lines) < MAX_LOG_LINES:
-            self.log_lines.append((self.clock.now(), line, text))
+            self.log_lines.append((self.clock.tick_time, line, text))
         else:
             self.log_dropped += 1
             if self.log_dropped == 1:
-                self.log_lines.append((self.clock.now(), line, f"(more than {MAX_LOG_LINES} lines: the rest of "
+                self.log_lines.append((self.clock.tick_time, line, f"(more than {MAX_LOG_LINES} lines: the rest of "
                                                               "the log is not kept)"))

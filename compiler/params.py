@@ -36,13 +36,21 @@ from dataclasses import dataclass
 __all__ = ["COMPONENTS", "PARAMS", "SETTINGS", "SPEC_SECTIONS", "Param", "ParamError", "component_params",
            "describe", "markdown", "section_params", "settings", "spec_section"]
 
-#: The specification's tables whose keys are parameters.
+#: The specification's tables whose keys are parameters (``axis``, each ``[[axis]]``
+#: table's limits and encoder, is read by compiler.spec per axis).
 SPEC_SECTIONS = ("controller", "simulation", "safety")
 #: The components whose settings are parameters (TOML configurations, scripting).
 COMPONENTS = ("servo", "robot", "trajectory", "initialization", "report")
 CHANGES = ("specification", "configuration", "live")
 
 TICK = 0.001  # s: every period is a whole multiple of the executive's tick
+#: The finest encoder resolution an axis may have: counts per deg (or mm) of axis motion,
+#: encoder_counts x gear_ratio / 360 (revolute) or x gear_ratio (prismatic). Coarser counts
+#: cannot be servoed within the safety's acceleration check, settled on nor homed.
+MIN_COUNTS_PER_UNIT = 50.0
+#: The finest: homing settles each axis on its start position within one count, which a
+#: finer encoder does not reach within the settling time.
+MAX_COUNTS_PER_UNIT = 20_000.0
 PERIOD_MIN, PERIOD_MAX = 0.001, 1.0
 REPORT_COLUMNS = ("sens_pos", "desi_pos", "out_vel", "following_error", "tcp")
 #: Columns a report may also have (not by default): io, every digital input then output (0/1);
@@ -199,14 +207,15 @@ def _p(section, name, kind, default, unit="", low=None, high=None, **kw) -> Para
 #: THE table. Order: as the documentation lists them.
 PARAMS: tuple[Param, ...] = (
     # ---- the servo (1 ms position loop); start values from [controller] ----
-    _p("servo", "kp", "number", 40.0, "1/s", 0.0, 100.0, low_open=True, safety=True, change="configuration",
-       spec_key="controller.kp", doc="position loop gain"),
+    _p("servo", "kp", "number", 40.0, "1/s", 5.0, 100.0, safety=True, change="configuration",
+       spec_key="controller.kp", doc="position loop gain (below 5 the axes do not settle within a count of a target in time)"),
     _p("servo", "ki", "number", 2.0, "1/s^2", 0.0, 100.0, safety=True, change="configuration",
        spec_key="controller.ki", doc="integral gain"),
-    _p("servo", "following_error_limit", "number", 2.0, "deg or mm", 0.0, 10.0, low_open=True, safety=True,
+    _p("servo", "following_error_limit", "number", 2.0, "deg or mm", 0.1, 10.0, safety=True,
        change="configuration", spec_key="controller.following_error_limit",
        doc="largest allowed |reference - measured position| of any axis; beyond it the robot stops "
-           "(category 1). It cannot be switched off: at most 10"),
+           "(category 1). It cannot be switched off: at most 10; at least 0.1, what a healthy arm's "
+           "servo lags behind a move"),
     # ---- [controller]: the loop's policies ----
     _p("controller", "servo_miss_policy", "choice", "firm", choices=("hard", "firm", "soft"), safety=True,
        doc="deadline policy of the 1 ms servo task on the wall clock: hard (one miss faults), firm (more than "
@@ -246,6 +255,26 @@ PARAMS: tuple[Param, ...] = (
     _p("safety", "stop_time_margin", "number", 0.5, "s", 0.05, 5.0, safety=True,
        doc="a controlled stop (pause, abort, a stop on the path) that has not brought the robot to rest this "
            "long after its planned duration is taken over by the safety's own ramp"),
+    # ---- [[axis]]: each axis's data (the position keys min, max, home and sensor_position
+    # are checked against each other in compiler/spec.py). The lower bounds are what the
+    # runtime can use: a smaller limit plans moves no run ends (or nan positions), a coarser
+    # encoder cannot be servoed or homed, and the servo's own corrections on a healthy arm
+    # would be a fault beside a smaller max_acceleration ----
+    _p("axis", "max_velocity", "number", None, "deg/s or mm/s", 1.0, 1000.0, safety=True,
+       doc="the axis's velocity limit (moves, the servo's commands and the safety supervisor)"),
+    _p("axis", "max_acceleration", "number", None, "deg/s^2 or mm/s^2", 50.0, 10_000.0, safety=True,
+       doc="the axis's acceleration limit"),
+    _p("axis", "max_jerk", "number", None, "deg/s^3 or mm/s^3", 10.0, 1_000_000.0, safety=True,
+       doc="the axis's jerk limit (jerk-limited PTP moves, blends, lin and circ paths)"),
+    _p("axis", "gear_ratio", "number", 100.0, "", 1.0, 1000.0,
+       doc="motor revolutions per axis revolution (revolute) or per mm (prismatic); with encoder_counts at "
+           "50 and at most 20000 counts per deg or mm (compiler.params.MIN_COUNTS_PER_UNIT, MAX_COUNTS_PER_UNIT)"),
+    _p("axis", "encoder_counts", "integer", 4096, "counts", 16, 1 << 20,
+       doc="encoder counts per motor revolution (after quadrature)"),
+    _p("axis", "sensor_window", "number", 0.5, "deg or mm", 0.01, 10.0,
+       doc="half-width of the homing sensor's window"),
+    _p("axis", "search_velocity", "number", 5.0, "deg/s or mm/s", 0.1, 1000.0,
+       doc="speed of the initialization's searches (at most max_velocity; default: 5, or max_velocity if smaller)"),
     # ---- [simulation]: the simulated arm ----
     _p("simulation", "drive_time_constant", "number", 0.005, "s", 0.0, 1.0, low_open=True,
        doc="first-order lag of each velocity-commanded drive"),

@@ -201,8 +201,14 @@ class _Reader:
                 raise SpecError(self.file, self.key(name), f"unknown key{hint}")
 
 
-def _positive(x) -> bool:
-    return x > 0
+def _at_least(bound: float):
+    return lambda x: x >= bound
+
+
+#: The least [robot] max_speed and max_acceleration: the lower bounds of the speed and acc
+#: clauses (compiler.clauses), which they bound from above.
+MIN_TOOL_SPEED = clauses.BY_NAME["speed"].ranges[0].low
+MIN_TOOL_ACCELERATION = clauses.BY_NAME["acc"].ranges[0].low
 
 
 def _canonical_hash(data: dict) -> str:
@@ -218,23 +224,47 @@ def _axis(file: str, index: int, table) -> Axis:
     unit = "deg" if kind == "revolute" else "mm"
     low = r.get("min", "number", expect=f"a number ({unit})")
     high = r.get("max", "number", check=lambda v: v > low, expect=f"a number ({unit}) greater than min ({low:g})")
-    vel = r.get("max_velocity", "number", check=_positive, expect=f"a positive number ({unit}/s)")
-    acc = r.get("max_acceleration", "number", check=_positive, expect=f"a positive number ({unit}/s^2)")
-    jerk = r.get("max_jerk", "number", check=_positive, expect=f"a positive number ({unit}/s^3)")
+    axis_params = params.section_params("axis")
+
+    def limit(key: str, default=..., cap: float | None = None, cap_name: str = ""):
+        """A key declared in compiler.params (section "axis"), within its range (and at
+        most ``cap``, another key's value)."""
+        param = axis_params[key]
+        r.used.add(key)
+        if key not in r.table:
+            if default is ...:
+                raise SpecError(file, r.key(key), f"missing; expected {param.allowed()}")
+            return default
+        try:
+            value = param.check(r.table[key])
+        except params.ParamError as exc:
+            raise SpecError(file, r.key(key), exc.reason) from None
+        if cap is not None and value > cap:
+            raise SpecError(file, r.key(key), f"expected at most {cap_name} ({cap:g} {unit}/s), got {value:g}")
+        return value
+
+    vel = limit("max_velocity")
+    acc = limit("max_acceleration")
+    jerk = limit("max_jerk")
     group = r.get("group", "string", "main", check=lambda g: g in ("main", "additional"),
                   expect='"main" or "additional"')
     home_default = 0.0 if low <= 0.0 <= high else ...  # 0 is no default outside the limits
     home = r.get("home", "number", home_default, check=lambda v: low <= v <= high,
                  expect=f"a number ({unit}) within min..max ({low:g}..{high:g})")
-    gear = r.get("gear_ratio", "number", 100.0, check=_positive, expect="a positive number")
-    counts = r.get("encoder_counts", "integer", 4096, check=_positive,
-                   expect="a positive integer (counts per motor revolution)")
+    gear = limit("gear_ratio", axis_params["gear_ratio"].default)
+    counts = limit("encoder_counts", axis_params["encoder_counts"].default)
+    resolution = counts * gear / (360.0 if kind == "revolute" else 1.0)
+    if not params.MIN_COUNTS_PER_UNIT <= resolution <= params.MAX_COUNTS_PER_UNIT:
+        raise SpecError(file, r.key("gear_ratio"),
+                        f"encoder_counts x gear_ratio{' / 360' if kind == 'revolute' else ''} gives "
+                        f"{resolution:.4g} counts per {unit}: expected {params.MIN_COUNTS_PER_UNIT:g} to "
+                        f"{params.MAX_COUNTS_PER_UNIT:g} (the encoder's resolution the servo and homing can use)")
     sensor_default = home - 5.0 if low <= home - 5.0 else ...
     sensor = r.get("sensor_position", "number", sensor_default, check=lambda v: low <= v <= high,
                    expect=f"a number ({unit}) within min..max, where the homing sensor is")
-    window = r.get("sensor_window", "number", 0.5, check=_positive, expect=f"a positive number ({unit})")
-    search = r.get("search_velocity", "number", min(5.0, vel), check=lambda v: 0 < v <= vel,
-                   expect=f"a speed ({unit}/s) within 0..max_velocity")
+    window = limit("sensor_window", axis_params["sensor_window"].default)
+    search = limit("search_velocity", min(axis_params["search_velocity"].default, vel), cap=vel,
+                   cap_name="max_velocity")
     dh = None
     if "dh" in r.table:
         d = _Reader(file, r.key("dh"), r.get("dh", "table"))
@@ -260,9 +290,12 @@ def parse_spec(text: str, file: str = "<spec>") -> Spec:
     robot = _Reader(file, "robot", top.get("robot", "table", expect="a [robot] table"))
     name = robot.get("name", "string", expect="the robot's name (what act_rob names)")
     description = robot.get("description", "string", "")
-    max_speed = robot.get("max_speed", "number", 2000.0, check=_positive, expect="a positive number (mm/s)")
-    max_acc = robot.get("max_acceleration", "number", 10000.0, check=_positive,
-                        expect="a positive number (mm/s^2)")
+    # the tool's limits (they bound the speed and acc clauses, compiler.clauses): at least
+    # the clauses' own lower bounds
+    max_speed = robot.get("max_speed", "number", 2000.0, check=_at_least(MIN_TOOL_SPEED),
+                          expect=f"a number >= {MIN_TOOL_SPEED:g} (mm/s)")
+    max_acc = robot.get("max_acceleration", "number", 10000.0, check=_at_least(MIN_TOOL_ACCELERATION),
+                        expect=f"a number >= {MIN_TOOL_ACCELERATION:g} (mm/s^2)")
     robot.finish()
 
     top.used.add("axis")

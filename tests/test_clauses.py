@@ -42,12 +42,12 @@ SPEC = load_spec(SPEC_PATH)
 #: The rules as docs/language.md states them, written out independently of the table:
 #: (clause, motion) -> (low, low excluded, high or None).
 RULES = {
-    ("speed_ptp", "ptp"): (0.0, True, 1.0),
-    ("acc_ptp", "ptp"): (0.0, True, 1.0),
-    ("speed", "lin"): (0.0, True, SPEC.max_speed),
-    ("speed", "circ"): (0.0, True, SPEC.max_speed),
-    ("acc", "lin"): (0.0, True, SPEC.max_acceleration),
-    ("acc", "circ"): (0.0, True, SPEC.max_acceleration),
+    ("speed_ptp", "ptp"): (0.01, False, 1.0),
+    ("acc_ptp", "ptp"): (0.01, False, 1.0),
+    ("speed", "lin"): (0.1, False, SPEC.max_speed),
+    ("speed", "circ"): (0.1, False, SPEC.max_speed),
+    ("acc", "lin"): (1.0, False, SPEC.max_acceleration),
+    ("acc", "circ"): (1.0, False, SPEC.max_acceleration),
     ("approx", "ptp"): (0.0, False, 1.0),
     ("approx", "lin"): (0.0, False, None),
     ("approx", "circ"): (0.0, False, None),
@@ -120,9 +120,9 @@ def test_the_specifications_defaults_follow_the_table():
     assert slow.defaults.speed == 100.0  # capped at the robot's maximum
     assert parse_spec(spec_with("[defaults]\napprox = 5.0\n")).defaults.approx == 5.0  # mm after lin and circ
     refused = {
-        "speed_ptp = 1.5": "expected 0 < x <= 1, got 1.5",
-        "speed = 2500.0": "expected 0 < x <= 2000 mm/s (robot.max_speed), got 2500.0",
-        "acc = 0.0": "expected 0 < x <= 8000 mm/s^2 (robot.max_acceleration), got 0.0",
+        "speed_ptp = 1.5": "expected 0.01 <= x <= 1, got 1.5",
+        "speed = 2500.0": "expected 0.1 <= x <= 2000 mm/s (robot.max_speed), got 2500.0",
+        "acc = 0.0": "expected 1 <= x <= 8000 mm/s^2 (robot.max_acceleration), got 0.0",
         "approx = -1.0": "expected 0 <= x <= 1 (after ptp) or x >= 0 mm (after lin, circ), got -1.0",
         "approx = nan": "expected 0 <= x <= 1 (after ptp)",
     }
@@ -213,14 +213,14 @@ def test_any_clauses_give_values_in_range_or_a_problem_naming_clause_value_and_r
 
 def test_problems_say_what_which_value_and_which_range():
     cases = {
-        ("ptp", "speed_ptp", 1.5): "speed_ptp = 1.5 is out of range: expected 0 < speed_ptp <= 1; "
+        ("ptp", "speed_ptp", 1.5): "speed_ptp = 1.5 is out of range: expected 0.01 <= speed_ptp <= 1; "
                                    "it is a fraction of each axis's max_velocity",
-        ("ptp", "speed_ptp", 1.0000001): "speed_ptp = 1.0000001 is out of range: expected 0 < speed_ptp <= 1; "
+        ("ptp", "speed_ptp", 1.0000001): "speed_ptp = 1.0000001 is out of range: expected 0.01 <= speed_ptp <= 1; "
                                          "it is a fraction of each axis's max_velocity",  # not "= 1"
-        ("ptp", "acc_ptp", float("nan")): "acc_ptp = nan is not a number: expected 0 < acc_ptp <= 1; "
+        ("ptp", "acc_ptp", float("nan")): "acc_ptp = nan is not a number: expected 0.01 <= acc_ptp <= 1; "
                                           "it is a fraction of each axis's max_acceleration",
-        ("lin", "speed", 2500): "speed = 2500 mm/s is out of range: expected 0 < speed <= 2000 (the robot's maximum)",
-        ("circ", "acc", "fast"): "acc = 'fast' is not a number: expected 0 < acc <= 8000 (the robot's maximum)",
+        ("lin", "speed", 2500): "speed = 2500 mm/s is out of range: expected 0.1 <= speed <= 2000 (the robot's maximum)",
+        ("circ", "acc", "fast"): "acc = 'fast' is not a number: expected 1 <= acc <= 8000 (the robot's maximum)",
         ("lin", "approx", float("inf")): "approx = inf is not a finite number: expected approx >= 0",
         ("lin", "approx", -1): "approx = -1 mm is out of range for a lin move: expected approx >= 0",
         ("ptp", "approx", 10 ** 400): "approx = a very large integer is out of range for a ptp move: expected "
@@ -366,11 +366,11 @@ def with_mask(old: int, new: int):
 
 CRAFTED = [  # (name, kind, clauses the checker accepted, change past the checker, the checker's message)
     ("speed_ptp_15", "ptp", "speed_ptp := 0.25", with_constant(0.25, 1.5),
-     "speed_ptp = 1.5 is out of range: expected 0 < speed_ptp <= 1; it is a fraction of each axis's max_velocity"),
+     "speed_ptp = 1.5 is out of range: expected 0.01 <= speed_ptp <= 1; it is a fraction of each axis's max_velocity"),
     ("speed_ptp_on_lin", "lin", "speed := 0.25", with_mask(1 << BY_NAME["speed"].bit, 1 << BY_NAME["speed_ptp"].bit),
      "clause 'speed_ptp' applies to ptp moves, not lin; use 'speed' (mm/s) for a lin move"),
     ("speed_string", "lin", "speed := 0.25", with_constant(0.25, "fast"),
-     "speed = 'fast' is not a number: expected 0 < speed <= 2000 (the robot's maximum)"),
+     "speed = 'fast' is not a number: expected 0.1 <= speed <= 2000 (the robot's maximum)"),
 ]
 
 

@@ -122,15 +122,15 @@ def test_sample_sets_every_schema_key_in_standard():
 # ---- the API --------------------------------------------------------------------------------------
 
 def test_get_with_default():
-    config = parse_configurations(one("servo", "kp = 3"))["c"]
-    assert config.get("servo", "kp") == 3.0
+    config = parse_configurations(one("servo", "kp = 7"))["c"]
+    assert config.get("servo", "kp") == 7.0
     assert config.get("servo", "ki") is None
     assert config.get("servo", "ki", 2.0) == 2.0
     assert config.get("report", "period", 0.01) == 0.01
 
 
 def test_default_is_the_first_configuration_when_not_given():
-    text = one("servo", "kp = 1", "b") + one("servo", "kp = 2", "a")
+    text = one("servo", "kp = 10", "b") + one("servo", "kp = 20", "a")
     configs = parse_configurations(text)
     assert configs.default == "b"
     assert configs.names() == ["b", "a"]
@@ -138,9 +138,9 @@ def test_default_is_the_first_configuration_when_not_given():
 
 
 def test_default_given():
-    configs = parse_configurations('default = "a"\n' + one("servo", "kp = 1", "b") + one("servo", "kp = 2", "a"))
+    configs = parse_configurations('default = "a"\n' + one("servo", "kp = 10", "b") + one("servo", "kp = 20", "a"))
     assert configs.default == "a"
-    assert configs.default_configuration.get("servo", "kp") == 2.0
+    assert configs.default_configuration.get("servo", "kp") == 20.0
 
 
 def test_container_protocol():
@@ -158,7 +158,7 @@ def test_unknown_configuration_name():
                                           r"known: standard, gentle"):
         configs["gentel"]
     with pytest.raises(ConfigError, match=r"no configuration \[\] in <config>"):
-        parse_configurations(one("servo", "kp = 1"))[[]]
+        parse_configurations(one("servo", "kp = 10"))[[]]
 
 
 def test_config_error_is_a_value_error():
@@ -194,13 +194,13 @@ def test_valid_periods(period):
 
 
 def test_validate_settings_normalizes():
-    result = validate_settings({"servo": {"kp": 3, "ki": 0}, "report": {"columns": ("out_vel",)}}, "client")
-    assert result == {"servo": {"kp": 3.0, "ki": 0.0}, "report": {"columns": ["out_vel"]}}
+    result = validate_settings({"servo": {"kp": 7, "ki": 0}, "report": {"columns": ("out_vel",)}}, "client")
+    assert result == {"servo": {"kp": 7.0, "ki": 0.0}, "report": {"columns": ["out_vel"]}}
     assert type(result["servo"]["kp"]) is float
 
 
 def test_validate_settings_errors_start_with_where():
-    with pytest.raises(ConfigError, match=r"^client: configuration 'x': servo\.kp: expected a number 0 < x <= 100 \(1/s\), got -1$"):
+    with pytest.raises(ConfigError, match=r"^client: configuration 'x': servo\.kp: expected a number 5 <= x <= 100 \(1/s\), got -1$"):
         validate_settings({"servo": {"kp": -1}}, "client: configuration 'x'")
     with pytest.raises(ConfigError, match=r"^net: trajectory\.period: expected the same period as initialization"):
         validate_settings({"trajectory": {"period": 0.005}, "initialization": {"period": 0.01}}, "net")
@@ -213,9 +213,9 @@ def test_validate_settings_errors_start_with_where():
 
 
 def test_validate_settings_does_not_modify_its_argument():
-    given_ = {"servo": {"kp": 3}, "report": {"columns": ["out_vel"]}}
+    given_ = {"servo": {"kp": 7}, "report": {"columns": ["out_vel"]}}
     validate_settings(given_, "net")
-    assert given_ == {"servo": {"kp": 3}, "report": {"columns": ["out_vel"]}}
+    assert given_ == {"servo": {"kp": 7}, "report": {"columns": ["out_vel"]}}
 
 
 def test_configurations_do_not_share_mutable_values():
@@ -251,7 +251,7 @@ def test_schema_entries_are_complete():
 def test_based_on_chain_resolves_key_by_key():
     text = """
 [configurations.a.servo]
-kp = 1.0
+kp = 10.0
 ki = 1.0
 [configurations.a.report]
 columns = ["sens_pos"]
@@ -270,13 +270,13 @@ following_error_limit = 3.0
 """
     configs = parse_configurations(text)
     assert configs["c"].settings == {
-        "servo": {"kp": 1.0, "ki": 2.0, "following_error_limit": 3.0},
+        "servo": {"kp": 10.0, "ki": 2.0, "following_error_limit": 3.0},
         "report": {"columns": ["sens_pos"]},
         "trajectory": {"budget": 5},
     }
-    assert configs["b"].settings == {"servo": {"kp": 1.0, "ki": 2.0}, "report": {"columns": ["sens_pos"]},
+    assert configs["b"].settings == {"servo": {"kp": 10.0, "ki": 2.0}, "report": {"columns": ["sens_pos"]},
                                      "trajectory": {"budget": 5}}
-    assert configs["a"].settings == {"servo": {"kp": 1.0, "ki": 1.0}, "report": {"columns": ["sens_pos"]}}
+    assert configs["a"].settings == {"servo": {"kp": 10.0, "ki": 1.0}, "report": {"columns": ["sens_pos"]}}
 
 
 def test_based_on_a_later_configuration():
@@ -288,10 +288,10 @@ def test_based_on_a_later_configuration():
 
 def test_based_on_long_chain():
     n = 3000  # deeper than the recursion limit: resolution is iterative
-    parts = [one("servo", "kp = 1", "c0")]
+    parts = [one("servo", "kp = 10", "c0")]
     parts += [f'[configurations.c{i}]\nbased_on = "c{i - 1}"\n' for i in range(1, n)]
     configs = parse_configurations("".join(parts))
-    assert configs[f"c{n - 1}"].get("servo", "kp") == 1.0
+    assert configs[f"c{n - 1}"].get("servo", "kp") == 10.0
 
 
 def test_cross_field_rule_applies_after_based_on():
@@ -319,11 +319,11 @@ def test_message_names_file_configuration_and_key():
     text = one("servo", "kp = 40.0", "standard") + '[configurations.gentle]\nbased_on = "standard"\n' \
         + "[configurations.gentle.servo]\nkp = -1\n"
     assert error_of(text, "lola15.toml") == (
-        "lola15.toml: configuration 'gentle': servo.kp: expected a number 0 < x <= 100 (1/s), got -1")
+        "lola15.toml: configuration 'gentle': servo.kp: expected a number 5 <= x <= 100 (1/s), got -1")
 
 
 def test_unknown_component_with_suggestion():
-    assert error_of(one("sevro", "kp = 1")) == (
+    assert error_of(one("sevro", "kp = 10")) == (
         "t.toml: configuration 'c': unknown component 'sevro' (did you mean 'servo'?); "
         "known: servo, robot, trajectory, initialization, report")
 
@@ -348,7 +348,7 @@ def test_unknown_key_without_suggestion():
 
 
 def test_unknown_top_level_key():
-    assert error_of('defualt = "a"\n' + one("servo", "kp = 1")) == (
+    assert error_of('defualt = "a"\n' + one("servo", "kp = 10")) == (
         "t.toml: unknown top-level key 'defualt' (did you mean 'default'?); known: default, configurations")
     assert error_of(one("kp", "x = 1").replace("configurations.c.", "")).startswith(
         "t.toml: unknown top-level key 'kp'; known: default, configurations")
@@ -370,17 +370,17 @@ def test_configurations_is_not_a_table():
 
 
 @pytest.mark.parametrize("component, body, expected", [
-    ("servo", "kp = 0", "servo.kp: expected a number 0 < x <= 100 (1/s), got 0"),
-    ("servo", "kp = -2.5", "servo.kp: expected a number 0 < x <= 100 (1/s), got -2.5"),
-    ("servo", 'kp = "40"', "servo.kp: expected a number 0 < x <= 100 (1/s), got '40'"),
-    ("servo", "kp = [40]", "servo.kp: expected a number 0 < x <= 100 (1/s), got [40]"),
-    ("servo", "kp = {a = 1}", "servo.kp: expected a number 0 < x <= 100 (1/s), got a table"),
-    ("servo", "kp = 1979-05-27", "servo.kp: expected a number 0 < x <= 100 (1/s), got 1979-05-27 (a date)"),
-    ("servo", "kp = inf", "servo.kp: expected a number 0 < x <= 100 (1/s), got inf"),
-    ("servo", "kp = nan", "servo.kp: expected a number 0 < x <= 100 (1/s), got nan"),
-    ("servo", "kp = " + "9" * 400, "servo.kp: expected a number 0 < x <= 100 (1/s), got a very large integer"),
+    ("servo", "kp = 0", "servo.kp: expected a number 5 <= x <= 100 (1/s), got 0"),
+    ("servo", "kp = -2.5", "servo.kp: expected a number 5 <= x <= 100 (1/s), got -2.5"),
+    ("servo", 'kp = "40"', "servo.kp: expected a number 5 <= x <= 100 (1/s), got '40'"),
+    ("servo", "kp = [40]", "servo.kp: expected a number 5 <= x <= 100 (1/s), got [40]"),
+    ("servo", "kp = {a = 1}", "servo.kp: expected a number 5 <= x <= 100 (1/s), got a table"),
+    ("servo", "kp = 1979-05-27", "servo.kp: expected a number 5 <= x <= 100 (1/s), got 1979-05-27 (a date)"),
+    ("servo", "kp = inf", "servo.kp: expected a number 5 <= x <= 100 (1/s), got inf"),
+    ("servo", "kp = nan", "servo.kp: expected a number 5 <= x <= 100 (1/s), got nan"),
+    ("servo", "kp = " + "9" * 400, "servo.kp: expected a number 5 <= x <= 100 (1/s), got a very large integer"),
     ("servo", "ki = -0.1", "servo.ki: expected a number 0 <= x <= 100 (1/s^2), got -0.1"),
-    ("servo", "following_error_limit = 0.0", "servo.following_error_limit: expected a number 0 < x <= 10 (deg or mm), got 0.0"),
+    ("servo", "following_error_limit = 0.0", "servo.following_error_limit: expected a number 0.1 <= x <= 10 (deg or mm), got 0.0"),
     ("robot", "velocity_limit_scale = 0", "robot.velocity_limit_scale: expected a number 0 < x <= 1, got 0"),
     ("robot", "velocity_limit_scale = 1.5", "robot.velocity_limit_scale: expected a number 0 < x <= 1, got 1.5"),
     ("trajectory", "budget = 0", "trajectory.budget: expected an integer 1 <= x <= 10000 (instructions), got 0"),
@@ -404,7 +404,7 @@ def test_bool_rejected_for_numbers(component, key, value):
 
 
 def test_bool_rejected_by_validate_settings():
-    with pytest.raises(ConfigError, match=r"servo\.kp: expected a number 0 < x <= 100 \(1/s\), got true \(a boolean\)"):
+    with pytest.raises(ConfigError, match=r"servo\.kp: expected a number 5 <= x <= 100 \(1/s\), got true \(a boolean\)"):
         validate_settings({"servo": {"kp": True}}, "net")
     with pytest.raises(ConfigError, match=r"trajectory\.budget: expected an integer 1 <= x <= 10000 \(instructions\), got true"):
         validate_settings({"trajectory": {"budget": True}}, "net")
@@ -468,7 +468,7 @@ def test_based_on_cycle_reached_from_outside():
 
 
 def test_based_on_unknown():
-    text = one("servo", "kp = 1", "standard") + '[configurations.gentle]\nbased_on = "standrad"\n'
+    text = one("servo", "kp = 10", "standard") + '[configurations.gentle]\nbased_on = "standrad"\n'
     assert error_of(text) == ("t.toml: configuration 'gentle': based_on: no configuration 'standrad' "
                               "(did you mean 'standard'?); known: standard, gentle")
 
@@ -479,14 +479,14 @@ def test_based_on_not_a_string():
 
 
 def test_unknown_default():
-    assert error_of('default = "gentel"\n' + one("servo", "kp = 1", "gentle")) == (
+    assert error_of('default = "gentel"\n' + one("servo", "kp = 10", "gentle")) == (
         "t.toml: default: no configuration 'gentel' (did you mean 'gentle'?); known: gentle")
-    assert error_of('default = "fast"\n' + one("servo", "kp = 1", "a") + one("servo", "kp = 1", "b")) == (
+    assert error_of('default = "fast"\n' + one("servo", "kp = 10", "a") + one("servo", "kp = 10", "b")) == (
         "t.toml: default: no configuration 'fast'; known: a, b")
 
 
 def test_default_not_a_string():
-    assert error_of("default = 1\n" + one("servo", "kp = 1")) == (
+    assert error_of("default = 1\n" + one("servo", "kp = 10")) == (
         "t.toml: default: expected the name of a configuration, got 1")
 
 
@@ -502,7 +502,7 @@ def test_invalid_toml_with_line_and_column():
 
 
 def test_invalid_toml_duplicate_key():
-    message = error_of(one("servo", "kp = 1\nkp = 2"))
+    message = error_of(one("servo", "kp = 1\nkp = 20"))
     assert message.startswith("t.toml: invalid TOML: ") and "line 3" in message
 
 
@@ -525,7 +525,7 @@ def test_load_error_names_the_file(tmp_path):
     path.write_text(one("servo", "kp = -1", "gentle"), encoding="utf-8")
     with pytest.raises(ConfigError) as info:
         load_configurations(path)
-    assert str(info.value) == f"{path}: configuration 'gentle': servo.kp: expected a number 0 < x <= 100 (1/s), got -1"
+    assert str(info.value) == f"{path}: configuration 'gentle': servo.kp: expected a number 5 <= x <= 100 (1/s), got -1"
 
 
 def test_load_invalid_toml(tmp_path):
@@ -549,7 +549,7 @@ def test_load_directory(tmp_path):
 @pytest.mark.skipif(not hasattr(os, "geteuid") or os.geteuid() == 0, reason="root reads unreadable files")
 def test_load_unreadable_file(tmp_path):
     path = tmp_path / "secret.toml"
-    path.write_text(one("servo", "kp = 1"), encoding="utf-8")
+    path.write_text(one("servo", "kp = 10"), encoding="utf-8")
     path.chmod(0)
     try:
         prefix = re.escape(f"{path}: cannot read the configuration file: ")
@@ -562,7 +562,7 @@ def test_load_unreadable_file(tmp_path):
 def test_load_read_error_gives_the_reason(tmp_path, monkeypatch):
     """Any OSError while reading (here a simulated permission error, which root cannot produce) is a ConfigError."""
     path = tmp_path / "lola15.toml"
-    path.write_text(one("servo", "kp = 1"), encoding="utf-8")
+    path.write_text(one("servo", "kp = 10"), encoding="utf-8")
 
     def refuse(self):
         raise PermissionError(13, "Permission denied", str(self))
@@ -580,7 +580,7 @@ def test_load_path_with_nul():
 
 def test_load_not_utf8(tmp_path):
     path = tmp_path / "latin1.toml"
-    path.write_bytes(b"# caf\xe9\n" + one("servo", "kp = 1").encode())
+    path.write_bytes(b"# caf\xe9\n" + one("servo", "kp = 10").encode())
     with pytest.raises(ConfigError, match=re.escape(f"{path}: not UTF-8 text (byte 5)")):
         load_configurations(path)
 
@@ -664,7 +664,8 @@ def valid_value(component: str, key: str) -> st.SearchStrategy:
         return st.integers(int(param.low), int(param.high))
     floats = st.floats(min_value=param.low, max_value=param.high, exclude_min=param.low_open,
                        exclude_max=param.high_open)
-    ints = st.integers(int(param.low) + (1 if param.low_open else 0), int(param.high))
+    lowest = math.ceil(param.low)
+    ints = st.integers(lowest + (1 if param.low_open and lowest == param.low else 0), int(param.high))
     return st.one_of(ints, floats)
 
 
@@ -710,7 +711,7 @@ def parses_or_config_error(text: str) -> Configurations | None:
 
 @settings(max_examples=400, **FUZZ)
 @given(st.text(max_size=300))
-@example("[configurations.a.servo]\nkp = 1")
+@example("[configurations.a.servo]\nkp = 10")
 @example("[[configurations]]\n")
 @example("configurations.a = 1")
 @example("[configurations.a]\nbased_on = []\n")

@@ -352,16 +352,19 @@ def scaled_limits(axes_max_velocity, axes_max_acceleration, speed_ptp: float,
 
     ``axes_max_velocity`` (unit/s) and ``axes_max_acceleration`` (unit/s^2) are the
     specification's per-axis limits; ``speed_ptp`` and ``acc_ptp`` are the move's clause
-    values, fractions ``0 < x <= 1``. Returns ``(max_velocity, max_acceleration)`` tuples
+    values, fractions within the clause table's ranges (compiler.clauses). Returns ``(max_velocity, max_acceleration)`` tuples
     for :class:`PtpInput`.
 
-    Raises ``ValueError`` for a fraction outside ``(0, 1]`` or sequences of different
+    Raises ``ValueError`` for a fraction outside those ranges or sequences of different
     lengths: the compiler and the specification loader already reject those, so in the
     loop this would be a programming error, not a program's.
     """
+    from compiler.clauses import BY_NAME
+
     for name, value in (("speed_ptp", speed_ptp), ("acc_ptp", acc_ptp)):
-        if not 0.0 < value <= 1.0:
-            raise ValueError(f"{name} must be a fraction 0 < x <= 1, got {_fmt(value)}")
+        rng = BY_NAME[name].range_for("ptp")
+        if not (isinstance(value, Real) and isfinite(value) and rng.contains(value, None)):
+            raise ValueError(f"{name} must be a fraction {rng.expected('x', None)}, got {_fmt(value)}")
     velocities = tuple(float(v) * speed_ptp for v in axes_max_velocity)
     accelerations = tuple(float(a) * acc_ptp for a in axes_max_acceleration)
     if len(velocities) != len(accelerations):

@@ -1,0 +1,166 @@
+"""Every number a specification gives has a range the runtime can use (issue 26, fault 6):
+``irl check`` refuses a value outside it, naming the file, the key and the allowed range;
+any specification it accepts runs the paper's program (programs/test.irl) on the
+simulated robot without nan and without a fault caused by its numbers.
+
+Before, ``max_acceleration``, ``gear_ratio``, ``max_velocity``, ``max_jerk``, ``kp``,
+``following_error_limit`` and ``speed_ptp`` = 5e-324 all passed the check and faulted
+only at run time (nan positions, a servo that never settles).
+"""
+from __future__ import annotations
+
+import io
+import math
+import re
+import tempfile
+from pathlib import Path
+
+import pytest
+from hypothesis import HealthCheck, example, given, settings
+from hypothesis import strategies as st
+
+from compiler import clauses, params
+from compiler.driver import compile_source
+from compiler.spec import SpecError, parse_spec
+from runtime.cli import Environment, main
+from runtime.system import RobotSystem, RunOptions
+
+ROOT = Path(__file__).resolve().parent.parent
+SPEC_TEXT = (ROOT / "programs" / "lola15.spc").read_text(encoding="utf-8")
+TEST_IRL = (ROOT / "programs" / "test.irl").read_text(encoding="utf-8")
+AXIS = params.section_params("axis")
+CONTROLLER = params.spec_section("controller")
+#: A run the time limit ends: slow but healthy (the smallest limits move the paper's 90 deg
+#: at 0.1 deg/s); anything else that ends a run early is a fault.
+MAX_TIME = 40.0
+TIME_LIMIT = f"the run did not end within {MAX_TIME:g} s"
+
+
+def _set(text: str, table: str, key: str, value, index: int | None = None) -> str:
+    """``text`` with ``key = value`` in ``[table]`` (or the ``index``-th ``[[axis]]``)."""
+    rendered = repr(value) if isinstance(value, float) else str(value)
+    if index is None:
+        head, sep, body = text.partition(f"\n[{table}]")
+        rest = body.split("\n[", 1)
+        section = rest[0]
+        if re.search(rf"\n{key} = ", section):
+            section = re.sub(rf"\n{key} = [^\n]*", f"\n{key} = {rendered}", section)
+        else:
+            section = section + f"\n{key} = {rendered}"
+        return head + sep + section + ("\n[" + rest[1] if len(rest) > 1 else "")
+    parts = text.split("[[axis]]")
+    part = parts[index + 1]
+    if re.search(rf"\n{key} = ", part):
+        part = re.sub(rf"\n{key} = [^\n]*", f"\n{key} = {rendered}", part)
+    else:
+        part = part.replace("\nkind = ", f"\n{key} = {rendered}\nkind = ", 1)
+    parts[index + 1] = part
+    return "[[axis]]".join(parts)
+
+
+def _values(param) -> st.SearchStrategy:
+    """Across the whole accepted range, its bounds included (log-uniform for wide ones)."""
+    low, high = param.low, param.high
+    if param.kind == "integer":
+        return st.one_of(st.sampled_from([low, high]), st.integers(low, high))
+    if low > 0 and high / low > 100:
+        inside = st.floats(math.log(low), math.log(high)).map(lambda x: min(max(math.exp(x), low), high))
+    else:
+        inside = st.floats(low, high)
+    return st.one_of(st.sampled_from([low, high]), inside)
+
+
+#: What the property changes: (table, key, axis or None, the accepted range's declaration).
+KNOBS = ([("axis", key, i, AXIS[key]) for key in ("max_velocity", "max_acceleration", "max_jerk", "gear_ratio",
+                                                   "encoder_counts", "sensor_window", "search_velocity")
+          for i in range(6)]
+         + [("controller", "kp", None, CONTROLLER["kp"]),
+            ("controller", "following_error_limit", None, CONTROLLER["following_error_limit"])])
+
+
+@st.composite
+def specs(draw) -> str:
+    """The paper's robot with some of its numbers anywhere in their accepted ranges."""
+    text = SPEC_TEXT
+    chosen = draw(st.lists(st.sampled_from(range(len(KNOBS))), min_size=1, max_size=8, unique=True))
+    for k in chosen:
+        table, key, index, param = KNOBS[k]
+        text = _set(text, table, key, draw(_values(param), label=f"{table}.{key}"), index)
+    for clause in ("speed_ptp", "acc_ptp"):  # the defaults: accepted at their bounds too
+        rng = clauses.BY_NAME[clause].ranges[0]
+        text = _set(text, "defaults", clause, draw(st.sampled_from([rng.low, rng.high, 0.5])))
+    return text
+
+
+def run_paper_program(text: str) -> dict | None:
+    """The summary of test.irl's run with this specification; None if it is refused."""
+    try:
+        parse_spec(text, "variant.spc")
+    except SpecError as exc:
+        assert "expected" in str(exc) and "variant.spc" in str(exc), str(exc)
+        return None
+    with tempfile.TemporaryDirectory() as tmp:
+        (Path(tmp) / "lola15.spc").write_text(text, encoding="utf-8")
+        result = compile_source(TEST_IRL, str(Path(tmp) / "test.irl"))
+        assert result.ok, [d.message for d in result.diagnostics]
+        return RobotSystem(result.spec, RunOptions(max_time=MAX_TIME)).run(result.program)
+
+
+def _lowest() -> str:
+    text = SPEC_TEXT
+    for table, key, index, param in KNOBS:
+        if key != "encoder_counts":  # the lowest of both is too coarse an encoder: refused
+            text = _set(text, table, key, param.low if param.kind == "integer" else float(param.low), index)
+    return text
+
+
+def _highest() -> str:
+    text = SPEC_TEXT
+    for table, key, index, param in KNOBS:
+        if key == "encoder_counts":  # the finest encoder and gear together are refused
+            text = _set(text, table, key, round(params.MAX_COUNTS_PER_UNIT * 360 / AXIS["gear_ratio"].high), index)
+        elif key != "search_velocity":
+            text = _set(text, table, key, param.high, index)
+    return text
+
+
+@settings(max_examples=8, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(text=specs())
+@example(text=_lowest())
+@example(text=_highest())
+def test_any_specification_irl_check_accepts_runs_the_paper_program(text):
+    summary = run_paper_program(text)
+    if summary is None:
+        return
+    assert summary["fault"] is None or summary["fault"].endswith(TIME_LIMIT), summary["fault"]
+    assert all(math.isfinite(x) for x in summary["final_position"]), summary["final_position"]
+    assert math.isfinite(summary["max_following_error"])
+    for move in summary["moves"]:
+        assert math.isfinite(move["planned_duration"]) and move["planned_duration"] > 0
+
+
+TINY = 5e-324
+
+
+@pytest.mark.parametrize("table,key,index", [
+    ("axis", "max_acceleration", 0), ("axis", "gear_ratio", 1), ("axis", "max_velocity", 2),
+    ("axis", "max_jerk", 3), ("controller", "kp", None), ("controller", "following_error_limit", None),
+    ("defaults", "speed_ptp", None), ("defaults", "acc_ptp", None), ("robot", "max_speed", None),
+    ("robot", "max_acceleration", None), ("axis", "search_velocity", 4), ("axis", "sensor_window", 5)])
+def test_irl_check_names_a_value_below_its_range(tmp_path, table, key, index):
+    (tmp_path / "lola15.spc").write_text(_set(SPEC_TEXT, table, key, TINY, index), encoding="utf-8")
+    (tmp_path / "test.irl").write_text(TEST_IRL, encoding="utf-8")
+    out, err = io.StringIO(), io.StringIO()
+    code = main(["check", str(tmp_path / "test.irl")], Environment(stdout=out, stderr=err))
+    text = out.getvalue() + err.getvalue()
+    assert code == 1, text
+    where = f"axis[{index + 1}].{key}" if table == "axis" else f"{table}.{key}"
+    assert f"lola15.spc: {where}: expected" in text, text
+    assert "5e-324" in text and "Traceback" not in text
+    assert re.search(r"expected (a number |an integer )?[0-9.e+]+ <=|>= [0-9.]+|<= x", text), text
+
+
+def test_a_too_coarse_encoder_is_refused_with_its_resolution():
+    text = _set(_set(SPEC_TEXT, "axis", "gear_ratio", 1.0, 0), "axis", "encoder_counts", 4096, 0)
+    with pytest.raises(SpecError, match=r"axis\[1\]\.gear_ratio: .*11\.38 counts per deg: expected 50 to 20000"):
+        parse_spec(text, "coarse.spc")

@@ -26,7 +26,7 @@ from runtime.timing import TICK
 
 ROOT = Path(__file__).resolve().parent.parent
 SPEC = load_spec(ROOT / "programs" / "lola15.spc")
-#: Two moves (one blended into a lin) after homing: Move Robot lasts about 2.5 s.
+#: Two moves (one blended into a lin) after homing: Move Robot lasts about 1.9 s.
 SOURCE = """program stall;
 system_specification "lola15.spc";
 seq
@@ -41,7 +41,7 @@ PROGRAM = compile_source(SOURCE, str(ROOT / "programs" / "stall.irl")).program
 #: sequence ("sensor", "index", "start position"), and how many ticks into it the stall
 #: may come at the latest (each phase lasts longer than that with this program).
 PHASES = {"Start Robot": 45, "Calibrate Offsets": 250, "sensor": 400, "index": 300, "start position": 400,
-          "Move Robot": 2000, "Stop Robot": 40}
+          "Move Robot": 1200, "Stop Robot": 40}
 
 
 class InlinePlanner:

@@ -54,6 +54,7 @@ log = logging.getLogger("irl.serve")
 
 HISTORY = 200  # finished programs kept for status
 LOOP_START_TIMEOUT = 30.0  # s the server waits for the loop process to be ready
+CLOSE_LINGER_MS = 1000  # ms a closing server gives its last replies and telemetry to reach connected peers
 
 
 @dataclass
@@ -341,7 +342,7 @@ class Server:
             raise LoopGone(self._loop_gone()) from None
 
     def _loop_gone(self) -> str:
-        process = self.process
+        process = self.process  # (kept until _stop_loop has joined it: a LoopGone may be raised meanwhile)
         process.join(1.0)
         code = process.exitcode
         how = "still running" if code is None else (f"killed by signal {-code}" if code < 0 else f"exit status {code}")
@@ -430,6 +431,8 @@ class Server:
     def _dispatch(self) -> bool:
         """Start the next program when the loop is free; bring the shutdown along. False
         once a shutdown is done (the robot at rest, no program running)."""
+        if self.stop_reason is not None and self.queue:  # a shutdown: what waits will never run
+            self._cancel_queue(f"cancelled: {self.stop_reason}")
         if self.current is None:
             if self.stop_reason is not None:
                 return False
@@ -606,27 +609,32 @@ class Server:
     def close(self) -> None:
         self._stop_loop()
         for sock in (self.router, self.pub):
-            if sock is not None:
-                sock.close(linger=0)
+            if sock is not None:  # the last replies and events (the queue cancelled, the shutdown) still go out
+                sock.close(linger=CLOSE_LINGER_MS)
         if self.connections is not None:
             self.connections.close()
         self.ctx.term()
 
     def _stop_loop(self) -> None:
-        """End the loop process (it brings the robot to rest first)."""
-        process, self.process = self.process, None
+        """End the loop process (it brings the robot to rest first). A loop already told
+        to exit by the shutdown (``_stopping``) is ending on its own: it is not asked
+        again (it may have closed its end of the channel already), only waited for."""
+        process = self.process
         if process is None:
             return
         if process.is_alive():
-            try:
-                self._ask(LoopCommand("exit", reason=self.stop_reason or "the server is closing"), timeout=5.0)
-            except (LoopGone, ProtocolError):
-                pass
+            if not self._stopping:
+                self._stopping = True
+                try:
+                    self._ask(LoopCommand("exit", reason=self.stop_reason or "the server is closing"), timeout=5.0)
+                except (LoopGone, ProtocolError):
+                    pass  # it ended meanwhile, or it refused: the join below says
             process.join(EXIT_TIMEOUT + 5.0)
             if process.is_alive():
                 log.error("the loop process %d did not end: terminated", process.pid)
                 process.kill()
                 process.join(1.0)
+        self.process = None
         self.channel.close()
 
     def serve(self) -> int:

@@ -103,6 +103,9 @@ class RobotSystem:
         self.supervisor = Supervisor(self.clock, self.robot, self.servo, self.init, self.trajectory, self.report,
                                      self.executive, self.memory, self.state_file, self.safety)
         self.supervisor.reconfigure = self.apply_settings
+        # what the robot remembers across restarts is known from the start (a server's status
+        # says calibrated before its first program), not only when the first cycle begins
+        self.supervisor.load_calibration()
         ex, robot = self.executive, self.robot
         controller = spec.controller  # validated (compiler.params), every key present
         servo_policy = MissPolicy(options.deadline_policy or controller.servo_miss_policy,

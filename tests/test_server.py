@@ -901,3 +901,95 @@ def test_cli_bad_inputs_without_tracebacks(tmp_path):
     assert proc.returncode == 2, proc.stdout + proc.stderr
     assert "cannot bind" in proc.stderr
     no_traceback(proc)
+
+
+# ---- SIGTERM / SIGINT while a program runs ---------------------------------------------------------
+class Events:
+    """Every telemetry event, collected by a thread of its own (a subscriber that keeps up)."""
+
+    def __init__(self, endpoint: str):
+        from runtime.client import Subscriber
+
+        self.subscriber = Subscriber(endpoint)
+        self.events: list[dict] = []
+        self.subscribed = threading.Event()  # set by the first message: the subscription has reached the server
+        self.stop = threading.Event()
+        self.thread = threading.Thread(target=self._collect, daemon=True)
+        self.thread.start()
+
+    def _collect(self) -> None:
+        while not self.stop.is_set():
+            message = self.subscriber.receive(0.05)
+            if message is not None:
+                self.subscribed.set()
+            if message is not None and message["kind"] == "event":
+                self.events.append(message)
+
+    def until(self, predicate, seconds: float = 10.0) -> list[dict]:
+        """The events once ``predicate(events)`` holds (or after ``seconds``: a safety net)."""
+        deadline = time.monotonic() + seconds
+        while not predicate(self.events) and time.monotonic() < deadline:
+            time.sleep(0.02)
+        self.stop.set()
+        self.thread.join(5)
+        self.subscriber.close()
+        return self.events
+
+
+@pytest.mark.parametrize("moments", [
+    [(MOVE, signal.SIGTERM), (INITIALIZE, signal.SIGINT), (None, signal.SIGTERM), (MOVE, signal.SIGINT)]])
+def test_sigterm_or_sigint_while_a_program_runs_exits_0_cancels_the_queue_and_keeps_the_calibration(tmp_path,
+                                                                                                    moments):
+    """Issue 26, fault 4: a signal at several moments of a running program (in Move Robot,
+    during homing, at once after the submission), with programs queued: `irl serve` exits
+    0; each queued program gets its `cancelled` event; the running one's report and states
+    file are complete to the end of Stop Robot; and the next server on the same state
+    directory says from the start that it is calibrated (the first run's calibration)."""
+    state = tmp_path / "state"
+    for k, (moment, sig) in enumerate(moments):
+        server = ServerProcess(tmp_path / f"server{k}", state).start()
+        try:
+            client = server.client()
+            if k > 0:  # a restart on the same state directory
+                overview = client.request("status")
+                assert overview["calibrated"] is True and overview["calibration"].startswith("calibrated: loaded"), \
+                    overview
+            events = Events(server.telemetry)
+            assert events.subscribed.wait(SAFETY), "no telemetry (an idle sample comes every 0.5 s)"
+            running = submit(client, PROGRAMS / "long.irl")
+            queued = [submit(client, PROGRAMS / "short.irl"), submit(client, PROGRAMS / "medium.irl")]
+            if moment is not None:
+                wait_for(client, running, lambda s: s.get("fsm", "").startswith(moment), f"in {moment}", server,
+                         poll=0.005)
+            report = Path(status(client, running)["report"])
+            server.proc.send_signal(sig)
+            try:
+                code = server.proc.wait(60)
+            except subprocess.TimeoutExpired:
+                pytest.fail(f"irl serve did not end within 60 s of {sig.name}:\n{server.log()}")
+            assert code == 0, f"{sig.name} at {moment}: exit {code}\n{server.log()}"
+            assert "Traceback" not in server.log() and "internal error" not in server.log(), server.log()
+            seen = events.until(lambda evs: any(e["event"] == "shutdown" for e in evs))
+            ended = {e["program"]: e for e in seen if e["event"] == "program" and e["state"] != "running"}
+            for program in queued:
+                assert ended.get(program, {}).get("state") == "cancelled", (program, seen)
+                assert "shutting down" in ended[program]["fault"], ended[program]
+            if report.exists():  # (a signal before the program started: it had no cycle)
+                rows = list(csv.reader(io.StringIO(report.read_text(encoding="utf-8"))))
+                header = rows[0]
+                assert all(len(row) == len(header) for row in rows), "a partial row"
+                velocities = [i for i, name in enumerate(header) if name.startswith("out_vel_")]
+                last = rows[-1]
+                assert last[1] == STOP and all(float(last[i]) == 0.0 for i in velocities), last
+                transitions = list(csv.reader(io.StringIO(report.with_suffix(".states.csv").read_text())))
+                assert transitions[-1][2] == STOP and float(last[0]) >= float(transitions[-1][0]), transitions
+            else:
+                assert moment is None, f"no report of program {running}"
+        finally:
+            server.stop()
+    restarted = ServerProcess(tmp_path / "last", state).start()
+    try:
+        overview = restarted.client().request("status")
+        assert overview["calibrated"] is True, overview
+    finally:
+        assert restarted.stop() == 0, restarted.log()

@@ -210,8 +210,9 @@ class ModbusIo(IoBackend):
             self._thread.join(5.0)
 
     def _main(self) -> None:
+        """The exchange thread: it never dies of a bad exchange (any failure is counted,
+        said in robot terms in ``error``, and the next poll tries again)."""
         from pymodbus.client import ModbusTcpClient
-        from pymodbus.exceptions import ModbusException
 
         c = self.config
         client = ModbusTcpClient(c.host, port=c.port, timeout=min(c.timeout, 1.0), retries=0)
@@ -220,29 +221,59 @@ class ModbusIo(IoBackend):
                 started = time.monotonic()
                 try:
                     self._exchange(client)
-                except (ModbusException, OSError, ValueError) as exc:
+                except Exception as exc:  # noqa: BLE001 - a failed exchange, whatever failed
                     self.failures += 1
-                    self.error = str(exc) or type(exc).__name__
+                    self.error = self._why(exc)
                     self._written = None  # after a reconnection the PLC gets every output again
-                    client.close()
+                    try:
+                        client.close()
+                    except Exception:  # noqa: BLE001 - closing a broken connection
+                        pass
                 self._stop.wait(max(0.0, c.poll - (time.monotonic() - started)))
         finally:
             client.close()
 
+    def _why(self, exc: Exception) -> str:
+        """A failed exchange in the robot's terms (never a library's exception text)."""
+        from pymodbus.exceptions import ConnectionException, ModbusException, ModbusIOException
+
+        c = self.config
+        if isinstance(exc, BadExchange):
+            return str(exc)
+        if isinstance(exc, ConnectionException):
+            return f"the connection to {c.host}:{c.port} failed or was closed"
+        if isinstance(exc, ModbusIOException):
+            return f"the PLC did not answer within {min(c.timeout, 1.0):g} s"
+        if isinstance(exc, OSError):
+            return f"the connection to {c.host}:{c.port} failed" + (f" ({exc.strerror})" if exc.strerror else "")
+        if isinstance(exc, ModbusException):
+            return "the PLC's reply broke the Modbus protocol"
+        return "the Modbus client failed on the PLC's reply (an internal error in the exchange)"
+
     def _exchange(self, client) -> None:
         c = self.config
         if not client.connected and not client.connect():
-            raise OSError(f"cannot connect to {c.host}:{c.port}")
+            raise BadExchange(f"cannot connect to {c.host}:{c.port}")
         started = time.perf_counter()
-        reply = client.read_discrete_inputs(c.inputs, count=len(self._inputs), device_id=c.device)
-        if reply.isError():
-            raise ValueError(f"the PLC refused to read discrete inputs {c.inputs}..: {reply}")
-        self._inputs = tuple(bool(b) for b in reply.bits[:len(self._inputs)])
+        n = len(self._inputs)
+        asked = f"the discrete inputs {c.inputs}..{c.inputs + n - 1}"
+        reply = client.read_discrete_inputs(c.inputs, count=n, device_id=c.device)
+        _check_reply(reply, READ_DISCRETE_INPUTS, f"reading {asked}")
+        bits = list(reply.bits)
+        # a reply holds whole bytes: at least the n bits asked for, at most the byte's padding more
+        if not n <= len(bits) <= 8 * ((n + 7) // 8):
+            raise BadExchange(f"the PLC's reply to reading {asked} held {len(bits)} of the {n} inputs asked for"
+                              if len(bits) < n else
+                              f"the PLC's reply to reading {asked} held {len(bits)} bits for the {n} inputs asked for")
+        self._inputs = tuple(bool(b) for b in bits[:n])
         wanted = tuple(self._wanted)
         if wanted != self._written:
+            coils = f"the coils {c.outputs}..{c.outputs + len(wanted) - 1}"
             reply = client.write_coils(c.outputs, list(wanted), device_id=c.device)
-            if reply.isError():
-                raise ValueError(f"the PLC refused to write coils {c.outputs}..: {reply}")
+            _check_reply(reply, WRITE_COILS, f"writing {coils}")
+            if (reply.address, reply.count) != (c.outputs, len(wanted)):
+                raise BadExchange(f"the PLC's reply to writing {coils} confirmed {reply.count} coils from "
+                                  f"{reply.address}")
             self._written = wanted
         self.round_trips.append(time.perf_counter() - started)
         if len(self.round_trips) > 1000:
@@ -250,3 +281,20 @@ class ModbusIo(IoBackend):
         self.exchanges += 1
         self.error = None
         self.last_ok = time.monotonic()
+
+
+READ_DISCRETE_INPUTS, WRITE_COILS = 2, 15  # the Modbus function codes of the exchange
+
+
+class BadExchange(Exception):
+    """A reply that does not answer the request (its text says what, in the robot's terms)."""
+
+
+def _check_reply(reply, function_code: int, doing: str) -> None:
+    """A reply that refuses or answers something else fails the exchange."""
+    if reply.isError():
+        code = getattr(reply, "exception_code", None)
+        raise BadExchange(f"the PLC refused {doing}" + (f" (Modbus exception code {code})" if code else ""))
+    if reply.function_code != function_code:
+        raise BadExchange(f"the PLC answered {doing} with a reply of another kind (function code "
+                          f"{reply.function_code}, not {function_code})")

@@ -41,9 +41,15 @@ class Plc:
         self.loop = asyncio.new_event_loop()
         started = threading.Event()
         self.server = None
+        #: a misbehaving PLC: pdu -> the reply it sends instead (None: the right one)
+        self.misreply = None
+
+        def trace(sending: bool, pdu):
+            changed = self.misreply(pdu) if sending and self.misreply is not None else None
+            return pdu if changed is None else changed
 
         async def main():
-            self.server = ModbusTcpServer(device, address=("127.0.0.1", port))
+            self.server = ModbusTcpServer(device, address=("127.0.0.1", port), trace_pdu=trace)
             started.set()
             await self.server.serve_forever()
         self.thread = threading.Thread(target=lambda: self.loop.run_until_complete(main()), daemon=True)
@@ -253,3 +259,106 @@ def test_the_pick_and_place_program_runs_its_cell_over_modbus(tmp_path):
         stop.set()
         thread.join(5)
         plc.stop()
+
+
+def no_inputs(pdu):
+    """A PLC's reply to reading the discrete inputs that holds none of them."""
+    from pymodbus.pdu.bit_message import ReadDiscreteInputsResponse
+
+    if pdu.function_code == DISCRETE:
+        return ReadDiscreteInputsResponse(dev_id=pdu.dev_id, transaction_id=pdu.transaction_id, bits=[])
+    return None
+
+
+def test_a_plc_reply_without_the_inputs_is_a_failed_exchange_and_the_io_keeps_its_inputs():
+    """Issue 26, fault 1, at the exchange: a reply that does not hold every input asked for
+    is not taken (the inputs keep their number and last values); it fails the exchange,
+    which says what was wrong, and the PLC is lost after its timeout."""
+    from test_server import free_port
+
+    port = free_port()
+    plc = Plc(port)
+    io = ModbusIo(parse_fieldbus({"modbus": {"host": "127.0.0.1", "port": port, "poll": 0.005,
+                                             "timeout": 0.2}}, SPEC), SPEC.inputs, SPEC.outputs)
+    io.start()
+    try:
+        assert io.wait_connected(5.0), io.lost()
+        plc.set_input(2, True)
+        deadline = time.monotonic() + 5.0
+        while not io.input(2):
+            assert time.monotonic() < deadline
+            time.sleep(0.005)
+        plc.misreply = no_inputs
+        while io.lost() is None:
+            assert len(io.inputs) == SPEC.inputs and io.inputs[1], io.inputs
+            assert time.monotonic() < deadline + 5.0, "a PLC that answers without the inputs is never lost"
+            time.sleep(0.005)
+        assert len(io.inputs) == SPEC.inputs and io.inputs[1]
+        why = io.lost()
+        assert f"held 0 of the {SPEC.inputs} inputs asked for" in why, why
+        plc.misreply = None  # the PLC mended: the exchanges succeed again
+        while io.lost() is not None:
+            assert time.monotonic() < deadline + 10.0, io.lost()
+            time.sleep(0.005)
+    finally:
+        io.close()
+        plc.stop()
+
+
+def test_a_plc_that_answers_without_the_inputs_stops_the_robot_with_complete_files(tmp_path):
+    """Issue 26, fault 1, whole: a program with an interrupt on an input, on the wall clock
+    against a real pymodbus PLC that starts answering without the inputs. The program
+    faults with the fieldbus lost (said in the robot's terms), the robot stops at rest,
+    and the report and its states file are complete to the end of Stop Robot."""
+    import csv
+    import io as io_
+
+    from runtime.system import RobotSystem, RunOptions
+
+    from test_server import free_port
+
+    port = free_port()
+    plc = Plc(port)
+    plc.set_input(5, True)  # the light curtain whole
+    config = parse_fieldbus({"modbus": {"host": "127.0.0.1", "port": port, "poll": 0.005, "timeout": 0.2}}, SPEC)
+    report = tmp_path / "report.csv"
+    system = RobotSystem(SPEC, RunOptions(realtime=True, fieldbus=config, report=report, deadline_policy="soft"))
+    system.memory.calibrated = True  # skip calibration and homing: a short wall-clock run
+    system.memory.compensation = [0.0] * len(SPEC.axes)
+    system.memory.initialized = True
+    system.memory.encoder_offsets = [0.0] * len(SPEC.axes)
+    from compiler.driver import compile_source
+
+    source = (f'program p;\nsystem_specification "{SPEC_PATH}";\n'
+              "interrupt curtain when not in[5] priority 1 stop then resume;\n"
+              'seq\n  print "curtain";\nendseq\nendinterrupt;\n'
+              'seq\n  enable curtain;\n  out[1] := true;\n  wait for in[2] timeout 10 sec;\n  print "done";\nendseq\n'
+              "endprogram;\n")
+    result = compile_source(source, "p.irl", SPEC_PATH)
+    assert result.ok, result.diagnostics
+    try:
+        system.begin(result.program, report)
+        ex = system.executive
+        while system.trajectory.line != 11 and not system.supervisor.done:  # waiting for in[2]
+            ex.step()
+        plc.misreply = no_inputs
+        while not system.supervisor.done:
+            ex.step()
+        summary = system.finish()
+    finally:
+        system.io.close()
+        plc.stop()
+    fault = summary["fault"]
+    assert fault is not None and "the fieldbus is lost" in fault and "inputs asked for" in fault, fault
+    assert "index" not in fault and "Error" not in fault, fault
+    assert summary["stop"]["category"] == 1, summary["stop"]
+    assert summary["log"] == [], summary["log"]
+    assert summary.get("files_error") is None, summary
+    rows = list(csv.reader(io_.StringIO(report.read_text(encoding="utf-8"))))
+    header = rows[0]
+    assert all(len(row) == len(header) for row in rows[1:]), "rows of another width"
+    assert rows[-1][1] == "Stop Robot", rows[-1]
+    velocities = [i for i, name in enumerate(header) if name.startswith("out_vel_")]
+    assert all(float(rows[-1][i]) == 0.0 for i in velocities), rows[-1]
+    transitions = report.with_suffix(".states.csv").read_text(encoding="utf-8").splitlines()
+    assert transitions[-1].endswith(",Move Robot,Stop Robot"), transitions

@@ -149,12 +149,14 @@ class StateFile:
                 time.sleep(0.002)
 
     def _write_loop(self) -> None:
-        while True:
+        while True:  # never dies: a write that fails is said in ``error`` (the summary's files_error)
             data = self._queue.get()
             try:
                 self._write(data)
             except OSError as exc:
                 self.error = f"cannot save the calibration in {self.path}: {exc.strerror or exc}"
+            except Exception:  # noqa: BLE001
+                self.error = f"the calibration could not be saved in {self.path} (an internal error of its writer)"
             finally:
                 self._queue.task_done()
 
@@ -387,8 +389,10 @@ class Supervisor:
         self.robot.stop()
         try:
             self.reconfigure(self.pending_settings)
-        except (ValueError, KeyError) as exc:
+        except ValueError as exc:  # (the settings' own checks: messages in the robot's terms)
             self._fault(f"Robot Reconfiguration: {exc}")
+        except KeyError as exc:
+            self._fault(f"Robot Reconfiguration: the settings name {exc.args[0]!r}, which this robot does not have")
         self.pending_settings = None
         self.robot.configure()
         self.robot.start()

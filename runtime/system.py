@@ -228,6 +228,10 @@ class RobotSystem:
         summary = self.summary(time.perf_counter() - self._wall0)
         if error:
             summary["fault"] = summary["fault"] or error
+        # what the writers could not write (the report, its states file, the calibration): said even
+        # when the cycle faulted for another reason
+        state_error, self.state_file.error = self.state_file.error, None
+        summary["files_error"] = "; ".join(e for e in (error, state_error) if e) or None
         return summary
 
     def run(self, program: Program, on_pause=None, on_log=None) -> dict:

@@ -181,15 +181,27 @@ def copy_array(array: list) -> list:
     return array[:]
 
 
-def _describe(exc: Exception) -> str:
-    """The operator's message for an exception raised while executing an instruction."""
+#: The instructions whose ZeroDivisionError or OverflowError is the program's arithmetic.
+_ARITHMETIC = frozenset({OP.ADD, OP.SUB, OP.MUL, OP.DIV, OP.IDIV, OP.MOD, OP.NEG, OP.TO_REAL, OP.CALL_BUILTIN})
+
+
+def _describe(exc: Exception, op: int | None = None) -> str:
+    """The operator's message for an exception raised while executing instruction ``op``:
+    the program's own errors (EvalError) say what the program did wrong; anything else is
+    said in the program's terms, the instruction that failed, never as the exception's own
+    text (a Python message such as "tuple index out of range" means nothing at a robot)."""
     if isinstance(exc, EvalError):
         return str(exc)
-    if isinstance(exc, ZeroDivisionError):
-        return "division by zero"
-    if isinstance(exc, OverflowError):
-        return f"numeric overflow ({exc})" if str(exc) else "numeric overflow"
-    return f"internal error ({type(exc).__name__}: {exc})"
+    if op in _ARITHMETIC:  # (the same exceptions from the host are its failure, not the program's)
+        if isinstance(exc, ZeroDivisionError):
+            return "division by zero"
+        if isinstance(exc, OverflowError):
+            return "numeric overflow"
+    what = ""
+    if op is not None and 0 <= op < len(INSTRUCTIONS):
+        instruction = INSTRUCTIONS[op]
+        what = f" while carrying out {instruction.name} ({instruction.doc.rstrip('.').lower()})"
+    return f"internal error of the runtime{what}: not a fault of the program"
 
 
 class VM:
@@ -305,7 +317,7 @@ class VM:
             try:
                 self._check_interrupts()
             except Exception as exc:  # an input the host refuses: stop, never raise
-                self._stop_with(_describe(exc), self._here)
+                self._stop_with(_describe(exc, OP.IN_GET), self._here)
                 return ERROR
         if self.paused:
             self.status = WAITING
@@ -318,7 +330,7 @@ class VM:
                     self.status = WAITING
                     return WAITING
             except Exception as exc:  # the host failed: stop, never raise
-                self._stop_with(_describe(exc), self._here)
+                self._stop_with(_describe(exc, OP.WAIT_TEST), self._here)
                 return ERROR
             self._wait = _NO_WAIT
         self.status = RUNNING
@@ -362,8 +374,8 @@ class VM:
                 n = stack.pop()
                 try:
                     stack.append(self.host.read_input(n))
-                except (IndexError, ValueError, KeyError) as exc:
-                    raise EvalError(f"interrupt {self._ints[i][0]}: {exc}") from None
+                except Exception as exc:  # the host's refusal (EvalError), or its failure
+                    raise EvalError(f"interrupt {self._ints[i][0]}: {_describe(exc, op)}") from None
             elif op == OP.NOT:
                 stack.append(not stack.pop())
             elif op == OP.AND:
@@ -503,7 +515,7 @@ class VM:
                     break
         except Exception as exc:  # never raise out of step()
             self.instructions += budget - n
-            self._stop_with(_describe(exc), here)
+            self._stop_with(_describe(exc, ops[here]), here)
             return
         self.instructions += budget - n
         self.pc = pc
@@ -628,7 +640,7 @@ class VM:
                         break
         except Exception as exc:  # never raise out of step()
             self.instructions += budget - n
-            self._stop_with(_describe(exc), here)
+            self._stop_with(_describe(exc, ops[here]), here)
             return
         self.instructions += budget - n
         self.pc = pc
@@ -844,16 +856,13 @@ class VM:
     op_call_func = op_call
     op_ret_value = op_ret
 
-    # The host may report an I/O number out of range as EvalError, IndexError or
-    # ValueError: each stops the program with the host's message.
+    # The host reports an I/O number out of range as EvalError (its message stops the
+    # program); any other exception is the host's failure (see _describe).
     def op_in_get(self, _, pc):
         if not self._at_robot():
             return pc
         stack = self.stack
-        try:
-            stack[-1] = bool(self.host.read_input(stack[-1]))
-        except (IndexError, ValueError, KeyError) as exc:
-            raise EvalError(str(exc) or f"digital input {stack[-1]} does not exist") from None
+        stack[-1] = bool(self.host.read_input(stack[-1]))
         return pc + 1
 
     def op_out_set(self, _, pc):
@@ -862,10 +871,7 @@ class VM:
         stack = self.stack
         value = stack.pop()
         n = stack.pop()
-        try:
-            self.host.write_output(n, value)
-        except (IndexError, ValueError, KeyError) as exc:
-            raise EvalError(str(exc) or f"digital output {n} does not exist") from None
+        self.host.write_output(n, value)
         return pc + 1
 
     def _move(self, kind: str, targets: int, mask: int, pc: int) -> int:

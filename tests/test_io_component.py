@@ -28,9 +28,9 @@ def program(body: str, decls: str = ""):
     return result.program
 
 
-def cycle(system: RobotSystem, prog, after_tick=None, ticks: int = 200_000) -> dict:
+def cycle(system: RobotSystem, prog, after_tick=None, ticks: int = 200_000, report=None) -> dict:
     """One cycle, tick by tick; ``after_tick(k, now)`` after each (now: that tick's time)."""
-    system.begin(prog)
+    system.begin(prog, report)
     for _ in range(ticks):
         if system.supervisor.done:
             break
@@ -210,3 +210,48 @@ def test_a_plc_that_cannot_be_reached_refuses_the_program_at_begin(tmp_path):
             system.begin(program('  print "never";\n'))
     finally:
         system.io.close()
+
+
+class ShrinkingRobot(SimRobot):
+    """A backend whose inputs lose their number (``short``: it gives none)."""
+
+    def __init__(self, spec, seed: int = 0):
+        super().__init__(spec, seed)
+        self.short = False
+
+    @property
+    def inputs(self):
+        return () if self.short else super().inputs
+
+
+def test_inputs_of_another_number_are_not_taken_and_stop_the_robot_with_complete_files(tmp_path):
+    """Issue 26, fault 1, for any backend: inputs that are not the robot's number are not
+    put in the port (it keeps the last ones, of the right number); the robot stops
+    (category 1) with the reason in the robot's terms, the report keeps every row to the
+    end of Stop Robot, and the summary says no file was left incomplete."""
+    import csv
+    import io as io_
+
+    backend = ShrinkingRobot(SPEC)
+    backend.set_input(5, True)
+    report = tmp_path / "r.csv"
+    system = RobotSystem(SPEC, RunOptions(), backend=backend)
+    system.report.columns.append("io")
+    prog = program("  enable curtain;\n  wait for in[2] timeout 5 sec;\n  print \"done\";\n",
+                   "interrupt curtain when not in[5] priority 1 stop then resume;\nseq\n  print \"curtain\";\n"
+                   "endseq\nendinterrupt;\n")
+    widths = set()
+
+    def after_tick(k, now):
+        widths.add(len(system.io.inputs.value))
+        if system.trajectory.line == 10 and not backend.short:  # waiting for in[2], in Move Robot
+            backend.short = True
+    summary = cycle(system, prog, after_tick, report=report)
+    assert widths == {SPEC.inputs}
+    text = f"the I/O is not trusted: it gave 0 inputs, the robot has {SPEC.inputs}"
+    assert summary["fault"] is not None and text in summary["fault"], summary["fault"]
+    assert summary["stop"] == {"category": 1, "reason": text} and summary["log"] == []
+    assert summary["files_error"] is None
+    rows = list(csv.reader(io_.StringIO(report.read_text(encoding="utf-8"))))
+    assert all(len(row) == len(rows[0]) for row in rows) and rows[-1][1] == "Stop Robot", rows[-1]
+    assert report.with_suffix(".states.csv").read_text().splitlines()[-1].endswith(",Move Robot,Stop Robot")

@@ -18,6 +18,8 @@ import shutil
 from pathlib import Path
 
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from compiler.driver import compile_file
 from compiler.spec import load_spec
@@ -278,6 +280,51 @@ def test_report_states_csv_lists_the_transitions(paper):
     assert [r[1] for r in rows] == [""] + PHASES[:-1]
     s = paper["summary"]
     assert [float(r[0]) for r in rows] == pytest.approx([st["t_enter"] for st in s["states"]], abs=5e-4)
+
+
+ROW_KINDS = {  # a row as the loop hands it to the writer, for the header time,state,in_1,in_2,sens_pos_A1
+    "good": lambda t: (t, "Move Robot", 1, 0, 1.5),
+    "short": lambda t: (t, "Move Robot"),  # the I/O shrank (issue 26): fewer values than columns
+    "long": lambda t: (t, "Move Robot", 1, 0, 1.5, 2.5),
+    "text": lambda t: (t, "Move Robot", "a", "b", "c"),  # a value of another type
+}
+
+
+@settings(max_examples=40, deadline=None)
+@given(batches=st.lists(st.lists(st.sampled_from(sorted(ROW_KINDS)), max_size=12), min_size=1, max_size=8))
+def test_the_report_writer_never_dies_of_a_row_and_keeps_every_other_one(batches):
+    """Issue 26, fault 1: rows that do not fit the header are left out and counted (said by
+    the writer's problem), and the writer goes on: every other row and every transition
+    is written, to the end."""
+    import tempfile
+
+    from runtime.components.report import ReportWriter
+
+    header = ["time", "state", "in_1", "in_2", "sens_pos_A1"]
+    with tempfile.TemporaryDirectory() as directory:
+        path = Path(directory) / "r.csv"
+        writer = ReportWriter(path, header)  # (its run() in this thread: the batches are queued first)
+        t, good, bad = 0.0, [], 0
+        for k, kinds in enumerate(batches):
+            rows = []
+            for kind in kinds:
+                t += 0.01
+                rows.append(ROW_KINDS[kind](round(t, 3)))
+                if kind == "good":
+                    good.append(f"{round(t, 3):.3f},Move Robot,1,0,1.500000")
+                else:
+                    bad += 1
+            writer.queue.put((rows, [(float(k), "A", "B")]))
+        writer.queue.put(None)
+        writer.run()  # returns: it did not die on a row, and it ends at the None
+        assert path.read_text(encoding="utf-8").splitlines() == [",".join(header)] + good
+        states = path.with_suffix(".states.csv").read_text(encoding="utf-8").splitlines()
+        assert states == ["time,from,to"] + [f"{float(k):.3f},A,B" for k in range(len(batches))]
+        assert writer.bad_rows == bad and writer.rows_written == len(good)
+        problem = writer.problem()
+        assert (problem is None) == (bad == 0), problem
+        if bad:
+            assert f"{bad} rows of r.csv were left out" in problem, problem
 
 
 def test_same_seed_gives_a_byte_identical_report_and_another_seed_does_not(paper, tmp_path):

@@ -732,14 +732,80 @@ def test_inputs_and_outputs(tmp_path, dispatch):
     assert host.output_log == [(11, False), (12, True), (13, False), (14, True), (1, False)]
 
 
-class IndexErrorHost(FakeHost):
-    def read_input(self, n):
-        raise IndexError(f"no input {n}")
+#: What a host calls for, in a program that asks each of them several times.
+HOST_CALLS = ("read_input", "write_output", "move", "log", "motion_done", "now", "trigger", "use_frame")
+PYTHON_ERRORS = (IndexError, KeyError, TypeError, ValueError, AttributeError, RuntimeError, ZeroDivisionError,
+                 OverflowError, AssertionError, StopIteration, LookupError, ArithmeticError)
+PYTHON_MESSAGE = "tuple index out of range"
+BUSY_PROGRAM = """program busy;
+system_specification "lola15.spc";
+var
+  i : integer;
+  seen : integer;
+interrupt watch when in[2] priority 1 continue;
+seq
+  seen := seen + 1;
+endseq
+endinterrupt;
+seq
+  enable watch;
+  for i := 1 to 4 do
+    use tool tool(pos(0, 0, 100), rpy(0, 0, 0));
+    out[1] := true;
+    trigger when 5 ms after start do out[2] := true;
+    move ptp joint(mainjoint(5, 0, 0, 0, 0, 0)) speed_ptp := 0.5;  -- move
+    wait for in[3] timeout 0.01 sec;
+    print i, in[4];
+  endfor;
+endseq
+endprogram;
+"""
 
 
-def test_io_errors_raised_by_the_host_stop_the_program(tmp_path):
+@pytest.fixture(scope="module")
+def busy_program(tmp_path_factory) -> Program:
+    return compile_text(tmp_path_factory.mktemp("busy"), BUSY_PROGRAM)
+
+
+class FailingHost(FakeHost):
+    """A host whose ``call`` raises ``error(PYTHON_MESSAGE)`` from its ``after + 1``-th time on."""
+
+    def __init__(self, call: str, error: type, after: int):
+        super().__init__(all_inputs=False)
+        self.calls = 0
+        original = getattr(self, call)
+
+        def failing(*args):
+            self.calls += 1
+            if self.calls > after:
+                raise error(PYTHON_MESSAGE)
+            return original(*args)
+        setattr(self, call, failing)
+
+
+@settings(max_examples=80, deadline=None)
+@given(call=st.sampled_from(HOST_CALLS), error=st.sampled_from(PYTHON_ERRORS), after=st.integers(0, 3),
+       dispatch=st.sampled_from(DISPATCHES))
+def test_a_failing_host_stops_the_program_and_the_fault_is_never_a_python_message(busy_program, call, error, after,
+                                                                                 dispatch):
+    """Issue 26, fault 1: whatever the host raises, from whichever call, the program stops
+    at a line with a message in the program's terms (the instruction that failed, "internal
+    error of the runtime"), never the exception's own text."""
+    host = FailingHost(call, error, after)
+    machine, _ = run(busy_program, host, dispatch=dispatch)
+    assert machine.status == VMStatus.ERROR, (call, error, after)
+    message = machine.error.message
+    assert PYTHON_MESSAGE not in message and error.__name__ not in message, message
+    assert "internal error of the runtime" in message and machine.error.line >= 1, message
+
+
+def test_an_io_number_refused_by_the_host_stops_the_program_with_its_message(tmp_path):
+    class Refusing(FakeHost):
+        def read_input(self, n):
+            raise EvalError(f"no input {n}")
+
     text = program_text("  print in[3];  -- i")
-    machine, _ = run(compile_text(tmp_path, text), IndexErrorHost())
+    machine, _ = run(compile_text(tmp_path, text), Refusing())
     assert machine.status == VMStatus.ERROR
     assert machine.error.message == "no input 3" and machine.error.line == line_of(text, "-- i")
 
@@ -825,7 +891,9 @@ def test_the_vm_never_raises():
     program = raw_program([(OP.CONST, 0), (OP.MOVE_PTP, 0), (OP.END,)], (Joint((0.0,) * 6),))
     machine = VM(program, Broken())
     assert machine.step() == VMStatus.ERROR
-    assert "drive bus lost" in machine.error.message
+    # said in the program's terms (the instruction), never as the exception's own text
+    assert "drive bus lost" not in machine.error.message
+    assert "internal error of the runtime while carrying out MOVE_PTP" in machine.error.message
     assert machine.moves_issued == 1
 
 

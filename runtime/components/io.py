@@ -8,6 +8,9 @@ is one (:class:`runtime.sim.cell.Cell`: the world before anything reads it); the
 backend's inputs go to ``inputs``; then the backend's health is checked: a backend that
 says it is lost (a PLC with no good exchange within its timeout) makes the robot system
 take its emergency stop (category 1), once per cycle, with "the fieldbus is lost: <why>".
+Inputs of another number than the backend had when it was opened are not taken (the port
+keeps the last ones, of the right number) and stop the robot the same way ("the I/O is
+not trusted: ...").
 The program's outputs go through :meth:`IoComponent.set_output`: to the backend and to
 ``outputs`` in the same call (the same tick: never one later).
 
@@ -102,6 +105,7 @@ class IoComponent(Component):
         self.inputs = DataPort("inputs", ())
         self.outputs = DataPort("outputs", ())
         self.lost_reason: str | None = None  # why the backend was lost in this cycle (None: it was not)
+        self.n_inputs: int | None = None  # how many inputs the backend has (from when it is opened)
         self._opened = False
         self._now = 0.0
 
@@ -111,6 +115,7 @@ class IoComponent(Component):
         if not self._opened:
             self.backend.start()
             self._opened = True
+            self.n_inputs = len(self.backend.inputs)
         self.refresh()
         return True
 
@@ -137,7 +142,9 @@ class IoComponent(Component):
         """Real-time safe, outside the tick's task (set-up, and the server's idle turns, when
         no task reads the backend): the backend's inputs and outputs into the ports."""
         stamp = self._now if now is None else now
-        self.inputs.write(tuple(self.backend.inputs), stamp)
+        inputs = tuple(self.backend.inputs)
+        if self.n_inputs is None or len(inputs) == self.n_inputs:
+            self.inputs.write(inputs, stamp)
         self.outputs.write(tuple(self.backend.outputs), stamp)
 
     # -- real-time --
@@ -146,7 +153,14 @@ class IoComponent(Component):
         self._now = now
         if self.cell is not None:
             self.cell.update(now)
-        self.inputs.write(tuple(self.backend.inputs), now)
+        inputs = tuple(self.backend.inputs)
+        if len(inputs) == self.n_inputs:
+            self.inputs.write(inputs, now)
+        elif self.lost_reason is None:  # not the robot's inputs: not taken (the port keeps the last ones)
+            self.lost_reason = (f"the I/O is not trusted: it gave {len(inputs)} inputs, the robot has "
+                                f"{self.n_inputs}")
+            if self.on_lost is not None:
+                self.on_lost(self.lost_reason)
         if self.lost_reason is None:
             why = self.backend.lost()
             if why is not None:

@@ -73,12 +73,17 @@ class ReportWriter(threading.Thread):
         self.expand = expand  # when set: row -> the row written (joints -> the TCP, in the active tool and base)
         self.error: str | None = None
         self.rows_written = 0
+        self.bad_rows = 0  # rows (or transitions) that could not be formatted: left out, counted
         # one C-level format per row (time to the ms, the state, every value to 1e-6, I/O 0 or 1,
         # the move's number and line as integers)
         self.row_format = "%.3f,%s," + ",".join(["%d" if is_integer(name) else "%s" if is_text(name) else "%.6f"
                                                  for name in header[2:]]) + "\n"
 
     def run(self) -> None:
+        """Until the None that ends the report. The thread never dies of a row: a row it
+        cannot format (one that does not fit the header) is left out and counted
+        (``bad_rows``), every other row and transition is written; a write that fails is
+        said in ``error``. Either way :meth:`problem` says it, and the summary with it."""
         try:
             with open(self.path, "w", encoding="utf-8", newline="") as f, \
                     open(self.states_path, "w", encoding="utf-8", newline="") as states:
@@ -92,18 +97,46 @@ class ReportWriter(threading.Thread):
                         break
                     batch, transitions = item
                     if transitions:
-                        states.write("".join([state_row(t) for t in transitions]))
+                        states.write(self._lines(transitions, state_row))
                         states.flush()
                     if not batch:
                         continue
-                    if self.expand is not None:
-                        batch = [self.expand(r) for r in batch]
-                    row_format = self.row_format
-                    f.write("".join([row_format % r for r in batch]))
+                    f.write(self._lines(batch, self._row))
                     f.flush()
-                    self.rows_written += len(batch)
         except OSError as exc:
             self.error = f"cannot write the report {self.path}: {exc.strerror or exc}"
+        except Exception:  # noqa: BLE001 - said, never a silent death (the rows so far are on disk)
+            self.error = f"the report writer of {self.path} stopped on an internal error: the rows after it are lost"
+
+    def _row(self, row: tuple) -> str:
+        if self.expand is not None:
+            row = self.expand(row)
+        return self.row_format % row
+
+    def _lines(self, items, line) -> str:
+        """Whole lines of the items that can be formatted; the others are counted."""
+        try:
+            text = "".join([line(item) for item in items])
+        except Exception:  # noqa: BLE001 - a row of another shape: each on its own, the bad ones left out
+            lines = []
+            for item in items:
+                try:
+                    lines.append(line(item))
+                except Exception:  # noqa: BLE001
+                    self.bad_rows += 1
+            text = "".join(lines)
+            items = lines
+        if line is not state_row:
+            self.rows_written += len(items)
+        return text
+
+    def problem(self) -> str | None:
+        """What went wrong writing the files, in the operator's terms (None: nothing)."""
+        parts = [self.error] if self.error else []
+        if self.bad_rows:
+            parts.append(f"{self.bad_rows} rows of {self.path.name} were left out: they did not fit its "
+                         f"{len(self.header)} columns (every other row is kept)")
+        return "; ".join(parts) or None
 
 
 class TcpOf:
@@ -281,9 +314,18 @@ class Report(Component):
         self._hand_over()
         if self.writer is not None:
             writer, self.writer = self.writer, None
-            writer.queue.put(None)
+            try:
+                writer.queue.put(None, timeout=10)  # (a writer that ended on an error no longer empties it)
+            except queue.Full:
+                pass
             writer.join(timeout=10)
-            return writer.error
+            problems = [writer.problem()]
+            if writer.is_alive():
+                problems.append(f"the report writer did not finish {writer.path.name} within 10 s: its last rows "
+                                "may be missing")
+            if self.dropped:
+                problems.append(f"{self.dropped} rows were not written: the report writer fell behind")
+            return "; ".join(p for p in problems if p) or None
         return None
 
 

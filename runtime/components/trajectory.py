@@ -30,7 +30,7 @@ from compiler.frames import problem as frame_problem
 from compiler.objcode import Program
 from compiler.params import component_params, describe
 from compiler.spec import DEFAULT_LOOKAHEAD
-from compiler.semantics import compose
+from compiler.semantics import EvalError, compose
 from compiler.triggers import MAX_PENDING as MAX_TRIGGERS
 from compiler.triggers import problem as trigger_problem
 from compiler.values import Joint, Pose
@@ -409,12 +409,12 @@ class TrajectoryGenerator(Component):
 
     def read_input(self, n: int) -> bool:
         if not 1 <= n <= self.spec.inputs:
-            raise IndexError(f"digital input {n} does not exist (1..{self.spec.inputs})")
+            raise EvalError(f"digital input {n} does not exist (1..{self.spec.inputs})")
         return self.io.input(n)
 
     def write_output(self, n: int, value: bool) -> None:
         if not 1 <= n <= self.spec.outputs:
-            raise IndexError(f"digital output {n} does not exist (1..{self.spec.outputs})")
+            raise EvalError(f"digital output {n} does not exist (1..{self.spec.outputs})")
         self.io.set_output(n, value)
 
     def log(self, text: str, line: int) -> None:

@@ -484,5 +484,6 @@ def plan_cartesian(inp: CartesianInput) -> tuple[Result, JointStream | None, str
         return Result.ERROR_PATH, None, str(exc)
     except (ValueError, TypeError) as exc:
         return Result.ERROR_INVALID_INPUT, None, str(exc)
-    except Exception as exc:  # noqa: BLE001 - the contract is: never raise
-        return Result.ERROR, None, f"internal error in the Cartesian planner: {type(exc).__name__}: {exc}"
+    except Exception:  # noqa: BLE001 - the contract is: never raise (and never show a Python message)
+        return (Result.ERROR, None,
+                "internal error in the Cartesian planner: the move could not be planned (not a fault of the program)")

@@ -705,6 +705,7 @@ def plan_ptp_jerk(inp: PtpInput) -> tuple[Result, JerkPtpTrajectory | None, str]
             trajectory = JerkPtpTrajectory(duration, start, target, tuple(distances), limits,
                                            specs=specs, slowest_axis=slowest)
         return (Result.WORKING if duration > 0.0 else Result.FINISHED), trajectory, ""
-    except Exception as exc:  # noqa: BLE001 - the contract is: never raise
+    except Exception:  # noqa: BLE001 - the contract is: never raise (and never show a Python message)
         return (Result.ERROR, None,
-                f"internal error in plan_ptp_jerk: {type(exc).__name__}: {exc}")
+                "internal error in the jerk-limited PTP planner: the move could not be planned (not a "
+                "fault of the program)")

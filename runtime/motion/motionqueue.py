@@ -83,8 +83,9 @@ class _PlanningJob:
     def run(self) -> None:
         try:
             self.result = self.plan()
-        except Exception as exc:  # the planners never raise; a bug must not hang the move
-            self.result = (None, f"internal error while planning ({type(exc).__name__}: {exc})")
+        except Exception:  # the planners never raise; a bug must not hang the move (nor show a Python message)
+            self.result = (None, "internal error while planning the move: it could not be planned (not a fault of "
+                                 "the program)")
         self.done = True
 
 

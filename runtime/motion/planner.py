@@ -342,8 +342,9 @@ def plan_ptp(inp: PtpInput) -> tuple[Result, PtpTrajectory | None, str]:
             for i in range(n)])
         trajectory = PtpTrajectory(profiles, duration, slowest, start, target, a_max)
         return (Result.WORKING if duration > 0.0 else Result.FINISHED), trajectory, ""
-    except Exception as exc:  # noqa: BLE001 - the contract is: never raise
-        return Result.ERROR, None, f"internal error in plan_ptp: {type(exc).__name__}: {exc}"
+    except Exception:  # noqa: BLE001 - the contract is: never raise (and never show a Python message)
+        return (Result.ERROR, None,
+                "internal error in the PTP planner: the move could not be planned (not a fault of the program)")
 
 
 def scaled_limits(axes_max_velocity, axes_max_acceleration, speed_ptp: float,

@@ -21,6 +21,7 @@ ALLOWED = {
     ("runtime/cli.py", "main"): "the command line's last guard: a bug report on stderr, exit 70",
     ("runtime/server.py", "_handle"): "a server bug: the client's 'internal' error reply (and the log)",
     ("runtime/robotloop.py", "command"): "a loop bug: the server's 'internal' error reply",
+    ("runtime/system.py", "_poll"): "the print thread keeps the exception object to raise it again in the caller",
     ("runtime/robotloop.py", "_child"): "the loop process could not start: irl serve says so and exits 2",
     ("runtime/protocol.py", "_decode"): "a request that is not msgpack: the kind of decoding error in the reply",
     ("runtime/protocol.py", "decode_reply"): "a reply that is not msgpack: the kind of decoding error",

@@ -298,6 +298,7 @@ class VM:
             self.status = ERROR
             self._wait = _NO_WAIT
             self.paused = False
+            self._end_handling()
 
     # -- running (real-time) --------------------------------------------------------------
     def step(self, deadline: float | None = None) -> VMStatus:
@@ -499,6 +500,20 @@ class VM:
         self.status = ERROR
         self._here = offset
         self._wait = _NO_WAIT
+        self._end_handling()
+
+    def _end_handling(self) -> None:
+        """The program stops with an error while an interrupt's handler runs: the handler
+        never returns, so an interrupt with ``stop`` would hold the motion for ever (the
+        program, waiting for its moves to end before its error ends it, with it). The
+        motion stops for good instead, its moves not made dropped (as ``then halt``): the
+        error then ends the program with the robot at rest."""
+        handling, self._handling = self._handling, None
+        if handling is not None and self._ints[handling[0]][3]:
+            try:
+                self.host.interrupt_halt(f"program error in interrupt {self._ints[handling[0]][0]}")
+            except Exception:  # never raise: the program has ended with its error anyway
+                pass
 
     def _run_table(self, budget: int) -> None:
         """Every instruction through the handler table."""

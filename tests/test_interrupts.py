@@ -4,6 +4,7 @@ disable; checked every 5 ms on the condition's edges; never nested. The VM's sem
 fake host; the robot's stop on its path, within the limits, on the simulated robot."""
 from __future__ import annotations
 
+import functools
 import tempfile
 from pathlib import Path
 
@@ -382,3 +383,139 @@ def test_a_short_handler_still_stops_the_robot_and_a_stop_that_ends_at_the_targe
     assert any(max(map(abs, v)) == 0.0 for t, _q, v in setpoints if t_break < t <= stopped.t_end + 1e-9)
     assert np.allclose(summary["final_position"][:6], dry["final_position"][:6], atol=5e-3)
     assert system.io.outputs.value[2] is True  # the trigger fired, before or after the stop
+
+
+# ---- a run-time error in a handler (issue 26, fault 2) ----------------------------------------
+
+#: Errors a handler can run into: (the handler's statement, a procedure it may need, the
+#: marker of the error's line, what the message says). The recursion errors at the call
+#: inside the procedure.
+HANDLER_ERRORS = {
+    "div": ("  n := 10 div n;  -- err", "", "-- err", "division by zero"),
+    "recursion": ("  call down(1);", "procedure down(k : integer);\nseq\n  call down(k + 1);  -- err\nendseq\n"
+                  "endprocedure;\n", "-- err", "too many nested procedure or function calls"),
+    "index": ("  a[n + 7] := 1;  -- err", "", "-- err", "index 7 is outside the array bounds"),
+    "sqrt": ("  x := sqrt(n - 1.0);  -- err", "", "-- err", "sqrt"),
+}
+
+_HANDLER_MODES = ["stop", "continue", "stop then resume", "stop then halt", "continue then halt"]
+_MOVE_2 = "joint(mainjoint(60, -20, 40, 0, 50, 0))"
+
+
+@functools.cache
+def _shared_system():
+    """One simulated robot for the examples below: homed once, each program a cycle of its
+    own (as the server runs them), 60 s at most per cycle (a hang fails fast)."""
+    from limits_watch import LimitWatch
+
+    from runtime.system import RobotSystem, RunOptions
+
+    system = RobotSystem(SPEC, RunOptions(state_dir=tempfile.mkdtemp(), max_time=60.0))
+    watch = LimitWatch(system)
+    assert system.run(_plain_program())["fault"] is None  # homed once
+    memory = system.memory
+    return system, watch, (memory.initialized, list(memory.encoder_offsets), memory.initialization_why)
+
+
+def _plain_program():
+    from compiler.driver import compile_source
+
+    folder = Path(tempfile.mkdtemp())
+    (folder / "lola15.spc").write_text((ROOT / "programs" / "lola15.spc").read_text())
+    result = compile_source(program_text(f"  move ptp {HOME};\n"), str(folder / "p.irl"))
+    assert result.ok, result.diagnostics
+    return result.program
+
+
+@st.composite
+def erring_handlers(draw):
+    """A program whose interrupt ``first`` runs into a run-time error in its handler, fired
+    at a moment drawn (a trigger during a move, in a dwell of the program, while the program
+    runs ahead of the robot), beside an interrupt ``second`` that fires too (priorities)."""
+    error = draw(st.sampled_from(sorted(HANDLER_ERRORS)))
+    statement, procedure, marker, message = HANDLER_ERRORS[error]
+    mode = draw(st.sampled_from(_HANDLER_MODES))
+    before = draw(st.sampled_from(["", "  wait 0.1 sec;\n", "  out[3] := true;\n", "  seen := seen + 1;\n"]))
+    moment = draw(st.sampled_from(["trigger", "dwell", "ahead"]))
+    ms = draw(st.integers(0, 1500))
+    second = draw(st.sampled_from([None, "stop", "continue"]))
+    ms2 = draw(st.integers(0, 1500))
+    p1, p2 = draw(st.integers(1, 100)), draw(st.integers(1, 100))
+    decls = ("var\n  n, seen : integer;\n  x : real;\n  go, go2 : bool;\n  a : array[1..3] of integer;\n\n" + procedure
+             + f"interrupt first when go priority {p1} {mode};\nseq\n{before}{statement}\nendseq\nendinterrupt;\n"
+             + f"interrupt second when go2 priority {p2} {second or 'continue'};\nseq\n  seen := seen + 1;\n"
+             + "  wait 0.05 sec;\nendseq\nendinterrupt;\n")
+    body = f"  move ptp {HOME};\n  enable first;\n  enable second;\n"
+    if second is not None:
+        body += f"  trigger when {ms2} ms after start do go2 := true;\n"
+    if moment == "trigger":
+        body += f"  trigger when {ms} ms after start do go := true;\n"
+    body += f"  move ptp {_MOVE_2} speed_ptp := 0.3;\n"
+    if moment == "ahead":  # the program hands over the move and runs on while the robot moves
+        body += "  go := true;\n"
+    body += f"  move ptp {HOME};\n"
+    if moment == "dwell":
+        body += "  wait 0.5 sec;\n  go := true;\n  wait 0.5 sec;\n"
+    body += "  print \"not reached\";\n"
+    text = program_text(body, decls)
+    return text, line_of(text, marker), message
+
+
+@settings(max_examples=8, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(case=erring_handlers())
+@example(case=(lambda t: (t, line_of(t, "-- err"), "division by zero"))(program_text(
+    f"  move ptp {HOME};\n  enable first;\n  trigger when 300 ms after start do go := true;\n"
+    f"  move ptp {_MOVE_2} speed_ptp := 0.3;\n  move ptp {HOME};\n",
+    "var\n  n : integer;\n  go : bool;\ninterrupt first when go priority 1 stop;\nseq\n  n := 10 div n;  -- err\n"
+    "endseq\nendinterrupt;\n")))
+def test_a_run_time_error_in_any_handler_ends_the_program_at_its_line_promptly_at_rest(case):
+    """Before: an error in the handler of a 'stop' interrupt left the robot held on its path
+    for a release that never came; the program hung in Move Robot (until the 3,600 s limit
+    under 'irl run', for ever under 'irl serve'). Whatever the handler and whenever it fires,
+    the program ends with the error at its line, the robot at rest within its limits."""
+    from limits_watch import at_rest_and_safe
+
+    from compiler.driver import compile_source
+
+    text, line, message = case
+    system, watch, homed = _shared_system()
+    # a faulted cycle forgets the homing (the next one homes again, 9 s of simulated time):
+    # not what is tested here, so each example starts from the homing of the first
+    memory = system.memory
+    memory.initialized, memory.encoder_offsets, memory.initialization_why = homed[0], list(homed[1]), homed[2]
+    folder = Path(tempfile.mkdtemp())
+    (folder / "lola15.spc").write_text((ROOT / "programs" / "lola15.spc").read_text())
+    result = compile_source(text, str(folder / "p.irl"))
+    assert result.ok, result.diagnostics
+    watch.reset()
+    summary = system.run(result.program)
+    fault = summary["fault"] or ""
+    assert f"program error at line {line}: " in fault and message in fault, (fault, text)
+    fired = [entry["time"] for entry in summary["log"] if entry["text"].startswith("interrupt first fired")]
+    assert len(fired) == 1, summary["log"]
+    # promptly: the moves already handed over (at most two, 3.2 s) and the handler's wait,
+    # then Stop Robot; a hang runs into the 60 s limit
+    assert summary["sim_time"] - fired[0] < 6.0, (summary["sim_time"], fired, fault)
+    assert "not reached" not in [entry["text"] for entry in summary["log"]]
+    assert at_rest_and_safe(system)
+    assert watch.velocity_ratio <= 1.0 + 1e-6 and watch.acceleration_ratio <= 1.0 + 1e-6, watch.worst
+    assert not watch.at_end_stop and watch.beyond == 0.0
+
+
+def test_a_move_that_fails_to_plan_while_a_stop_handler_runs_ends_the_program(tmp_path):
+    """The host stops the program (a move planned in the background that cannot be made)
+    while a 'stop' handler waits: the motion held for that handler stops for good, so the
+    error can end the program (before: held for a release that never came)."""
+    decls = "interrupt hold when in[5] stop;\nseq\n  wait for not in[5];\nendseq\nendinterrupt;\n"
+    program = compile_text(tmp_path, program_text(f"  enable hold;\n  move ptp {HOME};\n  move ptp {HOME};\n", decls))
+    host = FakeHost(instant=False)
+    machine = VM(program, host, 200)
+    machine.step()
+    host.inputs[5] = True
+    machine.step()
+    assert host.interrupt_log == ["stop"] and machine.status == VMStatus.WAITING
+    machine.fail("the move cannot be planned", 7)
+    assert machine.status == VMStatus.ERROR and machine.error.line == 7
+    assert host.interrupt_log == ["stop", ("halt", "program error in interrupt hold")]
+    machine.abort()  # and nothing more is asked of the motion
+    assert len(host.interrupt_log) == 2

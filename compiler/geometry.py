@@ -10,7 +10,7 @@ Imports only ``math``: the compiler and the loop both use it.
 """
 from __future__ import annotations
 
-from math import atan2, cos, isfinite, pi, sin, sqrt
+from math import atan2, cos, frexp, isfinite, ldexp, pi, sin, sqrt
 
 _D2R = pi / 180.0
 _R2D = 180.0 / pi
@@ -53,14 +53,37 @@ def rpy_of_quat(w: float, x: float, y: float, z: float) -> tuple[float, float, f
     return rotation_to_rpy(r00, r01, r02, r10, r11, r12, r20, r21, r22)
 
 
+def normalise(q) -> tuple[float, float, float, float] | None:
+    """``q / |q|`` for a quaternion ``(w, x, y, z)`` of any size, or None when it is not a
+    rotation (zero, or a component not finite). Scaled by its largest component first, so
+    the sum of squares can neither overflow (``quat(1e308, 1e308, 1e308, 1e308)``) nor
+    underflow (subnormal components): every place that normalises a quaternion calls this."""
+    w, x, y, z = q
+    if not (isfinite(w) and isfinite(x) and isfinite(y) and isfinite(z)):
+        return None
+    m = max(abs(w), abs(x), abs(y), abs(z))
+    if m == 0.0:
+        return None
+    # by a power of two (exact: a quaternion of ordinary size gives the same bits as
+    # without the scaling); the largest component is then 0.5..1, the norm 0.5..2
+    e = -frexp(m)[1]
+    w, x, y, z = ldexp(w, e), ldexp(x, e), ldexp(y, e), ldexp(z, e)
+    n = sqrt(w * w + x * x + y * y + z * z)
+    return (w / n, x / n, y / n, z / n)
+
+
+def _rotation(q) -> tuple[float, float, float, float]:
+    """:func:`normalise`, raising ValueError for a quaternion that is not a rotation."""
+    unit_q = normalise(q)
+    if unit_q is None:
+        raise ValueError(f"the quaternion {tuple(q)} is not a rotation")
+    return unit_q
+
+
 def quat_to_rpy(q) -> tuple[float, float, float]:
     """(roll, pitch, yaw) in degrees of a quaternion ``(w, x, y, z)`` (normalised here),
     in the ranges of ``Kinematics.forward``."""
-    w, x, y, z = q
-    n = sqrt(w * w + x * x + y * y + z * z)
-    if not (n > 0.0 and isfinite(n)):
-        raise ValueError(f"the quaternion {tuple(q)} is not a rotation")
-    return rpy_of_quat(w / n, x / n, y / n, z / n)
+    return rpy_of_quat(*_rotation(q))
 
 
 def quat_multiply(a, b) -> tuple[float, float, float, float]:
@@ -87,8 +110,5 @@ def rotate(q, v) -> tuple[float, float, float]:
 
 def unit(q) -> tuple[float, float, float, float]:
     """``q`` normalised, with ``w >= 0`` (one of the two quaternions of a rotation)."""
-    w, x, y, z = q
-    n = sqrt(w * w + x * x + y * y + z * z)
-    if w < 0.0:
-        n = -n
-    return (w / n, x / n, y / n, z / n)
+    w, x, y, z = _rotation(q)
+    return (-w, -x, -y, -z) if w < 0.0 else (w, x, y, z)

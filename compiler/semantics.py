@@ -321,10 +321,11 @@ def call_builtin(name: str, args):
 
 
 def make_quat(w: float, x: float, y: float, z: float) -> Quat:
-    norm = math.sqrt(w * w + x * x + y * y + z * z)
-    if norm < 1e-12:
+    """``quat(w, x, y, z)`` normalised (any size: compiler.geometry.normalise)."""
+    unit = geometry.normalise((w, x, y, z))
+    if unit is None:
         raise EvalError("quat(0, 0, 0, 0) is not a rotation")
-    return Quat(w / norm, x / norm, y / norm, z / norm)
+    return Quat(*unit)
 
 
 def make_joint(main, add=()) -> Joint:

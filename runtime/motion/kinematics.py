@@ -103,7 +103,7 @@ from __future__ import annotations
 from math import atan2, ceil, cos, inf, isfinite, pi, sin, sqrt
 from typing import Sequence
 
-from compiler.geometry import rotation_to_rpy
+from compiler.geometry import normalise, rotation_to_rpy
 from compiler.spec import DH, Spec
 from compiler.values import Joint, Pose, Position, Quat, Rpy
 
@@ -170,10 +170,11 @@ def matrix_to_rpy(matrix) -> tuple[float, float, float]:
 
 
 def _quat_matrix(w, x, y, z) -> tuple:
-    n = w * w + x * x + y * y + z * z
-    if not n > 0.0 or not isfinite(n):
+    unit = normalise((w, x, y, z))
+    if unit is None:
         raise KinematicsError(f"quat({w:g}, {x:g}, {y:g}, {z:g}) is not a rotation")
-    s = 2.0 / n
+    w, x, y, z = unit
+    s = 2.0
     return (1.0 - s * (y * y + z * z), s * (x * y - w * z), s * (x * z + w * y),
             s * (x * y + w * z), 1.0 - s * (x * x + z * z), s * (y * z - w * x),
             s * (x * z - w * y), s * (y * z + w * x), 1.0 - s * (x * x + y * y))

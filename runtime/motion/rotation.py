@@ -14,7 +14,7 @@ from __future__ import annotations
 
 from math import atan2, isfinite, pi, sin, sqrt
 
-from compiler.geometry import quat_multiply, quat_to_rpy, rpy_to_quat
+from compiler.geometry import normalise, quat_multiply, quat_to_rpy, rpy_to_quat
 from compiler.geometry import rpy_of_quat as _rpy_of_quat  # noqa: F401  (runtime.motion.paths)
 
 __all__ = ["matrix_to_quat", "quat_angle", "quat_multiply", "quat_to_matrix", "quat_to_rpy", "rpy_to_quat",
@@ -29,11 +29,8 @@ _SMALL_ANGLE = 1e-4
 def quat_to_matrix(q) -> tuple:
     """The 3x3 rotation matrix (nested tuples) of a quaternion ``(w, x, y, z)``
     (normalised here, so any non-zero quaternion will do)."""
-    w, x, y, z = q
-    n = w * w + x * x + y * y + z * z
-    if not (n > 0.0 and isfinite(n)):
-        raise ValueError(f"the quaternion {tuple(q)} is not a rotation")
-    s = 2.0 / n
+    w, x, y, z = _unit(q)
+    s = 2.0
     return ((1.0 - s * (y * y + z * z), s * (x * y - w * z), s * (x * z + w * y)),
             (s * (x * y + w * z), 1.0 - s * (x * x + z * z), s * (y * z - w * x)),
             (s * (x * z - w * y), s * (y * z + w * x), 1.0 - s * (x * x + y * y)))
@@ -84,11 +81,10 @@ def quat_angle(q0, q1) -> float:
 
 
 def _unit(q) -> tuple[float, float, float, float]:
-    w, x, y, z = q
-    n = sqrt(w * w + x * x + y * y + z * z)
-    if not (n > 0.0 and isfinite(n)):
+    unit = normalise(q)
+    if unit is None:
         raise ValueError(f"the quaternion {tuple(q)} is not a rotation")
-    return (w / n, x / n, y / n, z / n)
+    return unit
 
 
 def _sin_ratio(k: float, omega: float, inv_sin: float) -> float:

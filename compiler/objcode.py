@@ -111,6 +111,12 @@ class InstrDef:
     doc: str
     effect: str = ""
     flow: str = "next"  # next | jump | branch | wait | call | return | stop
+    #: The types of the values it pops, deepest first (:data:`VALUE_TYPES`), one pattern
+    #: per value, or for a count that depends on the operands one pattern that each of them
+    #: must fit; and the type of the value it pushes (or a rule: :data:`TYPE_RULES`). The
+    #: verifier reads both.
+    takes: tuple[str, ...] = ()
+    gives: str = ""
 
     def pop_count(self, operands: tuple, program: "Program") -> int:
         return self.pops if isinstance(self.pops, int) else self.pops(operands, program)
@@ -214,8 +220,65 @@ _DEFS = [
      "place.", "amount value ->", "next"),
 ]
 
+#: The types of the values on the stack (what a popped value must be, what is pushed). A
+#: value has one of the language's types (compiler.semantics) or is an array,
+#: ``array of T``. In patterns: ``number`` is an integer or a real, ``real`` accepts an
+#: integer too (it is converted), ``array`` any array, ``any`` anything, ``a|b`` either;
+#: ``@g`` / ``@l`` the declared type of the global / local slot the instruction names,
+#: ``@item`` the element type of the array popped first, ``@params`` the called routine's
+#: parameters, ``@clauses`` the move's clause values, ``@result`` the function's result.
+VALUE_TYPES = ("integer", "real", "bool", "string", "joint", "position", "orientation", "pose")
+
+#: The rules for a pushed value whose type depends on what was popped or on an operand.
+TYPE_RULES = {
+    "@const": "the constant's type",
+    "@g": "the global slot's declared type",
+    "@l": "the local slot's declared type",
+    "@same": "the type of the value popped",
+    "@item": "the array's element type",
+    "@array": "an array of the value popped",
+    "@arith": "integer for two integers, real for two numbers (real for /), a string for two strings (+), "
+              "the pose arithmetic's result (compiler.semantics.GEOMETRY)",
+    "@builtin": "the built-in function's result (real, integer for round and trunc, the argument's for abs, "
+                "min and max; compiler.semantics.GEOMETRIC_BUILTINS)",
+    "@result": "the called function's result type",
+    "@order": "bool, of two numbers or two strings",
+}
+
+#: The stack types of each instruction: (takes, gives), see InstrDef.
+_TYPES: dict[str, tuple[str, str]] = {
+    "NOP": ("", ""), "CONST": ("", "@const"), "LOAD_GLOBAL": ("", "@g"), "STORE_GLOBAL": ("@g", ""),
+    "LOAD_LOCAL": ("", "@l"), "STORE_LOCAL": ("@l", ""), "COPY": ("array", "@same"), "TO_REAL": ("number", "real"),
+    "NEG": ("number|position", "@same"), "NOT": ("bool", "bool"),
+    "ADD": ("integer|real|string|position|pose integer|real|string|position", "@arith"),
+    "SUB": ("number|position|pose number|position", "@arith"),
+    "MUL": ("number|position|pose|orientation number|position|pose|orientation", "@arith"),
+    "DIV": ("number|position number", "@arith"), "IDIV": ("integer integer", "integer"),
+    "MOD": ("integer integer", "integer"),
+    "EQ": ("any any", "bool"), "NE": ("any any", "bool"),
+    "LT": ("number|string number|string", "@order"), "LE": ("number|string number|string", "@order"),
+    "GT": ("number|string number|string", "@order"), "GE": ("number|string number|string", "@order"),
+    "AND": ("bool bool", "bool"), "OR": ("bool bool", "bool"),
+    "CALL_BUILTIN": ("number|position|pose|orientation", "@builtin"), "MAKE_JOINT": ("real", "joint"),
+    "MAKE_POS": ("real real real", "position"), "MAKE_RPY": ("real real real", "orientation"),
+    "MAKE_QUAT": ("real real real real", "orientation"), "MAKE_POSE": ("position orientation", "pose"),
+    "MAKE_ARRAY": ("any", "@array"), "GET_ITEM": ("array integer", "@item"), "SET_ITEM": ("array integer @item", ""),
+    "GET_AXIS": ("joint integer", "real"), "SET_AXIS": ("joint integer real", "joint"),
+    "GET_FIELD": ("position|pose", "real"), "JUMP": ("", ""), "JUMP_IF_FALSE": ("bool", ""),
+    "CALL": ("@params", ""), "RET": ("", ""), "IN_GET": ("integer", "bool"), "OUT_SET": ("integer bool", ""),
+    "MOVE_PTP": ("joint|pose @clauses", ""), "MOVE_LIN": ("pose @clauses", ""),
+    "MOVE_CIRC": ("pose pose @clauses", ""), "DWELL": ("real", ""), "WAIT_BEGIN": ("real", ""),
+    "WAIT_TEST": ("bool", ""), "PRINT": ("any", ""), "PAUSE": ("", ""), "HALT": ("", ""), "END": ("", ""),
+    "CALL_FUNC": ("@params", "@result"), "RET_VALUE": ("@result", ""), "USE_BASE": ("pose", ""),
+    "USE_TOOL": ("pose", ""), "INT_ENABLE": ("", ""), "INT_DISABLE": ("", ""),
+    "TRIGGER_OUT": ("real integer bool", ""), "TRIGGER_SET": ("real @g", ""),
+}
+_missing_types = [d[0] for d in _DEFS if d[0] not in _TYPES]
+if _missing_types:  # pragma: no cover - the table is complete
+    raise ImportError(f"compiler.objcode: no stack types for {', '.join(_missing_types)}")
+
 INSTRUCTIONS: tuple[InstrDef, ...] = tuple(
-    InstrDef(name, code, operands, pops, pushes, doc, effect, flow)
+    InstrDef(name, code, operands, pops, pushes, doc, effect, flow, tuple(_TYPES[name][0].split()), _TYPES[name][1])
     for code, (name, operands, pops, pushes, doc, effect, flow) in enumerate(_DEFS)
 )
 BY_NAME: dict[str, InstrDef] = {d.name: d for d in INSTRUCTIONS}
@@ -478,16 +541,188 @@ def _check_operand(kind: str, value: int, program: Program, nlocals: int | None)
     return None if ok else f"{value} is out of range ({limit})"
 
 
-def _verify_routine(program: Program, entry: int, nlocals: int | None, owner: list, result: str = "") -> int:
+# ---- the types of stack values (InstrDef.takes, InstrDef.gives) --------------------------------
+
+_BOUNDS = None
+
+
+def declared_type(text: object) -> str | None:
+    """The stack type of a declared type (``array[1..7] of joint`` -> ``array of joint``),
+    or None when ``text`` is no type of the language."""
+    global _BOUNDS
+    if not isinstance(text, str):
+        return None
+    if _BOUNDS is None:
+        import re
+
+        _BOUNDS = re.compile(r"array\s*\[[^\]]*\]\s*of\s+")
+    typ = _BOUNDS.sub("array of ", text.strip())
+    base = typ
+    while base.startswith("array of "):
+        base = base[len("array of "):]
+    return typ if base in VALUE_TYPES else None
+
+
+def value_type(value: object) -> str | None:
+    """The stack type of a constant, or None (no value of the language)."""
+    from .values import Joint, Pose, Position, Quat, Rpy
+
+    for cls, name in ((bool, "bool"), (int, "integer"), (float, "real"), (str, "string"), (Joint, "joint"),
+                      (Position, "position"), (Rpy, "orientation"), (Quat, "orientation"), (Pose, "pose")):
+        if isinstance(value, cls):
+            return name
+    return None
+
+
+def fits(actual: str, pattern: str) -> bool:
+    """Does a value of type ``actual`` fit ``pattern`` (see :data:`VALUE_TYPES`)?"""
+    for alt in pattern.split("|"):
+        if alt in ("any", actual) or (alt in ("number", "real") and actual in ("integer", "real")) \
+                or (alt == "array" and actual.startswith("array of ")):
+            return True
+    return False
+
+
+_SYMBOLS = {"ADD": "+", "SUB": "-", "MUL": "*", "DIV": "/"}
+
+
+def _arith_type(name: str, a: str, b: str) -> str | None:
+    symbol = _SYMBOLS[name]
+    numbers = ("integer", "real")
+    if a in numbers and b in numbers:
+        return "integer" if a == b == "integer" and symbol != "/" else "real"
+    if symbol == "+" and a == b == "string":
+        return "string"
+    from .semantics import GEOMETRY
+
+    found = GEOMETRY.get((symbol, "number" if a in numbers else a, "number" if b in numbers else b))
+    return found[0] if found is not None else None
+
+
+def _builtin_type(fn: str, args: list[str]) -> str | None:
+    from .semantics import GEOMETRIC_BUILTINS, geometric_result
+
+    if fn in GEOMETRIC_BUILTINS:
+        result = geometric_result(fn, tuple(args))
+        return {"number": "real"}.get(result, result) if result is not None else None
+    if not all(a in ("integer", "real") for a in args):
+        return None
+    if fn in ("round", "trunc"):
+        return "integer"
+    if fn in ("abs", "min", "max"):
+        return "integer" if all(a == "integer" for a in args) else "real"
+    return "real"
+
+
+def _stack_types(definition: InstrDef, operands: tuple, program: Program, local_types: tuple, result: str,
+                 stack: tuple) -> tuple[tuple, str | None]:
+    """Check the types of the values ``definition`` pops from ``stack``; the stack after it.
+    Raises ObjectCodeError (without an offset: the caller adds it)."""
+    names = [n for n, _k in definition.operands]
+
+    def operand(name: str) -> int:
+        return operands[names.index(name)]
+
+    patterns: list[str] = []
+    for t in definition.takes:
+        if t == "@params":
+            callee = program.procedures[operands[0]]
+            patterns.extend(declared_type(typ) or "?" for _n, typ in callee.locals[:callee.params])
+        elif t == "@clauses":
+            from .clauses import CLAUSES as CLAUSE_TABLE
+
+            types = {c.name: c.type for c in CLAUSE_TABLE}
+            patterns.extend("real" if types[c] == "real" else "string" for c in clause_names(operands[0]))
+        elif t == "@g":
+            patterns.append(declared_type(program.globals[operand("g")][1]) or "?")
+        elif t == "@l":
+            patterns.append(local_types[operand("l")])
+        elif t == "@result":
+            patterns.append(result)
+        else:
+            patterns.append(t)
+    pops = definition.pop_count(operands, program)
+    if len(patterns) == 1 and pops != 1:
+        patterns = patterns * pops
+    popped = list(stack[len(stack) - pops:]) if pops else []
+    for i, (actual, pattern) in enumerate(zip(popped, patterns)):
+        if pattern == "@item":
+            pattern = popped[0][len("array of "):]
+        if not fits(actual, pattern):
+            which = f"value {i + 1} of {pops}" if pops > 1 else "its value"
+            raise ObjectCodeError(f"{definition.name}: {which} must be {pattern.replace('|', ' or ')}, "
+                                  f"not {actual}")
+    rule = definition.gives
+    if not rule:
+        return stack[:len(stack) - pops], None
+    if rule == "@const":
+        gives = value_type(program.constants[operands[0]])
+        if gives is None:
+            raise ObjectCodeError(f"CONST: constant {operands[0]} is no value of the language")
+    elif rule == "@g":
+        gives = declared_type(program.globals[operand("g")][1])
+    elif rule == "@l":
+        gives = local_types[operand("l")]
+    elif rule == "@same":
+        gives = popped[0]
+    elif rule == "@item":
+        gives = popped[0][len("array of "):]
+    elif rule == "@array":
+        gives = "array of " + popped[0]
+    elif rule == "@result":
+        gives = declared_type(program.procedures[operands[0]].result)
+    elif rule == "@arith":
+        gives = _arith_type(definition.name, *popped)
+        if gives is None:
+            raise ObjectCodeError(f"{definition.name}: {popped[0]} {_SYMBOLS[definition.name]} {popped[1]} "
+                                  "is not defined")
+    elif rule == "@order":
+        if fits(popped[0], "number") != fits(popped[1], "number"):
+            raise ObjectCodeError(f"{definition.name}: {popped[0]} and {popped[1]} cannot be compared "
+                                  "(two numbers or two strings)")
+        gives = "bool"
+    elif rule == "@builtin":
+        fn = BUILTIN_NAMES[operands[0]]
+        gives = _builtin_type(fn, popped)
+        if gives is None:
+            raise ObjectCodeError(f"CALL_BUILTIN: {fn}({', '.join(popped)}) is not defined")
+    else:
+        gives = rule
+    return stack[:len(stack) - pops] + (gives,), gives
+
+
+def _routine_types(program: Program, proc: ProcInfo | None) -> tuple[tuple, str]:
+    """The declared types of a routine's local slots and its result, checked."""
+    if proc is None:
+        return (), ""
+    local_types = []
+    for name, typ in proc.locals:
+        checked = declared_type(typ)
+        if checked is None:
+            raise ObjectCodeError(f"procedure {proc.name!r}: local {name!r} has type {typ!r}, no type of the "
+                                  f"language ({', '.join(VALUE_TYPES)}, or an array of one)")
+        local_types.append(checked)
+    result = ""
+    if proc.result:
+        result = declared_type(proc.result) or ""
+        if not result:
+            raise ObjectCodeError(f"function {proc.name!r}: result type {proc.result!r} is no type of the language")
+    return tuple(local_types), result
+
+
+def _verify_routine(program: Program, entry: int, nlocals: int | None, owner: list, result: str = "",
+                    proc: ProcInfo | None = None) -> int:
     """Walk every path from ``entry`` (a function's when ``result``); returns the largest
-    stack depth reached."""
+    stack depth reached. Follows the type of every stack value too."""
     code = program.code
-    depth_at: dict[int, int] = {entry: 0}
+    local_types, result_type = _routine_types(program, proc)
+    types_at: dict[int, tuple] = {entry: ()}
     work = [entry]
     deepest = 0
     while work:
         pc = work.pop()
-        depth = depth_at[pc]
+        stack = types_at[pc]
+        depth = len(stack)
         if owner[pc] is None:
             owner[pc] = entry
         elif owner[pc] != entry:
@@ -513,7 +748,11 @@ def _verify_routine(program: Program, entry: int, nlocals: int | None, owner: li
         pops = definition.pop_count(operands, program)
         if pops > depth:
             raise ObjectCodeError(f"{definition.name} needs {pops} stack values but the stack holds {depth}", pc)
-        depth = depth - pops + definition.pushes
+        try:
+            stack, _gives = _stack_types(definition, operands, program, local_types, result_type, stack)
+        except ObjectCodeError as exc:
+            raise ObjectCodeError(exc.message, pc) from None
+        depth = len(stack)
         deepest = max(deepest, depth)
         flow = definition.flow
         successors = []
@@ -530,12 +769,15 @@ def _verify_routine(program: Program, entry: int, nlocals: int | None, owner: li
         for nxt in successors:
             if nxt >= len(code):
                 raise ObjectCodeError("execution runs past the end of the code", pc)
-            known = depth_at.get(nxt)
+            known = types_at.get(nxt)
             if known is None:
-                depth_at[nxt] = depth
+                types_at[nxt] = stack
                 work.append(nxt)
-            elif known != depth:
-                raise ObjectCodeError(f"inconsistent stack depth: {known} on one path, {depth} on another", nxt)
+            elif len(known) != depth:
+                raise ObjectCodeError(f"inconsistent stack depth: {len(known)} on one path, {depth} on another", nxt)
+            elif known != stack:
+                raise ObjectCodeError(f"inconsistent stack types: {', '.join(known)} on one path, "
+                                      f"{', '.join(stack)} on another", nxt)
     return deepest
 
 
@@ -607,12 +849,16 @@ def verify(program: Program, spec_hash: str | None = None) -> int:
         problem = _interrupt_problem(program, interrupt)
         if problem is not None:
             raise ObjectCodeError(f"interrupt {interrupt.name!r}: {problem}")
+    for slot, (name, typ) in enumerate(program.globals):
+        if declared_type(typ) is None:
+            raise ObjectCodeError(f"global {slot} ({name!r}) has type {typ!r}, no type of the language "
+                                  f"({', '.join(VALUE_TYPES)}, or an array of one)")
     owner: list = [None] * len(program.code)
     deepest = _verify_routine(program, 0, None, owner)
     for proc in program.procedures:
         if owner[proc.entry] is not None:
             raise ObjectCodeError(f"procedure {proc.name!r} starts inside other code", proc.entry)
-        deepest = max(deepest, _verify_routine(program, proc.entry, len(proc.locals), owner, proc.result))
+        deepest = max(deepest, _verify_routine(program, proc.entry, len(proc.locals), owner, proc.result, proc))
     return deepest
 
 

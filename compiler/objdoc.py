@@ -39,6 +39,8 @@ from .objcode import (
     MAX_SIZE,
     MOTION_KINDS,
     OPERAND_KINDS,
+    TYPE_RULES,
+    VALUE_TYPES,
     InstrDef,
     ProcInfo,
     Program,
@@ -411,16 +413,33 @@ def _section_instructions() -> list[str]:
     rows = []
     for d in INSTRUCTIONS:
         operands = ", ".join(f"`{name}`: {kind}" for name, kind in d.operands) or "—"
+        takes = " ".join(f"`{t}`" for t in d.takes) or "—"
         rows.append([d.code, f"`{d.name}`", operands, _code(d.effect) or "—", describe_pops(d), d.pushes,
-                     f"`{d.flow}`", d.doc])
+                     takes, f"`{d.gives}`" if d.gives else "—", f"`{d.flow}`", d.doc])
     return [
         "## Instructions",
         "",
         f"{len(INSTRUCTIONS)} instructions, opcodes 0 to {len(INSTRUCTIONS) - 1}. The stack effect "
         "reads `before -> after`, the top of the stack on the right; *pops* and *pushes* are "
-        "what the verifier counts (a formula when the count depends on the operands).",
+        "what the verifier counts (a formula when the count depends on the operands). *takes* "
+        "are the types the popped values must have (deepest first; one pattern for a count that "
+        "depends on the operands: each value), *gives* the type of the value pushed (below).",
         "",
-        *_table(["code", "name", "operands", "stack effect", "pops", "pushes", "flow", "description"], rows),
+        *_table(["code", "name", "operands", "stack effect", "pops", "pushes", "takes", "gives", "flow",
+                 "description"], rows),
+        "",
+        "### Stack types",
+        "",
+        f"A stack value has one of the types {', '.join(f'`{t}`' for t in VALUE_TYPES)}, or is an "
+        "array, `array of T` (a declared `array[1..7] of joint` is `array of joint`). In *takes*: "
+        "`number` is an integer or a real, `real` accepts an integer too (it is converted), `array` "
+        "is any array, `any` anything, `a|b` either; `@g` and `@l` are the declared type of the "
+        "global or local slot the instruction names, `@item` the element type of the array below, "
+        "`@params` the called routine's parameters (their declared types), `@clauses` the move's "
+        "clause values (real, `act_rob` a string), `@result` the function's result type. The "
+        "rules of *gives*:",
+        "",
+        *_table(["rule", "the type pushed"], [[f"`{rule}`", text] for rule, text in TYPE_RULES.items()]),
         "",
     ]
 
@@ -466,7 +485,11 @@ def _section_verifier() -> list[str]:
         "in procedures;",
         "  - `CALL_BUILTIN`'s `argc` equals the function's argument count;",
         "  - no instruction pops more values than the stack holds;",
-        "  - where paths meet, the stack depth is the same on each of them;",
+        "  - every value an instruction pops has the type the instruction takes (*takes* above), "
+        "and every constant `CONST` pushes is a value of the language, so that no verified "
+        "program gives an operation a value it is not defined for;",
+        "  - where paths meet, the stack depth and the types of the stack values are the same "
+        "on each of them;",
         "  - no path runs past the end of the code;",
         "  - `CALL` names a procedure and `CALL_FUNC` a function (one with a result);",
         "  - `RET` only occurs in procedures, `RET_VALUE` only in functions, and `END` only in "
@@ -477,8 +500,10 @@ def _section_verifier() -> list[str]:
         "- the result is the largest stack depth any path reaches (so a VM can size its "
         "stack before it starts).",
         "",
-        "The loader checks the code's structure, not the values it computes: the types of "
-        "stack values, array indexes, joint axis numbers, digital I/O numbers, division by "
+        "Every global and local slot, and every function's result, has a declared type of the "
+        "language (the types above). "
+        "The loader checks the code's structure and the types of its values, not the values it "
+        "computes: array indexes, joint axis numbers, digital I/O numbers, division by "
         "zero, the domains of the built-in functions, clause values that were not constants, "
         "and the axis limits and reachability of targets that were not constants are left to "
         "the VM while it runs (`compiler/semantics.py` defines the arithmetic and its errors, "

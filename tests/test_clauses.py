@@ -27,7 +27,7 @@ from compiler import clauses as table
 from compiler import objcode, syntax
 from compiler.clauses import BY_NAME, CLAUSES, MOTIONS, NAMES, MoveClauses, validate_move_clauses
 from compiler.driver import compile_source
-from compiler.objcode import OP, clause_names, encode, verify
+from compiler.objcode import OP, ObjectCodeError, clause_names, encode, verify
 from compiler.params import describe
 from compiler.spec import SpecError, load_spec, parse_spec
 from compiler.values import Joint
@@ -369,9 +369,22 @@ CRAFTED = [  # (name, kind, clauses the checker accepted, change past the checke
      "speed_ptp = 1.5 is out of range: expected 0.01 <= speed_ptp <= 1; it is a fraction of each axis's max_velocity"),
     ("speed_ptp_on_lin", "lin", "speed := 0.25", with_mask(1 << BY_NAME["speed"].bit, 1 << BY_NAME["speed_ptp"].bit),
      "clause 'speed_ptp' applies to ptp moves, not lin; use 'speed' (mm/s) for a lin move"),
-    ("speed_string", "lin", "speed := 0.25", with_constant(0.25, "fast"),
-     "speed = 'fast' is not a number: expected 0.1 <= speed <= 2000 (the robot's maximum)"),
 ]
+
+
+def test_a_clause_value_of_another_type_is_refused_by_the_verifier(work):
+    """A string where a move's real clause belongs: the verifier types the stack (issue 26),
+    so the loader refuses it, naming the instruction and the types, before anything moves."""
+    result = compile_source(program("lin", "speed := 0.25", Path("lola15.spc")), str(work / "speed_string.irl"))
+    changed = with_constant(0.25, "fast")(result.program)
+    with pytest.raises(ObjectCodeError, match="MOVE_LIN: value 2 of 2 must be real, not string"):
+        verify(changed)
+    path = work / "speed_string.irlo"
+    path.write_bytes(encode(changed))
+    out, err = io.StringIO(), io.StringIO()
+    code = main(["run", str(path), "--spec", str(work / "lola15.spc")], Environment(stdout=out, stderr=err))
+    text = out.getvalue() + err.getvalue()
+    assert code == 1 and "MOVE_LIN: value 2 of 2 must be real, not string" in text and "Traceback" not in text, text
 
 
 @pytest.mark.parametrize("name, kind, clause_text, change, message", CRAFTED, ids=[c[0] for c in CRAFTED])

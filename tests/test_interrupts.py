@@ -201,9 +201,9 @@ def test_the_interrupt_table_round_trips_and_is_verified(tmp_path):
         verify(dataclasses.replace(program, code=tuple(code)))
 
 
-def test_a_hand_made_condition_that_is_not_a_bool_stops_the_program(tmp_path):
-    """The verifier does not type the stack: a condition giving an integer is an error at
-    its first check, not a handler run on a truthy value."""
+def test_a_hand_made_condition_that_is_not_a_bool_is_refused_and_stops_the_program(tmp_path):
+    """The verifier types the stack: a condition giving an integer is refused; run unverified,
+    it is an error at its first check, not a handler run on a truthy value."""
     program = raw_program([(OP.INT_ENABLE, 0), (OP.DWELL,), (OP.END,), (OP.RET,), (OP.CONST, 1), (OP.RET_VALUE,)],
                           (0.5, 7), procedures=(ProcInfo("h", 3, 0, ()), ProcInfo("h.when", 4, 0, (), "bool")))
     program = raw_program([(OP.INT_ENABLE, 0), (OP.CONST, 0), (OP.DWELL,), (OP.END,), (OP.RET,), (OP.CONST, 1),
@@ -212,7 +212,8 @@ def test_a_hand_made_condition_that_is_not_a_bool_stops_the_program(tmp_path):
     import dataclasses
 
     program = dataclasses.replace(program, interrupts=(InterruptInfo("h", 1, 0, 1, True, False),))
-    verify(program)
+    with pytest.raises(ObjectCodeError, match="RET_VALUE: its value must be bool, not integer"):
+        verify(program)
     machine = drive(program, FakeHost(), {})
     assert machine.status == VMStatus.ERROR and "its condition is not a bool" in machine.error.message
 

@@ -479,3 +479,97 @@ def test_constant_outside_the_languages_values_is_rejected(constant):
     data = encode(prog([(OP.CONST, 0), (OP.PRINT, 1), (OP.END,)], constants=(constant,)))
     with pytest.raises(ObjectCodeError, match=r"constant"):
         load(data)
+
+
+# ---- typed stack values (issue 26, fault 7) ---------------------------------------------------
+
+import dataclasses as _dataclasses
+import functools as _functools
+from pathlib import Path as _Path
+
+from hypothesis import HealthCheck, example, given, settings
+from hypothesis import strategies as st
+
+from runtime.vm import VM, VMStatus
+from test_vm import FakeHost
+
+_EXAMPLES = ("cycle_control", "joint_jog", "approach_retreat", "pick_place", "pallet_frame", "waypoints",
+             "spot_weld", "pallet_and_glue")
+_SAMPLE_VALUES = (0, -3, 7, 2.5, True, False, "x", "lola_15", Joint((0.0,) * 6), Position(1.0, 2.0, 3.0),
+                  Rpy(0.0, 90.0, 0.0), Quat(1.0, 0.0, 0.0, 0.0),
+                  Pose(Position(600.0, 0.0, 500.0), Rpy(180.0, 0.0, 180.0)))
+
+
+@_functools.cache
+def _example_program(name: str):
+    from compiler.driver import compile_source
+
+    path = _Path(__file__).resolve().parent.parent / "programs" / f"{name}.irl"
+    result = compile_source(path.read_text(), str(path))
+    assert result.ok, result.diagnostics
+    return result.program
+
+
+@st.composite
+def mutants(draw):
+    """A compiled example program with one operand changed, or one constant of its pool
+    replaced by a value of the language (of any type)."""
+    program = _example_program(draw(st.sampled_from(_EXAMPLES)))
+    if draw(st.booleans()):
+        at = draw(st.sampled_from([i for i, instr in enumerate(program.code) if len(instr) > 1]))
+        instr = list(program.code[at])
+        k = draw(st.integers(1, len(instr) - 1))
+        limit = max(len(program.constants), len(program.globals), len(program.code), 8)
+        instr[k] = draw(st.integers(-2, limit))
+        code = list(program.code)
+        code[at] = tuple(instr)
+        return _dataclasses.replace(program, code=tuple(code))
+    constants = list(program.constants)
+    constants[draw(st.integers(0, len(constants) - 1))] = draw(st.sampled_from(_SAMPLE_VALUES))
+    return _dataclasses.replace(program, constants=tuple(constants))
+
+
+@settings(max_examples=150, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(program=mutants())
+# found by this test's search before the verifier typed the stack: a string where a number
+# belongs (cycle_control's first comparison), a number where a pose belongs (GET_FIELD)
+@example(program=_dataclasses.replace(_example_program("cycle_control"), code=(
+    (OP.CONST, 2),) + _example_program("cycle_control").code[1:]))
+def test_a_verified_program_never_reaches_an_internal_error(program):
+    """Either the verifier refuses the mutant with a message, or it runs (on a fake robot)
+    to an end, or an error of the program, that is never an internal error (a Python
+    exception inside the VM: before, 15 of 1,980 such verified mutants did)."""
+    try:
+        verify(program)
+    except ObjectCodeError as exc:
+        assert exc.message
+        return
+    host = FakeHost()
+    machine = VM(program, host, 200)
+    host.vm = machine
+    for _ in range(2000):
+        if machine.step() >= VMStatus.DONE:
+            break
+        machine.resume()  # a 'pause' of the program: go on
+        host.t += 0.005
+    assert machine.error is None or "internal error" not in machine.error.message, machine.error
+
+
+@pytest.mark.parametrize("code, constants, message", [
+    ([(OP.CONST, 0), (OP.CONST, 1), (OP.LT,), (OP.STORE_GLOBAL, 0)], ("x", 1),
+     "LT: string and integer cannot be compared"),
+    ([(OP.CONST, 0), (OP.GET_FIELD, 0), (OP.STORE_GLOBAL, 0)], (2.5,), "GET_FIELD: its value must be position or pose"),
+    ([(OP.CONST, 0), (OP.DWELL,), (OP.CONST, 0)], ("x",), "DWELL: its value must be real, not string"),
+    ([(OP.CONST, 0), (OP.CONST, 1), (OP.MUL,), (OP.STORE_GLOBAL, 0)], (Rpy(0.0, 0.0, 0.0), 2),
+     "MUL: orientation [*] integer is not defined"),
+    ([(OP.CONST, 0), (OP.STORE_GLOBAL, 0)], (1.5,), "STORE_GLOBAL: its value must be integer, not real"),
+])
+def test_the_verifier_names_a_value_of_the_wrong_type(code, constants, message):
+    program = Program("p", "p.irl", "r", SPEC_HASH, ("r",), constants, tuple(code) + ((OP.END,),), (),
+                      (("g", "integer"),))
+    if code[-1][0] == OP.CONST:  # (DWELL's case: nothing to store)
+        program = _dataclasses.replace(program, code=tuple(code[:-1]) + ((OP.END,),))
+    with pytest.raises(ObjectCodeError, match=message):
+        verify(program)
+    with pytest.raises(ObjectCodeError, match="has type 'anything', no type of the language"):
+        verify(_dataclasses.replace(program, globals=(("g", "anything"),)))

@@ -156,10 +156,11 @@ def printed(tmp_path, body, decls="", **kw) -> list[str]:
     return host.texts
 
 
-def raw_program(code, constants=(), globals_=1, procedures=()) -> Program:
-    """A hand-made program (no compiler), for exact instruction tests."""
+def raw_program(code, constants=(), globals_=1, procedures=(), global_type="integer") -> Program:
+    """A hand-made program (no compiler), for exact instruction tests. (The verifier checks
+    the global slots' types; the VM, running a program unverified, does not.)"""
     return Program("raw", "raw.irl", "lola_15", "0" * 64, ("lola_15",), tuple(constants), tuple(code),
-                   ((0, 1, 1),), tuple((f"g{i}", "any") for i in range(globals_)), tuple(procedures))
+                   ((0, 1, 1),), tuple((f"g{i}", global_type) for i in range(globals_)), tuple(procedures))
 
 
 @pytest.fixture(params=DISPATCHES)

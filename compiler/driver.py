@@ -96,7 +96,6 @@ def _compile(source: str, file: str, spec_path, generate_code: bool) -> Result:
 
 def _compile_nested(source: str, file: str, spec_path, generate_code: bool) -> Result:
     from .check import check
-    from .codegen import generate
     from .syntax import parse_recovering
 
     from . import ast
@@ -124,8 +123,11 @@ def _compile_nested(source: str, file: str, spec_path, generate_code: bool) -> R
     if diagnostics:
         diagnostics.sort(key=lambda d: (d.file != file, d.file, d.line, d.column))
         return Result(file, source, None, diagnostics, spec, texts, sources)
-    program = generate(checked, file) if generate_code else None
-    return Result(file, source, program, [], spec, texts, sources)
+    if not generate_code:  # (irl check: the code generator is not even imported)
+        return Result(file, source, None, [], spec, texts, sources)
+    from .codegen import generate
+
+    return Result(file, source, generate(checked, file), [], spec, texts, sources)
 
 
 def load_modules(tree, file: str) -> tuple[dict, list[Diagnostic], dict, dict]:

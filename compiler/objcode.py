@@ -16,7 +16,6 @@ import zlib
 from dataclasses import dataclass
 from typing import Callable
 
-import msgpack
 
 from .clauses import MOTIONS as _MOTIONS
 from .clauses import NAMES as _CLAUSE_NAMES
@@ -381,6 +380,8 @@ def _body(program: Program) -> dict:
 
 def encode(program: Program) -> bytes:
     """The object file's bytes: header (magic, version, CRC-32) + msgpack body."""
+    import msgpack  # (here, not above: checking a program needs the tables, not the encoding)
+
     body = msgpack.packb(_body(program), use_bin_type=True)
     return _HEADER.pack(MAGIC, program.format_version, zlib.crc32(body)) + body
 
@@ -422,6 +423,8 @@ def decode(data: bytes) -> Program:
             f"object format version {version} is not supported (this build reads version {FORMAT_VERSION})")
     body_bytes = data[_HEADER.size:]
     _expect(zlib.crc32(body_bytes) == crc, "checksum mismatch: the object file is corrupt")
+    import msgpack
+
     try:
         body = msgpack.unpackb(body_bytes, raw=False, strict_map_key=True, use_list=True)
     except Exception as exc:  # msgpack raises several unrelated types for bad input

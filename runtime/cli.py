@@ -1,8 +1,9 @@
 """The ``irl`` command. A thin entry point: ``main(argv, env) -> exit status``.
 
 Exit status: 0 success, 1 the program or object file is wrong, 2 usage or file errors.
-Each command imports what it needs when it runs, so ``irl check`` starts without NumPy
-or ZeroMQ. Nothing imports this module.
+Each command imports what it needs when it runs, and only the command that runs has its
+arguments declared, so ``irl check`` starts without the runtime, NumPy or ZeroMQ
+(:data:`NOT_FOR_CHECKING`).
 """
 from __future__ import annotations
 
@@ -17,6 +18,14 @@ from .faults import FAULTS
 from .timing import TICK
 
 EXIT_OK, EXIT_INVALID, EXIT_USAGE, EXIT_INTERNAL = 0, 1, 2, 70
+
+#: What ``irl check`` does not need, so does not import (each name with its submodules):
+#: the runtime (its loop, scheduling, simulated arm, network), NumPy, ZeroMQ, the object
+#: code's encoding (msgpack), the code generator, plotting, and the package metadata
+#: behind ``--version``. tests/test_cli.py and benchmarks/check_startup.py look for them.
+NOT_FOR_CHECKING = ("numpy", "zmq", "msgpack", "matplotlib", "ctypes", "importlib.metadata", "email",
+                    "compiler.codegen", "runtime.protocol", "runtime.realtime", "runtime.executive",
+                    "runtime.system", "runtime.client", "runtime.server", "runtime.sim")
 
 
 @dataclass
@@ -496,32 +505,94 @@ def version_text() -> str:
     return f"irl {version} (object code format {FORMAT_VERSION}, protocol {VERSION})"
 
 
-def build_parser() -> argparse.ArgumentParser:
+class _Version(argparse.Action):
+    """``--version``, worked out only when asked for: it reads the package metadata and the
+    object-code and protocol modules, which no other command (``irl check`` above all) needs."""
+
+    def __init__(self, option_strings, dest=argparse.SUPPRESS, default=argparse.SUPPRESS, help=None):
+        super().__init__(option_strings, dest=dest, default=default, nargs=0,
+                         help=help or "print the package's version and the object-code and protocol versions")
+
+    def __call__(self, parser, namespace, values, option_string=None):
+        parser._print_message(version_text() + "\n", sys.stdout)  # (as argparse's own version action)
+        parser.exit()
+
+
+class Commands:
+    """Names each command (with its help) on ``irl``'s subparsers; ``__call__`` gives the
+    command's parser to declare its arguments on, or None when only another command is
+    wanted (``build_parser(command)``)."""
+
+    def __init__(self, sub, only: str | None):
+        self.sub, self.only = sub, only
+
+    def __call__(self, name: str, help: str):
+        parser = self.sub.add_parser(name, help=help)
+        return parser if self.only in (None, name) else None
+
+
+def build_parser(command: str | None = None) -> argparse.ArgumentParser:
+    """``irl``'s parser. Every command is named with its help (``irl --help`` lists them all);
+    the arguments are declared for every command, or for ``command`` alone (the one
+    :func:`main` runs): declaring another command's arguments can import what that command
+    needs (the runtime's scheduling flags, the network commands), and ``irl check`` starts
+    with no more than checking needs."""
     parser = _Parser(prog="irl", description="L-IRL robot programs: compile, inspect, run.")
-    parser.add_argument("--version", action="version", version=version_text())
+    parser.add_argument("--version", action=_Version)
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
     sub.required = True
+    declare = Commands(sub, command)
 
-    p = sub.add_parser("check", help="check a program; print every diagnostic")
+    if (p := declare("check", help="check a program; print every diagnostic")) is not None:
+        _check_arguments(p)
+    if (p := declare("compile", help="compile a program to object code (.irlo)")) is not None:
+        _compile_arguments(p)
+    if (p := declare("dis", help="disassemble object code (or compile a program and disassemble it)")) is not None:
+        _dis_arguments(p)
+    if (p := declare("run", help="run a program on the simulated robot, through every phase")) is not None:
+        _run_arguments(p)
+    if (p := declare("latency", help="measure this host's wake-up latency: which deadline policy a 1 ms servo "
+                                     "can hold here")) is not None:
+        _latency_arguments(p)
+    if (p := declare("plot", help="draw a report: position over time per axis, phases shaded")) is not None:
+        _plot_arguments(p)
+    if (p := declare("fsm", help="print the supervisor's state machine as a diagram")) is not None:
+        _fsm_arguments(p)
+    if command is None or command not in sub.choices:  # (naming the network commands imports their module)
+        from runtime.netcli import add_commands  # light: ZeroMQ is imported when a command runs
+
+        add_commands(declare)
+    helps = {choice.dest: choice.help for choice in sub._choices_actions}
+    for name, command_parser in sub.choices.items():  # each command's own help starts with what it does
+        command_parser.description = command_parser.description or helps.get(name)
+    return parser
+
+
+def _check_arguments(p) -> None:
     p.add_argument("file", metavar="FILE.irl", help="the program")
     p.add_argument("--spec", metavar="FILE.spc", help="use this system specification instead of the program's")
     p.add_argument("--json", action="store_true", help="diagnostics as a JSON list (for editors)")
     p.set_defaults(run=cmd_check)
 
-    p = sub.add_parser("compile", help="compile a program to object code (.irlo)")
+
+def _compile_arguments(p) -> None:
     p.add_argument("file", metavar="FILE.irl", help="the program")
     p.add_argument("-o", "--output", metavar="OUT.irlo", help="default: beside the source, suffix .irlo")
     p.add_argument("--spec", metavar="FILE.spc", help="use this system specification instead of the program's")
     p.add_argument("--json", action="store_true", help="diagnostics as a JSON list")
     p.set_defaults(run=cmd_compile)
 
-    p = sub.add_parser("dis", help="disassemble object code (or compile a program and disassemble it)")
+
+def _dis_arguments(p) -> None:
     p.add_argument("file", metavar="FILE.irlo|FILE.irl", help="the object code, or a program to compile first")
     p.add_argument("--spec", metavar="FILE.spc", help="for FILE.irl: the system specification to use")
     p.add_argument("--json", action="store_true", help="the listing as JSON")
     p.set_defaults(run=cmd_dis)
 
-    p = sub.add_parser("run", help="run a program on the simulated robot, through every phase")
+
+def _run_arguments(p) -> None:
+    from runtime.realtime import add_arguments
+
     p.add_argument("file", metavar="FILE.irl|FILE.irlo", help="the program, or its object code (then --spec)")
     p.add_argument("--spec", metavar="FILE.spc", help="the robot's specification (needed for FILE.irlo)")
     p.add_argument("--report", metavar="OUT.csv", help="write the report (and OUT.states.csv)")
@@ -554,13 +625,13 @@ def build_parser() -> argparse.ArgumentParser:
                    help=f"break the simulated robot: {', '.join(FAULTS)} on an axis (e.g. sensor_dead:A3)")
     p.add_argument("--json", action="store_true", help="the summary as one JSON object")
     add_deadline_policy(p)
-    from runtime.realtime import add_arguments
-
     add_arguments(p)
     p.set_defaults(run=cmd_run)
 
-    p = sub.add_parser("latency", help="measure this host's wake-up latency: which deadline policy a 1 ms servo "
-                                       "can hold here")
+
+def _latency_arguments(p) -> None:
+    from runtime.realtime import add_arguments
+
     p.add_argument("--period", type=float, default=TICK * 1000.0, metavar="MS",
                    help="the period to wake up at, ms (default: the servo's, %(default)g)")
     p.add_argument("--duration", type=float, default=10.0, metavar="S", help="how long to measure (default %(default)g s)")
@@ -570,28 +641,24 @@ def build_parser() -> argparse.ArgumentParser:
     add_arguments(p)
     p.set_defaults(run=cmd_latency)
 
-    p = sub.add_parser("plot", help="draw a report: position over time per axis, phases shaded")
+
+def _plot_arguments(p) -> None:
     p.add_argument("report", metavar="REPORT.csv", help="a report written by irl run --report or irl submit --report")
     p.add_argument("-o", "--output", metavar="FIG.png", required=True, help="where to draw it (PNG, PDF or SVG)")
     p.set_defaults(run=cmd_plot)
 
-    p = sub.add_parser("fsm", help="print the supervisor's state machine as a diagram")
+
+def _fsm_arguments(p) -> None:
     p.add_argument("--format", choices=("mermaid", "dot"), default="mermaid", help="the diagram's language")
     p.set_defaults(run=cmd_fsm)
-
-    from runtime.netcli import add_commands  # light: ZeroMQ is imported when a command runs
-
-    add_commands(sub)
-    helps = {choice.dest: choice.help for choice in sub._choices_actions}
-    for name, command in sub.choices.items():  # each command's own help starts with what it does
-        command.description = command.description or helps.get(name)
-    return parser
 
 
 def main(argv: list[str] | None = None, env: Environment | None = None) -> int:
     env = env or Environment()
     try:
-        args = build_parser().parse_args(argv)
+        words = sys.argv[1:] if argv is None else argv
+        command = next((w for w in words if not w.startswith("-")), None)  # (irl's own options take no value)
+        args = build_parser(command).parse_args(argv)
         return args.run(args, env)
     except UsageError as exc:
         _err(env, f"irl: {exc}")

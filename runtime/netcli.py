@@ -634,7 +634,9 @@ def cmd_keys(args, env) -> int:
 
 
 # ---- the parsers ----------------------------------------------------------------------------------
-def add_commands(sub) -> None:
+def add_commands(declare) -> None:
+    """Name the network commands and declare the arguments of those ``declare`` (a
+    :class:`runtime.cli.Commands`) gives a parser for."""
     from runtime import protocol
 
     endpoint = os.environ.get("IRL_ENDPOINT") or DEFAULT_ENDPOINT
@@ -653,56 +655,56 @@ def add_commands(sub) -> None:
             p.add_argument("--timeout", type=float, default=REPLY_TIMEOUT, metavar="S",
                            help="seconds to wait for a reply")
 
-    p = sub.add_parser("serve", help="serve a robot (the simulated one) on the network")
-    p.add_argument("--endpoint", default=DEFAULT_ENDPOINT, metavar="E", help="request endpoint to bind (default: "
-                   "%(default)s)")
-    p.add_argument("--telemetry", default=DEFAULT_TELEMETRY, metavar="E", help="telemetry endpoint to bind (default: "
-                   "%(default)s)")
-    p.add_argument("--spec", required=True, metavar="FILE.spc", help="the robot's specification")
-    p.add_argument("--config", metavar="FILE.toml", help="component configurations (see docs/runtime.md)")
-    p.add_argument("--state-dir", metavar="DIR", help="calibration and reports (default ~/.local/state/irl)")
-    p.add_argument("--sim-clock", action="store_true", help="simulated clock (default: wall clock)")
-    p.add_argument("--seed", type=int, default=0, help="the simulated robot's seed")
-    p.add_argument("--cell-scenario", metavar="FILE.toml",
-                   help="what the simulated cell does with the digital I/O (see docs/runtime.md); reports gain "
-                        "the io columns")
-    p.add_argument("--fieldbus", metavar="FILE.toml",
-                   help="the digital I/O on a PLC over Modbus TCP (see docs/runtime.md; wall clock only)")
-    p.add_argument("--keys", metavar="DIR", help="require CURVE authentication with the keys in DIR")
-    p.add_argument("--insecure-allow-remote-without-encryption", action="store_true",
-                   help="allow endpoints other machines can reach without --keys: anyone on the network could "
-                        "then move the robot (without it, such endpoints are refused)")
-    from runtime.cli import add_deadline_policy
-    from runtime.realtime import add_arguments
+    if (p := declare("serve", help="serve a robot (the simulated one) on the network")) is not None:
+        p.add_argument("--endpoint", default=DEFAULT_ENDPOINT, metavar="E", help="request endpoint to bind (default: "
+                       "%(default)s)")
+        p.add_argument("--telemetry", default=DEFAULT_TELEMETRY, metavar="E",
+                       help="telemetry endpoint to bind (default: %(default)s)")
+        p.add_argument("--spec", required=True, metavar="FILE.spc", help="the robot's specification")
+        p.add_argument("--config", metavar="FILE.toml", help="component configurations (see docs/runtime.md)")
+        p.add_argument("--state-dir", metavar="DIR", help="calibration and reports (default ~/.local/state/irl)")
+        p.add_argument("--sim-clock", action="store_true", help="simulated clock (default: wall clock)")
+        p.add_argument("--seed", type=int, default=0, help="the simulated robot's seed")
+        p.add_argument("--cell-scenario", metavar="FILE.toml",
+                       help="what the simulated cell does with the digital I/O (see docs/runtime.md); reports gain "
+                            "the io columns")
+        p.add_argument("--fieldbus", metavar="FILE.toml",
+                       help="the digital I/O on a PLC over Modbus TCP (see docs/runtime.md; wall clock only)")
+        p.add_argument("--keys", metavar="DIR", help="require CURVE authentication with the keys in DIR")
+        p.add_argument("--insecure-allow-remote-without-encryption", action="store_true",
+                       help="allow endpoints other machines can reach without --keys: anyone on the network could "
+                            "then move the robot (without it, such endpoints are refused)")
+        from runtime.cli import add_deadline_policy
+        from runtime.realtime import add_arguments
 
-    add_deadline_policy(p)
-    add_arguments(p)
-    p.set_defaults(run=cmd_serve)
+        add_deadline_policy(p)
+        add_arguments(p)
+        p.set_defaults(run=cmd_serve)
 
-    p = sub.add_parser("submit", help="send a program to a server's queue")
-    p.add_argument("file", metavar="FILE.irl|FILE.irlo", help="the program (compiled here) or its object code")
-    p.add_argument("--spec", metavar="FILE.spc", help="for FILE.irl: the system specification to use")
-    p.add_argument("--wait", action="store_true", help="show progress until the program ends; exit 1 unless "
-                                                       "it completed")
-    p.add_argument("--report", metavar="OUT.csv", help="with --wait: fetch the program's report")
-    p.add_argument("--cell", metavar="CELL.toml", help="send to the robot the program's act_rob names")
-    p.add_argument("--json", action="store_true",
-                   help="print one JSON object: the queued program (with --wait: its final status and summary)")
-    connection(p)
-    p.set_defaults(run=cmd_submit)
+    if (p := declare("submit", help="send a program to a server's queue")) is not None:
+        p.add_argument("file", metavar="FILE.irl|FILE.irlo", help="the program (compiled here) or its object code")
+        p.add_argument("--spec", metavar="FILE.spc", help="for FILE.irl: the system specification to use")
+        p.add_argument("--wait", action="store_true", help="show progress until the program ends; exit 1 unless "
+                                                           "it completed")
+        p.add_argument("--report", metavar="OUT.csv", help="with --wait: fetch the program's report")
+        p.add_argument("--cell", metavar="CELL.toml", help="send to the robot the program's act_rob names")
+        p.add_argument("--json", action="store_true",
+                       help="print one JSON object: the queued program (with --wait: its final status and summary)")
+        connection(p)
+        p.set_defaults(run=cmd_submit)
 
-    p = sub.add_parser("status", help="the robot, the queue and the programs (or one program)")
-    p.add_argument("program", nargs="?", type=int, metavar="ID", help="one program (default: the whole server)")
-    p.add_argument("--json", action="store_true", help="the reply as one JSON object")
-    connection(p)
-    p.set_defaults(run=cmd_status)
+    if (p := declare("status", help="the robot, the queue and the programs (or one program)")) is not None:
+        p.add_argument("program", nargs="?", type=int, metavar="ID", help="one program (default: the whole server)")
+        p.add_argument("--json", action="store_true", help="the reply as one JSON object")
+        connection(p)
+        p.set_defaults(run=cmd_status)
 
     for name, fn, text in (("pause", cmd_pause, "hold the running program (a move under way comes to a controlled stop)"),
                            ("resume", cmd_resume, "continue the paused program"),
                            ("estop", cmd_estop, "emergency stop: brakes on, drives off, queue cancelled")):
-        p = sub.add_parser(name, help=text)
-        connection(p)
-        p.set_defaults(run=fn)
+        if (p := declare(name, help=text)) is not None:
+            connection(p)
+            p.set_defaults(run=fn)
     for name, fn, text, arg, kind, metavar, what in (
             ("abort", cmd_abort, "stop the running program (controlled stop; or remove a queued one)", "program", int,
              "ID", "the program (default: the running one)"),
@@ -711,45 +713,45 @@ def add_commands(sub) -> None:
             ("reconfigure", cmd_reconfigure, "switch to another named configuration between programs", "name", str,
              "NAME", "a configuration of the server's --config file"),
             ("call", cmd_call, CALL_HELP, "text", str, "TEXT", "the command ('help' lists the forms)")):
-        p = sub.add_parser(name, help=text)
-        p.add_argument(arg, type=kind, metavar=metavar, help=what, **({"nargs": "?"} if name == "abort" else {}))
+        if (p := declare(name, help=text)) is not None:
+            p.add_argument(arg, type=kind, metavar=metavar, help=what, **({"nargs": "?"} if name == "abort" else {}))
+            connection(p)
+            p.set_defaults(run=fn)
+
+    if (p := declare("watch", help="print the server's telemetry (exit 2 when none comes within "
+                                   f"{REPLY_TIMEOUT:g} s)")) is not None:
+        p.add_argument("--json", action="store_true", help="one JSON object per line")
+        p.add_argument("--count", type=int, metavar="N", help="stop after N messages")
+        p.add_argument("--timeout", type=float, metavar="S", help="stop after S seconds")
+        p.add_argument("--since", type=int, metavar="SEQ",
+                       help="first the messages after telemetry seq SEQ that the server still holds (0: all of them), "
+                            "then the live ones")
+        p.add_argument("--feed", metavar="FIELDS",
+                       help="only these sample fields (comma-separated, e.g. position,line; docs/protocol.md, feed)")
+        p.add_argument("--rate", type=float, metavar="HZ", help=f"with --feed: samples per second, "
+                       f"{protocol.MIN_FEED_RATE:g} to {protocol.MAX_FEED_RATE:g} (default: every sample)")
+        p.add_argument("--events", action="store_true", help="with --feed: the events too")
+        connection(p, telemetry=True, reply_timeout=False)
+        p.set_defaults(run=cmd_watch)
+
+    if (p := declare("control", help="take control of the robot (other clients may then only read and "
+                                     "estop) or give it back")) is not None:
+        p.add_argument("action", choices=("take", "release"), help="take: hold control (the token is stored for the "
+                                                                    "irl commands after it); release: give it back")
+        p.add_argument("--name", metavar="N", help="with take: the name other clients see (default: 'client #N')")
+        p.add_argument("--lease", type=float, default=CONTROL_LEASE, metavar="S",
+                       help=f"with take: control ends S seconds after the last irl command to the server, "
+                            f"{protocol.MIN_LEASE:g} to {protocol.MAX_LEASE:g}")
+        p.add_argument("--json", action="store_true", help="the reply as one JSON object (with take: the token)")
         connection(p)
-        p.set_defaults(run=fn)
+        p.set_defaults(run=cmd_control)
 
-    p = sub.add_parser("watch", help="print the server's telemetry (exit 2 when none comes within "
-                                     f"{REPLY_TIMEOUT:g} s)")
-    p.add_argument("--json", action="store_true", help="one JSON object per line")
-    p.add_argument("--count", type=int, metavar="N", help="stop after N messages")
-    p.add_argument("--timeout", type=float, metavar="S", help="stop after S seconds")
-    p.add_argument("--since", type=int, metavar="SEQ",
-                   help="first the messages after telemetry seq SEQ that the server still holds (0: all of them), "
-                        "then the live ones")
-    p.add_argument("--feed", metavar="FIELDS",
-                   help="only these sample fields (comma-separated, e.g. position,line; docs/protocol.md, feed)")
-    p.add_argument("--rate", type=float, metavar="HZ", help=f"with --feed: samples per second, "
-                   f"{protocol.MIN_FEED_RATE:g} to {protocol.MAX_FEED_RATE:g} (default: every sample)")
-    p.add_argument("--events", action="store_true", help="with --feed: the events too")
-    connection(p, telemetry=True, reply_timeout=False)
-    p.set_defaults(run=cmd_watch)
+    if (p := declare("console", help="an interactive scripting session")) is not None:
+        connection(p)
+        p.set_defaults(run=cmd_console)
 
-    p = sub.add_parser("control", help="take control of the robot (other clients may then only read and "
-                                       "estop) or give it back")
-    p.add_argument("action", choices=("take", "release"), help="take: hold control (the token is stored for the "
-                                                                "irl commands after it); release: give it back")
-    p.add_argument("--name", metavar="N", help="with take: the name other clients see (default: 'client #N')")
-    p.add_argument("--lease", type=float, default=CONTROL_LEASE, metavar="S",
-                   help=f"with take: control ends S seconds after the last irl command to the server, "
-                        f"{protocol.MIN_LEASE:g} to {protocol.MAX_LEASE:g}")
-    p.add_argument("--json", action="store_true", help="the reply as one JSON object (with take: the token)")
-    connection(p)
-    p.set_defaults(run=cmd_control)
-
-    p = sub.add_parser("console", help="an interactive scripting session")
-    connection(p)
-    p.set_defaults(run=cmd_console)
-
-    p = sub.add_parser("keys", help="make CURVE key pairs for a server and its clients")
-    p.add_argument("directory", metavar="DIR", help="where to make (or add) the key files")
-    p.add_argument("--name", default=None, metavar="NAME",
-                   help="make only a client key pair called NAME (default: the server's and a client's)")
-    p.set_defaults(run=cmd_keys)
+    if (p := declare("keys", help="make CURVE key pairs for a server and its clients")) is not None:
+        p.add_argument("directory", metavar="DIR", help="where to make (or add) the key files")
+        p.add_argument("--name", default=None, metavar="NAME",
+                       help="make only a client key pair called NAME (default: the server's and a client's)")
+        p.set_defaults(run=cmd_keys)

@@ -18,7 +18,7 @@ import pytest
 from compiler.disasm import instructions
 from compiler.objcode import BY_NAME, FORMAT_VERSION, decode, load
 from compiler.spec import load_spec
-from runtime.cli import Environment, main
+from runtime.cli import NOT_FOR_CHECKING, Environment, main
 
 ROOT = Path(__file__).resolve().parent.parent
 PROGRAMS = ROOT / "programs"
@@ -519,3 +519,54 @@ def test_spec_number_beyond_float_range(work, old, new, key):
     assert code == 1
     m = DIAG.match(err.splitlines()[0])
     assert m and f"{work / 'lola15.spc'}: {key}: " in m["msg"]
+
+
+# ---- irl check stays light (issue 26) --------------------------------------------------------
+
+#: The runtime modules `irl` itself is made of (the command line and the names it offers).
+CLI_MODULES = {"runtime", "runtime.cli", "runtime.faults", "runtime.timing"}
+
+
+def modules_imported_by(*argv: str) -> set[str]:
+    """The modules a fresh interpreter has imported after running ``irl ARGV`` in it."""
+    probe = ("import sys; from runtime.cli import main; code = main(sys.argv[1:]); "
+             "print(code, *sorted(sys.modules), file=sys.stderr)")
+    proc = subprocess.run([sys.executable, "-c", probe, *argv], cwd=ROOT, capture_output=True, text=True,
+                          timeout=60)
+    code, *modules = proc.stderr.splitlines()[-1].split()
+    assert code in ("0", "1"), proc.stderr
+    return set(modules)
+
+
+@pytest.mark.parametrize("argv", [("check", "programs/test.irl"),
+                                  ("check", "--json", "tests/diagnostics/paper_unmended.irl")])
+def test_check_imports_only_what_checking_needs(argv):
+    """`irl check` starts fast (benchmarks/check_startup.py: <= 8x `python -c pass`) because it
+    imports neither the runtime nor the heavy libraries; a fresh interpreter shows what it did."""
+    modules = modules_imported_by(*argv)
+    heavy = sorted(m for m in modules if any(m == n or m.startswith(n + ".") for n in NOT_FOR_CHECKING))
+    assert not heavy, f"irl {' '.join(argv)} imported what checking does not need: {heavy}"
+    runtime = sorted(m for m in modules if m.split(".")[0] == "runtime" and m not in CLI_MODULES)
+    assert not runtime, f"irl {' '.join(argv)} imported runtime modules: {runtime}"
+
+
+def test_a_command_parsed_alone_takes_the_same_arguments_as_in_the_whole_parser():
+    """main() declares only the arguments of the command it runs (build_parser(command)):
+    each command must come out the same as in the parser that declares them all."""
+    import argparse
+
+    from runtime.cli import build_parser
+
+    def commands(parser):
+        sub = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
+        return sub.choices
+
+    def shape(command):
+        return [(a.option_strings, a.dest, a.default, a.help, a.choices, a.required) for a in command._actions], \
+            command.get_default("run")
+
+    everything = commands(build_parser())
+    for name, command in everything.items():
+        alone = commands(build_parser(name))
+        assert shape(alone[name]) == shape(command), name
+        assert alone[name].description == command.description, name

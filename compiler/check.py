@@ -475,11 +475,11 @@ class Checker:
             return geometric[0]
         if _kind(lt) in GEOMETRIC_KINDS or _kind(rt) in GEOMETRIC_KINDS:
             allowed = ", ".join(f"{left} {op} {right}" for o, left, right in GEOMETRY if o == op)
-            compose = op == "+" and lt == rt and lt in (POSE, ORIENTATION)
-            self.error(node.op_span, f"'{op}' is not defined for {pair}",
-                       f"to compose two {lt}s, use '*' (the right one given in the frame of the left one)" if compose
-                       else f"with positions, poses and orientations '{op}' takes: {allowed}" if allowed else
-                       "see 'Pose arithmetic' in docs/language.md")
+            hint = f"with positions, poses and orientations '{op}' takes: {allowed}" if allowed else \
+                "see 'Pose arithmetic' in docs/language.md"
+            if op == "+" and lt == rt and lt in (POSE, ORIENTATION):
+                hint += f"; to compose two {lt}s, use '*' (the right one given in the frame of the left one)"
+            self.error(node.op_span, f"'{op}' is not defined for {pair}", hint)
             return ERROR
         self.error(node.op_span, f"'{op}' needs two numbers, not {pair}")
         return ERROR

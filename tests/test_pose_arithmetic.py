@@ -189,3 +189,28 @@ def test_hand_made_object_code_cannot_repeat_strings_or_arrays(a, op, b):
     for d in DISPATCHES:
         machine, _ = run(program, dispatch=d)
         assert machine.status.name == "ERROR" and "is not defined for" in machine.error.message, machine.error
+
+
+#: A value of each kind the geometric operators take, as L-IRL writes it.
+LITERALS = {"position": ["pos(1, 2, 3)"], "pose": ["pose(pos(1, 2, 3), rpy(0, 0, 10))"],
+            "orientation": ["rpy(0, 0, 10)", "quat(1, 0, 0, 0)"], "number": ["2", "2.5"]}
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.sampled_from(["+", "-", "*", "/"]), st.sampled_from(sorted(LITERALS)), st.sampled_from(sorted(LITERALS)),
+       st.integers(0, 1), st.integers(0, 1))
+def test_a_pair_no_form_defines_is_an_error_that_lists_every_form_of_the_operator(op, left, right, i, j):
+    """docs/language.md: anything but the table's forms "is a compile-time error that lists
+    the forms of the operator" (orientation + orientation too, which also says to use '*')."""
+    from compiler.driver import compile_source
+
+    if "number" == left == right or (op, left, right) in semantics.GEOMETRY:
+        return
+    a, b = LITERALS[left][i % len(LITERALS[left])], LITERALS[right][j % len(LITERALS[right])]
+    source = (f'program p;\nsystem_specification "{ROOT / "programs" / "lola15.spc"}";\nseq\n'
+              f'  print {a} {op} {b};\nendseq\nendprogram;\n')
+    errors = compile_source(source, "p.irl", generate_code=False).diagnostics
+    assert len(errors) == 1 and errors[0].line == 4 and f"'{op}' is not defined for" in errors[0].message, errors
+    hint = errors[0].hint or ""
+    forms = [f"{l} {o} {r}" for o, l, r in semantics.GEOMETRY if o == op]
+    assert forms and all(form in hint for form in forms), (a, op, b, hint)

@@ -21,7 +21,7 @@ behaves; ``irl run --cell-scenario FILE`` runs a program against it:
     delay = 0.1
 
     [[timeline]]        # parts arriving: in[6] toggles at these times (s since the
-    input = 6           # program started), the whole list repeating every 10 s
+    input = 6           # cycle started), the whole list repeating every 10 s
     at = [2.0, 2.5]
     every = 10.0
 
@@ -78,9 +78,10 @@ RULES: dict[str, tuple[str, dict[str, Field]]] = {
         "delay": Field("seconds", "how long after the edge", 0.0),
         "initial": Field("bool", "the input's value before any edge", False),
     }),
-    "timeline": ("an input toggled at given times since the program started (parts arriving)", {
+    "timeline": ("an input toggled at given times since the cycle started (parts arriving)", {
         "input": Field("input", "the input toggled"),
-        "at": Field("times", "when it toggles (s since the program started)"),
+        "at": Field("times", "when it toggles (s since the cycle started, as the report's time: calibration and "
+                             "homing come before the program)"),
         "every": Field("seconds", "repeat the list with this period (0: once)", 0.0),
     }),
 }

@@ -398,7 +398,7 @@ def _broken_spec(work: Path, old: str, new: str) -> None:
     ('name = "lola_15"\n', "", "robot.name", "missing"),
     ("inputs = 16", 'inputs = "16"', "io.inputs", "expected an integer"),
     ("max_speed = 2000.0", "max_sped = 2000.0", "robot.max_sped", "unknown key (did you mean 'max_speed'?)"),
-    ("max_jerk = 4000.0", "max_jerk = -1.0", "axis[1].max_jerk", "expected a positive number"),
+    ("max_jerk = 4000.0", "max_jerk = -1.0", "axis[1].max_jerk", "expected a number 10 <= x <= 1e+06 (deg/s^3 or mm/s^3), got -1.0"),
     ("[robot]", "[robot", None, "not valid TOML"),
 ])
 def test_broken_spec_is_a_diagnostic(work, old, new, key, what):

@@ -164,7 +164,11 @@ def test_a_timeline_toggles_its_input_at_the_times_given_and_repeats():
                                "inputs": {"6": True}}, SPEC)
     backend = FakeIO()
     cell = Cell(scenario, backend)
-    cell.reset(10.0)  # (a program that starts at 10 s on the clock: times count from its start)
+    cell.reset(1.0)  # (power-up at 1 s on the clock: the timeline waits for the program)
+    for k in range(0, 9000):
+        cell.update(1.0 + k * TICK)
+    assert backend.input(6) is True
+    cell.start_program(10.0)  # (the program starts at 10 s: times count from its start)
     seen = []
     for k in range(0, 5000):
         now = 10.0 + k * TICK
@@ -175,6 +179,7 @@ def test_a_timeline_toggles_its_input_at_the_times_given_and_repeats():
     assert seen == [(0.5, False), (0.75, True), (2.5, False), (2.75, True), (4.5, False), (4.75, True)]
     once = Cell(parse_scenario({"timeline": [{"input": 6, "at": [0.001]}]}, SPEC), backend)
     once.reset(0.0)
+    once.start_program(0.0)
     for k in range(0, 3000):
         once.update(k * TICK)
     assert backend.input(6) is True  # toggled once, from false, and never again
@@ -241,3 +246,33 @@ def test_an_input_forced_by_hand_releases_a_waiting_program_and_outputs_cannot_b
         assert "in[n]  (writable in simulation)" in server.request("call", {"text": "help io"})["output"]
     finally:
         server.close()
+
+
+def test_a_timeline_counts_from_the_start_of_each_programs_move_robot(tmp_path):
+    """``at`` counts from the program's start (the supervisor entering Move Robot), not
+    from power-up: the first cycle calibrates and homes (about 9 s) before its program
+    starts, the second (a served robot's next program) starts its program at once; in
+    both the input toggled at ``at = 0.5`` is in the 1 ms report 0.5 s after Move Robot
+    began, within a tick."""
+    from compiler.driver import compile_source
+    from runtime.supervisor import MOVE
+    from runtime.system import RobotSystem, RunOptions
+
+    spec_path = ROOT / "programs" / "lola15.spc"
+    result = compile_source(f'program p;\nsystem_specification "{spec_path}";\nseq\n'
+                            '  wait for in[6] timeout 5 sec;\n  print "part";\nendseq\nendprogram;\n', "p.irl")
+    assert result.ok, result.diagnostics
+    system = RobotSystem(SPEC, RunOptions(cell=parse_scenario({"timeline": [{"input": 6, "at": [0.5]}]}, SPEC)))
+    system.apply_settings({"report": {"period": TICK}})
+    for k in range(2):
+        report = tmp_path / f"r{k}.csv"
+        system.begin(result.program, report)
+        while not system.supervisor.done:
+            system.executive.step()
+        summary = system.finish()
+        assert summary["fault"] is None and [e["text"] for e in summary["log"]] == ["part"]
+        moved = [t for t, _source, state in system.supervisor.fsm.history if state == MOVE]
+        assert len(moved) == 1
+        rows = list(csv.DictReader(report.open()))
+        seen = next(float(r["time"]) for r in rows if r["in_6"] == "1")
+        assert moved[0] + 0.5 - 1e-9 <= seen <= moved[0] + 0.5 + TICK + 1e-9, (k, moved[0], seen)

@@ -222,7 +222,8 @@ def test_a_hand_made_condition_that_is_not_a_bool_is_refused_and_stops_the_progr
 
 def run_with_curtain(tmp_path, body: str, decls: str, breaks: list[float]):
     """The program on the simulated robot with in[5] toggled at ``breaks`` (s since the
-    run started), a per-tick limit watch and every trajectory setpoint recorded."""
+    program started: Move Robot's entry), a per-tick limit watch and every trajectory
+    setpoint recorded."""
     from limits_watch import LimitWatch
 
     from compiler.driver import compile_source
@@ -242,6 +243,11 @@ def run_with_curtain(tmp_path, body: str, decls: str, breaks: list[float]):
                          if port.value is not None and port.stamp == now else None, 0.005, "record")
     summary = system.run(result.program)
     return summary, watch, setpoints, system
+
+
+def program_started(system) -> float:
+    """When the supervisor entered Move Robot (s on the clock): a scenario's times count from it."""
+    return next(t for t, _source, state in system.supervisor.fsm.history if state == "Move Robot")
 
 
 CURTAIN = """var
@@ -303,7 +309,10 @@ def test_an_interrupt_during_a_move_stops_the_robot_on_its_path_within_the_limit
         return
     move = next(m for m in dry_system.trajectory.moves if m.line == line)
     t_break = round(move.t_start + into * move.planned_duration, 3)
-    summary, watch, setpoints, system = run_with_curtain(tmp_path, body, CURTAIN, [t_break, t_break + hold])
+    after = program_started(dry_system)  # (the scenario's times count from it)
+    summary, watch, setpoints, system = run_with_curtain(tmp_path, body, CURTAIN,
+                                                         [t_break - after, t_break - after + hold])
+    assert program_started(system) == after
     assert summary["fault"] is None, summary["fault"]
     assert np.allclose(summary["final_position"][:6], dry["final_position"][:6], atol=5e-3)  # (encoder counts)
     assert watch.velocity_ratio <= 1.0 + 1e-6 and watch.acceleration_ratio <= 1.0 + 1e-6, watch.worst
@@ -337,7 +346,7 @@ def test_then_halt_stops_on_the_path_and_drops_the_moves_not_made(tmp_path):
     decls = ("interrupt lost when in[5] stop then halt;\nseq\n  print \"part lost\";\nendseq\nendinterrupt;\n")
     body = (f"  move ptp {HOME};\n  enable lost;\n  move ptp joint(mainjoint(60, -20, 40, 0, 50, 0)) speed_ptp := 0.3;\n"
             f"  move ptp {HOME};\n  print \"not reached\";\n")
-    summary, watch, _setpoints, system = run_with_curtain(tmp_path, body, decls, [10.0])
+    summary, watch, _setpoints, system = run_with_curtain(tmp_path, body, decls, [0.8])
     line = line_of(program_text(body, decls), "speed_ptp := 0.3")
     assert summary["fault"] is None, summary["fault"]
     texts = [text for _t, _l, text in system.trajectory.log_lines]
@@ -377,7 +386,10 @@ def test_a_short_handler_still_stops_the_robot_and_a_stop_that_ends_at_the_targe
     assert dry["fault"] is None, dry["fault"]
     move = next(m for m in dry_system.trajectory.moves if m.line == line)
     t_break = round(move.t_start + into * move.planned_duration, 3)
-    summary, watch, setpoints, system = run_with_curtain(tmp_path, body, SHORT, [t_break, t_break + 0.02])
+    after = program_started(dry_system)
+    summary, watch, setpoints, system = run_with_curtain(tmp_path, body, SHORT, [t_break - after,
+                                                                                 t_break - after + 0.02])
+    assert program_started(system) == after
     assert summary["fault"] is None, summary["fault"]
     assert watch.velocity_ratio <= 1.0 + 1e-6 and watch.acceleration_ratio <= 1.0 + 1e-6
     stopped = next(m for m in system.trajectory.moves if m.line == line)

@@ -21,7 +21,7 @@ behaves; ``irl run --cell-scenario FILE`` runs a program against it:
     delay = 0.1
 
     [[timeline]]        # parts arriving: in[6] toggles at these times (s since the
-    input = 6           # cycle started), the whole list repeating every 10 s
+    input = 6           # program started: Move Robot's start), the list repeating every 10 s
     at = [2.0, 2.5]
     every = 10.0
 
@@ -78,10 +78,10 @@ RULES: dict[str, tuple[str, dict[str, Field]]] = {
         "delay": Field("seconds", "how long after the edge", 0.0),
         "initial": Field("bool", "the input's value before any edge", False),
     }),
-    "timeline": ("an input toggled at given times since the cycle started (parts arriving)", {
+    "timeline": ("an input toggled at given times since the program started (parts arriving)", {
         "input": Field("input", "the input toggled"),
-        "at": Field("times", "when it toggles (s since the cycle started, as the report's time: calibration and "
-                             "homing come before the program)"),
+        "at": Field("times", "when it toggles (s since the program started: since the supervisor entered Move "
+                             "Robot, after any calibration and homing)"),
         "every": Field("seconds", "repeat the list with this period (0: once)", 0.0),
     }),
 }
@@ -219,15 +219,16 @@ class Cell:
     def __init__(self, scenario: Scenario, backend):
         self.scenario = scenario
         self.backend = backend
-        self._t0 = 0.0
+        self._t0 = math.inf  # when the program started (Move Robot): the timelines count from it
         self._last: tuple = ()
         self._events: list[tuple[float, int, int, bool]] = []  # (time, order, input, value), sorted
         self._order = 0
         self._timeline: list[list] = []  # per timeline rule: [rule, next index, cycle]
 
     def reset(self, now: float) -> None:
-        """Not real-time: the program starts: the initial inputs, no pending change."""
-        self._t0 = now
+        """Not real-time: a cycle begins (power-up): the initial inputs, no pending change;
+        the timelines wait for the program's start (:meth:`start_program`)."""
+        self._t0 = math.inf
         outputs = self.backend.outputs
         for n in range(1, len(self.backend.inputs) + 1):
             self.backend.set_input(n, self.scenario.initial.get(n, False))
@@ -237,6 +238,12 @@ class Cell:
         self._last = outputs
         self._events = []
         self._timeline = [[rule, 0, 0] for rule in self.scenario.rules if rule.kind == "timeline"]
+
+    def start_program(self, now: float) -> None:
+        """Real-time: the program starts (the supervisor enters Move Robot at tick ``now``,
+        after calibration and homing, which take a varying time): the timelines' times
+        count from here."""
+        self._t0 = now
 
     def _schedule(self, at: float, n: int, value: bool) -> None:
         self._order += 1

@@ -798,6 +798,36 @@ def flow_of_return(name: str, nlocals: int | None, result: str) -> str | None:
     return None
 
 
+def _shown(text: str | None, fallback: str) -> str:
+    """A file name for a message and a command to paste: shell-quoted; ``fallback`` for
+    none, or for an untrusted one that is not a short line of printable text."""
+    import shlex
+
+    if not text or len(text) > 300 or not text.isprintable():
+        return fallback
+    return shlex.quote(text)
+
+
+def spec_mismatch(program: Program, spec, *, compiled_for: str | None = None, source: str | None = None,
+                  spec_file: str | None = None, unknown: str = "its file is not known here",
+                  instead: str = "run it with the specification it was compiled for (irl run PROGRAM.irlo --spec {})"
+                  ) -> str:
+    """Why ``program`` cannot run on the runtime that drives ``spec`` (a
+    :class:`compiler.spec.Spec`): it was compiled for another specification (another robot,
+    or another version of this robot's file). Names both specifications (robot, hash, and
+    file where known: ``spec_file`` or ``spec.file``, ``compiled_for``) and both fixes: recompile
+    ``source`` (default: the source file the object code names) for ``spec``, or what
+    ``instead`` says (``{}``: the file it was compiled for); ``unknown`` says why that
+    file is not named."""
+    theirs = f"{program.spec_name!r} ({program.spec_hash[:12]}"
+    theirs += f", {_shown(compiled_for, '')})" if compiled_for else f": {unknown})"
+    ours = _shown(spec_file or spec.file, "THIS_ROBOT.spc")
+    src = source if source is not None else _shown(program.source, "PROGRAM.irl")
+    return (f"compiled for specification {theirs}, but this runtime drives {spec.name!r} ({spec.hash[:12]}, "
+            f"{ours}): recompile it for this runtime (irl compile {src} --spec {ours}), or "
+            + instead.format(_shown(compiled_for, "THE_SPEC_IT_WAS_COMPILED_FOR.spc")))
+
+
 def verify(program: Program, spec_hash: str | None = None) -> int:
     """Check that ``program`` is safe to run; returns the largest stack depth it needs.
 

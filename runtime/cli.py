@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import argparse
 import os
+import shlex
 import sys
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -172,7 +173,7 @@ def cmd_dis(args, env: Environment) -> int:
 
 def _load_program(path: str, spec_path: str | None, env: Environment):
     """FILE.irl (compiled now) or FILE.irlo (decoded and verified): (program, spec) or None."""
-    from compiler.objcode import ObjectCodeError, decode, verify
+    from compiler.objcode import ObjectCodeError, decode, spec_mismatch, verify
     from compiler.spec import SpecError, load_spec
 
     if not path.endswith(".irlo"):
@@ -191,13 +192,51 @@ def _load_program(path: str, spec_path: str | None, env: Environment):
                          f"(the object code names {program.spec_name!r}; its source was {guess.name})")
     try:
         spec = load_spec(spec_path)
-        verify(program, spec.hash)
     except SpecError as exc:
         raise UsageError(str(exc)) from None
+    if program.spec_hash != spec.hash:
+        compiled_for, source = spec_compiled_for(program, Path(path))
+        _err(env, f"{path}: " + spec_mismatch(
+            program, spec, compiled_for=compiled_for, source=source,
+            unknown="no .spc file beside the object file has this hash", instead=f"run it with the specification it was compiled for (irl run {shlex.quote(path)} --spec {{}})"))
+        return None
+    try:
+        verify(program, spec.hash)
     except ObjectCodeError as exc:
         _err(env, f"{path}: {exc}")
         return None
     return program, spec
+
+
+#: At most this many specification files beside an object file are read to find the one
+#: it was compiled for (each at most compiler.spec.MAX_SPEC_BYTES).
+MAX_SPEC_CANDIDATES = 64
+
+
+def spec_compiled_for(program, object_path: Path) -> tuple[str | None, str | None]:
+    """Not real-time: (the specification file ``program`` was compiled for, its source
+    file), each where it can be found beside the object file ``object_path``, else None:
+    a ``.spc`` file there whose hash is the one the object code names; the source the
+    object code names, if it is there."""
+    from compiler.spec import SpecError, load_spec
+
+    folder = object_path.parent
+    source = None
+    if program.source and Path(program.source).name == program.source:  # (a name, no path: untrusted)
+        candidate = folder / program.source
+        if candidate.is_file():
+            source = shlex.quote(str(candidate))
+    try:
+        files = sorted(p for p in folder.glob("*.spc") if p.is_file())[:MAX_SPEC_CANDIDATES]
+    except OSError:
+        files = []
+    for file in files:
+        try:
+            if load_spec(file).hash == program.spec_hash:
+                return str(file), source
+        except SpecError:
+            continue
+    return None, source
 
 
 def _print_summary(env: Environment, s: dict) -> None:

@@ -40,8 +40,9 @@ def _client(args, timeout: float | None = None):
         raise _cli().UsageError(exc.message) from None
 
 
-def _call(client, op: str, args: dict | None = None, env=None):
-    """A request whose failure ends the command: unreachable -> exit 2, refused -> 1."""
+def _call(client, op: str, args: dict | None = None, env=None, hints: dict | None = None):
+    """A request whose failure ends the command: unreachable -> exit 2, refused -> 1
+    (``hints``: error code -> what this side knows to add to the server's message)."""
     from runtime.client import ClientError
 
     try:
@@ -49,7 +50,8 @@ def _call(client, op: str, args: dict | None = None, env=None):
     except ClientError as exc:
         if exc.code == "unreachable":
             raise _cli().UsageError(exc.message) from None
-        raise _Refused(f"{exc.message} ({exc.code})") from None
+        hint = (hints or {}).get(exc.code)
+        raise _Refused(f"{exc.message} ({exc.code})" + (f"; {hint}" if hint else "")) from None
 
 
 class _Refused(Exception):
@@ -212,24 +214,25 @@ def cmd_serve(args, env) -> int:
 
 
 # ---- submit ---------------------------------------------------------------------------------
-def _object_code(args, env) -> tuple[bytes, str, tuple] | None:
-    """(bytes, name, robots) of FILE.irlo (as is: the server verifies) or FILE.irl (compiled)."""
+def _object_code(args, env) -> tuple[bytes, str, tuple, str | None] | None:
+    """(bytes, name, robots, the specification file it was compiled for where known) of
+    FILE.irlo (as is: the server verifies) or FILE.irl (compiled)."""
     cli = _cli()
     from compiler.objcode import ObjectCodeError, decode, encode
 
     if args.file.endswith(".irlo"):
         data = cli._read_object(args.file)
         try:
-            robots = decode(data).robots
+            program = decode(data)
         except ObjectCodeError as exc:
             cli._err(env, f"{args.file}: invalid object code: {exc}")
             return None
-        return data, Path(args.file).name, robots
+        return data, Path(args.file).name, program.robots, cli.spec_compiled_for(program, Path(args.file))[0]
     result = cli._compile(args.file, args.spec)
     cli._report(env, result, False)
     if not result.ok:
         return None
-    return encode(result.program), Path(args.file).name, result.program.robots
+    return encode(result.program), Path(args.file).name, result.program.robots, result.spec.file
 
 
 @_guard
@@ -240,13 +243,14 @@ def cmd_submit(args, env) -> int:
     compiled = _object_code(args, env)
     if compiled is None:
         return cli.EXIT_INVALID
-    data, name, robots = compiled
+    data, name, robots, compiled_for = compiled
+    hints = {"wrong_robot": f"{name} was compiled here for {compiled_for}"} if compiled_for else None
     if args.cell:
         args.endpoint = _cell_endpoint(args.cell, robots)
     client = _client(args)
     try:
         since = _call(client, "telemetry")["seq"] if args.wait else 0  # the program's print output: after this
-        reply = _call(client, "submit", {"object": data, "name": name})
+        reply = _call(client, "submit", {"object": data, "name": name}, hints=hints)
         job = reply["program"]
         if not args.json:
             cli._print(env, f"program {job} queued on {args.endpoint} ({name})")

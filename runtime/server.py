@@ -38,7 +38,7 @@ from pathlib import Path
 
 import zmq
 
-from compiler.objcode import OP, ObjectCodeError, Program, load
+from compiler.objcode import OP, ObjectCodeError, Program, load, spec_mismatch
 
 from . import protocol
 from .client import default_state_dir
@@ -237,6 +237,8 @@ class LoopGone(Exception):
 class Server:
     def __init__(self, spec, options: ServeOptions, configurations=None):
         self.spec = spec
+        # the specification's file as a client on this host can name it (messages)
+        self.spec_file = os.path.abspath(spec.file) if os.path.isfile(spec.file) else spec.file
         self.options = options
         self.tcp = tcp_of(spec)  # the sample's TCP (None: the robot's kinematics give none)
         state_dir = Path(options.state_dir) if options.state_dir else default_state_dir()
@@ -912,10 +914,10 @@ class Server:
         except ObjectCodeError as exc:
             raise ProtocolError("invalid_program", f"the object code is invalid: {exc}") from None
         if program.spec_hash != self.spec.hash:
-            raise ProtocolError("wrong_robot", f"the program was compiled for {program.spec_name!r} "
-                                               f"({program.spec_hash[:12]}), but this runtime drives "
-                                               f"{self.spec.name!r} ({self.spec.hash[:12]}): recompile it "
-                                               "with this robot's specification")
+            raise ProtocolError("wrong_robot", "the program was " + spec_mismatch(
+                program, self.spec, spec_file=self.spec_file, unknown="its file is not known to this runtime",
+                instead="submit it to a runtime started with the specification it was "
+                                            "compiled for (irl serve --spec {})"))
         others = [r for r in program.robots if r != self.spec.name]
         if others:
             raise ProtocolError("wrong_robot", f"the program moves robot {others[0]!r}, but this runtime drives "

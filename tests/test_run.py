@@ -545,6 +545,41 @@ def test_object_file_with_a_changed_spec_must_be_recompiled(work):
     assert "recompile" in err and out == ""
 
 
+def test_a_program_compiled_for_another_specification_names_both_files_and_the_commands_that_fix_it(work):
+    """`irl run X.irlo --spec other.spc` of a program compiled for lola15.spc: the message
+    names both files (the object's found beside it by its hash) and says how to fix it;
+    following either advice, the program loads (it runs, with the suggested spec)."""
+    import shlex
+
+    text = (work / "lola15.spc").read_text(encoding="utf-8")
+    (work / "other.spc").write_text(text.replace("max_velocity = 156.0", "max_velocity = 150.0", 1), "utf-8")
+    obj = work / "short.irlo"
+    assert run("compile", work / "short.irl", "-o", obj)[0] == 0
+    ours, theirs = load_spec(work / "other.spc"), load_spec(work / "lola15.spc")
+    code, out, err = run("run", obj, "--spec", work / "other.spc")
+    no_crash(code, out, err)
+    assert code == 1 and out == ""
+    assert err.startswith(f"{obj}: compiled for specification 'lola_15' ({theirs.hash[:12]}, {work / 'lola15.spc'}), "
+                          f"but this runtime drives 'lola_15' ({ours.hash[:12]}, {work / 'other.spc'}): "), err
+    recompile = re.search(r"recompile it for this runtime \((irl compile [^)]*)\)", err).group(1)
+    instead = re.search(r"run it with the specification it was compiled for \((irl run [^)]*)\)", err).group(1)
+    assert recompile == f"irl compile {work / 'short.irl'} --spec {work / 'other.spc'}"
+    assert instead == f"irl run {obj} --spec {work / 'lola15.spc'}"
+    code, out, err = run(*shlex.split(instead)[1:], "--json")
+    assert code == 0 and json.loads(out)["fault"] is None, err
+    assert run(*shlex.split(recompile)[1:])[0] == 0  # (short.irlo, now for other.spc)
+    code, out, err = run("run", obj, "--spec", work / "other.spc", "--max-time", "0.001")
+    assert "the run did not end within 0.001 s" in out and "compiled for" not in err  # (loaded, then stopped)
+    # an object file with no specification of its hash beside it: the file is not known
+    (work / "away").mkdir()
+    shutil.copy(obj, work / "away" / "short.irlo")
+    code, out, err = run("run", work / "away" / "short.irlo", "--spec", work / "lola15.spc")
+    assert code == 1
+    assert f"compiled for specification 'lola_15' ({ours.hash[:12]}: no .spc file beside the object file has this " \
+           "hash)" in err
+    assert "irl compile short.irl --spec" in err and "--spec THE_SPEC_IT_WAS_COMPILED_FOR.spc)" in err
+
+
 # ---- calibration memory -----------------------------------------------------------------------------
 
 def test_calibration_is_remembered_in_the_state_dir(work):

@@ -29,6 +29,7 @@ import io
 import json
 import os
 import random
+import re
 import signal
 import socket
 import subprocess
@@ -300,6 +301,47 @@ def test_submit_wait_report_and_second_program_skips_calibration(server, tmp_pat
     visited = [line.split(",")[2] for line in out2.with_suffix(".states.csv").read_text().splitlines()[1:]]
     assert CALIBRATE not in visited and INITIALIZE not in visited
     assert visited == [START, MOVE, STOP]
+
+
+def test_submit_of_a_program_for_another_specification_names_both_files_and_the_fix(server, tmp_path,
+                                                                                    monkeypatch):
+    """`irl submit` of a program compiled for other.spc (the same robot, another file) to a
+    server that drives programs/lola15.spc: refused with both files named (the server's
+    own, the client's) and the commands that fix it; the recompiled program is queued."""
+    import shlex
+
+    from compiler.spec import load_spec
+    from runtime.cli import Environment, main
+
+    def irl(*argv) -> tuple[int, str, str]:
+        out, err = io.StringIO(), io.StringIO()
+        code = main([str(a) for a in argv], Environment(stdout=out, stderr=err))
+        return code, out.getvalue(), err.getvalue()
+
+    other = tmp_path / "other.spc"
+    other.write_text(SPEC.read_text(encoding="utf-8").replace("max_velocity = 156.0", "max_velocity = 150.0", 1),
+                     encoding="utf-8")
+    source = tmp_path / "test.irl"
+    source.write_text(TEST_IRL.read_text(encoding="utf-8"), encoding="utf-8")
+    obj = tmp_path / "test.irlo"
+    assert irl("compile", source, "--spec", other, "-o", obj)[0] == 0
+    theirs, ours = load_spec(other), load_spec(SPEC)
+    for sent in (obj, source):  # the object file (its spec found beside it), the source compiled for it
+        extra = ("--spec", other) if sent == source else ()
+        code, out, err = irl("submit", sent, *extra, "--endpoint", server.endpoint)
+        assert code == 1 and "Traceback" not in err, err
+        assert (f"the program was compiled for specification 'lola_15' ({theirs.hash[:12]}: its file is not known "
+                f"to this runtime), but this runtime drives 'lola_15' ({ours.hash[:12]}, {SPEC}): ") in err, err
+        assert f"(irl compile test.irl --spec {SPEC})" in err
+        assert "submit it to a runtime started with the specification it was compiled for (irl serve --spec " in err
+        assert err.rstrip().endswith(f"(wrong_robot); test.irl{'o' if sent == obj else ''} was compiled here "
+                                     f"for {other}"), err
+    command = shlex.split(re.search(r"\((irl compile [^)]*)\)", err).group(1))
+    monkeypatch.chdir(tmp_path)  # (where the source is: the object code names its file, not its folder)
+    code, _out, err = irl(*command[1:], "-o", obj)
+    assert code == 0, err
+    code, out, err = irl("submit", obj, "--endpoint", server.endpoint)
+    assert code == 0 and "queued" in out, err
 
 
 # ---- 2. malformed requests -------------------------------------------------------------------------

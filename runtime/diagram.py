@@ -8,12 +8,18 @@ def supervisor_diagram(fmt: str = "mermaid") -> str:
 
     from .system import RobotSystem, RunOptions
 
-    spec = parse_spec(_MINIMAL_SPEC, "<diagram>")
+    spec = parse_spec(_minimal_spec(), "<diagram>")
     fsm = RobotSystem(spec, RunOptions()).supervisor.fsm
     return fsm.to_dot() if fmt == "dot" else fsm.to_mermaid()
 
 
-_MINIMAL_SPEC = """
+def _minimal_spec() -> str:
+    """One small axis, each limit the least its declared range accepts (compiler.params)."""
+    from compiler import params
+
+    axis = params.section_params("axis")
+    limits = "\n".join(f"{key} = {float(axis[key].low)!r}" for key in ("max_velocity", "max_acceleration", "max_jerk"))
+    return f"""
 [robot]
 name = "diagram"
 [[axis]]
@@ -21,7 +27,5 @@ name = "A1"
 kind = "revolute"
 min = -10.0
 max = 10.0
-max_velocity = 1.0
-max_acceleration = 1.0
-max_jerk = 1.0
+{limits}
 """

@@ -549,7 +549,8 @@ def test_a_handler_starts_at_most_5_ms_after_its_condition_becomes_true(tmp_path
     (tmp_path / "lola15.spc").write_text((ROOT / "programs" / "lola15.spc").read_text())
     result = compile_source(program_text(body, decls), str(tmp_path / "p.irl"))
     assert result.ok, result.diagnostics
-    rises = [round(10.5 + 0.1 * k + 0.001 * (k % 5) + 0.0003 * (k % 3), 4) for k in range(25)]  # every phase
+    # (s since the program started: a scenario's times count from Move Robot's start)
+    rises = [round(1.3 + 0.1 * k + 0.001 * (k % 5) + 0.0003 * (k % 3), 4) for k in range(25)]  # every phase
     toggles = sorted(rises + [t + 0.04 for t in rises])
     scenario = parse_scenario({"timeline": [{"input": 5, "at": toggles}]}, SPEC, "curtain")
     system = RobotSystem(SPEC, RunOptions(state_dir=tempfile.mkdtemp(dir=tmp_path), cell=scenario))
@@ -558,6 +559,7 @@ def test_a_handler_starts_at_most_5_ms_after_its_condition_becomes_true(tmp_path
     system.executive.add("record", lambda now: seen.append((now, io.outputs.read()[8])), 0.001, "record")
     summary = system.run(result.program)
     assert summary["fault"] is None, summary["fault"]
+    rises = [program_started(system) + t for t in rises]  # (on the clock, as the moves' and outputs' times)
     slow = system.trajectory.moves[-1]
     assert slow.t_start < rises[0] and rises[-1] + 0.05 < slow.t_end  # all during the move
     out_rises = [t for (t, on), (_t, before) in zip(seen[1:], seen) if on and not before]
@@ -578,7 +580,7 @@ def test_irl_run_after_then_halt_says_completed_and_exits_0(tmp_path):
             "  print \"not reached\";\n")
     (tmp_path / "lola15.spc").write_text((ROOT / "programs" / "lola15.spc").read_text())
     (tmp_path / "p.irl").write_text(program_text(body, decls))
-    (tmp_path / "cell.toml").write_text("[[timeline]]\ninput = 5\nat = [10.5]\n")
+    (tmp_path / "cell.toml").write_text("[[timeline]]\ninput = 5\nat = [1.3]\n")  # (s into the program)
     out, err = io.StringIO(), io.StringIO()
     code = main(["run", str(tmp_path / "p.irl"), "--cell-scenario", str(tmp_path / "cell.toml")],
                 Environment(stdout=out, stderr=err))

@@ -52,6 +52,14 @@ MIN_COUNTS_PER_UNIT = 50.0
 #: finer encoder does not reach within the settling time.
 MAX_COUNTS_PER_UNIT = 20_000.0
 PERIOD_MIN, PERIOD_MAX = 0.001, 1.0
+#: How finely calibration tells a drive's drift (deg/s or mm/s): its 0.25 s of measurement
+#: see a few counts of the coarsest encoder. The least [safety] max_drive_drift, and the
+#: margin the simulated drives' offset keeps below it.
+DRIFT_RESOLUTION = 0.1
+#: The most [controller] kp x [simulation] drive_time_constant: the position loop around
+#: the lagging drive damped enough (damping ratio 1 / (2 sqrt(kp tau)) >= 0.7) that the
+#: servo's command does not overshoot homing's speed limit.
+MAX_KP_LAG = 0.5
 REPORT_COLUMNS = ("sens_pos", "desi_pos", "out_vel", "following_error", "tcp")
 #: Columns a report may also have (not by default): io, every digital input then output (0/1);
 #: move, the number and source line of the program's move under way (runtime.components.report).
@@ -229,13 +237,16 @@ PARAMS: tuple[Param, ...] = (
     _p("controller", "lookahead", "integer", 4, "moves", 0, 16,
        doc="moves planned ahead of the robot (0: each move is planned when the one before has ended)"),
     # ---- [safety]: the safety supervisor (docs/safety.md) ----
-    _p("safety", "max_drive_drift", "number", 2.0, "deg/s or mm/s", 0.0, 100.0, low_open=True, safety=True,
-       doc="largest drift of a drive under a zero command that calibration accepts (measured or loaded)"),
+    _p("safety", "max_drive_drift", "number", 2.0, "deg/s or mm/s", DRIFT_RESOLUTION, 100.0, safety=True,
+       doc=f"largest drift of a drive under a zero command that calibration accepts (measured or loaded); at "
+           f"least {DRIFT_RESOLUTION:g}, what calibration's 0.25 s measurement resolves with the coarsest encoder, "
+           f"and at least [simulation] max_drive_offset + {DRIFT_RESOLUTION:g} (the simulated drives' own drift)"),
     _p("safety", "standstill_tolerance", "integer", 10, "counts", 1, 10_000, safety=True,
        doc="standstill monitoring: how far (encoder counts) an axis may move while it must be at rest"),
-    _p("safety", "plausibility_distance", "number", 0.1, "deg or mm", 0.0, 10.0, low_open=True, safety=True,
+    _p("safety", "plausibility_distance", "number", 0.1, "deg or mm", 0.05, 10.0, safety=True,
        doc="encoder plausibility: commanded travel of an axis without a single encoder count (or against the "
-           "counts' direction) that is a fault"),
+           "counts' direction) that is a fault; at least 0.05, a few counts of the coarsest encoder (a healthy "
+           "axis's travel shorter than a count is not seen by its encoder)"),
     _p("safety", "plausibility_time", "number", 0.2, "s", 0.01, 2.0, safety=True,
        doc="encoder plausibility: how long commanded travel is remembered while no count comes (a command "
            "below plausibility_distance / plausibility_time, 0.5 deg/s by default, never adds up to a fault: "
@@ -276,8 +287,10 @@ PARAMS: tuple[Param, ...] = (
     _p("axis", "search_velocity", "number", 5.0, "deg/s or mm/s", 0.1, 1000.0,
        doc="speed of the initialization's searches (at most max_velocity; default: 5, or max_velocity if smaller)"),
     # ---- [simulation]: the simulated arm ----
-    _p("simulation", "drive_time_constant", "number", 0.005, "s", 0.0, 1.0, low_open=True,
-       doc="first-order lag of each velocity-commanded drive"),
+    _p("simulation", "drive_time_constant", "number", 0.005, "s", 0.0001, 0.01,
+       doc=f"first-order lag of each velocity-commanded drive: a lag below a tenth of the 1 ms tick is not seen; "
+           f"with a longer one, or kp x drive_time_constant above {MAX_KP_LAG:g}, the servo overshoots homing's "
+           f"speed limit or does not settle"),
     _p("simulation", "max_drive_offset", "number", 0.5, "deg/s or mm/s", 0.0, 100.0,
        doc="largest constant velocity offset of a drive (seeded per axis)"),
     _p("simulation", "park_spread", "number", 3.0, "deg or mm", 0.0, 90.0,
@@ -285,17 +298,19 @@ PARAMS: tuple[Param, ...] = (
     _p("simulation", "brake_time", "number", 0.05, "s", 0.0, 5.0, doc="time the brakes take to engage or release"),
     _p("simulation", "drive_saturation", "number", 1.5, "x max_velocity", 1.0, 10.0,
        doc="the drives' own velocity limit"),
-    _p("simulation", "end_stop_margin", "number", 5.0, "deg or mm", 0.0, 90.0, low_open=True,
-       doc="the mechanical end stops lie this far beyond each axis's min and max (the software limits)"),
+    _p("simulation", "end_stop_margin", "number", 5.0, "deg or mm", 0.1, 90.0,
+       doc="the mechanical end stops lie this far beyond each axis's min and max (the software limits); "
+           "more than [safety] limit_tolerance, how far beyond a limit the safety lets the arm come to rest"),
     # ---- the other components (TOML configurations; scripting for 'live' ones) ----
-    _p("robot", "velocity_limit_scale", "number", 1.0, "", 0.0, 1.0, low_open=True, safety=True,
+    _p("robot", "velocity_limit_scale", "number", 1.0, "", 0.01, 1.0, safety=True,
        change="configuration",
        doc="reduced speed: the fraction of each axis's max_velocity that moves are planned with and that the "
-           "safety supervisor enforces"),
-    _p("initialization", "home_speed", "number", 0.2, "", 0.0, 1.0, low_open=True, safety=True,
+           "safety supervisor enforces (homing's searches too: below 0.01 they take many minutes)"),
+    _p("initialization", "home_speed", "number", 0.2, "", 0.01, 1.0, safety=True,
        change="configuration",
        doc="fraction of each axis's max_velocity and max_acceleration used by homing (searches ramp with this "
-           "fraction of max_acceleration; the move to the start position uses both)"),
+           "fraction of max_acceleration; the move to the start position uses both; below 0.01 it takes "
+           "many minutes)"),
     _p("initialization", "period", "period", 0.005, "s", change="configuration",
        doc="time between setpoints of the homing sequence; must equal trajectory.period"),
     _p("trajectory", "budget", "integer", 200, "instructions", 1, 10_000, change="live",
@@ -373,11 +388,25 @@ def settings(section: str, values: dict):
 def check_spec_rules(values: dict[str, dict[str, object]]) -> tuple[str, str] | None:
     """Rules across keys of the specification's tables (validated values, defaults
     filled in): ``(key, reason)`` of the first broken one, or None."""
-    controller = values["controller"]
+    controller, safety, simulation = values["controller"], values["safety"], values["simulation"]
     if controller["servo_miss_limit"] >= controller["servo_miss_window"]:
         return ("controller.servo_miss_limit",
                 f"expected fewer misses than the window ({controller['servo_miss_window']} ticks), "
                 f"got {controller['servo_miss_limit']}")
+    lag = controller["kp"] * simulation["drive_time_constant"]
+    if lag > MAX_KP_LAG + 1e-12:
+        return ("simulation.drive_time_constant",
+                f"expected at most {MAX_KP_LAG:g} / [controller] kp ({MAX_KP_LAG / controller['kp']:.4g} s: a longer "
+                f"lag makes the servo overshoot), got {simulation['drive_time_constant']:g}")
+    if simulation["max_drive_offset"] + DRIFT_RESOLUTION > safety["max_drive_drift"] + 1e-9:
+        return ("safety.max_drive_drift",
+                f"expected at least [simulation] max_drive_offset + {DRIFT_RESOLUTION:g} "
+                f"({simulation['max_drive_offset'] + DRIFT_RESOLUTION:g}: the simulated drives drift up to "
+                f"max_drive_offset, which calibration must accept), got {safety['max_drive_drift']:g}")
+    if simulation["end_stop_margin"] <= safety["limit_tolerance"]:
+        return ("simulation.end_stop_margin",
+                f"expected more than [safety] limit_tolerance ({safety['limit_tolerance']:g}: the arm may come to "
+                f"rest that far beyond a limit), got {simulation['end_stop_margin']:g}")
     return None
 
 

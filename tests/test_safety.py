@@ -273,7 +273,7 @@ def test_controller_values_are_validated_by_check_and_run(tmp_path, line, words)
     ("safety", "standstill_tolerance = 0", "safety.standstill_tolerance: expected an integer 1 <= x <= 10000"),
     ("safety", "acceleration_factor = nan", "safety.acceleration_factor: expected a number 1 <= x <= 10"),
     ("safety", "max_drive_drift = -1", "safety.max_drive_drift"),
-    ("simulation", "end_stop_margin = 0", "simulation.end_stop_margin: expected a number 0 < x <= 90"),
+    ("simulation", "end_stop_margin = 0", "simulation.end_stop_margin: expected a number 0.1 <= x <= 90"),
     ("simulation", "brake_time = inf", "simulation.brake_time"),
 ])
 def test_safety_and_simulation_tables_are_validated(table, line, words):

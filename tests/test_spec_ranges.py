@@ -1,7 +1,8 @@
 """Every number a specification gives has a range the runtime can use (issue 26, fault 6):
 ``irl check`` refuses a value outside it, naming the file, the key and the allowed range;
 any specification it accepts runs the paper's program (programs/test.irl) on the
-simulated robot without nan and without a fault caused by its numbers.
+simulated robot without nan and without a fault caused by its numbers. The same for the
+configuration's numbers (robot.velocity_limit_scale, initialization.home_speed).
 
 Before, ``max_acceleration``, ``gear_ratio``, ``max_velocity``, ``max_jerk``, ``kp``,
 ``following_error_limit`` and ``speed_ptp`` = 5e-324 all passed the check and faulted
@@ -30,6 +31,10 @@ SPEC_TEXT = (ROOT / "programs" / "lola15.spc").read_text(encoding="utf-8")
 TEST_IRL = (ROOT / "programs" / "test.irl").read_text(encoding="utf-8")
 AXIS = params.section_params("axis")
 CONTROLLER = params.spec_section("controller")
+SAFETY = params.spec_section("safety")
+SIMULATION = params.spec_section("simulation")
+#: The configuration's numbers the property sets (a component's settings, applied before the run).
+CONFIGURATION = [("robot", "velocity_limit_scale"), ("initialization", "home_speed")]
 #: A run the time limit ends: slow but healthy (the smallest limits move the paper's 90 deg
 #: at 0.1 deg/s); anything else that ends a run early is a fault.
 MAX_TIME = 40.0
@@ -40,6 +45,8 @@ def _set(text: str, table: str, key: str, value, index: int | None = None) -> st
     """``text`` with ``key = value`` in ``[table]`` (or the ``index``-th ``[[axis]]``)."""
     rendered = repr(value) if isinstance(value, float) else str(value)
     if index is None:
+        if f"\n[{table}]" not in text:  # (a table the file leaves out: all its defaults)
+            text = text.rstrip("\n") + f"\n\n[{table}]\n"
         head, sep, body = text.partition(f"\n[{table}]")
         rest = body.split("\n[", 1)
         section = rest[0]
@@ -58,9 +65,16 @@ def _set(text: str, table: str, key: str, value, index: int | None = None) -> st
     return "[[axis]]".join(parts)
 
 
+def _least(param):
+    """The smallest value ``param`` accepts (next above an open lower bound)."""
+    if param.kind == "integer":
+        return param.low + (1 if param.low_open else 0)
+    return math.nextafter(float(param.low), math.inf) if param.low_open else float(param.low)
+
+
 def _values(param) -> st.SearchStrategy:
     """Across the whole accepted range, its bounds included (log-uniform for wide ones)."""
-    low, high = param.low, param.high
+    low, high = _least(param), param.high
     if param.kind == "integer":
         return st.one_of(st.sampled_from([low, high]), st.integers(low, high))
     if low > 0 and high / low > 100:
@@ -75,61 +89,81 @@ KNOBS = ([("axis", key, i, AXIS[key]) for key in ("max_velocity", "max_accelerat
                                                    "encoder_counts", "sensor_window", "search_velocity")
           for i in range(6)]
          + [("controller", "kp", None, CONTROLLER["kp"]),
-            ("controller", "following_error_limit", None, CONTROLLER["following_error_limit"])])
+            ("controller", "following_error_limit", None, CONTROLLER["following_error_limit"])]
+         + [("safety", key, None, SAFETY[key]) for key in ("max_drive_drift", "plausibility_distance")]
+         + [("simulation", key, None, SIMULATION[key]) for key in ("drive_time_constant", "end_stop_margin")]
+         + [(component, key, None, params.section_params(component)[key]) for component, key in CONFIGURATION])
+
+
+def _apply(text: str, settings: dict, table: str, key: str, value, index) -> str:
+    """``value`` for the knob: in the specification's text, or (a component's) in ``settings``."""
+    if table in params.COMPONENTS:
+        settings.setdefault(table, {})[key] = value
+        return text
+    return _set(text, table, key, value, index)
 
 
 @st.composite
-def specs(draw) -> str:
-    """The paper's robot with some of its numbers anywhere in their accepted ranges."""
-    text = SPEC_TEXT
+def specs(draw) -> tuple[str, dict]:
+    """The paper's robot with some of its numbers anywhere in their accepted ranges, and
+    the configuration's settings (component -> name -> value) it runs with."""
+    text, settings_ = SPEC_TEXT, {}
     chosen = draw(st.lists(st.sampled_from(range(len(KNOBS))), min_size=1, max_size=8, unique=True))
     for k in chosen:
         table, key, index, param = KNOBS[k]
-        text = _set(text, table, key, draw(_values(param), label=f"{table}.{key}"), index)
+        text = _apply(text, settings_, table, key, draw(_values(param), label=f"{table}.{key}"), index)
     for clause in ("speed_ptp", "acc_ptp"):  # the defaults: accepted at their bounds too
         rng = clauses.BY_NAME[clause].ranges[0]
         text = _set(text, "defaults", clause, draw(st.sampled_from([rng.low, rng.high, 0.5])))
-    return text
+    return text, settings_
 
 
-def run_paper_program(text: str) -> dict | None:
-    """The summary of test.irl's run with this specification; None if it is refused."""
+def run_paper_program(text: str, settings_: dict | None = None) -> dict | None:
+    """The summary of test.irl's run with this specification (and these settings, each
+    checked against its declared range: the runtime.config validation); None if refused."""
     try:
         parse_spec(text, "variant.spc")
     except SpecError as exc:
         assert "expected" in str(exc) and "variant.spc" in str(exc), str(exc)
         return None
+    checked = {component: {key: params.section_params(component)[key].check(value) for key, value in values.items()}
+               for component, values in (settings_ or {}).items()}
     with tempfile.TemporaryDirectory() as tmp:
         (Path(tmp) / "lola15.spc").write_text(text, encoding="utf-8")
         result = compile_source(TEST_IRL, str(Path(tmp) / "test.irl"))
         assert result.ok, [d.message for d in result.diagnostics]
-        return RobotSystem(result.spec, RunOptions(max_time=MAX_TIME)).run(result.program)
+        system = RobotSystem(result.spec, RunOptions(max_time=MAX_TIME))
+        system.apply_settings(checked)
+        return system.run(result.program)
 
 
-def _lowest() -> str:
-    text = SPEC_TEXT
+def _lowest() -> tuple[str, dict]:
+    text, settings_ = SPEC_TEXT, {}
+    text = _set(text, "simulation", "max_drive_offset", 0.0)  # (the least max_drive_drift accepts no more)
     for table, key, index, param in KNOBS:
-        if key != "encoder_counts":  # the lowest of both is too coarse an encoder: refused
-            text = _set(text, table, key, param.low if param.kind == "integer" else float(param.low), index)
-    return text
+        if key not in ("encoder_counts", "gear_ratio"):  # (the lowest of both: too coarse an encoder, refused)
+            text = _apply(text, settings_, table, key, _least(param), index)
+    return text, settings_
 
 
-def _highest() -> str:
-    text = SPEC_TEXT
+def _highest() -> tuple[str, dict]:
+    text, settings_ = SPEC_TEXT, {}
     for table, key, index, param in KNOBS:
         if key == "encoder_counts":  # the finest encoder and gear together are refused
             text = _set(text, table, key, round(params.MAX_COUNTS_PER_UNIT * 360 / AXIS["gear_ratio"].high), index)
+        elif key == "drive_time_constant":  # (the longest lag the highest kp accepts)
+            text = _set(text, table, key, params.MAX_KP_LAG / CONTROLLER["kp"].high)
         elif key != "search_velocity":
-            text = _set(text, table, key, param.high, index)
-    return text
+            text = _apply(text, settings_, table, key, param.high, index)
+    return text, settings_
 
 
 @settings(max_examples=8, deadline=None, suppress_health_check=[HealthCheck.too_slow])
-@given(text=specs())
-@example(text=_lowest())
-@example(text=_highest())
-def test_any_specification_irl_check_accepts_runs_the_paper_program(text):
-    summary = run_paper_program(text)
+@given(case=specs())
+@example(case=_lowest())
+@example(case=_highest())
+def test_any_specification_irl_check_accepts_runs_the_paper_program(case):
+    summary = run_paper_program(*case)
     if summary is None:
         return
     assert summary["fault"] is None or summary["fault"].endswith(TIME_LIMIT), summary["fault"]
@@ -139,6 +173,28 @@ def test_any_specification_irl_check_accepts_runs_the_paper_program(text):
         assert math.isfinite(move["planned_duration"]) and move["planned_duration"] > 0
 
 
+def test_each_number_at_the_least_it_accepts_runs_the_paper_program_without_a_fault():
+    """One number at a time at the smallest value its range accepts (every axis alike):
+    test.irl runs without nan or a fault (slow at the least speeds: the time limit ends
+    it). Before, plausibility_distance = 5e-324 (0 excluded) faulted homing (no encoder
+    count for a travel that small), max_drive_drift = 5e-324 faulted calibration."""
+    seen = set()
+    for table, key, _index, param in KNOBS:
+        if (table, key) in seen or key in ("gear_ratio", "encoder_counts"):  # (least of each: a refused encoder)
+            continue
+        seen.add((table, key))
+        text, settings_ = SPEC_TEXT, {}
+        if key == "max_drive_drift":  # (the simulated drives drift no more than it accepts)
+            text = _set(text, "simulation", "max_drive_offset", 0.0)
+        for index in range(6) if table == "axis" else [None]:
+            text = _apply(text, settings_, table, key, _least(param), index)
+        summary = run_paper_program(text, settings_)
+        assert summary is not None, (table, key)
+        fault = summary["fault"]
+        assert fault is None or fault.endswith(TIME_LIMIT), (table, key, _least(param), fault)
+        assert all(math.isfinite(x) for x in summary["final_position"]), (table, key)
+
+
 TINY = 5e-324
 
 
@@ -146,7 +202,9 @@ TINY = 5e-324
     ("axis", "max_acceleration", 0), ("axis", "gear_ratio", 1), ("axis", "max_velocity", 2),
     ("axis", "max_jerk", 3), ("controller", "kp", None), ("controller", "following_error_limit", None),
     ("defaults", "speed_ptp", None), ("defaults", "acc_ptp", None), ("robot", "max_speed", None),
-    ("robot", "max_acceleration", None), ("axis", "search_velocity", 4), ("axis", "sensor_window", 5)])
+    ("robot", "max_acceleration", None), ("axis", "search_velocity", 4), ("axis", "sensor_window", 5),
+    ("safety", "max_drive_drift", None), ("safety", "plausibility_distance", None),
+    ("simulation", "drive_time_constant", None), ("simulation", "end_stop_margin", None)])
 def test_irl_check_names_a_value_below_its_range(tmp_path, table, key, index):
     (tmp_path / "lola15.spc").write_text(_set(SPEC_TEXT, table, key, TINY, index), encoding="utf-8")
     (tmp_path / "test.irl").write_text(TEST_IRL, encoding="utf-8")
@@ -164,3 +222,23 @@ def test_a_too_coarse_encoder_is_refused_with_its_resolution():
     text = _set(_set(SPEC_TEXT, "axis", "gear_ratio", 1.0, 0), "axis", "encoder_counts", 4096, 0)
     with pytest.raises(SpecError, match=r"axis\[1\]\.gear_ratio: .*11\.38 counts per deg: expected 50 to 20000"):
         parse_spec(text, "coarse.spc")
+
+
+@pytest.mark.parametrize("changes, where, words", [
+    ([("safety", "max_drive_drift", 0.5)], "safety.max_drive_drift",
+     "expected at least [simulation] max_drive_offset + 0.1 (0.6"),
+    ([("safety", "limit_tolerance", 2.0), ("simulation", "end_stop_margin", 2.0)], "simulation.end_stop_margin",
+     "expected more than [safety] limit_tolerance (2"),
+    ([("controller", "kp", 100.0), ("simulation", "drive_time_constant", 0.01)], "simulation.drive_time_constant",
+     "expected at most 0.5 / [controller] kp (0.005 s"),
+])
+def test_the_rules_between_tables_are_named(changes, where, words):
+    """Numbers each within its range that do not go together (the simulated drives drift
+    more than calibration accepts; the end stops inside where the safety lets the arm
+    rest; a drive's lag the servo's gain overshoots on) are refused, naming the key."""
+    text = SPEC_TEXT
+    for table, key, value in changes:
+        text = _set(text, table, key, value)
+    with pytest.raises(SpecError) as error:
+        parse_spec(text, "pair.spc")
+    assert f"pair.spc: {where}: {words}" in str(error.value), str(error.value)

@@ -625,7 +625,7 @@ def test_a_growing_string_and_a_forged_array_through_irl_run(tmp_path):
                     '  while true do\n    s := s + s;\n  endwhile;\nendseq\nendprogram;\n', encoding="utf-8")
     code, out, err = run_cli("run", grow)
     assert code == 1 and "line 7: string too long" in out, out
-    base = program("  print 1;\n", "var a : integer;\n")
+    base = program("  print 1;\n", "var a : array[1..2] of array[1..2] of real;\n")  # well typed: the size is the fault
     code_ = ((OP.CONST, 0), (OP.MAKE_ARRAY, MAX_ARRAY_ELEMENTS), (OP.MAKE_ARRAY, MAX_ARRAY_ELEMENTS),
              (OP.STORE_GLOBAL, 0), (OP.END,))
     forged = dataclasses.replace(base, code=code_, constants=(0.0,),

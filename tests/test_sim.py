@@ -257,8 +257,8 @@ def test_index_pulses_at_multiples_of_the_index_spacing():
     pulses = check_index(robot, (100.0,) * N, 200)
     pulses += check_index(robot, (-100.0,) * N, 400)
     assert pulses > 6 * 10
-    fine = released(one_axis_spec(gear_ratio=4000.0, min=-1000.0, max=1000.0))  # 0.09 deg apart
-    assert check_index(fine, (200.0,), 100) > 150  # two or three pulses in one tick
+    fine = released(one_axis_spec(gear_ratio=1000.0, max_velocity=1000.0, min=-1000.0, max=1000.0))  # 0.36 deg apart
+    assert check_index(fine, (800.0,), 100) > 150  # two or three pulses in one tick
     assert SPEC.axes[0].index_spacing == pytest.approx(360.0 / 160.0)
     end = robot.true_positions
     for i, axis in enumerate(SPEC.axes):  # the counters only grow, whatever the direction

@@ -22,6 +22,10 @@ REPLY_TIMEOUT = 5.0
 #: ``irl control take``'s default lease (s): the irl commands after it are its requests, and
 #: a person types them minutes apart (the protocol's own default, 10 s, suits programs).
 CONTROL_LEASE = 300.0
+#: irl watch looks at the clock at least this often (s) while it waits for telemetry, and
+#: waits at least WATCH_SLACK (s) past a deadline: no period of the loop.
+WATCH_POLL = 0.5
+WATCH_SLACK = 0.01
 TOKEN_VARIABLE = "IRL_CONTROL_TOKEN"
 
 
@@ -514,8 +518,8 @@ def _watch(args, env, sub, client, fields, silence: float) -> int:
             what = "no telemetry" if not received and args.since is None else "no more telemetry"
             raise cli.UsageError(f"{what} from {args.telemetry} within {silence:g} s (is 'irl serve' running "
                                  "there, with the same --keys?)")
-        wait = min(0.5, silence - (now - last_heard) + 0.01)
-        message = sub.receive(max(0.01, wait if deadline is None else min(wait, deadline - now)))
+        wait = min(WATCH_POLL, silence - (now - last_heard) + WATCH_SLACK)
+        message = sub.receive(max(WATCH_SLACK, wait if deadline is None else min(wait, deadline - now)))
         if message is None:
             continue
         last_heard = time.monotonic()

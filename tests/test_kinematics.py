@@ -553,7 +553,8 @@ def test_geometry_that_is_not_a_spherical_wrist_arm_is_refused():
         Kinematics(LOLA_ROWS[:5])
     text = SPEC_PATH.read_text(encoding="utf-8")
     with pytest.raises(ValueError, match="axis A6: the arm's axes must be revolute"):
-        Kinematics(parse_spec(text.replace('name = "A6"\nkind = "revolute"', 'name = "A6"\nkind = "prismatic"')))
+        Kinematics(parse_spec(text.replace('name = "A6"\nkind = "revolute"', 'name = "A6"\nkind = "prismatic"')
+                                      .replace("gear_ratio = 60.0", "gear_ratio = 1.0")))
     with pytest.raises(ValueError, match="axis A4: a must be 0 mm"):
         Kinematics(parse_spec(text.replace("a = 0.0, alpha = 90.0, d = 670.0", "a = 1.0, alpha = 90.0, d = 670.0")))
     with pytest.raises(ValueError, match="axis A3: no dh parameters"):

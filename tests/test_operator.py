@@ -238,6 +238,10 @@ class _WallLike:
     def now(self) -> float:
         return self._clock.now()
 
+    @property
+    def tick_time(self) -> float:
+        return self._clock.tick_time
+
 
 def test_on_the_wall_clock_cartesian_moves_are_planned_off_the_loop(system, monkeypatch):
     from runtime.motion import motionqueue as tg_module

@@ -1021,10 +1021,15 @@ def test_sigterm_or_sigint_while_a_program_runs_exits_0_cancels_the_queue_and_ke
                 header = rows[0]
                 assert all(len(row) == len(header) for row in rows), "a partial row"
                 velocities = [i for i, name in enumerate(header) if name.startswith("out_vel_")]
-                last = rows[-1]
-                assert last[1] == STOP and all(float(last[i]) == 0.0 for i in velocities), last
                 transitions = list(csv.reader(io.StringIO(report.with_suffix(".states.csv").read_text())))
-                assert transitions[-1][2] == STOP and float(last[0]) >= float(transitions[-1][0]), transitions
+                assert transitions[-1][2] == STOP, (k, moment, transitions, server.log())
+                if len(rows) == 1:  # the report starts in Calibrate Offsets: a cycle stopped before has no rows
+                    assert moment is None and [t[2] for t in transitions[1:]] == ["Start Robot", STOP], \
+                        (k, transitions, server.log())
+                    continue
+                last = rows[-1]
+                assert last[1] == STOP and all(float(last[i]) == 0.0 for i in velocities), (k, moment, last, server.log())
+                assert float(last[0]) >= float(transitions[-1][0]), transitions
             else:
                 assert moment is None, f"no report of program {running}"
         finally:

@@ -445,6 +445,10 @@ class SafetyMachine(RuleBasedStateMachine):
 
     def _check_limits(self) -> None:
         watch = self.watch
+        if (watch.velocity_ratio <= 1.0 + 1e-9 and watch.acceleration_ratio <= ACCELERATION_LIMIT + 1e-9
+                and watch.planned_velocity_ratio <= 1.0 + 1e-9 and watch.planned_acceleration_ratio <= 1.0 + 1e-6
+                and watch.beyond <= STOP_TOLERANCE and not watch.at_end_stop):
+            return  # (every tick: the common case without building the messages below)
         self._expect(watch.velocity_ratio <= 1.0 + 1e-9, "velocity",
                      lambda: (watch.velocity_ratio, watch.worst.get("velocity_ratio")))
         self._expect(watch.acceleration_ratio <= ACCELERATION_LIMIT + 1e-9, "acceleration",

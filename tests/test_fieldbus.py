@@ -16,8 +16,6 @@ import pytest
 from compiler.spec import load_spec
 from runtime.fieldbus import FieldbusError, ModbusIo, load_fieldbus, parse_fieldbus
 
-pytest.importorskip("pymodbus")
-
 ROOT = Path(__file__).resolve().parents[1]
 SPEC_PATH = ROOT / "programs" / "lola15.spc"
 SPEC = load_spec(SPEC_PATH)

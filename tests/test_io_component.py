@@ -194,7 +194,6 @@ def test_the_io_task_is_the_first_of_the_tick():
 def test_a_plc_that_cannot_be_reached_refuses_the_program_at_begin(tmp_path):
     """The PLC's ModbusIo is the component's backend: opened when the system is built,
     a program refused at ``begin`` while it cannot be reached, with the reason."""
-    pytest.importorskip("pymodbus")
     from test_server import free_port
 
     from runtime.fieldbus import ModbusIo, parse_fieldbus

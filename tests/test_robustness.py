@@ -80,19 +80,21 @@ def workdir(tmp_path_factory) -> Path:
     return d
 
 
-_COMPILED: dict[Path, tuple[bytes, Program, str] | None] = {}
+_COMPILED: dict[Path, tuple[bytes, Program, str]] = {}
 
 
-def compiled(path: Path) -> tuple[bytes, Program, str] | None:
-    """(object bytes, program, spec hash) of a programs/*.irl, or None when it has errors."""
+def compiled(path: Path) -> tuple[bytes, Program, str]:
+    """(object bytes, program, spec hash) of a programs/*.irl; every example program
+    compiles (a test fails, never skips, when one does not)."""
     if path not in _COMPILED:
         result = compile_file(path)
-        _COMPILED[path] = (encode(result.program), result.program, result.spec.hash) if result.ok else None
+        assert result.ok, f"{path.name} does not compile: {[d.message for d in result.diagnostics]}"
+        _COMPILED[path] = (encode(result.program), result.program, result.spec.hash)
     return _COMPILED[path]
 
 
 def valid_programs() -> list[Path]:
-    return [p for p in program_files() if compiled(p) is not None]
+    return program_files()
 
 
 def largest_valid_program() -> Path:
@@ -398,10 +400,7 @@ def _header_classes(size: int) -> list[int]:
 
 @pytest.mark.parametrize("path", program_files(), ids=lambda p: p.name)
 def test_truncated_object_files(workdir, path):
-    entry = compiled(path)
-    if entry is None:
-        pytest.skip(f"{path.name} does not compile")
-    data = entry[0]
+    data = compiled(path)[0]
     body = data[HEADER.size:]
     for n in _header_classes(len(data)):
         with pytest.raises(ObjectCodeError):  # raw truncation: the header or the checksum catches it
@@ -652,8 +651,7 @@ def test_deeply_nested_constant(workdir, shape):
 @pytest.mark.parametrize("path", program_files(), ids=lambda p: p.name)
 def test_compiler_invariants(path, tmp_path):
     first = compile_file(path)
-    if not first.ok:
-        pytest.skip(f"{path.name} does not compile: {first.diagnostics[0].message}")
+    assert first.ok, f"{path.name} does not compile: {[d.message for d in first.diagnostics]}"
     second = compile_file(path)
     assert second.ok
     data = encode(first.program)
@@ -679,4 +677,4 @@ def test_compiler_invariants(path, tmp_path):
 
 def test_test_irl_is_among_the_programs():
     assert PROGRAMS / "test.irl" in program_files()
-    assert compiled(PROGRAMS / "test.irl") is not None
+    assert compiled(PROGRAMS / "test.irl")[0]

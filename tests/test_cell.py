@@ -148,6 +148,7 @@ def test_an_input_follows_its_rule_exactly_delay_after_each_edge(kind, delay_tic
         tick += gap
         changes.setdefault(tick, []).append(output)
     history = []  # outputs at each tick
+    latched, seen = False, 0  # the latch: its value (initially false) from the edges of history[:seen]
     for k in range(tick + delay_ticks + 2):
         for output in changes.get(k, []):
             backend._out[output - 1] = not backend._out[output - 1]
@@ -158,13 +159,14 @@ def test_an_input_follows_its_rule_exactly_delay_after_each_edge(kind, delay_tic
             past = history[k - delay_ticks] if k >= delay_ticks else (False,) * 16  # (outputs start false)
             expected = past[0] != invert
         else:
-            expected = False  # (the rule's initial value)
-            for j in range(0, k - delay_ticks + 1):
+            for j in range(seen, k - delay_ticks + 1):  # the edges up to delay ago, each once
                 before = history[j - 1] if j else (False,) * 16
                 if history[j][0] and not before[0]:
-                    expected = True
+                    latched = True
                 if history[j][1] and not before[1]:
-                    expected = False
+                    latched = False
+                seen = j + 1
+            expected = latched
         assert backend.input(5) == expected, (k, history[max(0, k - delay_ticks)])
 
 

@@ -6,6 +6,8 @@ keeps the worst ratios seen. The tests assert on them; nothing here trusts the r
 """
 from __future__ import annotations
 
+from operator import sub, truediv
+
 TICK = 0.001
 
 
@@ -33,6 +35,10 @@ class LimitWatch:
         self.stops = system.backend.end_stops
         self.port = system.ports["drive_cmd"]
         self.setpoints = [system.ports["desi_pos"], system.ports["init_pos"]]
+        self._scale, self._limits = None, []  # velocity_limit_scale, and max_velocity x it per axis
+        self._ticks = [TICK] * len(axes)
+        # every end stop beyond its software limit: an axis at an end stop is beyond the limits
+        self._stops_outside = all(lo <= a.min and hi >= a.max for a, (lo, hi) in zip(axes, self.stops))
         self.reset()
         system.executive.add("limit-watch", self.tick, TICK, "record")
 
@@ -51,10 +57,11 @@ class LimitWatch:
                                   self.axes[axis].name)
 
     def tick(self, now: float) -> None:
-        """Every tick. Each figure's largest value over the axes is compared with the figure
-        first; only a tick that may set a new worst goes through ``_note`` axis by axis (the
-        same figures and places, at a fraction of the cost: the watch runs on every tick of
-        the stateful test)."""
+        """Every tick. Each figure's largest value over the axes (the same expression as
+        ``_note`` is given, evaluated by ``map``) is compared with the figure first; only a
+        tick that may set a new worst goes through ``_note`` axis by axis: the same figures
+        and places at a fraction of the cost (the watch runs on every tick of the stateful
+        test)."""
         system = self.system
         backend = system.backend
         port = self.port
@@ -62,17 +69,16 @@ class LimitWatch:
         if command is not None and port.stamp == now and backend.drives_enabled() \
                 and backend.brakes_released():
             scale = system.robot.velocity_limit_scale
-            limits = [v * scale for v in self.vmax]
-            ratios = [abs(c) / v for c, v in zip(command, limits)]
-            if not max(ratios) <= self.velocity_ratio:
-                for i, r in enumerate(ratios):
-                    self._note("velocity_ratio", r, i)
+            if scale != self._scale:
+                self._scale, self._limits = scale, [v * scale for v in self.vmax]
+            if not max(map(truediv, map(abs, command), self._limits)) <= self.velocity_ratio:
+                for i, (c, v) in enumerate(zip(command, self._limits)):
+                    self._note("velocity_ratio", abs(c) / v, i)
             previous = self._previous
-            if previous is not None:
-                ratios = [abs(c - p) / TICK / a for c, p, a in zip(command, previous, self.amax)]
-                if not max(ratios) <= self.acceleration_ratio:
-                    for i, r in enumerate(ratios):
-                        self._note("acceleration_ratio", r, i)
+            if previous is not None and not max(map(truediv, map(truediv, map(abs, map(sub, command, previous)),
+                                                                  self._ticks), self.amax)) <= self.acceleration_ratio:
+                for i, (c, p) in enumerate(zip(command, previous)):
+                    self._note("acceleration_ratio", abs(c - p) / TICK / self.amax[i], i)
             self._previous = command
         else:
             self._previous = None
@@ -80,11 +86,11 @@ class LimitWatch:
             if port.stamp == now:
                 self._setpoint(k, port, now)
         positions = backend.true_positions
-        beyond = [max(lo - x, x - hi) for x, lo, hi in zip(positions, self.low, self.high)]
-        if not max(beyond) <= self.beyond:
-            for i, b in enumerate(beyond):
-                self._note("beyond", b, i)
-        if not self.at_end_stop:
+        beyond = max(max(map(sub, self.low, positions)), max(map(sub, positions, self.high)))
+        if not beyond <= self.beyond:
+            for i, x in enumerate(positions):
+                self._note("beyond", max(self.low[i] - x, x - self.high[i]), i)
+        if not self.at_end_stop and (beyond > 0.0 or not self._stops_outside or beyond != beyond):
             for x, (lo, hi) in zip(positions, self.stops):
                 if x <= lo or x >= hi:
                     self.at_end_stop = True

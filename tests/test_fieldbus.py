@@ -201,6 +201,7 @@ def test_irl_serve_runs_a_program_against_a_plc_and_stops_the_robot_when_the_plc
         assert server.stop() == 0, server.log()
 
 
+@pytest.mark.long
 def test_the_pick_and_place_program_runs_its_cell_over_modbus(tmp_path):
     """programs/pick_place.irl itself under `irl run --realtime --fieldbus`, against a PLC
     that plays its cell (docs/runtime.md): the feeder has a part, the fixture is free, the

@@ -294,7 +294,7 @@ class QueueMachine(RuleBasedStateMachine):
 
 QueueMachine.TestCase.settings = settings(max_examples=100, stateful_step_count=25, deadline=None, derandomize=True,
                                           database=None, suppress_health_check=list(HealthCheck))
-test_random_commands_keep_the_limits_and_end_at_rest = QueueMachine.TestCase
+test_random_commands_keep_the_limits_and_end_at_rest = pytest.mark.long(QueueMachine.TestCase)
 
 
 # ----------------------------------------------------------------------------- programs
@@ -394,6 +394,7 @@ FOUND = [
 ]
 
 
+@pytest.mark.long
 @settings(max_examples=60, deadline=None, derandomize=True, database=None, suppress_health_check=list(HealthCheck))
 @given(programs())
 @example(FOUND[0])

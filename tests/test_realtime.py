@@ -390,6 +390,7 @@ def test_a_server_killed_mid_move_leaves_its_loop_to_stop_the_robot_and_end(tmp_
     time.sleep(0.1)
 
 
+@pytest.mark.long
 def test_a_program_completes_on_the_wall_clock_while_a_client_floods_status_requests(tmp_path):
     """Issue 15's end-to-end check: `irl serve` on the wall clock, the firm deadline
     policy of the specification, the loop at SCHED_FIFO (by default): a program completes

@@ -224,6 +224,7 @@ def check_source_text(workdir: Path, text: str) -> int:
     return codes["check"]
 
 
+@pytest.mark.long
 @settings(max_examples=250, **FUZZ)
 @given(case=mutated_sources())
 def test_mutated_programs_never_crash_the_cli(workdir, case):

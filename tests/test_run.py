@@ -693,6 +693,7 @@ def untimed_input_wait(source: str) -> bool:
     return any("timeout" not in m.group(0).lower() for m in UNTIMED_WAIT.finditer(code))
 
 
+@pytest.mark.long
 def test_example_programs_complete(tmp_path):
     """Every example runs on the simulator. Programs that read digital inputs may wait for
     an operator or a sensor that the simulator never sets (its inputs stay false): they

@@ -651,6 +651,7 @@ class SafetyMachine(RuleBasedStateMachine):
         self._check_initialized()
 
 
+@pytest.mark.long(first=True)
 def test_the_safety_guarantees_hold_whatever_the_operator_and_the_hardware_do():
     start = time.perf_counter()
     try:

@@ -57,6 +57,7 @@ def pose_text(p) -> str:
     return "pose(pos({!r}, {!r}, {!r}), rpy({!r}, {!r}, {!r}))".format(*p)
 
 
+@pytest.mark.long
 @settings(max_examples=12, deadline=None,
           suppress_health_check=[HealthCheck.too_slow, HealthCheck.function_scoped_fixture])
 @given(start=st.tuples(st.floats(600, 750), st.floats(-150, 150), st.floats(350, 600)),
@@ -111,6 +112,7 @@ def test_distance_triggers_fire_within_a_servo_tick_of_the_place(tmp_path_factor
     event(f"fired at {override:g} %")
 
 
+@pytest.mark.long
 @settings(max_examples=10, deadline=None,
           suppress_health_check=[HealthCheck.too_slow, HealthCheck.function_scoped_fixture])
 @given(approx=st.sampled_from([0.0, 20.0, 60.0]), t_before=st.integers(0, 400), t_after=st.integers(0, 300),

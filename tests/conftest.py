@@ -6,8 +6,8 @@ found, is found every time. To search new examples locally:
 ``IRL_HYPOTHESIS_PROFILE=explore .venv/bin/python -m pytest tests/...``.
 
 The README's test command runs the tests in parallel (pytest-xdist, ``-n auto --dist
-worksteal``: one worker per core; a worker that runs out of tests takes half of another's
-queue). Tests marked ``long`` (the few that take seconds of CPU or of the wall clock each;
+worksteal``: two workers per core, see pytest_xdist_auto_num_workers; a worker that runs
+out of tests takes half of another's queue). Tests marked ``long`` (the few that take seconds of CPU or of the wall clock each;
 ``long(first=True)``: the longest, a worker to itself) are put at the heads of the
 workers' first shares, so that each worker starts on its long tests and the short ones fill in around them,
 instead of one long test starting last on an otherwise idle machine, or all of them on one
@@ -22,6 +22,13 @@ from hypothesis import settings
 settings.register_profile("ci", derandomize=True, database=None, deadline=None)
 settings.register_profile("explore", deadline=None)
 settings.load_profile(os.environ.get("IRL_HYPOTHESIS_PROFILE", "ci"))
+
+
+def pytest_xdist_auto_num_workers(config):
+    """``-n auto``: two workers per core this process may run on. A fifth of the suite's
+    time is spent waiting on the wall clock (servers, the fieldbus, real-time runs) with
+    a core idle; a second worker per core keeps it busy."""
+    return 2 * len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else 2 * (os.cpu_count() or 1)
 
 
 def pytest_collection_modifyitems(config, items):

@@ -1,4 +1,8 @@
-"""Test-suite settings.
+"""Test-suite settings, and what the test files share: the repository's paths and the
+robot's specification (ROOT, PROGRAMS, SPEC_PATH, SPEC, TEST_IRL), the in-process CLI
+runner (``run_cli``), and the ``irl serve`` processes of the end-to-end tests
+(``ServerProcess``, the ``start_server``, ``server`` and ``wall_server`` fixtures, and
+helpers to wait on their programs). Test files import them: ``from conftest import ROOT``.
 
 Hypothesis runs derandomized by default (profile "ci"): the examples searched are the same
 on every run, so a property test that passes in CI passes again, and a counter-example, once
@@ -15,13 +19,43 @@ worker.
 """
 from __future__ import annotations
 
+import io
 import os
+import signal
+import socket
+import subprocess
+import sys
+import time
+from pathlib import Path
 
+import pytest
 from hypothesis import settings
+
+from compiler.driver import compile_file
+from compiler.objcode import encode
+from compiler.spec import load_spec
+from runtime.cli import Environment, main
+from runtime.client import Client, ClientError
 
 settings.register_profile("ci", derandomize=True, database=None, deadline=None)
 settings.register_profile("explore", deadline=None)
 settings.load_profile(os.environ.get("IRL_HYPOTHESIS_PROFILE", "ci"))
+
+
+# ---- the repository and the robot ----------------------------------------------------------------
+ROOT = Path(__file__).resolve().parent.parent
+PROGRAMS = ROOT / "programs"
+SPEC_PATH = PROGRAMS / "lola15.spc"
+SPEC = load_spec(SPEC_PATH)  # (frozen: shared by every test file)
+TEST_IRL = PROGRAMS / "test.irl"
+SERVER_PROGRAMS = Path(__file__).resolve().parent / "server_programs"
+
+
+def run_cli(*argv) -> tuple[int, str, str]:
+    """``irl ARGV`` in-process (``runtime.cli.main(argv, env)``): (status, stdout, stderr)."""
+    out, err = io.StringIO(), io.StringIO()
+    code = main([str(a) for a in argv], Environment(stdout=out, stderr=err))
+    return code, out.getvalue(), err.getvalue()
 
 
 def pytest_xdist_auto_num_workers(config):
@@ -61,3 +95,233 @@ def pytest_collection_modifyitems(config, items):
         rest = rest[take:]
         left -= len(share)
     items[:] = [item for share in shares for item in share] + rest
+
+
+# ---- irl serve, end to end (tests/test_server.py and others) -----------------------------------------
+_SCRIPT = Path(sys.executable).with_name("irl")
+IRL = [str(_SCRIPT)] if _SCRIPT.exists() else [sys.executable, "-m", "runtime.cli"]
+
+START, CALIBRATE, INITIALIZE, MOVE, STOP = (
+    "Start Robot", "Calibrate Offsets", "Initialization Sequence", "Move Robot", "Stop Robot")
+ALL_PHASES = (START, CALIBRATE, INITIALIZE, MOVE, STOP)
+TERMINAL = ("completed", "faulted", "aborted", "cancelled")
+SAFETY = 120.0  # s: a wait that takes longer than this has hung (not a timing assertion)
+
+
+# ---- helpers ---------------------------------------------------------------------------------------
+def free_port() -> int:
+    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+_OBJECTS: dict[tuple, bytes] = {}
+
+
+def objcode(path: Path, spec: Path | None = None) -> bytes:
+    """The object code of a program, for ``spec`` if given (compiled once per session)."""
+    key = (path, spec)
+    if key not in _OBJECTS:
+        result = compile_file(path, spec)
+        assert result.ok, f"{path} does not compile: {result.diagnostics}"
+        _OBJECTS[key] = encode(result.program)
+    return _OBJECTS[key]
+
+
+def soft_deadline_spec(directory: Path) -> Path:
+    """A copy of the Lola 15 specification whose servo deadline policy is "soft".
+
+    A wall-clock server on a busy two-core machine (other test runs, the test process
+    itself) can miss more than the firm policy's 50 deadlines in a second, and the
+    program then faults: the tests that need the wall clock for something else (pausing
+    a move, kill -9 mid-move) use this copy so that their outcome does not depend on
+    the machine's load. Programs sent to such a server are compiled for this spec."""
+    text = SPEC_PATH.read_text(encoding="utf-8")
+    assert 'servo_miss_policy = "firm"' in text
+    path = directory / "lola15_soft.spc"
+    path.write_text(text.replace('servo_miss_policy = "firm"', 'servo_miss_policy = "soft"'), encoding="utf-8")
+    return path
+
+
+def run_irl(*args, timeout: float = 60.0, stdin: str | None = None) -> subprocess.CompletedProcess:
+    """Run an ``irl`` command to its end; the output is text. A client command runs
+    in-process (``runtime.cli.main(argv, env)``: the same code without a new interpreter's
+    imports, about 0.4 s of CPU each); ``irl serve`` is a process of its own."""
+    argv = [str(a) for a in args]
+    if argv[0] == "serve":
+        return subprocess.run([*IRL, *argv], cwd=ROOT, capture_output=True, text=True, timeout=timeout,
+                              input=stdin, stdin=None if stdin is not None else subprocess.DEVNULL)
+    out, err = io.StringIO(), io.StringIO()
+    code = main(argv, Environment(stdout=out, stderr=err, stdin=io.StringIO(stdin or "")))
+    return subprocess.CompletedProcess([*IRL, *argv], code, out.getvalue(), err.getvalue())
+
+
+def no_traceback(proc: subprocess.CompletedProcess) -> None:
+    assert "Traceback" not in proc.stderr and "Traceback" not in proc.stdout, proc.stderr
+    assert "internal error" not in proc.stderr, proc.stderr
+
+
+class ServerProcess:
+    """One ``irl serve`` subprocess on free loopback ports."""
+
+    def __init__(self, directory: Path, state_dir: Path, sim_clock: bool = True, keys: Path | None = None,
+                 telemetry: str | None = None, spec: Path | None = None, extra: tuple = ()):
+        self.spec = spec  # None: programs/lola15.spc
+        self.extra = tuple(extra)  # more arguments of irl serve
+        self.directory = directory
+        self.state_dir = state_dir
+        self.sim_clock = sim_clock
+        self.keys = keys
+        self.endpoint = f"tcp://127.0.0.1:{free_port()}"
+        self.telemetry = telemetry or f"tcp://127.0.0.1:{free_port()}"
+        directory.mkdir(parents=True, exist_ok=True)
+        self.log_path = directory / f"serve-{self.endpoint.rsplit(':', 1)[1]}.log"
+        self.proc: subprocess.Popen | None = None
+        self.clients: list[Client] = []
+
+    def start(self) -> "ServerProcess":
+        cmd = [*IRL, "serve", "--spec", self.spec or SPEC_PATH, "--state-dir", self.state_dir,
+               "--endpoint", self.endpoint, "--telemetry", self.telemetry]
+        if self.sim_clock:
+            cmd.append("--sim-clock")
+        if self.keys is not None:
+            cmd += ["--keys", self.keys]
+        cmd += list(self.extra)
+        with open(self.log_path, "wb") as log:
+            self.proc = subprocess.Popen(list(map(str, cmd)), cwd=ROOT, stdin=subprocess.DEVNULL,
+                                         stdout=log, stderr=subprocess.STDOUT)
+        deadline = time.monotonic() + 10.0
+        probe = Client(self.endpoint, keys=self.keys, timeout=0.2)
+        try:
+            while True:
+                if self.proc.poll() is not None:
+                    pytest.fail(f"irl serve exited with {self.proc.returncode} at start:\n{self.log()}")
+                try:
+                    probe.request("hello")
+                    return self
+                except ClientError:
+                    if time.monotonic() > deadline:
+                        pytest.fail(f"irl serve did not answer hello within 10 s:\n{self.log()}")
+        finally:
+            probe.close()
+
+    def log(self) -> str:
+        try:
+            return self.log_path.read_text(errors="replace")
+        except OSError:
+            return "(no log)"
+
+    def client(self, timeout: float = 10.0, keys: Path | None = None) -> Client:
+        c = Client(self.endpoint, keys=keys if keys is not None else self.keys, timeout=timeout)
+        self.clients.append(c)
+        return c
+
+    def alive(self) -> bool:
+        return self.proc is not None and self.proc.poll() is None
+
+    def stop(self) -> int | None:
+        """SIGTERM, then SIGKILL after 10 s; returns the exit status."""
+        for c in self.clients:
+            c.close()
+        self.clients = []
+        if self.proc is None:
+            return None
+        if self.proc.poll() is None:
+            self.proc.send_signal(signal.SIGTERM)
+            try:
+                self.proc.wait(10)
+            except subprocess.TimeoutExpired:
+                self.proc.kill()
+                self.proc.wait()
+        return self.proc.returncode
+
+    def kill9(self) -> None:
+        self.proc.send_signal(signal.SIGKILL)
+        self.proc.wait()
+
+
+def _finish(servers: list[ServerProcess]) -> None:
+    for server in servers:
+        code = server.stop()
+        print(f"---- irl serve {server.endpoint} ({'sim' if server.sim_clock else 'wall'} clock), "
+              f"exit status {code} ----\n{server.log()}")
+
+
+@pytest.fixture
+def start_server(tmp_path):
+    """``start_server(sim_clock=True, keys=None, state_dir=None, telemetry=None, spec=None)``
+    -> a running server."""
+    servers: list[ServerProcess] = []
+
+    def start(sim_clock: bool = True, keys: Path | None = None, state_dir: Path | None = None,
+              telemetry: str | None = None, spec: Path | None = None) -> ServerProcess:
+        server = ServerProcess(tmp_path / f"server{len(servers)}", state_dir or tmp_path / f"state{len(servers)}",
+                               sim_clock, keys, telemetry, spec)
+        servers.append(server)
+        return server.start()
+
+    yield start
+    _finish(servers)
+
+
+@pytest.fixture
+def server(start_server) -> ServerProcess:
+    return start_server()
+
+
+@pytest.fixture(scope="module")
+def wall_server(tmp_path_factory):
+    """One wall-clock server shared by the tests that need real time (the last one kills
+    it), with the soft-deadline specification (see soft_deadline_spec)."""
+    base = tmp_path_factory.mktemp("wall")
+    server = ServerProcess(base / "server", base / "state", sim_clock=False, spec=soft_deadline_spec(base))
+    server.start()
+    yield server
+    _finish([server])
+
+
+def status(client: Client, program: int) -> dict:
+    return client.request("status", {"program": program})
+
+
+def wait_for(client: Client, program: int, predicate, what: str, server: ServerProcess | None = None,
+             poll: float = 0.02) -> dict:
+    """Poll a program's status until ``predicate(status)``; fails if it ends first."""
+    deadline = time.monotonic() + SAFETY
+    while True:
+        s = status(client, program)
+        if predicate(s):
+            return s
+        if s["state"] in TERMINAL:
+            pytest.fail(f"program {program} ended ({s['state']}: {s.get('fault')}) before {what}"
+                        + (f"\n{server.log()}" if server else ""))
+        if time.monotonic() > deadline:
+            pytest.fail(f"program {program} not {what} after {SAFETY} s: {s}"
+                        + (f"\n{server.log()}" if server else ""))
+        time.sleep(poll)
+
+
+def wait_end(client: Client, program: int, server: ServerProcess | None = None) -> dict:
+    deadline = time.monotonic() + SAFETY
+    while True:
+        s = status(client, program)
+        if s["state"] in TERMINAL:
+            return s
+        if time.monotonic() > deadline:
+            pytest.fail(f"program {program} did not end within {SAFETY} s: {s}"
+                        + (f"\n{server.log()}" if server else ""))
+        time.sleep(0.05)
+
+
+def moving(s: dict) -> bool:
+    return s["state"] == "running" and s.get("fsm") == MOVE
+
+
+def phases(final: dict) -> list[str]:
+    return [st["name"] for st in final["summary"]["states"]]
+
+
+def submit(client: Client, path: Path, server: ServerProcess | None = None) -> int:
+    """Queue a program (compiled for ``server``'s specification if it has its own)."""
+    data = objcode(path, server.spec if server is not None else None)
+    return client.request("submit", {"object": data, "name": path.name})["program"]

@@ -28,14 +28,12 @@ from __future__ import annotations
 import dataclasses
 import math
 import re
-from pathlib import Path
 
 import numpy as np
 import pytest
 from hypothesis import HealthCheck, assume, given, settings
 from hypothesis import strategies as st
 
-from compiler.spec import load_spec
 from compiler.values import Pose, Position, Quat, Rpy
 from runtime.motion.cartesian import CartesianInput, JointStream, plan_cartesian
 from runtime.motion.pathcheck import PathError, check_path
@@ -52,8 +50,7 @@ from runtime.motion.rotation import (
 from runtime.motion.trajectory import Result
 from runtime.motion.kinematics import Kinematics, KinematicsError, matrix_to_rpy, rpy_to_matrix
 
-ROOT = Path(__file__).resolve().parent.parent
-SPEC = load_spec(ROOT / "programs" / "lola15.spc")
+from conftest import ROOT, SPEC
 KIN = Kinematics(SPEC)
 AXES = SPEC.main_axes
 START = (0.0, -30.0, 30.0, 0.0, 45.0, 0.0)  # front, elbow up, A5 at 45 deg: far from singular

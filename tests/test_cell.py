@@ -4,28 +4,18 @@ the report."""
 from __future__ import annotations
 
 import csv
-import io
 from pathlib import Path
 
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from compiler.spec import load_spec
-from runtime.cli import Environment, main
 from runtime.sim.cell import RULES, Cell, ScenarioError, load_scenario, parse_scenario
 from runtime.timing import TICK
 
-ROOT = Path(__file__).resolve().parents[1]
-SPEC = load_spec(ROOT / "programs" / "lola15.spc")
+from conftest import ROOT, SPEC, run_cli as run
 PICK = ROOT / "programs" / "pick_place.irl"
 SCENARIO = ROOT / "programs" / "pick_place.cell.toml"
-
-
-def run(*argv) -> tuple[int, str, str]:
-    out, err = io.StringIO(), io.StringIO()
-    code = main([str(a) for a in argv], Environment(stdout=out, stderr=err))
-    return code, out.getvalue(), err.getvalue()
 
 
 def test_pick_and_place_runs_to_completion_against_its_cell_with_the_io_in_the_report(tmp_path):
@@ -199,7 +189,7 @@ def test_a_timeline_toggles_its_input_at_the_times_given_and_repeats():
 def test_irl_serve_runs_pick_and_place_against_its_cell_and_shows_the_io(tmp_path):
     """End to end: `irl serve --sim-clock --cell-scenario`: the program completes, its
     report has the io columns, and status shows the I/O."""
-    from test_server import ServerProcess, objcode, wait_end
+    from conftest import ServerProcess, objcode, wait_end
 
     server = ServerProcess(tmp_path / "server", tmp_path / "state", sim_clock=True,
                            extra=("--cell-scenario", SCENARIO)).start()

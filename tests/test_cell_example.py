@@ -6,13 +6,12 @@ from __future__ import annotations
 
 import csv
 import json
-from pathlib import Path
 
 import numpy as np
 
 from runtime.cli import Environment, main
 
-ROOT = Path(__file__).resolve().parent.parent
+from conftest import ROOT
 
 
 def test_the_cell_program_runs_reports_and_plots(tmp_path, monkeypatch, capsys):

@@ -20,21 +20,12 @@ from compiler.objcode import BY_NAME, FORMAT_VERSION, decode, load
 from compiler.spec import load_spec
 from runtime.cli import NOT_FOR_CHECKING, Environment, main
 
-ROOT = Path(__file__).resolve().parent.parent
-PROGRAMS = ROOT / "programs"
-SPEC = PROGRAMS / "lola15.spc"
-TEST_IRL = PROGRAMS / "test.irl"
+from conftest import ROOT, PROGRAMS, TEST_IRL, SPEC_PATH as SPEC, run_cli as run
 DIAG = re.compile(r"^(?P<file>\S+):(?P<line>\d+):(?P<col>\d+): error: (?P<msg>.+)$")
 
 HEAD = 'program p;\nsystem_specification "lola15.spc";\n'
 VALID = HEAD + "var x : real;\nseq\n  x := 1.5;\n  print x;\nendseq\nendprogram;\n"
 INVALID = HEAD + "var x : real;\nseq\n  x := y + 1;\nendseq\nendprogram;\n"
-
-
-def run(*argv: str) -> tuple[int, str, str]:
-    out, err = io.StringIO(), io.StringIO()
-    code = main([str(a) for a in argv], Environment(out, err))
-    return code, out.getvalue(), err.getvalue()
 
 
 def no_crash(err: str) -> None:

@@ -32,7 +32,7 @@ from runtime.config import (
     validate_settings,
 )
 
-ROOT = Path(__file__).resolve().parent.parent
+from conftest import ROOT
 SAMPLE = ROOT / "programs" / "lola15.toml"
 
 FUZZ = dict(deadline=None, derandomize=True, database=None,

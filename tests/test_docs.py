@@ -10,7 +10,6 @@ from __future__ import annotations
 
 import io
 import re
-from pathlib import Path
 
 import pytest
 
@@ -31,7 +30,7 @@ from compiler.objcode import (
 )
 from compiler.values import Joint
 
-ROOT = Path(__file__).resolve().parent.parent
+from conftest import ROOT
 OBJCODE_MD = ROOT / "docs" / "objcode.md"
 LANGUAGE_MD = ROOT / "docs" / "language.md"
 GRAMMAR = ROOT / "grammar" / "lirl.lark"

@@ -23,21 +23,17 @@ has brought the arm to rest (the safety supervisor monitors its standstill).
 from __future__ import annotations
 
 from dataclasses import dataclass
-from pathlib import Path
 
 import pytest
 
 from compiler.driver import compile_source
-from compiler.spec import load_spec
 from limits_watch import LimitWatch, at_rest_and_safe
 from runtime.components.safety import CATEGORIES
 from runtime.sim.robot import FAULTS
 from runtime.supervisor import CALIBRATE, INITIALIZE, MOVE, STOP
 from runtime.system import RobotSystem, RunOptions
 
-ROOT = Path(__file__).resolve().parent.parent
-SPEC_PATH = ROOT / "programs" / "lola15.spc"
-SPEC = load_spec(SPEC_PATH)
+from conftest import ROOT, SPEC_PATH, SPEC
 AXES = [a.name for a in SPEC.axes]
 
 #: How far (deg or mm) beyond a software limit an axis may come when the safety stops it:

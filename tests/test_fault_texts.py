@@ -11,7 +11,7 @@ from __future__ import annotations
 import ast
 from pathlib import Path
 
-ROOT = Path(__file__).resolve().parents[1]
+from conftest import ROOT
 
 #: Functions that turn any exception into a text in the robot's terms.
 TRANSLATORS = {"_describe", "_why"}

@@ -13,12 +13,9 @@ from pathlib import Path
 
 import pytest
 
-from compiler.spec import load_spec
 from runtime.fieldbus import FieldbusError, ModbusIo, load_fieldbus, parse_fieldbus
 
-ROOT = Path(__file__).resolve().parents[1]
-SPEC_PATH = ROOT / "programs" / "lola15.spc"
-SPEC = load_spec(SPEC_PATH)
+from conftest import ROOT, SPEC_PATH, SPEC
 COILS, DISCRETE = 1, 2  # Modbus function codes: read coils, read discrete inputs
 
 
@@ -106,7 +103,7 @@ def test_a_bad_fieldbus_file_says_where_and_what_is_allowed(tmp_path, text, word
 def test_the_io_follows_the_plc_and_a_lost_plc_is_said_within_its_timeout(tmp_path):
     """The exchange thread alone: inputs read, outputs written, and `lost` once no
     exchange has succeeded for `timeout` s."""
-    from test_server import free_port
+    from conftest import free_port
 
     port = free_port()
     plc = Plc(port)
@@ -133,7 +130,7 @@ def test_the_io_follows_the_plc_and_a_lost_plc_is_said_within_its_timeout(tmp_pa
 
 
 def test_irl_serve_runs_a_program_against_a_plc_and_stops_the_robot_when_the_plc_is_lost(tmp_path):
-    from test_server import ServerProcess, free_port, wait_end, wait_for
+    from conftest import ServerProcess, free_port, wait_end, wait_for
 
     port = free_port()
     plc = Plc(port)
@@ -212,7 +209,7 @@ def test_the_pick_and_place_program_runs_its_cell_over_modbus(tmp_path):
     import json
     import subprocess
 
-    from test_server import IRL, free_port
+    from conftest import IRL, free_port
 
     port = free_port()
     plc = Plc(port)
@@ -273,7 +270,7 @@ def test_a_plc_reply_without_the_inputs_is_a_failed_exchange_and_the_io_keeps_it
     """Issue 26, fault 1, at the exchange: a reply that does not hold every input asked for
     is not taken (the inputs keep their number and last values); it fails the exchange,
     which says what was wrong, and the PLC is lost after its timeout."""
-    from test_server import free_port
+    from conftest import free_port
 
     port = free_port()
     plc = Plc(port)
@@ -314,7 +311,7 @@ def test_a_plc_that_answers_without_the_inputs_stops_the_robot_with_complete_fil
 
     from runtime.system import RobotSystem, RunOptions
 
-    from test_server import free_port
+    from conftest import free_port
 
     port = free_port()
     plc = Plc(port)

@@ -9,13 +9,7 @@ from pathlib import Path
 
 from runtime.cli import Environment, build_parser, main
 
-ROOT = Path(__file__).resolve().parents[1]
-
-
-def run(*argv) -> tuple[int, str, str]:
-    out, err = io.StringIO(), io.StringIO()
-    code = main([str(a) for a in argv], Environment(stdout=out, stderr=err))
-    return code, out.getvalue(), err.getvalue()
+from conftest import ROOT, run_cli as run
 
 
 def test_irl_version_names_the_package_and_the_formats_a_peer_must_share(capsys):
@@ -54,7 +48,7 @@ def test_the_network_commands_take_their_endpoint_from_irl_endpoint(monkeypatch)
 
 
 def test_submit_json_and_wait_shows_the_programs_print_output(tmp_path, monkeypatch):
-    from test_server import ServerProcess
+    from conftest import ServerProcess
 
     server = ServerProcess(tmp_path / "server", tmp_path / "state", sim_clock=True).start()
     try:
@@ -84,7 +78,7 @@ def test_submit_wait_shows_print_output_while_the_program_runs(tmp_path):
     import subprocess
     import threading
 
-    from test_server import IRL, SAFETY, ServerProcess, status
+    from conftest import IRL, SAFETY, ServerProcess, status
 
     server = ServerProcess(tmp_path / "server", tmp_path / "state", sim_clock=True).start()
     try:

@@ -22,9 +22,7 @@ from compiler.semantics import compose, inverse
 from compiler.spec import SpecError, load_spec, parse_spec
 from compiler.values import Pose, Position, Rpy
 
-ROOT = Path(__file__).resolve().parent.parent
-PROGRAMS = ROOT / "programs"
-LOLA = PROGRAMS / "lola15.spc"
+from conftest import ROOT, PROGRAMS, SPEC_PATH as LOLA
 CELL = PROGRAMS / "lola15_cell.spc"
 SPEC = load_spec(LOLA)
 

@@ -24,8 +24,7 @@ import pytest
 
 from runtime.cli import Environment, main
 
-ROOT = Path(__file__).resolve().parents[1]
-PROGRAMS = ROOT / "programs"
+from conftest import ROOT, PROGRAMS
 GOLDEN = ROOT / "tests" / "golden"
 DIAGNOSTICS = ROOT / "tests" / "diagnostics"
 

@@ -33,15 +33,13 @@ import pytest
 from hypothesis import HealthCheck, assume, given, settings
 from hypothesis import strategies as st
 
-from compiler.spec import load_spec
 from runtime import kernels as kernels_source
 from runtime.motion import interpolator as interpolator_module
 from runtime.motion.interpolator import Interpolator
 from runtime.motion.jerk import plan_ptp_jerk as _plan_ptp_jerk
 from runtime.motion.planner import PtpInput, plan_ptp
 
-ROOT = Path(__file__).resolve().parents[1]
-SPEC = load_spec(ROOT / "programs" / "lola15.spc")
+from conftest import ROOT, SPEC
 LOLA = (tuple(a.max_velocity for a in SPEC.axes), tuple(a.max_acceleration for a in SPEC.axes),
         tuple(a.max_jerk for a in SPEC.axes))
 H = 0.005  # the setpoint period

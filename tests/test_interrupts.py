@@ -14,13 +14,11 @@ from hypothesis import HealthCheck, event, example, given, settings
 from hypothesis import strategies as st
 
 from compiler.objcode import OP, InterruptInfo, ObjectCodeError, ProcInfo, decode, encode, verify
-from compiler.spec import load_spec
 from runtime.vm import VM, VMStatus
 
 from test_vm import DISPATCHES, FakeHost, compile_text, line_of, program_text, raw_program
 
-ROOT = Path(__file__).resolve().parent.parent
-SPEC = load_spec(ROOT / "programs" / "lola15.spc")
+from conftest import ROOT, SPEC
 HOME = "joint(mainjoint(0, -30, 30, 0, 60, 0))"
 
 

@@ -4,21 +4,17 @@ backend's health), and its backends behind one interface (the simulated robot's 
 a PLC's: tests/test_fieldbus.py)."""
 from __future__ import annotations
 
-from pathlib import Path
 
 import pytest
 
 from compiler.driver import compile_source
 from compiler.objcode import encode
-from compiler.spec import load_spec
 from runtime.sim.cell import parse_scenario
 from runtime.sim.robot import SimRobot
 from runtime.system import RobotSystem, RunOptions
 from runtime.timing import TICK
 
-ROOT = Path(__file__).resolve().parents[1]
-SPEC_PATH = ROOT / "programs" / "lola15.spc"
-SPEC = load_spec(SPEC_PATH)
+from conftest import ROOT, SPEC_PATH, SPEC
 
 
 def program(body: str, decls: str = ""):
@@ -194,7 +190,7 @@ def test_the_io_task_is_the_first_of_the_tick():
 def test_a_plc_that_cannot_be_reached_refuses_the_program_at_begin(tmp_path):
     """The PLC's ModbusIo is the component's backend: opened when the system is built,
     a program refused at ``begin`` while it cannot be reached, with the reason."""
-    from test_server import free_port
+    from conftest import free_port
 
     from runtime.fieldbus import ModbusIo, parse_fieldbus
 

@@ -20,7 +20,7 @@ from hypothesis import strategies as st
 from runtime import accel
 from runtime import kernels as source
 
-ROOT = Path(__file__).resolve().parents[1]
+from conftest import ROOT
 COMPILED = accel._compiled_module()
 SETTINGS = settings(max_examples=300, deadline=None, derandomize=True, database=None)
 needs_build = pytest.mark.skipif(COMPILED is None, reason="no compiled kernels (test_the_build_compiled_the_kernels says why)")

@@ -26,14 +26,13 @@ from __future__ import annotations
 import math
 import random
 import re
-from pathlib import Path
 
 import numpy as np
 import pytest
 from hypothesis import HealthCheck, assume, given, settings
 from hypothesis import strategies as st
 
-from compiler.spec import load_spec, parse_spec
+from compiler.spec import parse_spec
 from compiler.values import Pose, Position, Quat, Rpy
 from runtime.motion.kinematics import (
     ELBOW_DOWN,
@@ -46,9 +45,7 @@ from runtime.motion.kinematics import (
     rpy_to_matrix,
 )
 
-ROOT = Path(__file__).resolve().parent.parent
-SPEC_PATH = ROOT / "programs" / "lola15.spc"
-SPEC = load_spec(SPEC_PATH)
+from conftest import ROOT, SPEC_PATH, SPEC
 KIN = Kinematics(SPEC)
 POS_TOL = 1e-6  # mm (1e-9 m)
 ROT_TOL = 1e-9  # rad

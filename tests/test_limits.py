@@ -28,21 +28,13 @@ import pytest
 
 from compiler.objcode import decode
 from compiler.semantics import INT_MAX, INT_MIN
-from runtime.cli import Environment, main
 
-ROOT = Path(__file__).resolve().parent.parent
-SPEC = ROOT / "programs" / "lola15.spc"
+from conftest import ROOT, SPEC_PATH as SPEC, run_cli as run
 CONFIG = ROOT / "programs" / "lola15.toml"
 SERVER_PROGRAMS = Path(__file__).resolve().parent / "server_programs"
 DIAG = re.compile(r"^(?P<file>\S+):(?P<line>\d+):(?P<col>\d+): error: (?P<msg>.+)$")
 HEAD = 'program p;\nsystem_specification "lola15.spc";\nvar x : integer; r : real;\nseq\n'
 TAIL = "endseq\nendprogram;\n"
-
-
-def run(*argv) -> tuple[int, str, str]:
-    out, err = io.StringIO(), io.StringIO()
-    code = main([str(a) for a in argv], Environment(out, err))
-    return code, out.getvalue(), err.getvalue()
 
 
 def no_crash(text: str) -> None:

@@ -12,10 +12,8 @@ import pytest
 
 from compiler.driver import compile_file
 from compiler.objcode import ObjectCodeError, decode, encode, verify
-from runtime.cli import Environment, main
 
-ROOT = Path(__file__).resolve().parents[1]
-SPEC = ROOT / "programs" / "lola15.spc"
+from conftest import ROOT, SPEC_PATH as SPEC, run_cli
 
 
 def write(directory: Path, name: str, text: str) -> Path:
@@ -29,14 +27,6 @@ def program(directory: Path, body: str, imports: str, decls: str = "") -> Path:
     shutil.copy(SPEC, directory / "lola15.spc")
     return write(directory, "main.irl", f'program main;\nsystem_specification "lola15.spc";\n{imports}{decls}'
                                         f"seq\n{body}endseq\nendprogram;\n")
-
-
-def run_cli(*argv) -> tuple[int, str, str]:
-    import io
-
-    out, err = io.StringIO(), io.StringIO()
-    code = main([str(a) for a in argv], Environment(stdout=out, stderr=err))
-    return code, out.getvalue(), err.getvalue()
 
 
 def test_the_pallet_program_is_made_with_its_module_and_says_where_each_line_came_from():

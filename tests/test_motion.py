@@ -17,7 +17,6 @@ NumPy is used here only, to check samples in bulk; the motion code is plain floa
 from __future__ import annotations
 
 import math
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -41,7 +40,7 @@ from runtime.motion.profiles import (
     time_optimal_profile,
 )
 
-ROOT = Path(__file__).resolve().parents[1]
+from conftest import ROOT
 EPS = np.finfo(float).eps
 SERVO_DT = 0.001  # s
 SETPOINT_DT = 0.005  # s

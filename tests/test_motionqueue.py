@@ -8,14 +8,12 @@ aborts, and checks every setpoint against the axis limits.
 from __future__ import annotations
 
 import math
-from pathlib import Path
 
 import pytest
 from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
 from hypothesis.stateful import RuleBasedStateMachine, invariant, precondition, rule
 
-from compiler.spec import load_spec
 from compiler.values import Joint
 from runtime.motion.kinematics import Kinematics
 from runtime.motion.motionqueue import MotionQueue, PlanningWorker
@@ -23,8 +21,7 @@ from runtime.motion.moves import MovePlanner, MoveRequest
 from runtime.motion.interpolator import Interpolator
 from runtime.timing import SETPOINT_PERIOD, TICK
 
-ROOT = Path(__file__).resolve().parent.parent
-SPEC = load_spec(ROOT / "programs" / "lola15.spc")
+from conftest import ROOT, SPEC
 KIN = Kinematics(SPEC)
 START = (0.0, -30.0, 30.0, 0.0, 45.0, 0.0)
 VMAX = [a.max_velocity for a in SPEC.axes]

@@ -2,22 +2,14 @@
 usage errors (the end-to-end tests with real servers are in test_server.py)."""
 from __future__ import annotations
 
-import io
-from pathlib import Path
 
 import pytest
 
-from runtime.cli import Environment, UsageError, main
+from runtime.cli import UsageError
 from runtime.keys import KeyError_, check_server_keys, make_keys
 from runtime.netcli import _cell_endpoint
 
-ROOT = Path(__file__).resolve().parent.parent
-
-
-def run(*argv) -> tuple[int, str, str]:
-    out, err = io.StringIO(), io.StringIO()
-    code = main([str(a) for a in argv], Environment(stdout=out, stderr=err))
-    return code, out.getvalue(), err.getvalue()
+from conftest import ROOT, run_cli as run
 
 
 def test_the_example_cell_routes_lola_15():
@@ -185,7 +177,7 @@ def test_control_replay_feeds_and_the_help_examples_from_the_irl_command(tmp_pat
     import zmq
 
     from runtime.netcli import control_file
-    from test_server import ServerProcess
+    from conftest import ServerProcess
 
     monkeypatch.setenv("XDG_STATE_HOME", str(tmp_path / "xdg"))
     monkeypatch.delenv("IRL_CONTROL_TOKEN", raising=False)

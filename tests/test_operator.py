@@ -5,7 +5,6 @@ and the executive's schedule changes."""
 from __future__ import annotations
 
 import math
-from pathlib import Path
 
 import pytest
 from hypothesis import given, settings
@@ -17,7 +16,7 @@ from runtime.motion.stops import REST_VELOCITY, StopRamp
 from runtime.supervisor import MOVE, RECONFIGURE, STOP
 from runtime.system import RobotSystem, RunOptions
 
-ROOT = Path(__file__).resolve().parent.parent
+from conftest import ROOT
 PAPER = compile_file(ROOT / "programs" / "test.irl")
 SPEC = PAPER.spec
 COUNTS = [1.0 / a.counts_per_unit for a in SPEC.axes]

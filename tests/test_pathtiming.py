@@ -4,13 +4,11 @@ down only where the joints need it."""
 from __future__ import annotations
 
 import math
-from pathlib import Path
 
 import numpy as np
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from compiler.spec import load_spec
 from runtime.motion.cartesian import CartesianInput, JOINT_LIMIT_SHARE, plan_cartesian
 from runtime.motion.kinematics import Kinematics
 from runtime.motion.pathcheck import check_path
@@ -28,8 +26,7 @@ from runtime.motion.pathtiming import (
 )
 from runtime.motion.jerk import time_optimal_profile
 
-ROOT = Path(__file__).resolve().parents[1]
-SPEC = load_spec(ROOT / "programs" / "lola15.spc")
+from conftest import ROOT, SPEC
 KIN = Kinematics(SPEC)
 AXES = SPEC.main_axes
 LIMITS = ([a.max_velocity for a in AXES], [a.max_acceleration for a in AXES], [a.max_jerk for a in AXES])

@@ -4,17 +4,14 @@ report's optional ``move`` columns it draws them from (``report.columns``, ``irl
 from __future__ import annotations
 
 import csv
-import io
 import json
 from pathlib import Path
 
 import pytest
 
-from runtime.cli import Environment, main
+from runtime.cli import Environment
 
-ROOT = Path(__file__).resolve().parents[1]
-TEST_IRL = ROOT / "programs" / "test.irl"
-SPEC = ROOT / "programs" / "lola15.spc"
+from conftest import ROOT, TEST_IRL, SPEC_PATH as SPEC, run_cli as run
 DEFAULT_GROUPS = ["sens_pos", "desi_pos", "out_vel", "following_error", "tcp"]
 
 # three moves, at lines 4, 6 and 7; a dwell between the first two (no move under way)
@@ -29,12 +26,6 @@ endseq
 endprogram;
 """
 LINES = [4, 6, 7]
-
-
-def run(*argv) -> tuple[int, str, str]:
-    out, err = io.StringIO(), io.StringIO()
-    code = main([str(a) for a in argv], Environment(stdout=out, stderr=err))
-    return code, out.getvalue(), err.getvalue()
 
 
 def moves_of(program: Path) -> list[dict]:

@@ -4,7 +4,6 @@ offsets in the base frame and in the tool frame, distance; one definition
 from __future__ import annotations
 
 import math
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -17,7 +16,7 @@ from compiler.values import Pose, Position, Quat, Rpy
 
 from test_vm import DISPATCHES, printed, raw_program, run
 
-ROOT = Path(__file__).resolve().parents[1]
+from conftest import ROOT
 
 coordinate = st.floats(-2000, 2000, allow_nan=False)
 angle = st.floats(-180, 180, allow_nan=False)

@@ -10,9 +10,9 @@ import msgpack
 import zmq
 
 from runtime import protocol
-from test_server import PROGRAMS, ServerProcess, objcode
+from conftest import SERVER_PROGRAMS as PROGRAMS, ServerProcess, objcode
 
-ROOT = Path(__file__).resolve().parents[1]
+from conftest import ROOT
 
 
 class RawClient:
@@ -95,7 +95,7 @@ def test_version_1_and_2_clients_on_one_server_and_wait_and_replay(tmp_path):
 
 
 def test_pause_names_its_program_and_a_second_pause_is_refused(tmp_path):
-    from test_server import moving, soft_deadline_spec, wait_for
+    from conftest import moving, soft_deadline_spec, wait_for
 
     spec = soft_deadline_spec(tmp_path)
     server = ServerProcess(tmp_path / "server", tmp_path / "state", sim_clock=False, spec=spec).start()

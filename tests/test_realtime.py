@@ -13,20 +13,12 @@ import pytest
 
 from compiler.spec import load_spec
 from runtime import realtime
-from runtime.cli import Environment, main
 from runtime.executive import DEADLINE_HINT, Executive, MissPolicy, SimClock
 from runtime.system import RobotSystem, RunOptions
 from runtime.timing import TICK
 
-ROOT = Path(__file__).resolve().parents[1]
-SPEC_FILE = ROOT / "programs" / "lola15.spc"
+from conftest import ROOT, SPEC_PATH as SPEC_FILE, run_cli as run
 SPEC = load_spec(SPEC_FILE)
-
-
-def run(*argv) -> tuple[int, str, str]:
-    out, err = io.StringIO(), io.StringIO()
-    code = main([str(a) for a in argv], Environment(stdout=out, stderr=err))
-    return code, out.getvalue(), err.getvalue()
 
 
 def servo_policy(system: RobotSystem) -> MissPolicy:
@@ -256,7 +248,7 @@ def test_irl_serve_on_the_wall_clock_says_what_scheduling_its_loop_got(tmp_path)
     """End to end: `irl serve --deadline-policy soft` answers on loopback and its log says
     in one line what the loop's thread got by default (SCHED_FIFO 50 with memory locked
     where permitted, else the fallback, why and how to grant it)."""
-    from test_server import ServerProcess
+    from conftest import ServerProcess
 
     server = ServerProcess(tmp_path / "server", tmp_path / "state", sim_clock=False,
                            extra=("--deadline-policy", "soft"))
@@ -282,7 +274,7 @@ PAPER = ROOT / "programs" / "test.irl"
 
 
 def _paper_object() -> bytes:
-    from test_server import objcode
+    from conftest import objcode
 
     return objcode(PAPER)
 
@@ -291,7 +283,7 @@ def test_the_paper_program_gives_the_same_report_bytes_in_either_process_layout(
     """Same program, same seed, simulated clock: `irl run`, the server with its loop
     in-process, and `irl serve` with the loop in its own process write the same report
     and states files, byte for byte."""
-    from test_server import ServerProcess, wait_end
+    from conftest import ServerProcess, wait_end
 
     from runtime.server import ServeOptions, Server
 
@@ -341,7 +333,7 @@ def _wait_gone(pid: int, seconds: float) -> bool:
 def test_a_loop_process_that_dies_faults_its_program_and_the_server_says_why(tmp_path):
     import signal
 
-    from test_server import ServerProcess, wait_end, wait_for
+    from conftest import ServerProcess, wait_end, wait_for
 
     server = ServerProcess(tmp_path / "server", tmp_path / "state", sim_clock=False,  # (a run that lasts)
                            extra=("--deadline-policy", "soft")).start()
@@ -372,7 +364,7 @@ def test_a_server_killed_mid_move_leaves_its_loop_to_stop_the_robot_and_end(tmp_
     import csv
     import time
 
-    from test_server import ServerProcess, moving, wait_for
+    from conftest import ServerProcess, moving, wait_for
 
     server = ServerProcess(tmp_path / "server", tmp_path / "state", sim_clock=False,
                            extra=("--deadline-policy", "soft")).start()
@@ -401,7 +393,7 @@ def test_a_program_completes_on_the_wall_clock_while_a_client_floods_status_requ
     import sys
     import time
 
-    from test_server import PROGRAMS, ServerProcess, objcode, wait_end
+    from conftest import SERVER_PROGRAMS as PROGRAMS, ServerProcess, objcode, wait_end
 
     server = ServerProcess(tmp_path / "server", tmp_path / "state", sim_clock=False).start()  # (the default)
     deadline = time.monotonic() + 10.0

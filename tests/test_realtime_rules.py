@@ -12,18 +12,14 @@ from __future__ import annotations
 
 import sys
 import threading
-from pathlib import Path
 
 import pytest
 
 import limits_watch
 from compiler.driver import compile_source
-from compiler.spec import load_spec
 from runtime.system import RobotSystem, RunOptions
 
-ROOT = Path(__file__).resolve().parent.parent
-SPEC_PATH = ROOT / "programs" / "lola15.spc"
-SPEC = load_spec(SPEC_PATH)
+from conftest import ROOT, SPEC_PATH, SPEC
 
 #: Audit events that must never happen inside a tick (prefixes).
 FORBIDDEN = ("open", "os.", "socket.", "subprocess.", "_thread.start_new_thread", "time.sleep", "shutil.",

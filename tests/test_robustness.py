@@ -13,7 +13,6 @@ Hypothesis runs derandomized, so every run tries the same inputs.
 """
 from __future__ import annotations
 
-import io
 import re
 import shutil
 import struct
@@ -39,10 +38,8 @@ from compiler.objcode import (
     load,
     verify,
 )
-from runtime.cli import Environment, main
 
-ROOT = Path(__file__).resolve().parent.parent
-PROGRAMS = ROOT / "programs"
+from conftest import ROOT, PROGRAMS, run_cli
 HEADER = struct.Struct(">4sHI")
 DIAG_LINE = re.compile(r"^\S+:\d+:\d+: error: ", re.M)
 BODY_KEYS = ("name", "source", "spec", "robots", "constants", "code", "lines", "globals", "procedures")
@@ -56,12 +53,6 @@ def program_files() -> list[Path]:
     files = sorted(PROGRAMS.glob("*.irl"))
     assert files, f"no programs in {PROGRAMS}"
     return files
-
-
-def run_cli(*argv) -> tuple[int, str, str]:
-    out, err = io.StringIO(), io.StringIO()
-    code = main([str(a) for a in argv], Environment(out, err))
-    return code, out.getvalue(), err.getvalue()
 
 
 def assert_no_crash(code: int, err: str, allowed=(0, 1, 2)) -> None:

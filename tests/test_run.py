@@ -10,7 +10,6 @@ shared through module-scoped fixtures where they can be.
 from __future__ import annotations
 
 import csv
-import io
 import json
 import math
 import re
@@ -23,14 +22,9 @@ from hypothesis import strategies as st
 
 from compiler.driver import compile_file
 from compiler.spec import load_spec
-from runtime.cli import Environment, main
 from runtime.system import RobotSystem, RunOptions
 
-ROOT = Path(__file__).resolve().parent.parent
-PROGRAMS = ROOT / "programs"
-SPEC_PATH = PROGRAMS / "lola15.spc"
-TEST_IRL = PROGRAMS / "test.irl"
-SPEC = load_spec(SPEC_PATH)
+from conftest import ROOT, PROGRAMS, SPEC_PATH, SPEC, TEST_IRL, run_cli as run
 AXES = SPEC.axes
 NAMES = [a.name for a in AXES]
 COUNT = [1.0 / a.counts_per_unit for a in AXES]  # one encoder count, per axis (deg)
@@ -46,12 +40,6 @@ SHORT = HEAD.format(name="short") + (
     "seq\n"
     "  move ptp joint(mainjoint(5, 0, 0, 0, 0, 0)) speed_ptp := 0.5;\n"
     "endseq\nendprogram;\n")
-
-
-def run(*argv) -> tuple[int, str, str]:
-    out, err = io.StringIO(), io.StringIO()
-    code = main([str(a) for a in argv], Environment(stdout=out, stderr=err))
-    return code, out.getvalue(), err.getvalue()
 
 
 def run_json(*argv) -> tuple[int, dict | None, str]:

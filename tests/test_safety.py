@@ -10,13 +10,12 @@ from __future__ import annotations
 
 import json
 import math
-from pathlib import Path
 
 import pytest
 
 from compiler.driver import compile_source
 from compiler.objcode import encode
-from compiler.spec import SpecError, load_spec, parse_spec
+from compiler.spec import SpecError, parse_spec
 from limits_watch import IdleHost, LimitWatch, at_rest_and_safe, run_cycle
 from runtime import protocol
 from runtime.cli import main
@@ -27,10 +26,7 @@ from runtime.server import ServeOptions, Server
 from runtime.supervisor import INITIALIZE, MOVE, StateFile
 from runtime.system import RobotSystem, RunOptions
 
-ROOT = Path(__file__).resolve().parent.parent
-SPEC_PATH = ROOT / "programs" / "lola15.spc"
-SPEC = load_spec(SPEC_PATH)
-TEST_IRL = ROOT / "programs" / "test.irl"
+from conftest import ROOT, SPEC_PATH, SPEC, TEST_IRL
 AXES = [a.name for a in SPEC.axes]
 #: How far beyond a software limit an axis may come when the safety stops it (docs/safety.md).
 STOP_TOLERANCE = 0.5

@@ -100,7 +100,6 @@ from hypothesis.stateful import (
 
 from compiler.driver import compile_source
 from compiler.objcode import encode
-from compiler.spec import load_spec
 from limits_watch import LimitWatch, at_rest_and_safe
 from runtime import protocol
 from runtime.protocol import ProtocolError
@@ -108,9 +107,7 @@ from runtime.server import LoopCommand, ServeOptions, Server
 from runtime.sim.robot import FAULTS
 from runtime.supervisor import INITIALIZE, MOVE
 
-ROOT = Path(__file__).resolve().parent.parent
-SPEC_PATH = ROOT / "programs" / "lola15.spc"
-SPEC = load_spec(SPEC_PATH)
+from conftest import ROOT, SPEC_PATH, SPEC
 AXES = [a.name for a in SPEC.axes]
 
 #: How far (deg or mm) beyond a software limit an axis may come when the safety stops it:

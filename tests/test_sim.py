@@ -6,15 +6,13 @@ from __future__ import annotations
 import math
 import random
 import statistics
-from pathlib import Path
 
 import pytest
 
-from compiler.spec import load_spec, parse_spec
+from compiler.spec import parse_spec
 from runtime.sim import FAULTS, AlphaBeta, SimRobot, critically_damped_gains
 
-ROOT = Path(__file__).resolve().parents[1]
-SPEC = load_spec(ROOT / "programs" / "lola15.spc")
+from conftest import ROOT, SPEC
 DT = 0.001
 N = len(SPEC.axes)
 ZERO = (0.0,) * N

@@ -26,7 +26,7 @@ from compiler.spec import SpecError, parse_spec
 from runtime.cli import Environment, main
 from runtime.system import RobotSystem, RunOptions
 
-ROOT = Path(__file__).resolve().parent.parent
+from conftest import ROOT
 SPEC_TEXT = (ROOT / "programs" / "lola15.spc").read_text(encoding="utf-8")
 TEST_IRL = (ROOT / "programs" / "test.irl").read_text(encoding="utf-8")
 AXIS = params.section_params("axis")

@@ -13,19 +13,16 @@ the move was 0.7 s later, and the safety supervisor stopped the arm.
 """
 from __future__ import annotations
 
-from pathlib import Path
 
 import pytest
 from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
 
 from compiler.driver import compile_source
-from compiler.spec import load_spec
 from runtime.system import RobotSystem, RunOptions
 from runtime.timing import TICK
 
-ROOT = Path(__file__).resolve().parent.parent
-SPEC = load_spec(ROOT / "programs" / "lola15.spc")
+from conftest import ROOT, SPEC
 #: Two moves (one blended into a lin) after homing: Move Robot lasts about 1.9 s.
 SOURCE = """program stall;
 system_specification "lola15.spc";

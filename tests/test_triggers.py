@@ -16,12 +16,10 @@ from hypothesis import strategies as st
 
 from compiler.driver import compile_source
 from compiler.objcode import OP, ObjectCodeError, verify
-from compiler.spec import load_spec
 
 from test_vm import FakeHost, compile_text, program_text, run
 
-ROOT = Path(__file__).resolve().parent.parent
-SPEC = load_spec(ROOT / "programs" / "lola15.spc")
+from conftest import ROOT, SPEC
 TICK = 0.001
 DOWN = "rpy(180, 30, 180)"
 

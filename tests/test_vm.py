@@ -18,9 +18,7 @@ from compiler.values import Joint, Pose, Position, Rpy, format_value
 from runtime import vm as vm_module
 from runtime.vm import HANDLERS, VM, VMError, VMStatus, build_dispatch
 
-ROOT = Path(__file__).resolve().parents[1]
-PROGRAMS = ROOT / "programs"
-SPEC = PROGRAMS / "lola15.spc"
+from conftest import ROOT, PROGRAMS, SPEC_PATH as SPEC
 DISPATCHES = ("inline", "table")
 
 

@@ -48,9 +48,16 @@ TICK = 0.001  # s: every period is a whole multiple of the executive's tick
 #: encoder_counts x gear_ratio / 360 (revolute) or x gear_ratio (prismatic). Coarser counts
 #: cannot be servoed within the safety's acceleration check, settled on nor homed.
 MIN_COUNTS_PER_UNIT = 50.0
-#: The finest: homing settles each axis on its start position within one count, which a
-#: finer encoder does not reach within the settling time.
+#: The finest encoder resolution (counts per deg or mm).
 MAX_COUNTS_PER_UNIT = 20_000.0
+#: One encoder count steps the servo's command by kp / counts_per_unit within a tick (its
+#: proportional term on the quantised position), and an axis drifting at v under a held
+#: position ramps the command at kp x v (calibration ends with the drives still drifting):
+#: each is at most this share of what the safety's acceleration check allows
+#: ([safety] acceleration_factor x max_acceleration), at the largest kp a configuration may
+#: set (servo.kp), so that no accepted configuration faults a healthy arm
+#: (:func:`least_counts_per_unit`, :func:`greatest_drive_offset`).
+SERVO_STEP_SHARE = 0.5
 PERIOD_MIN, PERIOD_MAX = 0.001, 1.0
 #: How finely calibration tells a drive's drift (deg/s or mm/s): its 0.25 s of measurement
 #: see a few counts of the coarsest encoder. The least [safety] max_drive_drift, and the
@@ -407,6 +414,48 @@ def check_spec_rules(values: dict[str, dict[str, object]]) -> tuple[str, str] | 
         return ("simulation.end_stop_margin",
                 f"expected more than [safety] limit_tolerance ({safety['limit_tolerance']:g}: the arm may come to "
                 f"rest that far beyond a limit), got {simulation['end_stop_margin']:g}")
+    return None
+
+
+#: The largest position-loop gain any configuration may set (servo.kp's upper bound).
+KP_MAX = _BY_SECTION["servo"]["kp"].high
+
+
+def least_counts_per_unit(max_acceleration: float, acceleration_factor: float) -> float:
+    """The coarsest encoder an axis may have (counts per deg or mm): MIN_COUNTS_PER_UNIT,
+    and fine enough that one count's step of the servo's command (KP_MAX / counts per unit
+    in a tick) is at most SERVO_STEP_SHARE of the safety's acceleration limit."""
+    return max(MIN_COUNTS_PER_UNIT, KP_MAX / (SERVO_STEP_SHARE * acceleration_factor * max_acceleration * TICK))
+
+
+def greatest_drive_offset(max_acceleration: float, acceleration_factor: float) -> float:
+    """The largest [simulation] max_drive_offset an axis allows (deg/s or mm/s): the servo
+    holding a drive that drifts that fast ramps its command at KP_MAX x the drift, at most
+    SERVO_STEP_SHARE of the safety's acceleration limit."""
+    return SERVO_STEP_SHARE * acceleration_factor * max_acceleration / KP_MAX
+
+
+def check_axis_rules(values: dict[str, dict[str, object]], axes) -> tuple[str, str] | None:
+    """Rules between each axis's data and the specification's tables (validated values,
+    defaults filled in): ``(key, reason)`` of the first broken one, or None."""
+    factor = values["safety"]["acceleration_factor"]
+    offset = values["simulation"]["max_drive_offset"]
+    for i, a in enumerate(axes):
+        least = least_counts_per_unit(a.max_acceleration, factor)
+        if a.counts_per_unit < least:
+            per = "/ 360 " if a.kind == "revolute" else ""
+            return (f"axis[{i + 1}].encoder_counts",
+                    f"encoder_counts x gear_ratio {per}gives {a.counts_per_unit:.4g} counts per {a.unit}: expected at "
+                    f"least {least:.4g} (servo.kp at most {KP_MAX:g} / ({SERVO_STEP_SHARE:g} x [safety] "
+                    f"acceleration_factor {factor:g} x max_acceleration {a.max_acceleration:g} x the {TICK * 1000:g} "
+                    f"ms tick): one count must not step the servo's command beyond the safety's acceleration check)")
+        most = greatest_drive_offset(a.max_acceleration, factor)
+        if offset > most:
+            return ("simulation.max_drive_offset",
+                    f"expected at most {most:.4g} deg/s or mm/s for {a.name} ({SERVO_STEP_SHARE:g} x [safety] "
+                    f"acceleration_factor {factor:g} x its max_acceleration {a.max_acceleration:g} / servo.kp at "
+                    f"most {KP_MAX:g}: the servo holding a drive that drifts faster changes its command beyond the "
+                    f"safety's acceleration check), got {offset:g}")
     return None
 
 

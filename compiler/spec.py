@@ -349,7 +349,7 @@ def parse_spec(text: str, file: str = "<spec>") -> Spec:
     named = _named_frames(file, data, top)
 
     tables = {section: _parameters(file, section, top.get(section, "table", {})) for section in params.SPEC_SECTIONS}
-    broken = params.check_spec_rules(tables)
+    broken = params.check_spec_rules(tables) or params.check_axis_rules(tables, axes)
     if broken is not None:
         raise SpecError(file, *broken)
     top.finish()

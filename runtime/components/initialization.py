@@ -24,7 +24,18 @@ HOME_SPEED = 0.2  # fraction of each axis's maximum velocity and acceleration fo
 #: uncertainty of where an axis rests before homing (parked at home at power-up).
 SEARCH_MARGIN = 10.0
 SETTLE_TIMEOUT = 2.0  # s after the move to the start position for every axis to settle there
+#: How close (deg or mm) every axis must come to its start position, or within one encoder
+#: count where a count is coarser: the program plans from the servo's reference, not from
+#: the measured position, so a finer window only waits on the servo's integral (with the
+#: least kp and the finest encoder, one count, 0.00005 deg, took longer than SETTLE_TIMEOUT).
+SETTLE_WINDOW = 0.001
 FROZEN_AFTER = 0.2  # s of commanded motion without a single encoder count -> frozen encoder
+
+
+def settle_window(axis) -> float:
+    """How far (deg or mm) ``axis`` may rest from its start position for homing to end:
+    SETTLE_WINDOW, or one encoder count where that is coarser."""
+    return max(SETTLE_WINDOW, 1.0 / axis.counts_per_unit)
 
 
 class Initialization(Component):
@@ -127,11 +138,11 @@ class Initialization(Component):
 
     def at_start(self) -> bool:
         """The move to the start position is over and every axis has settled there
-        (within one encoder count), so the program starts exactly from the start position."""
+        (within :func:`settle_window`), so the program starts from the start position."""
         if self.trajectory is None or self.t_trajectory < self.trajectory.duration:
             return False
         measured = self.robot.positions
-        return all(abs(m - a.home) * a.counts_per_unit <= 1.0 for m, a in zip(measured, self.axes))
+        return all(abs(m - a.home) <= settle_window(a) for m, a in zip(measured, self.axes))
 
     # ---- the sequence: a sub-machine for the supervisor ----
     def machine(self, clock) -> FSM:
@@ -354,7 +365,7 @@ class _Sequence:
         trajectory = self.init.trajectory
         if trajectory is not None and self.init.t_trajectory > trajectory.duration + SETTLE_TIMEOUT:
             far = [f"{a.name} ({m - a.home:+.4f} {a.unit})" for m, a in zip(self.robot.positions, self.init.axes)
-                   if abs(m - a.home) * a.counts_per_unit > 1.0]
+                   if abs(m - a.home) > settle_window(a)]
             self._fail(f"the axes did not settle at the start position within {SETTLE_TIMEOUT:g} s: "
                        + ", ".join(far))
 

@@ -435,6 +435,20 @@ def greatest_drive_offset(max_acceleration: float, acceleration_factor: float) -
     return SERVO_STEP_SHARE * acceleration_factor * max_acceleration / KP_MAX
 
 
+#: How far (deg or mm) above an axis's min homing's index search must end: the search goes
+#: down from the sensor's upper edge until an index pulse comes, at most one index spacing
+#: (one motor revolution, 360 / gear_ratio deg), and must stop with room before the limit.
+INDEX_SEARCH_MARGIN = 10.0
+
+
+def least_gear_ratio(axis) -> float:
+    """The smallest gear_ratio ``axis`` allows: its index pulses close enough together
+    that homing's index search below the sensor ends INDEX_SEARCH_MARGIN above min."""
+    room = axis.sensor_position + axis.sensor_window - axis.min - INDEX_SEARCH_MARGIN
+    full = 360.0 if axis.kind == "revolute" else 1.0
+    return math.inf if room <= 0 else full / room
+
+
 def check_axis_rules(values: dict[str, dict[str, object]], axes) -> tuple[str, str] | None:
     """Rules between each axis's data and the specification's tables (validated values,
     defaults filled in): ``(key, reason)`` of the first broken one, or None."""
@@ -449,6 +463,13 @@ def check_axis_rules(values: dict[str, dict[str, object]], axes) -> tuple[str, s
                     f"least {least:.4g} (servo.kp at most {KP_MAX:g} / ({SERVO_STEP_SHARE:g} x [safety] "
                     f"acceleration_factor {factor:g} x max_acceleration {a.max_acceleration:g} x the {TICK * 1000:g} "
                     f"ms tick): one count must not step the servo's command beyond the safety's acceleration check)")
+        gear = least_gear_ratio(a)
+        if a.gear_ratio < gear:
+            return (f"axis[{i + 1}].gear_ratio",
+                    f"expected at least {gear:.4g} (an index pulse every 360 / gear_ratio {a.unit}; homing searches "
+                    f"for one below the sensor's upper edge, sensor_position + sensor_window = "
+                    f"{a.sensor_position + a.sensor_window:g}, and must end {INDEX_SEARCH_MARGIN:g} {a.unit} above "
+                    f"min {a.min:g}), got {a.gear_ratio:g}")
         most = greatest_drive_offset(a.max_acceleration, factor)
         if offset > most:
             return ("simulation.max_drive_offset",

@@ -58,6 +58,10 @@ MAX_COUNTS_PER_UNIT = 20_000.0
 #: set (servo.kp), so that no accepted configuration faults a healthy arm
 #: (:func:`least_counts_per_unit`, :func:`greatest_drive_offset`).
 SERVO_STEP_SHARE = 0.5
+#: How far (deg or mm) above an axis's min homing's index search must end: the search goes
+#: down from the sensor's upper edge until an index pulse comes, at most one index spacing
+#: (one motor revolution, 360 / gear_ratio deg), and must stop with room before the limit.
+INDEX_SEARCH_MARGIN = 10.0
 PERIOD_MIN, PERIOD_MAX = 0.001, 1.0
 #: How finely calibration tells a drive's drift (deg/s or mm/s): its 0.25 s of measurement
 #: see a few counts of the coarsest encoder. The least [safety] max_drive_drift, and the
@@ -252,8 +256,9 @@ PARAMS: tuple[Param, ...] = (
        doc="standstill monitoring: how far (encoder counts) an axis may move while it must be at rest"),
     _p("safety", "plausibility_distance", "number", 0.1, "deg or mm", 0.05, 10.0, safety=True,
        doc="encoder plausibility: commanded travel of an axis without a single encoder count (or against the "
-           "counts' direction) that is a fault; at least 0.05, a few counts of the coarsest encoder (a healthy "
-           "axis's travel shorter than a count is not seen by its encoder)"),
+           "counts' direction) that is a fault; at least 0.05, and for each axis at least one count plus "
+           f"{1 + MAX_KP_LAG:g} x [simulation] drive_time_constant x its search velocity (the travel a search "
+           "from rest commands before the lagging drive gives a count: least_plausibility_distance)"),
     _p("safety", "plausibility_time", "number", 0.2, "s", 0.01, 2.0, safety=True,
        doc="encoder plausibility: how long commanded travel is remembered while no count comes (a command "
            "below plausibility_distance / plausibility_time, 0.5 deg/s by default, never adds up to a fault: "
@@ -285,8 +290,11 @@ PARAMS: tuple[Param, ...] = (
     _p("axis", "max_jerk", "number", None, "deg/s^3 or mm/s^3", 10.0, 1_000_000.0, safety=True,
        doc="the axis's jerk limit (jerk-limited PTP moves, blends, lin and circ paths)"),
     _p("axis", "gear_ratio", "number", 100.0, "", 1.0, 1000.0,
-       doc="motor revolutions per axis revolution (revolute) or per mm (prismatic); with encoder_counts at "
-           "50 and at most 20000 counts per deg or mm (compiler.params.MIN_COUNTS_PER_UNIT, MAX_COUNTS_PER_UNIT)"),
+       doc="motor revolutions per axis revolution (revolute) or per mm (prismatic); with encoder_counts at most "
+           f"{MAX_COUNTS_PER_UNIT:g} counts per deg or mm and at least {MIN_COUNTS_PER_UNIT:g} and KP_MAX / "
+           f"({SERVO_STEP_SHARE:g} x [safety] acceleration_factor x max_acceleration x the tick), KP_MAX the largest servo.kp "
+           "(least_counts_per_unit); at least 360 / (sensor_position + sensor_window - min - "
+           f"{INDEX_SEARCH_MARGIN:g}) (least_gear_ratio: homing's index search ends above min)"),
     _p("axis", "encoder_counts", "integer", 4096, "counts", 16, 1 << 20,
        doc="encoder counts per motor revolution (after quadrature)"),
     _p("axis", "sensor_window", "number", 0.5, "deg or mm", 0.01, 10.0,
@@ -299,7 +307,10 @@ PARAMS: tuple[Param, ...] = (
            f"with a longer one, or kp x drive_time_constant above {MAX_KP_LAG:g}, the servo overshoots homing's "
            f"speed limit or does not settle"),
     _p("simulation", "max_drive_offset", "number", 0.5, "deg/s or mm/s", 0.0, 100.0,
-       doc="largest constant velocity offset of a drive (seeded per axis)"),
+       doc="largest constant velocity offset of a drive (seeded per axis); for every axis at most "
+           f"{SERVO_STEP_SHARE:g} x [safety] acceleration_factor x max_acceleration / KP_MAX "
+           "(greatest_drive_offset, KP_MAX the largest servo.kp: the servo holding the drift within the safety's "
+           "acceleration check)"),
     _p("simulation", "park_spread", "number", 3.0, "deg or mm", 0.0, 90.0,
        doc="power-up position: home +- this (seeded per axis)"),
     _p("simulation", "brake_time", "number", 0.05, "s", 0.0, 5.0, doc="time the brakes take to engage or release"),
@@ -435,10 +446,6 @@ def greatest_drive_offset(max_acceleration: float, acceleration_factor: float) -
     return SERVO_STEP_SHARE * acceleration_factor * max_acceleration / KP_MAX
 
 
-#: How far (deg or mm) above an axis's min homing's index search must end: the search goes
-#: down from the sensor's upper edge until an index pulse comes, at most one index spacing
-#: (one motor revolution, 360 / gear_ratio deg), and must stop with room before the limit.
-INDEX_SEARCH_MARGIN = 10.0
 
 
 def least_gear_ratio(axis) -> float:
@@ -447,6 +454,17 @@ def least_gear_ratio(axis) -> float:
     room = axis.sensor_position + axis.sensor_window - axis.min - INDEX_SEARCH_MARGIN
     full = 360.0 if axis.kind == "revolute" else 1.0
     return math.inf if room <= 0 else full / room
+
+
+def least_plausibility_distance(axis, drive_time_constant: float) -> float:
+    """The smallest [safety] plausibility_distance ``axis`` allows (deg or mm): the travel
+    the servo may command before the encoder's first count when a homing search starts
+    from rest, one count (the axis may rest just below the next) and what the lagging
+    drive has not yet followed. Under a first-order lag the command leads the axis by
+    drive_time_constant x its velocity, and the servo's command during a search is at most
+    (1 + MAX_KP_LAG) x the search velocity (its proportional term on that lag)."""
+    search = min(axis.search_velocity, 0.5 * axis.max_velocity)
+    return 1.0 / axis.counts_per_unit + (1.0 + MAX_KP_LAG) * drive_time_constant * search
 
 
 def check_axis_rules(values: dict[str, dict[str, object]], axes) -> tuple[str, str] | None:
@@ -470,6 +488,14 @@ def check_axis_rules(values: dict[str, dict[str, object]], axes) -> tuple[str, s
                     f"for one below the sensor's upper edge, sensor_position + sensor_window = "
                     f"{a.sensor_position + a.sensor_window:g}, and must end {INDEX_SEARCH_MARGIN:g} {a.unit} above "
                     f"min {a.min:g}), got {a.gear_ratio:g}")
+        plausible = least_plausibility_distance(a, values["simulation"]["drive_time_constant"])
+        if values["safety"]["plausibility_distance"] < plausible:
+            return ("safety.plausibility_distance",
+                    f"expected at least {plausible:.4g} {a.unit} for {a.name} (one count, 1 / {a.counts_per_unit:.4g}, "
+                    f"+ {1 + MAX_KP_LAG:g} x [simulation] drive_time_constant "
+                    f"{values['simulation']['drive_time_constant']:g} x its search velocity "
+                    f"{min(a.search_velocity, 0.5 * a.max_velocity):g}: the travel a homing search commands before "
+                    f"the lagging drive gives a count), got {values['safety']['plausibility_distance']:g}")
         most = greatest_drive_offset(a.max_acceleration, factor)
         if offset > most:
             return ("simulation.max_drive_offset",

@@ -188,6 +188,12 @@ def test_each_number_at_the_least_it_accepts_runs_the_paper_program_without_a_fa
             text = _set(text, "simulation", "max_drive_offset", 0.0)
         for index in range(6) if table == "axis" else [None]:
             text = _apply(text, settings_, table, key, _least(param), index)
+        if key == "max_acceleration":  # (the coarsest encoder the resolution rule accepts with it)
+            default = parse_spec(SPEC_TEXT, "lola15.spc")
+            factor = SAFETY["acceleration_factor"].default
+            for index, axis in enumerate(default.axes):
+                least = params.least_counts_per_unit(_least(param), factor)
+                text = _set(text, "axis", "encoder_counts", math.ceil(least * 360 / axis.gear_ratio), index)
         summary = run_paper_program(text, settings_)
         assert summary is not None, (table, key)
         fault = summary["fault"]
@@ -231,6 +237,10 @@ def test_a_too_coarse_encoder_is_refused_with_its_resolution():
      "expected more than [safety] limit_tolerance (2"),
     ([("controller", "kp", 100.0), ("simulation", "drive_time_constant", 0.01)], "simulation.drive_time_constant",
      "expected at most 0.5 / [controller] kp (0.005 s"),
+    # (before: accepted, and a search from rest at 5 deg/s faulted the encoder plausibility
+    # check, the command 0.05 deg ahead of a drive that lags 0.01 s)
+    ([("simulation", "drive_time_constant", 0.01), ("safety", "plausibility_distance", 0.05)],
+     "safety.plausibility_distance", "expected at least 0.07555 deg for A1 (one count, 1 / 1820, + 1.5 x"),
 ])
 def test_the_rules_between_tables_are_named(changes, where, words):
     """Numbers each within its range that do not go together (the simulated drives drift

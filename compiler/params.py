@@ -226,15 +226,16 @@ def _p(section, name, kind, default, unit="", low=None, high=None, **kw) -> Para
 #: THE table. Order: as the documentation lists them.
 PARAMS: tuple[Param, ...] = (
     # ---- the servo (1 ms position loop); start values from [controller] ----
-    _p("servo", "kp", "number", 40.0, "1/s", 5.0, 100.0, safety=True, change="configuration",
-       spec_key="controller.kp", doc="position loop gain (below 5 the axes do not settle within a count of a target in time)"),
+    _p("servo", "kp", "number", 40.0, "1/s", 10.0, 100.0, safety=True, change="configuration",
+       spec_key="controller.kp", doc="position loop gain (below 10, with a small ki and a slow drive, the axes did not settle at the start position within homing's 2 s)"),
     _p("servo", "ki", "number", 2.0, "1/s^2", 0.0, 100.0, safety=True, change="configuration",
        spec_key="controller.ki", doc="integral gain"),
     _p("servo", "following_error_limit", "number", 2.0, "deg or mm", 0.1, 10.0, safety=True,
        change="configuration", spec_key="controller.following_error_limit",
        doc="largest allowed |reference - measured position| of any axis; beyond it the robot stops "
-           "(category 1). It cannot be switched off: at most 10; at least 0.1, what a healthy arm's "
-           "servo lags behind a move"),
+           "(category 1). It cannot be switched off: at most 10; at least 0.1, and for each axis at least "
+           "[simulation] drive_time_constant x max_acceleration / kp (least_following_error_limit: what the "
+           "servo lags behind a move at max_acceleration)"),
     # ---- [controller]: the loop's policies ----
     _p("controller", "servo_miss_policy", "choice", "firm", choices=("hard", "firm", "soft"), safety=True,
        doc="deadline policy of the 1 ms servo task on the wall clock: hard (one miss faults), firm (more than "
@@ -257,8 +258,9 @@ PARAMS: tuple[Param, ...] = (
     _p("safety", "plausibility_distance", "number", 0.1, "deg or mm", 0.05, 10.0, safety=True,
        doc="encoder plausibility: commanded travel of an axis without a single encoder count (or against the "
            "counts' direction) that is a fault; at least 0.05, and for each axis at least one count plus "
-           f"{1 + MAX_KP_LAG:g} x [simulation] drive_time_constant x its search velocity (the travel a search "
-           "from rest commands before the lagging drive gives a count: least_plausibility_distance)"),
+           "[simulation] drive_time_constant x how fast a move from rest at max_acceleration "
+           "goes at the first count (the travel commanded before the lagging drive gives a count: "
+           "least_plausibility_distance)"),
     _p("safety", "plausibility_time", "number", 0.2, "s", 0.01, 2.0, safety=True,
        doc="encoder plausibility: how long commanded travel is remembered while no count comes (a command "
            "below plausibility_distance / plausibility_time, 0.5 deg/s by default, never adds up to a fault: "
@@ -456,15 +458,33 @@ def least_gear_ratio(axis) -> float:
     return math.inf if room <= 0 else full / room
 
 
+def first_count_velocity(axis, drive_time_constant: float) -> float:
+    """The fastest the reference of ``axis`` moves (deg/s or mm/s) when its encoder gives the
+    first count of a motion from rest: accelerating at max_acceleration ``a`` (at most),
+    the lagging drive has moved at least a (t^2 / 2 - tau t), one count ``c`` by
+    t = tau + sqrt(tau^2 + 2 c / a); the reference then moves at a t, at most max_velocity."""
+    a, tau, c = axis.max_acceleration, drive_time_constant, 1.0 / axis.counts_per_unit
+    return min(axis.max_velocity, a * (tau + math.sqrt(tau * tau + 2.0 * c / a)))
+
+
 def least_plausibility_distance(axis, drive_time_constant: float) -> float:
     """The smallest [safety] plausibility_distance ``axis`` allows (deg or mm): the travel
-    the servo may command before the encoder's first count when a homing search starts
-    from rest, one count (the axis may rest just below the next) and what the lagging
-    drive has not yet followed. Under a first-order lag the command leads the axis by
-    drive_time_constant x its velocity, and the servo's command during a search is at most
-    (1 + MAX_KP_LAG) x the search velocity (its proportional term on that lag)."""
-    search = min(axis.search_velocity, 0.5 * axis.max_velocity)
-    return 1.0 / axis.counts_per_unit + (1.0 + MAX_KP_LAG) * drive_time_constant * search
+    the servo may command before the encoder's first count of a motion from rest (a
+    homing search, the move to the start position, a program's move): one count (the axis
+    may rest just below the next) and what the lagging drive has not yet followed. Under a
+    first-order lag (tau v' = u - v) the commanded travel leads the axis's by exactly
+    drive_time_constant x the axis's velocity, at most the reference's then
+    (:func:`first_count_velocity`)."""
+    lead = drive_time_constant * first_count_velocity(axis, drive_time_constant)
+    return 1.0 / axis.counts_per_unit + lead
+
+
+def least_following_error_limit(axis, drive_time_constant: float, kp: float) -> float:
+    """The smallest [controller] following_error_limit ``axis`` allows (deg or mm): the
+    servo's following error while the reference accelerates at the axis's
+    max_acceleration, drive_time_constant x max_acceleration / kp (the lagging drive's
+    velocity deficit, tau x acceleration, made up by the proportional term)."""
+    return drive_time_constant * axis.max_acceleration / kp
 
 
 def check_axis_rules(values: dict[str, dict[str, object]], axes) -> tuple[str, str] | None:
@@ -490,12 +510,21 @@ def check_axis_rules(values: dict[str, dict[str, object]], axes) -> tuple[str, s
                     f"min {a.min:g}), got {a.gear_ratio:g}")
         plausible = least_plausibility_distance(a, values["simulation"]["drive_time_constant"])
         if values["safety"]["plausibility_distance"] < plausible:
+            tau = values["simulation"]["drive_time_constant"]
             return ("safety.plausibility_distance",
                     f"expected at least {plausible:.4g} {a.unit} for {a.name} (one count, 1 / {a.counts_per_unit:.4g}, "
-                    f"+ {1 + MAX_KP_LAG:g} x [simulation] drive_time_constant "
-                    f"{values['simulation']['drive_time_constant']:g} x its search velocity "
-                    f"{min(a.search_velocity, 0.5 * a.max_velocity):g}: the travel a homing search commands before "
-                    f"the lagging drive gives a count), got {values['safety']['plausibility_distance']:g}")
+                    f"+ [simulation] drive_time_constant {tau:g} x "
+                    f"{first_count_velocity(a, tau):.4g} {a.unit}/s, how fast a move from rest at its max_acceleration "
+                    f"{a.max_acceleration:g} goes when the lagging drive gives its first count), got "
+                    f"{values['safety']['plausibility_distance']:g}")
+        kp, tau = values["controller"]["kp"], values["simulation"]["drive_time_constant"]
+        following = least_following_error_limit(a, tau, kp)
+        if values["controller"]["following_error_limit"] < following:
+            return ("controller.following_error_limit",
+                    f"expected at least {following:.4g} {a.unit} for {a.name} ([simulation] drive_time_constant "
+                    f"{tau:g} x its max_acceleration {a.max_acceleration:g} / [controller] kp {kp:g}: the servo's "
+                    f"following error while a move accelerates at max_acceleration), got "
+                    f"{values['controller']['following_error_limit']:g}")
         most = greatest_drive_offset(a.max_acceleration, factor)
         if offset > most:
             return ("simulation.max_drive_offset",

@@ -122,8 +122,8 @@ def test_sample_sets_every_schema_key_in_standard():
 # ---- the API --------------------------------------------------------------------------------------
 
 def test_get_with_default():
-    config = parse_configurations(one("servo", "kp = 7"))["c"]
-    assert config.get("servo", "kp") == 7.0
+    config = parse_configurations(one("servo", "kp = 12"))["c"]
+    assert config.get("servo", "kp") == 12.0
     assert config.get("servo", "ki") is None
     assert config.get("servo", "ki", 2.0) == 2.0
     assert config.get("report", "period", 0.01) == 0.01
@@ -194,13 +194,13 @@ def test_valid_periods(period):
 
 
 def test_validate_settings_normalizes():
-    result = validate_settings({"servo": {"kp": 7, "ki": 0}, "report": {"columns": ("out_vel",)}}, "client")
-    assert result == {"servo": {"kp": 7.0, "ki": 0.0}, "report": {"columns": ["out_vel"]}}
+    result = validate_settings({"servo": {"kp": 12, "ki": 0}, "report": {"columns": ("out_vel",)}}, "client")
+    assert result == {"servo": {"kp": 12.0, "ki": 0.0}, "report": {"columns": ["out_vel"]}}
     assert type(result["servo"]["kp"]) is float
 
 
 def test_validate_settings_errors_start_with_where():
-    with pytest.raises(ConfigError, match=r"^client: configuration 'x': servo\.kp: expected a number 5 <= x <= 100 \(1/s\), got -1$"):
+    with pytest.raises(ConfigError, match=r"^client: configuration 'x': servo\.kp: expected a number 10 <= x <= 100 \(1/s\), got -1$"):
         validate_settings({"servo": {"kp": -1}}, "client: configuration 'x'")
     with pytest.raises(ConfigError, match=r"^net: trajectory\.period: expected the same period as initialization"):
         validate_settings({"trajectory": {"period": 0.005}, "initialization": {"period": 0.01}}, "net")
@@ -213,9 +213,9 @@ def test_validate_settings_errors_start_with_where():
 
 
 def test_validate_settings_does_not_modify_its_argument():
-    given_ = {"servo": {"kp": 7}, "report": {"columns": ["out_vel"]}}
+    given_ = {"servo": {"kp": 12}, "report": {"columns": ["out_vel"]}}
     validate_settings(given_, "net")
-    assert given_ == {"servo": {"kp": 7}, "report": {"columns": ["out_vel"]}}
+    assert given_ == {"servo": {"kp": 12}, "report": {"columns": ["out_vel"]}}
 
 
 def test_configurations_do_not_share_mutable_values():
@@ -280,9 +280,9 @@ following_error_limit = 3.0
 
 
 def test_based_on_a_later_configuration():
-    text = '[configurations.first]\nbased_on = "second"\n' + one("servo", "kp = 7", "second")
+    text = '[configurations.first]\nbased_on = "second"\n' + one("servo", "kp = 12", "second")
     configs = parse_configurations(text)
-    assert configs["first"].get("servo", "kp") == 7.0
+    assert configs["first"].get("servo", "kp") == 12.0
     assert configs.default == "first"
 
 
@@ -319,7 +319,7 @@ def test_message_names_file_configuration_and_key():
     text = one("servo", "kp = 40.0", "standard") + '[configurations.gentle]\nbased_on = "standard"\n' \
         + "[configurations.gentle.servo]\nkp = -1\n"
     assert error_of(text, "lola15.toml") == (
-        "lola15.toml: configuration 'gentle': servo.kp: expected a number 5 <= x <= 100 (1/s), got -1")
+        "lola15.toml: configuration 'gentle': servo.kp: expected a number 10 <= x <= 100 (1/s), got -1")
 
 
 def test_unknown_component_with_suggestion():
@@ -370,15 +370,15 @@ def test_configurations_is_not_a_table():
 
 
 @pytest.mark.parametrize("component, body, expected", [
-    ("servo", "kp = 0", "servo.kp: expected a number 5 <= x <= 100 (1/s), got 0"),
-    ("servo", "kp = -2.5", "servo.kp: expected a number 5 <= x <= 100 (1/s), got -2.5"),
-    ("servo", 'kp = "40"', "servo.kp: expected a number 5 <= x <= 100 (1/s), got '40'"),
-    ("servo", "kp = [40]", "servo.kp: expected a number 5 <= x <= 100 (1/s), got [40]"),
-    ("servo", "kp = {a = 1}", "servo.kp: expected a number 5 <= x <= 100 (1/s), got a table"),
-    ("servo", "kp = 1979-05-27", "servo.kp: expected a number 5 <= x <= 100 (1/s), got 1979-05-27 (a date)"),
-    ("servo", "kp = inf", "servo.kp: expected a number 5 <= x <= 100 (1/s), got inf"),
-    ("servo", "kp = nan", "servo.kp: expected a number 5 <= x <= 100 (1/s), got nan"),
-    ("servo", "kp = " + "9" * 400, "servo.kp: expected a number 5 <= x <= 100 (1/s), got a very large integer"),
+    ("servo", "kp = 0", "servo.kp: expected a number 10 <= x <= 100 (1/s), got 0"),
+    ("servo", "kp = -2.5", "servo.kp: expected a number 10 <= x <= 100 (1/s), got -2.5"),
+    ("servo", 'kp = "40"', "servo.kp: expected a number 10 <= x <= 100 (1/s), got '40'"),
+    ("servo", "kp = [40]", "servo.kp: expected a number 10 <= x <= 100 (1/s), got [40]"),
+    ("servo", "kp = {a = 1}", "servo.kp: expected a number 10 <= x <= 100 (1/s), got a table"),
+    ("servo", "kp = 1979-05-27", "servo.kp: expected a number 10 <= x <= 100 (1/s), got 1979-05-27 (a date)"),
+    ("servo", "kp = inf", "servo.kp: expected a number 10 <= x <= 100 (1/s), got inf"),
+    ("servo", "kp = nan", "servo.kp: expected a number 10 <= x <= 100 (1/s), got nan"),
+    ("servo", "kp = " + "9" * 400, "servo.kp: expected a number 10 <= x <= 100 (1/s), got a very large integer"),
     ("servo", "ki = -0.1", "servo.ki: expected a number 0 <= x <= 100 (1/s^2), got -0.1"),
     ("servo", "following_error_limit = 0.0", "servo.following_error_limit: expected a number 0.1 <= x <= 10 (deg or mm), got 0.0"),
     ("robot", "velocity_limit_scale = 0", "robot.velocity_limit_scale: expected a number 0.01 <= x <= 1, got 0"),
@@ -407,7 +407,7 @@ def test_bool_rejected_for_numbers(component, key, value):
 
 
 def test_bool_rejected_by_validate_settings():
-    with pytest.raises(ConfigError, match=r"servo\.kp: expected a number 5 <= x <= 100 \(1/s\), got true \(a boolean\)"):
+    with pytest.raises(ConfigError, match=r"servo\.kp: expected a number 10 <= x <= 100 \(1/s\), got true \(a boolean\)"):
         validate_settings({"servo": {"kp": True}}, "net")
     with pytest.raises(ConfigError, match=r"trajectory\.budget: expected an integer 1 <= x <= 10000 \(instructions\), got true"):
         validate_settings({"trajectory": {"budget": True}}, "net")
@@ -528,7 +528,7 @@ def test_load_error_names_the_file(tmp_path):
     path.write_text(one("servo", "kp = -1", "gentle"), encoding="utf-8")
     with pytest.raises(ConfigError) as info:
         load_configurations(path)
-    assert str(info.value) == f"{path}: configuration 'gentle': servo.kp: expected a number 5 <= x <= 100 (1/s), got -1"
+    assert str(info.value) == f"{path}: configuration 'gentle': servo.kp: expected a number 10 <= x <= 100 (1/s), got -1"
 
 
 def test_load_invalid_toml(tmp_path):

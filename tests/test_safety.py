@@ -246,7 +246,7 @@ def test_a_frozen_encoder_through_the_cli():
     ("servo_miss_limit = inf", "controller.servo_miss_limit: expected an integer"),
     ('servo_miss_policy = "bogus"', 'controller.servo_miss_policy: expected one of "hard", "firm", "soft"'),
     ("servo_miss_limit = 5000", "controller.servo_miss_limit: expected fewer misses than the window"),
-    ("kp = 1e9", "controller.kp: expected a number 5 <= x <= 100 (1/s)"),
+    ("kp = 1e9", "controller.kp: expected a number 10 <= x <= 100 (1/s)"),
     ("folowing_error_limit = 0.5", "controller.folowing_error_limit: unknown key (did you mean "
                                    "'following_error_limit'?)"),
 ])
@@ -284,7 +284,7 @@ def test_safety_and_simulation_tables_are_validated(table, line, words):
 
 
 @pytest.mark.parametrize("settings, words", [
-    ("kp = 1e9", "servo.kp: expected a number 5 <= x <= 100 (1/s), got 1000000000.0"),
+    ("kp = 1e9", "servo.kp: expected a number 10 <= x <= 100 (1/s), got 1000000000.0"),
     ("following_error_limit = 1e299", "servo.following_error_limit: expected a number 0.1 <= x <= 10"),
     ("following_error_limit = nan", "servo.following_error_limit: expected a number 0.1 <= x <= 10"),
 ])
@@ -637,7 +637,7 @@ def test_an_out_of_range_configuration_is_refused_by_irl_serve(tmp_path):
     bad.write_text("[configurations.fast.servo]\nkp = 1e9\nfollowing_error_limit = 1e299\n", encoding="utf-8")
     code, out, err = run_cli("serve", "--spec", SPEC_PATH, "--config", bad, "--sim-clock",
                              "--endpoint", "tcp://127.0.0.1:1", "--telemetry", "tcp://127.0.0.1:2")
-    assert code == 2 and "servo.kp: expected a number 5 <= x <= 100 (1/s), got 1000000000.0" in err, err
+    assert code == 2 and "servo.kp: expected a number 10 <= x <= 100 (1/s), got 1000000000.0" in err, err
 
 
 @pytest.mark.parametrize("fault", ["encoder_frozen", "drive_dead"])

@@ -325,3 +325,63 @@ def submit(client: Client, path: Path, server: ServerProcess | None = None) -> i
     """Queue a program (compiled for ``server``'s specification if it has its own)."""
     data = objcode(path, server.spec if server is not None else None)
     return client.request("submit", {"object": data, "name": path.name})["program"]
+
+
+# ---- where the suite's CPU goes (opt-in: IRL_TEST_CPU=1) --------------------------------------------
+# Each test's CPU time (user + system, this process and the children it waited for, e.g. the
+# irl serve processes it stopped), setup and teardown included, from resource.getrusage deltas.
+# Each process (an xdist worker, or the only one) writes its figures to
+# .cpu-report/<worker>.tsv at the end; the controller (or the only process) sums the files
+# and prints the 40 costliest tests and the total. Wall time is no measure on a loaded
+# machine; CPU is what the suite costs everyone else.
+_CPU = os.environ.get("IRL_TEST_CPU") == "1"
+_CPU_DIR = ROOT / ".cpu-report"
+_cpu_used: dict[str, float] = {}
+
+
+def _cpu_now() -> float:
+    import resource
+    me, kids = resource.getrusage(resource.RUSAGE_SELF), resource.getrusage(resource.RUSAGE_CHILDREN)
+    return me.ru_utime + me.ru_stime + kids.ru_utime + kids.ru_stime
+
+
+if _CPU:
+    @pytest.hookimpl(hookwrapper=True)
+    def pytest_runtest_protocol(item, nextitem):
+        start = _cpu_now()
+        yield
+        _cpu_used[item.nodeid] = _cpu_used.get(item.nodeid, 0.0) + _cpu_now() - start
+
+    def pytest_sessionstart(session):
+        if not hasattr(session.config, "workerinput"):  # (the controller, or the only process)
+            _CPU_DIR.mkdir(exist_ok=True)
+            for old in _CPU_DIR.glob("*.tsv"):
+                old.unlink()
+
+    def pytest_sessionfinish(session):
+        worker = getattr(session.config, "workerinput", {}).get("workerid", "main")
+        if _cpu_used:
+            _CPU_DIR.mkdir(exist_ok=True)
+            with open(_CPU_DIR / f"{worker}.tsv", "w", encoding="utf-8") as f:
+                for nodeid, cpu in _cpu_used.items():
+                    f.write(f"{cpu:.3f}\t{nodeid}\n")
+
+    def pytest_terminal_summary(terminalreporter):
+        totals: dict[str, float] = {}
+        for path in sorted(_CPU_DIR.glob("*.tsv")):
+            for line in path.read_text(encoding="utf-8").splitlines():
+                cpu, nodeid = line.split("\t", 1)
+                totals[nodeid] = totals.get(nodeid, 0.0) + float(cpu)
+        if not totals:
+            return
+        write = terminalreporter.write_line
+        write(f"---- CPU per test (IRL_TEST_CPU=1): {len(totals)} tests, {sum(totals.values()):.1f} s in all; "
+              f"the 40 costliest ----")
+        for nodeid, cpu in sorted(totals.items(), key=lambda kv: -kv[1])[:40]:
+            write(f"{cpu:8.2f} s  {nodeid}")
+        per_file: dict[str, float] = {}
+        for nodeid, cpu in totals.items():
+            per_file[nodeid.split("::", 1)[0]] = per_file.get(nodeid.split("::", 1)[0], 0.0) + cpu
+        write("---- CPU per file, the 15 costliest ----")
+        for name, cpu in sorted(per_file.items(), key=lambda kv: -kv[1])[:15]:
+            write(f"{cpu:8.2f} s  {name}")

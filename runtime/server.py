@@ -548,8 +548,9 @@ class Server:
         fields = {"tool": frames.tool_name, "base": frames.base_name, "tcp": None, "tcp_base": None}
         if self.tcp is not None:
             joints = snap["position"][:len(self.spec.main_axes)]
-            fields["tcp"] = list(self.tcp.world(joints, frames))
-            fields["tcp_base"] = list(self.tcp.in_base(joints, frames))
+            world = self.tcp.world(joints, frames)  # (the forward kinematics once for both)
+            fields["tcp"] = list(world)
+            fields["tcp_base"] = list(self.tcp.in_base(joints, frames, world))
         return fields
 
     def _poll_subscriptions(self) -> None:

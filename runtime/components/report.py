@@ -163,9 +163,11 @@ class TcpOf:
         """x, y, z, roll, pitch, yaw of the TCP in the world frame (the spec's tool: None)."""
         return self._arm(self.kinematics.tool if frames is None else frames.tool).forward(joints)
 
-    def in_base(self, joints, frames) -> tuple:
-        """The same in the move's base."""
-        world = self.world(joints, frames)
+    def in_base(self, joints, frames, world: tuple | None = None) -> tuple:
+        """The same in the move's base (``world``: :meth:`world` of the same joints and
+        frames, when the caller has it already)."""
+        if world is None:
+            world = self.world(joints, frames)
         if frames is None or frames.base == IDENTITY:
             return world
         return values_of(compose(inverse(pose_of(frames.base)), pose_of(world)))

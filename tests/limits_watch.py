@@ -106,13 +106,19 @@ class LimitWatch:
             return
         t, _positions, velocities = value[:3]  # (accelerations may follow)
         scale = self.system.robot.velocity_limit_scale
-        for i, v in enumerate(velocities):
-            self._note("planned_velocity_ratio", abs(v) / (self.vmax[i] * scale), i)
+        if scale != self._scale:
+            self._scale, self._limits = scale, [v * scale for v in self.vmax]
+        # (as in tick: the largest over the axes first, axis by axis only when it may be a new worst)
+        if not max(map(truediv, map(abs, velocities), self._limits)) <= self.planned_velocity_ratio:
+            for i, v in enumerate(velocities):
+                self._note("planned_velocity_ratio", abs(v) / (self.vmax[i] * scale), i)
         previous = self._previous_setpoints[k]
         if previous is not None and 0.0 < t - previous[0] <= 0.0101:
             dt = t - previous[0]
-            for i, (v, p) in enumerate(zip(velocities, previous[1])):
-                self._note("planned_acceleration_ratio", abs(v - p) / dt / self.amax[i], i)
+            if not max(map(truediv, map(truediv, map(abs, map(sub, velocities, previous[1])), [dt] * len(self.amax)),
+                           self.amax)) <= self.planned_acceleration_ratio:
+                for i, (v, p) in enumerate(zip(velocities, previous[1])):
+                    self._note("planned_acceleration_ratio", abs(v - p) / dt / self.amax[i], i)
         self._previous_setpoints[k] = (t, velocities)
 
 

@@ -120,23 +120,34 @@ def specs(draw) -> tuple[str, dict]:
     return text, settings_
 
 
-def run_paper_program(text: str, settings_: dict | None = None) -> dict | None:
-    """The summary of test.irl's run with this specification (and these settings, each
-    checked against its declared range: the runtime.config validation); None if refused."""
+def _system(text: str, settings_: dict, max_time: float):
+    """(a RobotSystem with this specification and these settings, each checked against its
+    declared range as runtime.config does, test.irl compiled for it), or None if the
+    specification is refused (with a message that names the file and the range)."""
     try:
         parse_spec(text, "variant.spc")
     except SpecError as exc:
         assert "expected" in str(exc) and "variant.spc" in str(exc), str(exc)
         return None
     checked = {component: {key: params.section_params(component)[key].check(value) for key, value in values.items()}
-               for component, values in (settings_ or {}).items()}
+               for component, values in settings_.items()}
     with tempfile.TemporaryDirectory() as tmp:
         (Path(tmp) / "lola15.spc").write_text(text, encoding="utf-8")
         result = compile_source(TEST_IRL, str(Path(tmp) / "test.irl"))
-        assert result.ok, [d.message for d in result.diagnostics]
-        system = RobotSystem(result.spec, RunOptions(max_time=MAX_TIME))
-        system.apply_settings(checked)
-        return system.run(result.program)
+    assert result.ok, [d.message for d in result.diagnostics]
+    system = RobotSystem(result.spec, RunOptions(max_time=max_time))
+    system.apply_settings(checked)
+    return system, result.program
+
+
+def run_paper_program(text: str, settings_: dict | None = None) -> dict | None:
+    """The summary of test.irl's run with this specification (and these settings); None if
+    refused."""
+    made = _system(text, settings_ or {}, MAX_TIME)
+    if made is None:
+        return None
+    system, program = made
+    return system.run(program)
 
 
 def _lowest() -> tuple[str, dict]:
@@ -214,29 +225,20 @@ def run_to_end_of_homing(text: str, settings_: dict, max_time: float) -> dict | 
     """Power-up, calibration and homing of test.irl's cycle with this specification (None
     if refused): ``{"completed", "fault", "time", "final"}``. The specification's numbers
     matter up to here (the program's moves are checked against them before they run)."""
-    try:
-        parse_spec(text, "variant.spc")
-    except SpecError as exc:
-        assert "expected" in str(exc) and "variant.spc" in str(exc), str(exc)
+    made = _system(text, settings_, max_time)
+    if made is None:
         return None
-    checked = {component: {key: params.section_params(component)[key].check(value) for key, value in values.items()}
-               for component, values in settings_.items()}
-    with tempfile.TemporaryDirectory() as tmp:
-        (Path(tmp) / "lola15.spc").write_text(text, encoding="utf-8")
-        result = compile_source(TEST_IRL, str(Path(tmp) / "test.irl"))
-        assert result.ok, [d.message for d in result.diagnostics]
-        system = RobotSystem(result.spec, RunOptions(max_time=max_time))
-        system.apply_settings(checked)
-        system.begin(result.program, None)
-        sup = system.supervisor
-        system.executive.run(lambda: sup.done or system.init.completed, int(max_time / params.TICK))
-        outcome = {"completed": system.init.completed, "fault": sup.fault, "time": system.clock.tick_time,
-                   "final": list(system.robot.positions)}
-        if not sup.done:
-            sup.request_stop("the test has seen homing end")
-            system.executive.run(lambda: sup.done, int(5.0 / params.TICK))
-        system.finish()
-        return outcome
+    system, program = made
+    system.begin(program, None)
+    sup = system.supervisor
+    system.executive.run(lambda: sup.done or system.init.completed, int(max_time / params.TICK))
+    outcome = {"completed": system.init.completed, "fault": sup.fault, "time": system.clock.tick_time,
+               "final": list(system.robot.positions)}
+    if not sup.done:
+        sup.request_stop("the test has seen homing end")
+        system.executive.run(lambda: sup.done, int(5.0 / params.TICK))
+    system.finish()
+    return outcome
 
 
 #: The numbers that take their least or greatest value in combination (each axis its own):

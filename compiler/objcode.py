@@ -11,12 +11,13 @@ compiler's parser.
 """
 from __future__ import annotations
 
+import re
 import struct
 import zlib
 from dataclasses import dataclass
 from typing import Callable
 
-
+from .clauses import BY_NAME as _CLAUSES_BY_NAME
 from .clauses import MOTIONS as _MOTIONS
 from .clauses import NAMES as _CLAUSE_NAMES
 from .semantics import MAX_STRING_LENGTH as _MAX_STRING_LENGTH
@@ -546,19 +547,14 @@ def _check_operand(kind: str, value: int, program: Program, nlocals: int | None)
 
 # ---- the types of stack values (InstrDef.takes, InstrDef.gives) --------------------------------
 
-_BOUNDS = None
+_BOUNDS = re.compile(r"array\s*\[[^\]]*\]\s*of\s+")
 
 
 def declared_type(text: object) -> str | None:
     """The stack type of a declared type (``array[1..7] of joint`` -> ``array of joint``),
     or None when ``text`` is no type of the language."""
-    global _BOUNDS
     if not isinstance(text, str):
         return None
-    if _BOUNDS is None:
-        import re
-
-        _BOUNDS = re.compile(r"array\s*\[[^\]]*\]\s*of\s+")
     typ = _BOUNDS.sub("array of ", text.strip())
     base = typ
     while base.startswith("array of "):
@@ -632,10 +628,8 @@ def _stack_types(definition: InstrDef, operands: tuple, program: Program, local_
             callee = program.procedures[operands[0]]
             patterns.extend(declared_type(typ) or "?" for _n, typ in callee.locals[:callee.params])
         elif t == "@clauses":
-            from .clauses import CLAUSES as CLAUSE_TABLE
-
-            types = {c.name: c.type for c in CLAUSE_TABLE}
-            patterns.extend("real" if types[c] == "real" else "string" for c in clause_names(operands[0]))
+            patterns.extend("real" if _CLAUSES_BY_NAME[c].type == "real" else "string"
+                            for c in clause_names(operands[0]))
         elif t == "@g":
             patterns.append(declared_type(program.globals[operand("g")][1]) or "?")
         elif t == "@l":

@@ -72,7 +72,7 @@ def normalise(q) -> tuple[float, float, float, float] | None:
     return (w / n, x / n, y / n, z / n)
 
 
-def _rotation(q) -> tuple[float, float, float, float]:
+def unit_rotation(q) -> tuple[float, float, float, float]:
     """:func:`normalise`, raising ValueError for a quaternion that is not a rotation."""
     unit_q = normalise(q)
     if unit_q is None:
@@ -83,7 +83,7 @@ def _rotation(q) -> tuple[float, float, float, float]:
 def quat_to_rpy(q) -> tuple[float, float, float]:
     """(roll, pitch, yaw) in degrees of a quaternion ``(w, x, y, z)`` (normalised here),
     in the ranges of ``Kinematics.forward``."""
-    return rpy_of_quat(*_rotation(q))
+    return rpy_of_quat(*unit_rotation(q))
 
 
 def quat_multiply(a, b) -> tuple[float, float, float, float]:
@@ -110,5 +110,5 @@ def rotate(q, v) -> tuple[float, float, float]:
 
 def unit(q) -> tuple[float, float, float, float]:
     """``q`` normalised, with ``w >= 0`` (one of the two quaternions of a rotation)."""
-    w, x, y, z = _rotation(q)
+    w, x, y, z = unit_rotation(q)
     return (-w, -x, -y, -z) if w < 0.0 else (w, x, y, z)

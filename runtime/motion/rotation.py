@@ -14,7 +14,8 @@ from __future__ import annotations
 
 from math import atan2, isfinite, pi, sin, sqrt
 
-from compiler.geometry import normalise, quat_multiply, quat_to_rpy, rpy_to_quat
+from compiler.geometry import quat_multiply, quat_to_rpy, rpy_to_quat
+from compiler.geometry import unit_rotation as _unit
 from compiler.geometry import rpy_of_quat as _rpy_of_quat  # noqa: F401  (runtime.motion.paths)
 
 __all__ = ["matrix_to_quat", "quat_angle", "quat_multiply", "quat_to_matrix", "quat_to_rpy", "rpy_to_quat",
@@ -78,13 +79,6 @@ def _half_angle(q0, q1) -> float:
 def quat_angle(q0, q1) -> float:
     """The rotation angle (deg, 0..180) that turns orientation ``q0`` into ``q1``."""
     return 2.0 * _half_angle(_unit(q0), _unit(q1)) * _R2D
-
-
-def _unit(q) -> tuple[float, float, float, float]:
-    unit = normalise(q)
-    if unit is None:
-        raise ValueError(f"the quaternion {tuple(q)} is not a rotation")
-    return unit
 
 
 def _sin_ratio(k: float, omega: float, inv_sin: float) -> float:

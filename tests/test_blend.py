@@ -33,7 +33,7 @@ from runtime.supervisor import MOVE
 from runtime.system import RobotSystem, RunOptions
 from runtime.vm import VM, VMStatus
 
-from conftest import ROOT, PROGRAMS, SPEC_PATH, SPEC
+from conftest import PROGRAMS, SPEC_PATH, SPEC
 AXES = SPEC.axes
 H = 0.005  # the trajectory generator's period
 COUNTS = [1.0 / a.counts_per_unit for a in AXES]

@@ -35,7 +35,7 @@ from runtime.cli import Environment, main
 from runtime.motion.planner import scaled_limits
 from runtime.vm import VM, VMStatus
 
-from conftest import ROOT, SPEC_PATH, SPEC
+from conftest import SPEC_PATH, SPEC
 
 #: The rules as docs/language.md states them, written out independently of the table:
 #: (clause, motion) -> (low, low excluded, high or None).

@@ -20,7 +20,7 @@ from compiler.objcode import BY_NAME, FORMAT_VERSION, decode, load
 from compiler.spec import load_spec
 from runtime.cli import NOT_FOR_CHECKING, Environment, main
 
-from conftest import ROOT, PROGRAMS, TEST_IRL, SPEC_PATH as SPEC, run_cli as run
+from conftest import ROOT, TEST_IRL, SPEC_PATH as SPEC, run_cli as run
 DIAG = re.compile(r"^(?P<file>\S+):(?P<line>\d+):(?P<col>\d+): error: (?P<msg>.+)$")
 
 HEAD = 'program p;\nsystem_specification "lola15.spc";\n'

@@ -33,7 +33,7 @@ from runtime.sim.robot import FAULTS
 from runtime.supervisor import CALIBRATE, INITIALIZE, MOVE, STOP
 from runtime.system import RobotSystem, RunOptions
 
-from conftest import ROOT, SPEC_PATH, SPEC
+from conftest import SPEC_PATH, SPEC
 AXES = [a.name for a in SPEC.axes]
 
 #: How far (deg or mm) beyond a software limit an axis may come when the safety stops it:

@@ -14,7 +14,7 @@ from runtime.sim.robot import SimRobot
 from runtime.system import RobotSystem, RunOptions
 from runtime.timing import TICK
 
-from conftest import ROOT, SPEC_PATH, SPEC
+from conftest import SPEC_PATH, SPEC
 
 
 def program(body: str, decls: str = ""):

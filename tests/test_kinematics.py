@@ -45,7 +45,7 @@ from runtime.motion.kinematics import (
     rpy_to_matrix,
 )
 
-from conftest import ROOT, SPEC_PATH, SPEC
+from conftest import SPEC_PATH, SPEC
 KIN = Kinematics(SPEC)
 POS_TOL = 1e-6  # mm (1e-9 m)
 ROT_TOL = 1e-9  # rad

@@ -11,7 +11,7 @@ import pytest
 
 from runtime.cli import Environment
 
-from conftest import ROOT, TEST_IRL, SPEC_PATH as SPEC, run_cli as run
+from conftest import TEST_IRL, SPEC_PATH as SPEC, run_cli as run
 DEFAULT_GROUPS = ["sens_pos", "desi_pos", "out_vel", "following_error", "tcp"]
 
 # three moves, at lines 4, 6 and 7; a dwell between the first two (no move under way)

@@ -39,7 +39,7 @@ from compiler.objcode import (
     verify,
 )
 
-from conftest import ROOT, PROGRAMS, run_cli
+from conftest import PROGRAMS, run_cli
 HEADER = struct.Struct(">4sHI")
 DIAG_LINE = re.compile(r"^\S+:\d+:\d+: error: ", re.M)
 BODY_KEYS = ("name", "source", "spec", "robots", "constants", "code", "lines", "globals", "procedures")

@@ -24,7 +24,7 @@ from compiler.driver import compile_file
 from compiler.spec import load_spec
 from runtime.system import RobotSystem, RunOptions
 
-from conftest import ROOT, PROGRAMS, SPEC_PATH, SPEC, TEST_IRL, run_cli as run
+from conftest import PROGRAMS, SPEC_PATH, SPEC, TEST_IRL, run_cli as run
 AXES = SPEC.axes
 NAMES = [a.name for a in AXES]
 COUNT = [1.0 / a.counts_per_unit for a in AXES]  # one encoder count, per axis (deg)

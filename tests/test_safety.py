@@ -26,7 +26,7 @@ from runtime.server import ServeOptions, Server
 from runtime.supervisor import INITIALIZE, MOVE, StateFile
 from runtime.system import RobotSystem, RunOptions
 
-from conftest import ROOT, SPEC_PATH, SPEC, TEST_IRL
+from conftest import SPEC_PATH, SPEC, TEST_IRL
 AXES = [a.name for a in SPEC.axes]
 #: How far beyond a software limit an axis may come when the safety stops it (docs/safety.md).
 STOP_TOLERANCE = 0.5

@@ -107,7 +107,7 @@ from runtime.server import LoopCommand, ServeOptions, Server
 from runtime.sim.robot import FAULTS
 from runtime.supervisor import INITIALIZE, MOVE
 
-from conftest import ROOT, SPEC_PATH, SPEC
+from conftest import SPEC_PATH, SPEC
 AXES = [a.name for a in SPEC.axes]
 
 #: How far (deg or mm) beyond a software limit an axis may come when the safety stops it:

@@ -46,7 +46,7 @@ from runtime import protocol
 from runtime.client import Client, ClientError, Subscriber
 
 from conftest import (  # (the server helpers and fixtures: start_server, server, wall_server)
-    ROOT, TEST_IRL, SPEC_PATH as SPEC, SERVER_PROGRAMS as PROGRAMS, IRL, START, CALIBRATE, INITIALIZE, MOVE, STOP, ALL_PHASES, TERMINAL, SAFETY, free_port, objcode, soft_deadline_spec, run_irl, no_traceback, ServerProcess, status, wait_for, wait_end, moving, phases, submit,
+    ROOT, TEST_IRL, SPEC_PATH as SPEC, SERVER_PROGRAMS as PROGRAMS, IRL, START, CALIBRATE, INITIALIZE, MOVE, STOP, ALL_PHASES, TERMINAL, SAFETY, free_port, objcode, run_irl, no_traceback, ServerProcess, status, wait_for, wait_end, moving, phases, submit,
 )
 # ---- 1. submit --wait through the CLI --------------------------------------------------------------
 def test_submit_wait_report_and_second_program_skips_calibration(server, tmp_path):

@@ -12,7 +12,7 @@ import pytest
 from compiler.spec import parse_spec
 from runtime.sim import FAULTS, AlphaBeta, SimRobot, critically_damped_gains
 
-from conftest import ROOT, SPEC
+from conftest import SPEC
 DT = 0.001
 N = len(SPEC.axes)
 ZERO = (0.0,) * N

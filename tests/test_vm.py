@@ -18,7 +18,7 @@ from compiler.values import Joint, Pose, Position, Rpy, format_value
 from runtime import vm as vm_module
 from runtime.vm import HANDLERS, VM, VMError, VMStatus, build_dispatch
 
-from conftest import ROOT, PROGRAMS, SPEC_PATH as SPEC
+from conftest import PROGRAMS
 DISPATCHES = ("inline", "table")
 
 

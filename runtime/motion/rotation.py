@@ -12,7 +12,7 @@ Plain floats and ``math``; no NumPy (sampled every tick).
 """
 from __future__ import annotations
 
-from math import atan2, isfinite, pi, sin, sqrt
+from math import atan2, pi, sin, sqrt
 
 from compiler.geometry import quat_multiply, quat_to_rpy, rpy_to_quat
 from compiler.geometry import unit_rotation as _unit

@@ -448,8 +448,6 @@ def greatest_drive_offset(max_acceleration: float, acceleration_factor: float) -
     return SERVO_STEP_SHARE * acceleration_factor * max_acceleration / KP_MAX
 
 
-
-
 def least_gear_ratio(axis) -> float:
     """The smallest gear_ratio ``axis`` allows: its index pulses close enough together
     that homing's index search below the sensor ends INDEX_SEARCH_MARGIN above min."""
@@ -490,8 +488,9 @@ def least_following_error_limit(axis, drive_time_constant: float, kp: float) -> 
 def check_axis_rules(values: dict[str, dict[str, object]], axes) -> tuple[str, str] | None:
     """Rules between each axis's data and the specification's tables (validated values,
     defaults filled in): ``(key, reason)`` of the first broken one, or None."""
-    factor = values["safety"]["acceleration_factor"]
-    offset = values["simulation"]["max_drive_offset"]
+    safety, simulation, controller = values["safety"], values["simulation"], values["controller"]
+    factor, offset = safety["acceleration_factor"], simulation["max_drive_offset"]
+    tau, kp = simulation["drive_time_constant"], controller["kp"]
     for i, a in enumerate(axes):
         least = least_counts_per_unit(a.max_acceleration, factor)
         if a.counts_per_unit < least:
@@ -508,23 +507,21 @@ def check_axis_rules(values: dict[str, dict[str, object]], axes) -> tuple[str, s
                     f"for one below the sensor's upper edge, sensor_position + sensor_window = "
                     f"{a.sensor_position + a.sensor_window:g}, and must end {INDEX_SEARCH_MARGIN:g} {a.unit} above "
                     f"min {a.min:g}), got {a.gear_ratio:g}")
-        plausible = least_plausibility_distance(a, values["simulation"]["drive_time_constant"])
-        if values["safety"]["plausibility_distance"] < plausible:
-            tau = values["simulation"]["drive_time_constant"]
+        plausible = least_plausibility_distance(a, tau)
+        if safety["plausibility_distance"] < plausible:
             return ("safety.plausibility_distance",
                     f"expected at least {plausible:.4g} {a.unit} for {a.name} (one count, 1 / {a.counts_per_unit:.4g}, "
                     f"+ [simulation] drive_time_constant {tau:g} x "
                     f"{first_count_velocity(a, tau):.4g} {a.unit}/s, how fast a move from rest at its max_acceleration "
                     f"{a.max_acceleration:g} goes when the lagging drive gives its first count), got "
-                    f"{values['safety']['plausibility_distance']:g}")
-        kp, tau = values["controller"]["kp"], values["simulation"]["drive_time_constant"]
+                    f"{safety['plausibility_distance']:g}")
         following = least_following_error_limit(a, tau, kp)
-        if values["controller"]["following_error_limit"] < following:
+        if controller["following_error_limit"] < following:
             return ("controller.following_error_limit",
                     f"expected at least {following:.4g} {a.unit} for {a.name} ([simulation] drive_time_constant "
                     f"{tau:g} x its max_acceleration {a.max_acceleration:g} / [controller] kp {kp:g}: the servo's "
                     f"following error while a move accelerates at max_acceleration), got "
-                    f"{values['controller']['following_error_limit']:g}")
+                    f"{controller['following_error_limit']:g}")
         most = greatest_drive_offset(a.max_acceleration, factor)
         if offset > most:
             return ("simulation.max_drive_offset",

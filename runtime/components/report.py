@@ -97,12 +97,14 @@ class ReportWriter(threading.Thread):
                         break
                     batch, transitions = item
                     if transitions:
-                        states.write(self._lines(transitions, state_row))
+                        states.write(self._lines(transitions, state_row)[0])
                         states.flush()
                     if not batch:
                         continue
-                    f.write(self._lines(batch, self._row))
+                    text, written = self._lines(batch, self._row)
+                    f.write(text)
                     f.flush()
+                    self.rows_written += written
         except OSError as exc:
             self.error = f"cannot write the report {self.path}: {exc.strerror or exc}"
         except Exception:  # noqa: BLE001 - said, never a silent death (the rows so far are on disk)
@@ -113,10 +115,11 @@ class ReportWriter(threading.Thread):
             row = self.expand(row)
         return self.row_format % row
 
-    def _lines(self, items, line) -> str:
-        """Whole lines of the items that can be formatted; the others are counted."""
+    def _lines(self, items, line) -> tuple[str, int]:
+        """Whole lines of the items that can be formatted, and how many; the others are
+        counted in ``bad_rows``."""
         try:
-            text = "".join([line(item) for item in items])
+            return "".join([line(item) for item in items]), len(items)
         except Exception:  # noqa: BLE001 - a row of another shape: each on its own, the bad ones left out
             lines = []
             for item in items:
@@ -124,11 +127,7 @@ class ReportWriter(threading.Thread):
                     lines.append(line(item))
                 except Exception:  # noqa: BLE001
                     self.bad_rows += 1
-            text = "".join(lines)
-            items = lines
-        if line is not state_row:
-            self.rows_written += len(items)
-        return text
+            return "".join(lines), len(lines)
 
     def problem(self) -> str | None:
         """What went wrong writing the files, in the operator's terms (None: nothing)."""

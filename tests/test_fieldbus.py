@@ -5,6 +5,7 @@ and faults the program, within the configured timeout."""
 from __future__ import annotations
 
 import asyncio
+import contextlib
 import logging
 import statistics
 import threading
@@ -100,18 +101,29 @@ def test_a_bad_fieldbus_file_says_where_and_what_is_allowed(tmp_path, text, word
     assert words in str(error.value), str(error.value)
 
 
-def test_the_io_follows_the_plc_and_a_lost_plc_is_said_within_its_timeout(tmp_path):
-    """The exchange thread alone: inputs read, outputs written, and `lost` once no
-    exchange has succeeded for `timeout` s."""
+@contextlib.contextmanager
+def plc_and_exchange(timeout: float):
+    """A real PLC on a free port and the exchange thread (ModbusIo) connected to it, polling
+    every 5 ms with this timeout; both closed afterwards."""
     from conftest import free_port
 
     port = free_port()
     plc = Plc(port)
     io = ModbusIo(parse_fieldbus({"modbus": {"host": "127.0.0.1", "port": port, "poll": 0.005,
-                                             "timeout": 0.3}}, SPEC), SPEC.inputs, SPEC.outputs)
+                                             "timeout": timeout}}, SPEC), SPEC.inputs, SPEC.outputs)
     io.start()
     try:
         assert io.wait_connected(5.0), io.lost()
+        yield plc, io
+    finally:
+        io.close()
+        plc.stop()
+
+
+def test_the_io_follows_the_plc_and_a_lost_plc_is_said_within_its_timeout(tmp_path):
+    """The exchange thread alone: inputs read, outputs written, and `lost` once no
+    exchange has succeeded for `timeout` s."""
+    with plc_and_exchange(timeout=0.3) as (plc, io):
         plc.set_input(3, True)
         io.set_output(2, True)
         deadline = time.monotonic() + 5.0
@@ -124,9 +136,6 @@ def test_the_io_follows_the_plc_and_a_lost_plc_is_said_within_its_timeout(tmp_pa
             assert time.monotonic() - lost_at < 5.0
             time.sleep(0.005)
         assert "no exchange with the PLC at 127.0.0.1" in io.lost() and "the limit is 0.3 s" in io.lost()
-    finally:
-        io.close()
-        plc.stop()
 
 
 def test_irl_serve_runs_a_program_against_a_plc_and_stops_the_robot_when_the_plc_is_lost(tmp_path):
@@ -270,15 +279,7 @@ def test_a_plc_reply_without_the_inputs_is_a_failed_exchange_and_the_io_keeps_it
     """Issue 26, fault 1, at the exchange: a reply that does not hold every input asked for
     is not taken (the inputs keep their number and last values); it fails the exchange,
     which says what was wrong, and the PLC is lost after its timeout."""
-    from conftest import free_port
-
-    port = free_port()
-    plc = Plc(port)
-    io = ModbusIo(parse_fieldbus({"modbus": {"host": "127.0.0.1", "port": port, "poll": 0.005,
-                                             "timeout": 0.2}}, SPEC), SPEC.inputs, SPEC.outputs)
-    io.start()
-    try:
-        assert io.wait_connected(5.0), io.lost()
+    with plc_and_exchange(timeout=0.2) as (plc, io):
         plc.set_input(2, True)
         deadline = time.monotonic() + 5.0
         while not io.input(2):
@@ -296,9 +297,6 @@ def test_a_plc_reply_without_the_inputs_is_a_failed_exchange_and_the_io_keeps_it
         while io.lost() is not None:
             assert time.monotonic() < deadline + 10.0, io.lost()
             time.sleep(0.005)
-    finally:
-        io.close()
-        plc.stop()
 
 
 def test_a_plc_that_answers_without_the_inputs_stops_the_robot_with_complete_files(tmp_path):

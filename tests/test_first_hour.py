@@ -166,10 +166,15 @@ endprogram;
 """
 
 
-def _pausing(tmp_path) -> Path:
-    path = tmp_path / "pausing.irl"
-    path.write_text(PAUSING.format(spec=ROOT / "programs" / "lola15.spc"), encoding="utf-8")
+def _written(tmp_path, name: str, template: str) -> Path:
+    """``template`` (a program naming {spec}) written to tmp_path/NAME.irl for the paper's robot."""
+    path = tmp_path / f"{name}.irl"
+    path.write_text(template.format(spec=ROOT / "programs" / "lola15.spc"), encoding="utf-8")
     return path
+
+
+def _pausing(tmp_path) -> Path:
+    return _written(tmp_path, "pausing", PAUSING)
 
 
 def test_a_pause_under_irl_run_resumes_or_aborts_as_asked_instead_of_idling_for_an_hour(tmp_path):
@@ -208,9 +213,7 @@ endprogram;
 
 
 def _printing(tmp_path) -> Path:
-    path = tmp_path / "printing.irl"
-    path.write_text(PRINTING.format(spec=ROOT / "programs" / "lola15.spc"), encoding="utf-8")
-    return path
+    return _written(tmp_path, "printing", PRINTING)
 
 
 def test_irl_run_shows_print_output_as_it_happens_before_the_pause_that_follows_it(tmp_path):

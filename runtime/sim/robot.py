@@ -48,7 +48,9 @@ made from). The model, per axis:
   ``"encoder_frozen"`` (the encoder stops: counts and index events stop changing; counts
   missed while frozen stay missed after :meth:`clear_faults`, as with a real incremental
   encoder), ``"drive_dead"`` (the drive ignores commands and its offset: the velocity
-  decays to 0 with the drive's lag).
+  decays to 0 with the drive's lag); and, for tests and scenarios,
+  :meth:`SimRobot.set_drift` (the drive runs at a velocity of its own whatever it is
+  commanded: a drift the servo cannot hold) and :meth:`SimRobot.set_drive_offset`.
 
 Axes are numbered from 0 in this Python interface (the order of ``spec.axes``); digital
 inputs and outputs are numbered from 1, as in L-IRL (``IN[1]``..).
@@ -135,6 +137,7 @@ class SimRobot(IoBackend):
         self._sensor_dead = [False] * n
         self._encoder_frozen = [False] * n
         self._drive_dead = [False] * n
+        self._drift: list[float | None] = [None] * n  # a drive's own velocity, whatever it is commanded
         self._drives_enabled = True  # safe torque off when False
         self._drive_or_encoder_fault = False  # a fault above, or drives disabled: step's slower path
         # brakes: engaged at power-up
@@ -231,7 +234,9 @@ class SimRobot(IoBackend):
         if not self._drives_enabled:  # no torque: every axis coasts (as a dead drive does)
             commands = [-b for b in offset]
         else:
-            commands = [-offset[i] if dead[i] else c for i, c in enumerate(velocity_commands)]
+            drift = self._drift
+            commands = [-offset[i] if dead[i] else c if drift[i] is None else drift[i] - offset[i]
+                        for i, c in enumerate(velocity_commands)]
         saved = [(i, self._counts[i], self._index_events[i], self._latched[i])
                  for i, frozen in enumerate(self._encoder_frozen) if frozen]
         return commands, saved
@@ -317,7 +322,7 @@ class SimRobot(IoBackend):
     def enable_drives(self) -> None:
         """Torque on again: the drives follow their commands. Real-time."""
         self._drives_enabled = True
-        self._drive_or_encoder_fault = any(self._encoder_frozen) or any(self._drive_dead)
+        self._update_fault_path()
 
     def drives_enabled(self) -> bool:
         return self._drives_enabled
@@ -383,8 +388,12 @@ class SimRobot(IoBackend):
         if not 0 <= axis < self.n_axes:
             raise IndexError(f"axis {axis} does not exist: {self.spec.name} has axes 0..{self.n_axes - 1}")
         table[axis] = True
+        self._update_fault_path()
+
+    def _update_fault_path(self) -> None:
+        """Whether a step takes the slower path of :meth:`_fault_commands`."""
         self._drive_or_encoder_fault = (any(self._encoder_frozen) or any(self._drive_dead)
-                                        or not self._drives_enabled)
+                                        or any(d is not None for d in self._drift) or not self._drives_enabled)
 
     def clear_faults(self) -> None:
         """Remove every injected fault. The encoder of a frozen axis counts on from the
@@ -394,6 +403,7 @@ class SimRobot(IoBackend):
                 self._base[i] = self._counts[i]
                 self._origin[i] = self._x[i]
             self._sensor_dead[i] = self._encoder_frozen[i] = self._drive_dead[i] = False
+            self._drift[i] = None
         self._drive_or_encoder_fault = not self._drives_enabled
         self._set_constants()
 
@@ -404,6 +414,16 @@ class SimRobot(IoBackend):
             raise IndexError(f"axis {axis} does not exist: {self.spec.name} has axes 0..{self.n_axes - 1}")
         self._offset[axis] = float(offset)
         self._set_constants()
+
+    def set_drift(self, axis: int, velocity: float | None) -> None:
+        """Make the drive of ``axis`` run at ``velocity`` unit/s whatever it is commanded
+        (a drive that lost its command value or its current loop: a drift the servo cannot
+        hold, unlike :meth:`set_drive_offset`'s), until ``None`` or :meth:`clear_faults`.
+        The brakes and safe torque off still stop it. Tests and scenarios."""
+        if not 0 <= axis < self.n_axes:
+            raise IndexError(f"axis {axis} does not exist: {self.spec.name} has axes 0..{self.n_axes - 1}")
+        self._drift[axis] = None if velocity is None else float(velocity)
+        self._update_fault_path()
 
     def faults(self) -> tuple[tuple[str, int], ...]:
         """The faults in effect, as (fault, axis) pairs."""

@@ -254,7 +254,20 @@ PARAMS: tuple[Param, ...] = (
            f"least {DRIFT_RESOLUTION:g}, what calibration's 0.25 s measurement resolves with the coarsest encoder, "
            f"and at least [simulation] max_drive_offset + {DRIFT_RESOLUTION:g} (the simulated drives' own drift)"),
     _p("safety", "standstill_tolerance", "integer", 10, "counts", 1, 10_000, safety=True,
-       doc="standstill monitoring: how far (encoder counts) an axis may move while it must be at rest"),
+       doc="standstill monitoring: how far (encoder counts) an axis may move from its standstill reference, "
+           "once it is in position, while the robot must be at rest"),
+    _p("safety", "in_position_window", "integer", 5, "counts", 2, 10_000, safety=True,
+       doc="standstill monitoring: an axis is in position when its encoder stays within this many counts of "
+           "the servo's reference for in_position_time (the servo's reference then becomes its standstill "
+           "reference); at most standstill_tolerance, and at least 2 (one count of the encoder's quantisation "
+           "and one for the servo's hold)"),
+    _p("safety", "in_position_time", "number", 0.02, "s", 0.001, 1.0, safety=True,
+       doc="standstill monitoring: how long an axis must stay within in_position_window to be in position"),
+    _p("safety", "in_position_timeout", "number", 1.0, "s", 0.01, 60.0, safety=True,
+       doc="standstill monitoring: an axis that is not in position this long after the servo's reference came "
+           "to rest is a fault (category 0); at least in_position_time + what the servo needs to settle each "
+           "axis into the window after a move at its limits (least_in_position_timeout: from [controller] kp "
+           "and ki, [simulation] drive_time_constant and the axis's limits and encoder)"),
     _p("safety", "plausibility_distance", "number", 0.1, "deg or mm", 0.05, 10.0, safety=True,
        doc="encoder plausibility: commanded travel of an axis without a single encoder count (or against the "
            "counts' direction) that is a fault; at least 0.05, and for each axis at least one count plus "
@@ -423,6 +436,15 @@ def check_spec_rules(values: dict[str, dict[str, object]]) -> tuple[str, str] | 
                 f"expected at least [simulation] max_drive_offset + {DRIFT_RESOLUTION:g} "
                 f"({simulation['max_drive_offset'] + DRIFT_RESOLUTION:g}: the simulated drives drift up to "
                 f"max_drive_offset, which calibration must accept), got {safety['max_drive_drift']:g}")
+    if safety["in_position_window"] > safety["standstill_tolerance"]:
+        return ("safety.in_position_window",
+                f"expected at most [safety] standstill_tolerance ({safety['standstill_tolerance']} counts: an axis in "
+                f"position must already be within the tolerance of its standstill reference), got "
+                f"{safety['in_position_window']}")
+    if safety["in_position_time"] >= safety["in_position_timeout"]:
+        return ("safety.in_position_timeout",
+                f"expected more than [safety] in_position_time ({safety['in_position_time']:g} s: an axis must be "
+                f"able to stay in the window that long before the timeout), got {safety['in_position_timeout']:g}")
     if simulation["end_stop_margin"] <= safety["limit_tolerance"]:
         return ("simulation.end_stop_margin",
                 f"expected more than [safety] limit_tolerance ({safety['limit_tolerance']:g}: the arm may come to "
@@ -485,6 +507,106 @@ def least_following_error_limit(axis, drive_time_constant: float, kp: float) -> 
     return drive_time_constant * axis.max_acceleration / kp
 
 
+#: Encoder counts an axis that has settled on its reference may still read away from it: one
+#: of the encoder's quantisation, and up to half a count more from the servo's hold (a drive's
+#: offset left after calibration, which the integral takes out only slowly). The settling must
+#: reach in_position_window less this.
+IN_POSITION_SLACK = 1.5
+#: Two modes of the position loop closer than this share of their size are bounded as if they
+#: were this far apart: a double root's t e^(rt) is below the bound of the pair that far apart.
+MODE_SEPARATION = 0.01
+
+
+def loop_modes(drive_time_constant: float, kp: float, ki: float) -> tuple[complex, ...]:
+    """The modes of the servo's position loop around the lagging drive: the roots of
+    ``D(s) = tau s^3 + s^2 + kp s + ki`` (the reference's velocity fed forward, PI on the
+    error ``e``, the drive a first-order lag ``tau``), under which ``e = tau J / D(s)`` of
+    the reference's jerk ``J``. Roots closer than MODE_SEPARATION of their size are moved
+    that far apart (see :func:`settle_time`)."""
+    tau = drive_time_constant
+
+    def d(s: float) -> float:
+        return ((tau * s + 1.0) * s + kp) * s + ki
+
+    low, high = -(1.0 + max(1.0, kp, ki) / tau), 0.0  # d(low) < 0 <= d(0) = ki: a real root between
+    for _ in range(200):
+        middle = 0.5 * (low + high)
+        if d(middle) < 0.0:
+            low = middle
+        else:
+            high = middle
+    r0 = high if ki > 0.0 else 0.0
+    b = 1.0 + tau * r0  # d(s) = (s - r0) (tau s^2 + b s + c)
+    c = kp + b * r0
+    root = (complex(b * b - 4.0 * tau * c)) ** 0.5
+    roots = [complex(r0), (-b + root) / (2.0 * tau), (-b - root) / (2.0 * tau)]
+    for i in range(3):
+        for j in range(i + 1, 3):
+            size = max(abs(roots[i]), abs(roots[j]))
+            if abs(roots[i] - roots[j]) < MODE_SEPARATION * size:
+                middle = 0.5 * (roots[i] + roots[j])
+                apart = 0.5 * MODE_SEPARATION * size
+                roots[i], roots[j] = middle + apart, middle - apart
+    return tuple(roots)
+
+
+def settle_time(axis, drive_time_constant: float, kp: float, ki: float, window: float) -> float:
+    """How long (s) after its reference comes to rest the servo may need to bring ``axis``
+    within ``window`` encoder counts of it, after any motion within the axis's limits
+    (``max - min``, max_velocity, max_acceleration) that started from rest on the reference:
+    0 if never outside, ``inf`` if it may never come there.
+
+    The following error ``e = tau J / D(s)`` (:func:`loop_modes`) is, once the reference
+    rests, a sum of modes ``tau / D'(r) x the integral of e^(r (t - u)) dA(u)`` over the
+    reference's acceleration ``A``. Integrating by parts (A and the velocity are 0 at rest,
+    the weight is monotone for a real ``r``: the second mean value theorem), a real mode is
+    at most ``tau / |D'(r)| x min(max_acceleration, |r| max_velocity, r^2 (max - min))``, a
+    complex one ``tau / |D'(r)| x min(|r| max_acceleration, |r|^2 max_velocity) / |Re r|``,
+    and each decays as ``e^(Re r t)``. The slow mode of the integral (about -ki / kp) starts
+    small (its ``r^2 (max - min)``) but decays slowly. The time is where their sum falls to
+    ``window`` (less IN_POSITION_SLACK). The loop runs every tick on a position measured at
+    the tick and holds its command over the tick: ``tau`` is the drive's lag and that tick
+    (which the lag of a slow drive hides, and which a fast one makes the larger part)."""
+    tau = drive_time_constant + TICK
+    target = window - IN_POSITION_SLACK
+    span = axis.max - axis.min
+    amax, vmax, cpu = axis.max_acceleration, axis.max_velocity, axis.counts_per_unit
+    roots = loop_modes(tau, kp, ki)
+    modes = []
+    for i, r in enumerate(roots):
+        derivative = tau
+        for j, other in enumerate(roots):
+            if j != i:
+                derivative *= r - other
+        size, rate = abs(r), -r.real
+        if r.imag == 0.0:
+            bound = min(amax, size * vmax, size * size * span)
+        else:
+            bound = min(size * amax, size * size * vmax) / rate
+        amplitude = tau * bound / abs(derivative) * cpu if bound > 0.0 else 0.0
+        if amplitude > 0.0:
+            modes.append((amplitude, rate))
+    if sum(a for a, _ in modes) <= target:
+        return 0.0
+    if target <= 0.0 or any(rate <= 0.0 for _, rate in modes):
+        return math.inf
+    low, high = 0.0, max(math.log(len(modes) * a / target) / rate for a, rate in modes)
+    for _ in range(60):  # the sum falls monotonically: bisection
+        middle = 0.5 * (low + high)
+        if sum(a * math.exp(-rate * middle) for a, rate in modes) > target:
+            low = middle
+        else:
+            high = middle
+    return high
+
+
+def least_in_position_timeout(axis, drive_time_constant: float, kp: float, ki: float, window: float,
+                              time: float) -> float:
+    """The smallest [safety] in_position_timeout ``axis`` allows (s): in_position_time, what
+    the servo may need to settle the axis into the window (:func:`settle_time`) and a tick."""
+    return time + settle_time(axis, drive_time_constant, kp, ki, window) + TICK
+
+
 def check_axis_rules(values: dict[str, dict[str, object]], axes) -> tuple[str, str] | None:
     """Rules between each axis's data and the specification's tables (validated values,
     defaults filled in): ``(key, reason)`` of the first broken one, or None."""
@@ -522,6 +644,17 @@ def check_axis_rules(values: dict[str, dict[str, object]], axes) -> tuple[str, s
                     f"{tau:g} x its max_acceleration {a.max_acceleration:g} / [controller] kp {kp:g}: the servo's "
                     f"following error while a move accelerates at max_acceleration), got "
                     f"{controller['following_error_limit']:g}")
+        window, time = safety["in_position_window"], safety["in_position_time"]
+        timeout = least_in_position_timeout(a, tau, kp, controller["ki"], window, time)
+        if safety["in_position_timeout"] < timeout:
+            settle = timeout - time - TICK
+            return ("safety.in_position_timeout",
+                    f"expected at least {timeout:.3g} s for {a.name} (in_position_time {time:g} s + {settle:.3g} s, "
+                    f"what the servo may need to settle it within in_position_window {window} counts (less "
+                    f"{IN_POSITION_SLACK:g}) of its reference after a move at its limits, with [controller] kp {kp:g} "
+                    f"and ki {controller['ki']:g}, [simulation] drive_time_constant {tau:g} and "
+                    f"{a.counts_per_unit:.4g} counts per {a.unit} (least_in_position_timeout) + a tick), got "
+                    f"{safety['in_position_timeout']:g}")
         most = greatest_drive_offset(a.max_acceleration, factor)
         if offset > most:
             return ("simulation.max_drive_offset",

@@ -130,8 +130,10 @@ def clamp_commands(command: tuple[float, ...], compensation: list[float],
     return tuple(out)
 
 
-#: What :func:`safety_check` and :func:`direction_check` found (the code is ``kind * 256 + axis``).
-SAFE, OVER_VELOCITY, OVER_ACCELERATION, OVER_LIMIT, NO_COUNTS, WRONG_WAY, NOT_STILL = 0, 1, 2, 3, 4, 5, 6
+#: What :func:`safety_check`, :func:`direction_check` and :func:`standstill_check` found (the
+#: code is ``kind * 256 + axis``).
+SAFE, OVER_VELOCITY, OVER_ACCELERATION, OVER_LIMIT, NO_COUNTS, WRONG_WAY, NOT_STILL, NOT_IN_POSITION = (
+    0, 1, 2, 3, 4, 5, 6, 7)
 
 
 def safety_check(commands: tuple[float, ...], previous: tuple[float, ...], velocity_limits: tuple[float, ...],
@@ -202,13 +204,44 @@ def direction_check(window: list[float], counts: tuple[int, ...], window_counts:
     return found
 
 
-def standstill_check(counts: tuple[int, ...], reference: tuple[int, ...], tolerance: int) -> int:
-    """NOT_STILL (``kind * 256 + i``) for the first axis whose encoder moved more than
-    ``tolerance`` counts from ``reference``; 0 otherwise."""
-    for i in range(len(counts)):
-        d = counts[i] - reference[i]
-        if d > tolerance or d < -tolerance:
-            return NOT_STILL * 256 + i
+def standstill_check(positions: tuple[float, ...], segments: tuple[tuple[float, ...], ...], s: float,
+                     counts_per_unit: tuple[float, ...], window: float, tolerance: float, hold: float, now: float,
+                     deadline: float, since: list[float], fixed: list[float], away: list[float]) -> int:
+    """Standstill monitoring of one tick while the robot must be at rest. Per axis ``i``:
+
+    * in position (``fixed[i]``, its standstill reference, is a number): NOT_STILL when its
+      position is more than ``tolerance`` counts from ``fixed[i]``;
+    * not yet (``fixed[i]`` is NaN): its position against the servo's reference (segment
+      ``segments[i]`` at ``s``, :func:`segment_position`); within ``window`` counts since
+      ``since[i]`` (NaN: not within) for ``hold`` seconds, the reference becomes
+      ``fixed[i]``; an axis not in position at ``deadline`` is NOT_IN_POSITION.
+
+    Positions are in the axis's unit, ``counts_per_unit`` converts. ``away[i]`` gets the
+    axis's distance (counts) from the reference it was checked against. Returns the first
+    violation as ``kind * 256 + i``, 0 if none; ``since``, ``fixed`` and ``away`` are
+    updated in place."""
+    for i in range(len(positions)):
+        f = fixed[i]
+        if f == f:  # in position: strict from here on
+            d = (positions[i] - f) * counts_per_unit[i]
+            away[i] = d
+            if d > tolerance or d < -tolerance:
+                return NOT_STILL * 256 + i
+            continue
+        r = segment_position(segments[i], s)
+        d = (positions[i] - r) * counts_per_unit[i]
+        away[i] = d
+        if -window <= d <= window:
+            t = since[i]
+            if t != t:
+                since[i] = now
+            elif now - t >= hold - 1e-9:  # (a ns for the rounding of the clock's sums)
+                fixed[i] = r
+                continue
+        else:
+            since[i] = math.nan
+        if now >= deadline:
+            return NOT_IN_POSITION * 256 + i
     return SAFE
 
 

@@ -253,6 +253,39 @@ def test_clamp_commands_compiled_equals_source(case):
         bits(source.clamp_commands(command, compensation, limits))
 
 
+@st.composite
+def standstill_cases(draw):
+    """A few ticks of standstill monitoring: still segments (the servo's reference at rest),
+    positions within a few windows of them, some axes already in position."""
+    n = draw(st.integers(1, 6))
+    refs = draw(st.lists(st.floats(-180, 180), min_size=n, max_size=n))
+    segments = tuple((p, 0.0, 0.0, 0.0, 0.0, 0.0, source.NO_BREAK, 0.0, 0.0, source.NO_BREAK, 0.0, 0.0) for p in refs)
+    cpu = tuple(draw(st.floats(50.0, 20_000.0)) for _ in range(n))
+    ticks = [tuple(r + draw(st.floats(-20.0, 20.0)) / k for r, k in zip(refs, cpu))
+             for _ in range(draw(st.integers(1, 8)))]
+    fixed = [draw(st.one_of(st.just(math.nan), st.floats(-1.0, 1.0).map(lambda d, r=r: r + d / 1000)))
+             for r in refs]
+    return (segments, draw(st.floats(0.0, 1.0)), cpu, float(draw(st.integers(2, 10))),
+            float(draw(st.integers(2, 20))), draw(st.sampled_from([0.001, 0.002, 0.02])), ticks,
+            draw(st.integers(0, 8)) * 0.001, fixed)
+
+
+def run_standstill(module, case):
+    segments, s, cpu, window, tolerance, hold, ticks, deadline, fixed = case
+    since, fixed, away, codes = [math.nan] * len(cpu), list(fixed), [0.0] * len(cpu), []
+    for k, positions in enumerate(ticks):
+        codes.append(module.standstill_check(positions, segments, s, cpu, window, tolerance, hold, k * 0.001,
+                                             deadline, since, fixed, away))
+    return codes, bits(since), bits(fixed), bits(away)
+
+
+@needs_build
+@SETTINGS
+@given(standstill_cases())
+def test_standstill_check_compiled_equals_source(case):
+    assert run_standstill(COMPILED, case) == run_standstill(source, case)
+
+
 def test_clamp_commands_clamps_and_passes_nan():
     out = accel.kernels.clamp_commands((5.0, -5.0, 0.5, math.nan), [0.0, 0.0, 0.25, 0.0], (1.0, 2.0, 1.0, 1.0))
     assert out[:3] == (1.0, -2.0, 0.75) and math.isnan(out[3])

@@ -376,7 +376,7 @@ def test_an_axis_that_moves_while_paused_is_a_standstill_fault():
     system.begin(LONG, None)
     into_move(system, 5)
     assert system.trajectory.pause()
-    run_until(system, lambda: system.safety._still_counts is not None)  # at rest, standstill watched
+    run_until(system, lambda: all(system.safety.in_position))  # at rest, in position: standstill watched
     backend = system.backend
     backend.set_drive_offset(2, backend.drive_offsets[2] + 20.0)  # the drive of A3 drifts hard
     run_until(system, lambda: system.supervisor.done)

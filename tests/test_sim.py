@@ -19,7 +19,9 @@ ZERO = (0.0,) * N
 
 
 def one_axis_spec(simulation: str = "", **axis) -> object:
-    """A one-axis robot; keyword arguments override the axis' keys."""
+    """A one-axis robot; keyword arguments override the axis' keys. (Its in_position_timeout
+    is long: a long axis with a fine encoder, whose servo's integral may take seconds to
+    settle it; these tests do not run the servo.)"""
     keys = {"min": -100.0, "max": 100.0, "max_velocity": 200.0, "max_acceleration": 1000.0,
             "max_jerk": 10000.0, "gear_ratio": 100.0, "encoder_counts": 4096}
     keys.update(axis)
@@ -27,6 +29,7 @@ def one_axis_spec(simulation: str = "", **axis) -> object:
     text = f'[robot]\nname = "test_arm"\n\n[[axis]]\nname = "J1"\nkind = "revolute"\n{lines}\n'
     if simulation:
         text += f"\n[simulation]\n{simulation}\n"
+    text += "\n[safety]\nin_position_timeout = 60.0\n"
     return parse_spec(text, "test.spc")
 
 

@@ -209,6 +209,9 @@ def test_each_number_at_the_least_it_accepts_runs_the_paper_program_without_a_fa
             least_value = max([least_value] + [params.least_plausibility_distance(a, tau) for a in default.axes])
         for index in range(6) if table == "axis" else [None]:
             text = _apply(text, settings_, table, key, least_value, index)
+        if key == "kp":  # (the servo's slower settling needs a longer in_position_timeout: the least the rule accepts)
+            text = _set(text, "safety", "in_position_timeout", _least_timeout(parse_spec(_set(
+                text, "safety", "in_position_timeout", SAFETY["in_position_timeout"].high), "variant.spc")))
         if key == "max_acceleration":  # (the coarsest encoder the resolution rule accepts with it)
             factor = SAFETY["acceleration_factor"].default
             for index, axis in enumerate(default.axes):
@@ -219,6 +222,15 @@ def test_each_number_at_the_least_it_accepts_runs_the_paper_program_without_a_fa
         fault = summary["fault"]
         assert fault is None or fault.endswith(TIME_LIMIT), (table, key, least_value, fault)
         assert all(math.isfinite(x) for x in summary["final_position"]), (table, key)
+
+
+def _least_timeout(spec) -> float:
+    """The least [safety] in_position_timeout the rules accept for ``spec``'s axes and gains, at
+    least its default (rounded up to the ms)."""
+    c, s, tau = spec.controller, spec.safety, spec.simulation.drive_time_constant
+    least = max(params.least_in_position_timeout(a, tau, c.kp, c.ki, s.in_position_window, s.in_position_time)
+                for a in spec.axes)
+    return max(SAFETY["in_position_timeout"].default, math.ceil(least * 1000) / 1000)
 
 
 def run_to_end_of_homing(text: str, settings_: dict, max_time: float) -> dict | None:
@@ -309,7 +321,10 @@ def extreme_specs(draw) -> tuple[str, dict]:
             value = min(value, chosen[("axis", "max_velocity", index)])
         text = _apply(text, settings_, table, key, value, index)
     assert margin > SAFETY["limit_tolerance"].default
-    return text, settings_
+    # the in_position_timeout the servo's settling needs with these axes and gains (at most 60 s: else refused)
+    timeout = _least_timeout(parse_spec(_set(text, "safety", "in_position_timeout",
+                                             SAFETY["in_position_timeout"].high), "variant.spc"))
+    return _set(text, "safety", "in_position_timeout", min(timeout, SAFETY["in_position_timeout"].high)), settings_
 
 
 #: Each example runs homing on the simulated clock (about a second): a failure is reported

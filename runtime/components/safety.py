@@ -18,7 +18,10 @@ trusts neither the planner, nor the servo law, nor the operator, nor the configu
 * **command watchdog**: no fresh command from the servo for two ticks;
 * **following error** beyond the servo's limit (which is never off: at most 10);
 * **standstill** while the robot must be at rest (held by a program, paused, brakes
-  closing): an encoder more than ``standstill_tolerance`` counts from where it settled;
+  closing): each axis must come *into position* (within ``in_position_window`` counts of
+  the servo's reference for ``in_position_time``) within ``in_position_timeout`` of the
+  reference coming to rest; from then on that reference is fixed and the axis may not move
+  more than ``standstill_tolerance`` counts from it;
 * **stops on the path** (pause, abort) that do not reach rest within their planned time
   plus ``stop_time_margin``.
 
@@ -30,7 +33,8 @@ fault, an abort) goes through :meth:`SafetySupervisor.stop_robot` too. The ramp 
 the planner nor the servo nor the encoders.
 
 Real-time: :meth:`update` and :meth:`stop_robot` (plain floats, one tuple per tick; the per-axis
-checks are :func:`runtime.kernels.safety_check`); the rest runs between cycles.
+checks are :func:`runtime.kernels.safety_check` and, at rest, :func:`runtime.kernels.standstill_check`);
+the rest runs between cycles.
 """
 from __future__ import annotations
 
@@ -48,9 +52,6 @@ standstill_check = kernels.standstill_check
 WATCHDOG_TICKS = 2
 #: Ticks of the encoder-direction window.
 DIRECTION_WINDOW = 50
-#: Seconds an axis must be commanded to rest before its standstill is monitored
-#: (the servo settles the last counts).
-STANDSTILL_SETTLE = 0.05
 #: Seconds the brakes may take to engage before the stop goes on to torque off anyway.
 BRAKE_TIMEOUT = 1.0
 
@@ -61,7 +62,9 @@ CATEGORIES: dict[str, tuple[int, str]] = {
     "acceleration": (1, "a commanded velocity that changes faster than the acceleration limit allows"),
     "position limit": (1, "an axis that would come to rest beyond its software limit"),
     "encoder": (0, "an encoder that does not count, or counts the wrong way, while its axis is commanded"),
-    "standstill": (0, "an axis that moves while the robot must be at rest"),
+    "standstill": (0, "an axis that moves from its standstill reference while the robot must be at rest"),
+    "in position": (0, "an axis that does not come into position within [safety] in_position_timeout of the "
+                       "servo's reference coming to rest"),
     "watchdog": (1, "no fresh command from the servo for two ticks"),
     "following error": (1, "the servo's following error beyond its limit"),
     "stop overdue": (1, "a stop on the path (pause, abort) that does not reach rest in time"),
@@ -76,7 +79,7 @@ CATEGORIES: dict[str, tuple[int, str]] = {
 
 _KINDS = {kernels.OVER_VELOCITY: "velocity", kernels.OVER_ACCELERATION: "acceleration",
           kernels.OVER_LIMIT: "position limit", kernels.NO_COUNTS: "encoder", kernels.WRONG_WAY: "encoder",
-          kernels.NOT_STILL: "standstill"}
+          kernels.NOT_STILL: "standstill", kernels.NOT_IN_POSITION: "in position"}
 
 
 def categories_markdown() -> str:
@@ -103,6 +106,10 @@ class SafetySupervisor(Component):
         self.reaction = safety.stop_reaction_time
         self.tolerance = safety.limit_tolerance
         self.standstill_tolerance = safety.standstill_tolerance
+        self.in_position_window = safety.in_position_window
+        self.in_position_time = safety.in_position_time
+        self.in_position_timeout = safety.in_position_timeout
+        self._in_window, self._tolerance = float(self.in_position_window), float(self.standstill_tolerance)
         self.stop_time_margin = safety.stop_time_margin
         self.deceleration = tuple(a.max_acceleration for a in axes)
         self.braking = tuple(1.0 / (2.0 * a.max_acceleration) for a in axes)
@@ -169,8 +176,11 @@ class SafetySupervisor(Component):
         self._window_ticks = 0
         self._armed = False  # the drives may move (brakes released or releasing); checks run
         self.standstill_expected = False  # someone who knows says the robot must be at rest
-        self._still_since: float | None = None
-        self._still_counts: tuple | None = None
+        self._position_deadline = math.nan  # the time every axis must be in position by (NaN: not at rest)
+        nan = math.nan
+        self._since = [nan] * self.n  # per axis: within the window since (NaN: not within)
+        self._fixed = [nan] * self.n  # per axis: its standstill reference (NaN: not in position yet)
+        self._away = [0.0] * self.n  # per axis: counts from that reference (or the servo's), last tick
         self.rest_deadline: float | None = None  # a stop on the path must reach rest by then
 
     def on_start(self) -> bool:
@@ -229,17 +239,18 @@ class SafetySupervisor(Component):
                                                 f"{self.following_error_limit:g} (the servo did not stop)", now)
             return
         if self.standstill_expected:
-            if self._still_counts is not None:
-                code = standstill_check(counts, self._still_counts, self.standstill_tolerance)
-                if code:
-                    self._axis_violation(code, command, now)
-                    return
-            elif self._still_since is None:
-                self._still_since = now
-            elif now - self._still_since >= STANDSTILL_SETTLE:
-                self._still_counts = counts
-        elif self._still_since is not None:
-            self._still_since = self._still_counts = None
+            deadline = self._position_deadline
+            if deadline != deadline:  # rest has just begun: the servo's reference stops a setpoint period later
+                deadline = self._position_deadline = now + self.servo.setpoint_period + self.in_position_timeout
+            segments, s, _ = self.servo.reference_segments
+            code = standstill_check(robot.positions, segments, s, self.counts_per_unit, self._in_window,
+                                    self._tolerance, self.in_position_time, now, deadline, self._since, self._fixed,
+                                    self._away)
+            if code:
+                self._axis_violation(code, command, now)
+                return
+        elif self._position_deadline == self._position_deadline:
+            self._not_at_rest()
         if self.rest_deadline is not None and now > self.rest_deadline:
             self._violation("stop overdue", "the stop on the path did not reach rest within its planned time "
                                             f"and {self.stop_time_margin:g} s", now)
@@ -247,11 +258,25 @@ class SafetySupervisor(Component):
         self.previous = command
         self.drive_cmd.write(command, now)
 
+    def _not_at_rest(self) -> None:
+        """Real-time: the robot may move again: every axis's in-position state is forgotten."""
+        nan = math.nan
+        self._position_deadline = nan
+        for i in range(self.n):
+            self._since[i] = nan
+            self._fixed[i] = nan
+
+    @property
+    def in_position(self) -> tuple[bool, ...]:
+        """Per axis: in position, its standstill monitored against a fixed reference."""
+        return tuple([f == f for f in self._fixed])
+
     def expect_standstill(self, expected: bool) -> None:
-        """Real-time safe: the robot must (or may no longer) be at rest: from
-        STANDSTILL_SETTLE later on, every encoder must stay within
-        ``standstill_tolerance`` counts of where it settled. Reaching rest also ends a
-        :meth:`expect_rest_within`."""
+        """Real-time safe: the robot must (or may no longer) be at rest: each axis must come
+        into position (within ``in_position_window`` counts of the servo's reference for
+        ``in_position_time``) within ``in_position_timeout`` of the reference coming to rest,
+        and from then on stay within ``standstill_tolerance`` counts of that reference.
+        Reaching rest also ends a :meth:`expect_rest_within`."""
         if expected:
             self.rest_deadline = None
         self.standstill_expected = expected
@@ -293,10 +318,17 @@ class SafetySupervisor(Component):
                     "(encoder frozen, drive not responding, or the axis blocked)")
         elif kind == kernels.WRONG_WAY:
             text = f"the encoder of {a.name} counts against the commanded direction (encoder or drive wired wrong)"
+        elif kind == kernels.NOT_STILL:
+            text = (f"{a.name} moved {abs(self._away[i]):.0f} encoder counts from the reference it came into position "
+                    f"at, while the robot must be at rest (allowed: {self.standstill_tolerance})")
         else:
-            moved = abs(self.robot.counts[i] - self._still_counts[i]) if self._still_counts else 0
-            text = (f"{a.name} moved {moved} encoder counts while the robot must be at rest (allowed: "
-                    f"{self.standstill_tolerance})")
+            away = self._away[i]
+            within = abs(away) <= self.in_position_window
+            text = (f"{a.name} not in position {self.in_position_timeout:g} s after its reference came to rest: "
+                    f"{away:+.0f} encoder counts ({away / a.counts_per_unit:+.4f} {unit}) from the servo's reference"
+                    f"{', within the window for less than in_position_time' if within else ''} (in position: within "
+                    f"{self.in_position_window} counts for {self.in_position_time:g} s; [safety] in_position_window, "
+                    f"in_position_time, in_position_timeout)")
         self._violation(_KINDS[kind], text, now)
 
     def _violation(self, cause: str, text: str, now: float) -> None:

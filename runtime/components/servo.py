@@ -114,6 +114,12 @@ class ServoController(Component):
         return tuple([segment_position(c, s) for c in segments])
 
     @property
+    def reference_segments(self) -> tuple:
+        """The reference of the last update as the servo evaluates it: ``(segments, s,
+        inv_h)``, each axis's segment (runtime.kernels) at ``s`` (real-time: no copy)."""
+        return self._reference
+
+    @property
     def following_error(self) -> tuple[float, ...]:
         """Reference - measured position of the last update (deg per axis)."""
         return tuple([r - x for r, x in zip(self.reference, self.position)])

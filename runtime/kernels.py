@@ -120,13 +120,14 @@ def servo_law(segments: tuple[tuple[float, ...], ...], s: float, inv_h: float, p
 
 def clamp_commands(command: tuple[float, ...], compensation: list[float],
                    limits: tuple[float, ...]) -> tuple[float, ...]:
-    """``command[i] + compensation[i]`` clamped to ``-limits[i]..limits[i]`` (NaN passes
-    through: the drive treats it as 0)."""
+    """``command[i]`` clamped to ``-limits[i]..limits[i]``, plus ``compensation[i]`` (the
+    drive's calibrated offset cancelled after the clamp, so that the axis runs at the
+    clamped command even at the limit; NaN passes through: the drive treats it as 0)."""
     out = [0.0] * len(limits)
     for i in range(len(limits)):
-        v = command[i] + compensation[i]
+        v = command[i]
         m = limits[i]
-        out[i] = m if v > m else -m if v < -m else v
+        out[i] = (m if v > m else -m if v < -m else v) + compensation[i]
     return tuple(out)
 
 

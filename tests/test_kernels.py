@@ -289,13 +289,15 @@ def test_standstill_check_compiled_equals_source(case):
 def test_clamp_commands_clamps_and_passes_nan():
     out = accel.kernels.clamp_commands((5.0, -5.0, 0.5, math.nan), [0.0, 0.0, 0.25, 0.0], (1.0, 2.0, 1.0, 1.0))
     assert out[:3] == (1.0, -2.0, 0.75) and math.isnan(out[3])
+    # the compensation (a drive's calibrated offset) is added after the clamp: at the limit too
+    assert accel.kernels.clamp_commands((5.0, -5.0), [0.25, -0.25], (1.0, 2.0)) == (1.25, -2.25)
 
 
 @needs_build
 def test_integers_are_taken_as_floats_alike():
     """Callers may hand integer positions or commands: both implementations compute in floats."""
     for module in (COMPILED, source):
-        assert module.clamp_commands((1, -3), [0, 0.5], (2.0, 2.0)) == (1.0, -2.0)
+        assert module.clamp_commands((1, -3), [0, 0.5], (2.0, 2.0)) == (1.0, -1.5)
 
 
 # ---- whole runs ------------------------------------------------------------------------

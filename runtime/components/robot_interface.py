@@ -78,9 +78,12 @@ class RobotInterface(Component):
         return self.estimator.velocities
 
     def write(self, now: float) -> None:
-        """Real-time (act): ``drive_cmd`` + compensation to the drives (within each
-        axis's max_velocity, the drive's own range). A command not written by the safety
-        supervisor for this very tick is not applied: zero, torque off, brakes on."""
+        """Real-time (act): ``drive_cmd`` (within each axis's max_velocity) + the calibrated
+        compensation to the drives: the drive then runs at the command, also at
+        max_velocity when its offset works against the motion (clamped after the
+        compensation, such an axis fell behind for as long as it ran at max_velocity). A
+        command not written by the safety supervisor for this very tick is not applied:
+        zero, torque off, brakes on."""
         port = self.drive_cmd
         if port.stamp != now or port.value is None:
             command = self._zeros

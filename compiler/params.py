@@ -653,7 +653,8 @@ def check_axis_rules(values: dict[str, dict[str, object]], axes) -> tuple[str, s
                     f"what the servo may need to settle it within in_position_window {window} counts (less "
                     f"{IN_POSITION_SLACK:g}) of its reference after a move at its limits, with [controller] kp {kp:g} "
                     f"and ki {controller['ki']:g}, [simulation] drive_time_constant {tau:g} and "
-                    f"{a.counts_per_unit:.4g} counts per {a.unit} (least_in_position_timeout) + a tick), got "
+                    f"{a.counts_per_unit:.4g} counts per {a.unit} (least_in_position_timeout) + a tick; a larger "
+                    f"in_position_window, with standstill_tolerance, or a smaller ki shortens it), got "
                     f"{safety['in_position_timeout']:g}")
         most = greatest_drive_offset(a.max_acceleration, factor)
         if offset > most:

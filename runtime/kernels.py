@@ -206,15 +206,17 @@ def direction_check(window: list[float], counts: tuple[int, ...], window_counts:
 
 
 def standstill_check(positions: tuple[float, ...], segments: tuple[tuple[float, ...], ...], s: float,
-                     counts_per_unit: tuple[float, ...], window: float, tolerance: float, hold: float, now: float,
-                     deadline: float, since: list[float], fixed: list[float], away: list[float]) -> int:
+                     counts_per_unit: tuple[float, ...], window: float, tolerance: float, hold: float,
+                     settle: tuple[float, ...], rest: float, now: float, deadline: float, since: list[float],
+                     fixed: list[float], away: list[float]) -> int:
     """Standstill monitoring of one tick while the robot must be at rest. Per axis ``i``:
 
     * in position (``fixed[i]``, its standstill reference, is a number): NOT_STILL when its
       position is more than ``tolerance`` counts from ``fixed[i]``;
     * not yet (``fixed[i]`` is NaN): its position against the servo's reference (segment
       ``segments[i]`` at ``s``, :func:`segment_position`); within ``window`` counts since
-      ``since[i]`` (NaN: not within) for ``hold`` seconds, the reference becomes
+      ``since[i]`` (NaN: not within) for ``hold`` seconds, and no sooner than ``settle[i]``
+      seconds after the reference came to rest at ``rest``, the reference becomes
       ``fixed[i]``; an axis not in position at ``deadline`` is NOT_IN_POSITION.
 
     Positions are in the axis's unit, ``counts_per_unit`` converts. ``away[i]`` gets the
@@ -236,7 +238,7 @@ def standstill_check(positions: tuple[float, ...], segments: tuple[tuple[float, 
             t = since[i]
             if t != t:
                 since[i] = now
-            elif now - t >= hold - 1e-9:  # (a ns for the rounding of the clock's sums)
+            elif now - t >= hold - 1e-9 and now - rest >= settle[i] - 1e-9:  # (a ns: the clock's sums)
                 fixed[i] = r
                 continue
         else:

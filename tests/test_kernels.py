@@ -265,17 +265,18 @@ def standstill_cases(draw):
              for _ in range(draw(st.integers(1, 8)))]
     fixed = [draw(st.one_of(st.just(math.nan), st.floats(-1.0, 1.0).map(lambda d, r=r: r + d / 1000)))
              for r in refs]
+    settle = tuple(draw(st.integers(0, 8)) * 0.001 for _ in range(n))
     return (segments, draw(st.floats(0.0, 1.0)), cpu, float(draw(st.integers(2, 10))),
-            float(draw(st.integers(2, 20))), draw(st.sampled_from([0.001, 0.002, 0.02])), ticks,
+            float(draw(st.integers(2, 20))), draw(st.sampled_from([0.001, 0.002, 0.02])), settle, ticks,
             draw(st.integers(0, 8)) * 0.001, fixed)
 
 
 def run_standstill(module, case):
-    segments, s, cpu, window, tolerance, hold, ticks, deadline, fixed = case
+    segments, s, cpu, window, tolerance, hold, settle, ticks, deadline, fixed = case
     since, fixed, away, codes = [math.nan] * len(cpu), list(fixed), [0.0] * len(cpu), []
     for k, positions in enumerate(ticks):
-        codes.append(module.standstill_check(positions, segments, s, cpu, window, tolerance, hold, k * 0.001,
-                                             deadline, since, fixed, away))
+        codes.append(module.standstill_check(positions, segments, s, cpu, window, tolerance, hold, settle, 0.0,
+                                             k * 0.001, deadline, since, fixed, away))
     return codes, bits(since), bits(fixed), bits(away)
 
 

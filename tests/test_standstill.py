@@ -238,9 +238,9 @@ def test_an_axis_is_in_position_after_the_time_in_the_window_then_held_to_the_to
     nan = math.nan
     since, fixed, away = [nan], [nan], [0.0]
 
-    def check(position_counts: float, now: float, deadline: float = 1.0) -> int:
+    def check(position_counts: float, now: float, deadline: float = 1.0, settle: float = 0.0) -> int:
         return kernels.standstill_check((10.0 + position_counts / 100.0,), (still,), 0.0, (100.0,), 5.0, 10.0, 0.02,
-                                        now, deadline, since, fixed, away)
+                                        (settle,), 0.0, now, deadline, since, fixed, away)
     assert check(30.0, 0.000) == 0 and math.isnan(since[0])  # outside the window: settling
     assert check(4.5, 0.001) == 0 and since[0] == 0.001  # inside from now
     assert check(-4.0, 0.010) == 0 and math.isnan(fixed[0])
@@ -252,6 +252,9 @@ def test_an_axis_is_in_position_after_the_time_in_the_window_then_held_to_the_to
     since[0] = fixed[0] = nan
     assert check(3.0, 0.999) == 0
     assert check(3.0, 1.000) == kernels.NOT_IN_POSITION * 256  # inside, but not for long enough by the deadline
+    since[0] = fixed[0] = nan
+    assert check(0.0, 0.0, settle=0.1) == 0 and check(0.0, 0.099, settle=0.1) == 0 and math.isnan(fixed[0])
+    assert check(0.0, 0.1, settle=0.1) == 0 and fixed[0] == 10.0  # not before the servo may have settled it
 
 
 def test_the_faults_name_the_axis_the_counts_and_the_parameters(tmp_path):

@@ -19,7 +19,8 @@ trusts neither the planner, nor the servo law, nor the operator, nor the configu
 * **following error** beyond the servo's limit (which is never off: at most 10);
 * **standstill** while the robot must be at rest (held by a program, paused, brakes
   closing): each axis must come *into position* (within ``in_position_window`` counts of
-  the servo's reference for ``in_position_time``) within ``in_position_timeout`` of the
+  the servo's reference for ``in_position_time``, and no sooner than the servo may need to
+  settle it: :func:`compiler.params.settle_time`) within ``in_position_timeout`` of the
   reference coming to rest; from then on that reference is fixed and the axis may not move
   more than ``standstill_tolerance`` counts from it;
 * **stops on the path** (pause, abort) that do not reach rest within their planned time
@@ -39,6 +40,8 @@ the rest runs between cycles.
 from __future__ import annotations
 
 import math
+
+from compiler.params import settle_time
 
 from ..accel import kernels
 from ..component import Component, DataPort
@@ -110,6 +113,11 @@ class SafetySupervisor(Component):
         self.in_position_time = safety.in_position_time
         self.in_position_timeout = safety.in_position_timeout
         self._in_window, self._tolerance = float(self.in_position_window), float(self.standstill_tolerance)
+        # per axis: how long after its reference comes to rest the servo may still swing it through the
+        # window (compiler.params.settle_time): an axis is not in position before
+        controller, lag = spec.controller, spec.simulation.drive_time_constant
+        self.settle_times = tuple(settle_time(a, lag, controller.kp, controller.ki, self.in_position_window)
+                                  for a in axes)
         self.stop_time_margin = safety.stop_time_margin
         self.deceleration = tuple(a.max_acceleration for a in axes)
         self.braking = tuple(1.0 / (2.0 * a.max_acceleration) for a in axes)
@@ -177,6 +185,7 @@ class SafetySupervisor(Component):
         self._armed = False  # the drives may move (brakes released or releasing); checks run
         self.standstill_expected = False  # someone who knows says the robot must be at rest
         self._position_deadline = math.nan  # the time every axis must be in position by (NaN: not at rest)
+        self._reference_rest = math.nan  # the time the servo's reference came to rest
         nan = math.nan
         self._since = [nan] * self.n  # per axis: within the window since (NaN: not within)
         self._fixed = [nan] * self.n  # per axis: its standstill reference (NaN: not in position yet)
@@ -239,13 +248,13 @@ class SafetySupervisor(Component):
                                                 f"{self.following_error_limit:g} (the servo did not stop)", now)
             return
         if self.standstill_expected:
-            deadline = self._position_deadline
-            if deadline != deadline:  # rest has just begun: the servo's reference stops a setpoint period later
-                deadline = self._position_deadline = now + self.servo.setpoint_period + self.in_position_timeout
+            if self._position_deadline != self._position_deadline:  # rest has just begun: the servo's
+                self._reference_rest = now + self.servo.setpoint_period  # reference stops a setpoint period later
+                self._position_deadline = self._reference_rest + self.in_position_timeout
             segments, s, _ = self.servo.reference_segments
             code = standstill_check(robot.positions, segments, s, self.counts_per_unit, self._in_window,
-                                    self._tolerance, self.in_position_time, now, deadline, self._since, self._fixed,
-                                    self._away)
+                                    self._tolerance, self.in_position_time, self.settle_times, self._reference_rest,
+                                    now, self._position_deadline, self._since, self._fixed, self._away)
             if code:
                 self._axis_violation(code, command, now)
                 return
@@ -274,8 +283,9 @@ class SafetySupervisor(Component):
     def expect_standstill(self, expected: bool) -> None:
         """Real-time safe: the robot must (or may no longer) be at rest: each axis must come
         into position (within ``in_position_window`` counts of the servo's reference for
-        ``in_position_time``) within ``in_position_timeout`` of the reference coming to rest,
-        and from then on stay within ``standstill_tolerance`` counts of that reference.
+        ``in_position_time``, not before its :attr:`settle_times`) within
+        ``in_position_timeout`` of the reference coming to rest, and from then on stay within
+        ``standstill_tolerance`` counts of that reference.
         Reaching rest also ends a :meth:`expect_rest_within`."""
         if expected:
             self.rest_deadline = None

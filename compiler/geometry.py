@@ -24,6 +24,15 @@ def rpy_to_quat(roll: float, pitch: float, yaw: float) -> tuple[float, float, fl
             cr * sp * cy + sr * cp * sy, cr * cp * sy - sr * sp * cy)
 
 
+def rpy_to_matrix(roll: float, pitch: float, yaw: float) -> tuple:
+    """``Rz(yaw) Ry(pitch) Rx(roll)`` (degrees) as a 3x3 nested tuple."""
+    r, p, y = roll * _D2R, pitch * _D2R, yaw * _D2R
+    cr, sr, cp, sp, cy, sy = cos(r), sin(r), cos(p), sin(p), cos(y), sin(y)
+    return ((cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr),
+            (sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr),
+            (-sp, cp * sr, cp * cr))
+
+
 def rotation_to_rpy(r00, r01, r02, r10, r11, r12, r20, r21, r22) -> tuple[float, float, float]:
     """(roll, pitch, yaw) in degrees of a rotation matrix. Yaw first, then roll and pitch
     from ``Rz(-yaw) R``: exact to rounding even next to gimbal lock."""

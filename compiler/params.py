@@ -33,6 +33,8 @@ import difflib
 import math
 from dataclasses import dataclass
 
+from . import geometry
+
 __all__ = ["COMPONENTS", "PARAMS", "SETTINGS", "SPEC_SECTIONS", "Param", "ParamError", "component_params",
            "describe", "markdown", "section_params", "settings", "spec_section"]
 
@@ -71,6 +73,13 @@ DRIFT_RESOLUTION = 0.1
 #: the lagging drive damped enough (damping ratio 1 / (2 sqrt(kp tau)) >= 0.7) that the
 #: servo's command does not overshoot homing's speed limit.
 MAX_KP_LAG = 0.5
+#: The keys of a pose table (``[kinematics] tool``, ``mounting``, ``[[tool]]``, ``[[frame]]``):
+#: x, y, z (mm) and the orientation as roll, pitch, yaw (deg) or as a unit quaternion.
+POSE_KEYS = ("x", "y", "z", "roll", "pitch", "yaw")
+QUAT_KEYS = ("qw", "qx", "qy", "qz")
+#: How far a pose table's quaternion may be from unit norm (a datasheet's five or six
+#: digits); it is normalised. Farther, it is a typing error, refused.
+QUAT_NORM_TOLERANCE = 1e-3
 REPORT_COLUMNS = ("sens_pos", "desi_pos", "out_vel", "following_error", "tcp")
 #: Columns a report may also have (not by default): io, every digital input then output (0/1);
 #: move, the number and source line of the program's move under way (runtime.components.report).
@@ -83,11 +92,14 @@ class ParamError(ValueError):
     parameter's name ("expected ..., got ..."); ``specific`` when it says more than the
     allowed range (a period off the tick, an unknown column)."""
 
-    def __init__(self, name: str, reason: str, specific: bool = False):
+    def __init__(self, name: str, reason: str, specific: bool = False, field: str | None = None):
+        if field is not None:
+            name = f"{name}.{field}"
         super().__init__(f"{name}: {reason}")
         self.name = name
         self.reason = reason
         self.specific = specific
+        self.field = field  # the key within a table value (a pose's "x") the reason is about
 
 
 def describe(value: object, limit: int = 60) -> str:
@@ -143,6 +155,15 @@ class Param:
     def allowed(self) -> str:
         """What the parameter accepts, as messages and the documentation say it."""
         unit = f" ({self.unit})" if self.unit else ""
+        if self.kind == "sign":
+            return "1 or -1"
+        if self.kind == "pose":
+            return (f"a table {{x, y, z}} (mm, at most {_number(self.high)} mm from the origin) with the orientation "
+                    "as roll, pitch, yaw (deg) or as a unit quaternion qw, qx, qy, qz (each key optional: 0; "
+                    "not both kinds)")
+        if self.kind == "coupling":
+            return (f"a table {{axis = NAME, factor = F}}: NAME an earlier main axis, F a number "
+                    f"{_number(self.low)} <= F <= {_number(self.high)}, not 0")
         if self.kind == "choice":
             return "one of " + ", ".join(f'"{c}"' for c in self.choices)
         if self.kind == "columns":
@@ -167,6 +188,14 @@ class Param:
             return value
         if kind == "columns":
             return self._columns(value)
+        if kind == "pose":
+            return self._pose(value)
+        if kind == "coupling":
+            return self._coupling(value)
+        if kind == "sign":
+            if isinstance(value, bool) or value not in (1, -1) or not float(value).is_integer():
+                raise self._error(value)
+            return int(value)
         if isinstance(value, bool) or not isinstance(value, (int, float)):
             raise self._error(value)
         if kind == "integer":
@@ -201,6 +230,57 @@ class Param:
             raise self._error(value, f"expected a whole multiple of the {TICK * 1000:g} ms tick, got "
                                      f"{describe(value)} (nearest: {below * TICK:g} or {above * TICK:g})")
         return ticks / round(1 / TICK)
+
+    def _pose(self, value: object) -> tuple[float, ...]:
+        """x, y, z, roll, pitch, yaw of a pose table (a quaternion's as roll, pitch, yaw)."""
+        if not isinstance(value, dict):
+            raise self._error(value)
+        unknown = [k for k in value if k not in POSE_KEYS + QUAT_KEYS]
+        if unknown:
+            close = difflib.get_close_matches(str(unknown[0]), list(POSE_KEYS + QUAT_KEYS), n=1)
+            hint = f" (did you mean {close[0]!r}?)" if close else ""
+            raise self._error(value, f"unknown key {unknown[0]!r}{hint}; expected x, y, z and either roll, pitch, "
+                                     "yaw or qw, qx, qy, qz")
+        numbers = {}
+        for key, v in value.items():
+            try:
+                ok = not isinstance(v, bool) and isinstance(v, (int, float)) and math.isfinite(v) and abs(v) < 1e300
+            except OverflowError:
+                ok = False
+            if not ok:
+                unit = "mm" if key in "xyz" else "deg" if key in POSE_KEYS else "a quaternion's component"
+                raise ParamError(self.key, f"expected a number ({unit}), got {describe(v)}", True, key)
+            numbers[key] = float(v)
+        x, y, z = (numbers.get(k, 0.0) for k in "xyz")
+        offset = math.sqrt(x * x + y * y + z * z)
+        if self.high is not None and offset > self.high:
+            raise self._error(value, f"expected the origin at most {_number(self.high)} mm from its frame's, got "
+                                     f"{offset:.6g} mm")
+        given = [k for k in QUAT_KEYS if k in numbers]
+        if not given:
+            return (x, y, z, *(numbers.get(k, 0.0) for k in POSE_KEYS[3:]))
+        rpy = [k for k in POSE_KEYS[3:] if k in numbers]
+        if rpy:
+            raise self._error(value, f"expected the orientation as roll, pitch, yaw or as qw, qx, qy, qz, not both "
+                                     f"(got {rpy[0]} and {given[0]})")
+        q = tuple(numbers.get(k, 0.0) for k in QUAT_KEYS)
+        norm = math.sqrt(sum(c * c for c in q))
+        if abs(norm - 1.0) > QUAT_NORM_TOLERANCE:
+            raise self._error(value, f"expected a unit quaternion (qw^2 + qx^2 + qy^2 + qz^2 = 1 within "
+                                     f"{QUAT_NORM_TOLERANCE:g}), got one of norm {norm:.6g}: check its values")
+        return (x, y, z, *geometry.quat_to_rpy(q))
+
+    def _coupling(self, value: object) -> tuple[str, float]:
+        if not isinstance(value, dict) or set(value) != {"axis", "factor"}:
+            raise self._error(value)
+        name, factor = value["axis"], value["factor"]
+        if not isinstance(name, str) or not name:
+            raise self._error(value, f"expected axis, the name of an earlier main axis, got {describe(name)}")
+        if isinstance(factor, bool) or not isinstance(factor, (int, float)) or not math.isfinite(factor) \
+                or factor == 0 or not self.low <= factor <= self.high:
+            raise self._error(value, f"expected factor a number {_number(self.low)} <= F <= {_number(self.high)}, "
+                                     f"not 0, got {describe(factor)}")
+        return (name, float(factor))
 
     def _columns(self, value: object) -> list:
         if not isinstance(value, (list, tuple)) or not value:
@@ -298,8 +378,9 @@ PARAMS: tuple[Param, ...] = (
     # runtime can use: a smaller limit plans moves no run ends (or nan positions), a coarser
     # encoder cannot be servoed or homed, and the servo's own corrections on a healthy arm
     # would be a fault beside a smaller max_acceleration ----
-    _p("axis", "max_velocity", "number", None, "deg/s or mm/s", 1.0, 1000.0, safety=True,
-       doc="the axis's velocity limit (moves, the servo's commands and the safety supervisor)"),
+    _p("axis", "max_velocity", "number", None, "deg/s or mm/s", 1.0, 3600.0, safety=True,
+       doc="the axis's velocity limit (moves, the servo's commands and the safety supervisor); fast wrists "
+           "of small arms turn at up to about 1500 deg/s"),
     _p("axis", "max_acceleration", "number", None, "deg/s^2 or mm/s^2", 50.0, 10_000.0, safety=True,
        doc="the axis's acceleration limit"),
     _p("axis", "max_jerk", "number", None, "deg/s^3 or mm/s^3", 10.0, 1_000_000.0, safety=True,
@@ -312,6 +393,23 @@ PARAMS: tuple[Param, ...] = (
            f"{INDEX_SEARCH_MARGIN:g}) (least_gear_ratio: homing's index search ends above min)"),
     _p("axis", "encoder_counts", "integer", 4096, "counts", 16, 1 << 20,
        doc="encoder counts per motor revolution (after quadrature)"),
+    _p("axis", "direction", "sign", 1,
+       doc="which way the joint value turns the link: 1, about +z of the axis's DH frame (theta = q + "
+           "theta_offset); -1, about -z (theta = -q + theta_offset), so that joint values are the vendor's "
+           "(KUKA's A1, A4 and A6 turn about -z of a right-handed DH chain)"),
+    _p("axis", "coupling", "coupling", None, "", -1.0, 1.0,
+       doc="a coupled axis (FANUC's J3, measured from the horizontal: its DH angle is J3 - J2): theta = "
+           "direction x q + theta_offset + factor x the value of axis NAME. Only axes 2 and 3 of the arm may be "
+           "coupled, each to an earlier main axis; the joint limits stay each axis's own (a J2/J3 interference "
+           "limit that depends on both is not expressed)"),
+    # ---- [kinematics]: where the arm stands and its tool ----
+    _p("kinematics", "tool", "pose", (0.0,) * 6, "mm, deg", None, 5_000.0,
+       doc="the tool centre point in the flange frame (the last DH frame): what a pose target puts in place "
+           "when no 'use tool' says otherwise (default_tool)"),
+    _p("kinematics", "mounting", "pose", (0.0,) * 6, "mm, deg", None, 100_000.0,
+       doc="the robot's base (the first DH frame) in the cell's world frame: floor (the default, the identity), "
+           "a riser (z), a wall (roll or pitch 90) or the ceiling (roll 180). Pose targets, frames and the "
+           "reported tool centre point are in the world frame"),
     _p("axis", "sensor_window", "number", 0.5, "deg or mm", 0.01, 10.0,
        doc="half-width of the homing sensor's window"),
     _p("axis", "search_velocity", "number", 5.0, "deg/s or mm/s", 0.1, 1000.0,
@@ -388,7 +486,8 @@ def spec_section(section: str) -> dict[str, Param]:
 
 
 #: The Python type of each kind of parameter (the settings' field types).
-_TYPES = {"number": float, "integer": int, "choice": str, "period": float, "columns": list}
+_TYPES = {"number": float, "integer": int, "choice": str, "period": float, "columns": list, "sign": int,
+          "pose": tuple, "coupling": tuple}
 
 
 def _settings_class(section: str) -> type:
@@ -678,6 +777,10 @@ def markdown(sections=None) -> str:
         where = f"`{p.key}`" + (f" (from `[{p.spec_key.split('.')[0]}] {p.spec_key.split('.')[1]}`)"
                                 if p.spec_key else "")
         default = describe(p.default, 80) if not isinstance(p.default, str) else f'"{p.default}"'
+        if p.kind == "pose":
+            default = "the identity"
+        elif p.default is None:
+            default = "none" if p.kind == "coupling" else "required"
         lines.append(f"| {where} | {cell(p.allowed())} | {cell(default)} | {'yes' if p.safety else ''} "
                      f"| {p.change} | {cell(p.doc)} |")
     return "\n".join(lines) + "\n"

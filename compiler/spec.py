@@ -9,6 +9,7 @@ Imports nothing from Lark, NumPy or ZeroMQ.
 """
 from __future__ import annotations
 
+import dataclasses
 import hashlib
 import json
 import math
@@ -19,7 +20,7 @@ import tomllib
 from dataclasses import dataclass
 from pathlib import Path
 
-from . import clauses, params
+from . import clauses, geometry, params
 from .diagnostics import did_you_mean
 
 
@@ -59,6 +60,8 @@ class Axis:
     sensor_position: float = -5.0  # centre of the inductive homing sensor's window
     sensor_window: float = 0.5  # half-width of that window
     search_velocity: float = 5.0  # speed of the initialization's searches (unit/s)
+    direction: int = 1  # the DH angle is direction x the joint value (+ theta_offset)
+    coupling: tuple | None = None  # (index of an earlier main axis, factor): its value x factor is added
 
     @property
     def counts_per_unit(self) -> float:
@@ -122,6 +125,8 @@ class Spec:
     safety: object = None  # [safety], typed likewise: spec.safety.stop_time_margin
     #: The [[frame]] and [[tool]] tables: (type, name, (x, y, z, roll, pitch, yaw)) each.
     named_frames: tuple = ()
+    #: [kinematics] mounting: the robot's base in the world frame (x, y, z, roll, pitch, yaw).
+    mounting: tuple = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
 
     @property
     def main_axes(self) -> tuple[Axis, ...]:
@@ -142,8 +147,15 @@ class Spec:
         return sum(math.hypot(axis.dh.a, axis.dh.d) for axis in links) + math.hypot(x, y, z)
 
     def shoulder_distance(self, x: float, y: float, z: float) -> float:
-        """Distance (mm) from a point in the base frame to the nearest place the shoulder
-        can be: a circle of radius a1 at height d1 around the vertical first axis."""
+        """Distance (mm) from a point in the world frame to the nearest place the shoulder
+        can be: a circle of radius a1 at height d1 around the first axis (the robot's
+        base is at ``mounting`` in the world)."""
+        if self.mounting != (0.0,) * 6:
+            mx, my, mz, roll, pitch, yaw = self.mounting
+            (r00, r01, r02), (r10, r11, r12), (r20, r21, r22) = geometry.rpy_to_matrix(roll, pitch, yaw)
+            dx, dy, dz = x - mx, y - my, z - mz
+            x, y, z = (r00 * dx + r10 * dy + r20 * dz, r01 * dx + r11 * dy + r21 * dz,
+                       r02 * dx + r12 * dy + r22 * dz)
         first = self.main_axes[0].dh
         if first is None:
             return math.hypot(x, y, z)
@@ -265,6 +277,8 @@ def _axis(file: str, index: int, table) -> Axis:
     window = limit("sensor_window", axis_params["sensor_window"].default)
     search = limit("search_velocity", min(axis_params["search_velocity"].default, vel), cap=vel,
                    cap_name="max_velocity")
+    direction = limit("direction", axis_params["direction"].default)
+    coupling = limit("coupling", None)
     dh = None
     if "dh" in r.table:
         d = _Reader(file, r.key("dh"), r.get("dh", "table"))
@@ -273,7 +287,30 @@ def _axis(file: str, index: int, table) -> Axis:
                 d.get("theta_offset", "number", 0.0, expect="a number (deg)"))
         d.finish()
     r.finish()
-    return Axis(name, kind, low, high, vel, acc, jerk, group, dh, home, gear, counts, sensor, window, search)
+    return Axis(name, kind, low, high, vel, acc, jerk, group, dh, home, gear, counts, sensor, window, search,
+                direction, coupling)
+
+
+def _couplings(file: str, axes: tuple) -> tuple:
+    """The axes with each ``coupling`` resolved to the index of the axis it names: an
+    earlier main axis, and only axes 2 and 3 of the arm coupled (the inverse kinematics
+    solves the arm's axes in order and the wrist's from the arm's)."""
+    index = {a.name: i for i, a in enumerate(axes)}
+    out = []
+    for i, a in enumerate(axes):
+        if a.coupling is not None:
+            name, factor = a.coupling
+            key = f"axis[{i + 1}].coupling"
+            if a.group != "main" or i not in (1, 2):
+                raise SpecError(file, key, f"only axes 2 and 3 of the arm may be coupled (to an earlier axis), not "
+                                           f"{a.name}: coupled wrist axes are not supported; give {a.name}'s "
+                                           "joint values as its own angle")
+            if index.get(name, i) >= i:
+                known = ", ".join(x.name for x in axes[:i])
+                raise SpecError(file, key, f"expected axis, an earlier main axis ({known}), got {name!r}")
+            a = dataclasses.replace(a, coupling=(index[name], factor))
+        out.append(a)
+    return tuple(out)
 
 
 def parse_spec(text: str, file: str = "<spec>") -> Spec:
@@ -313,6 +350,7 @@ def parse_spec(text: str, file: str = "<spec>") -> Spec:
     groups = [a.group for a in axes]
     if "additional" in groups and "main" in groups[groups.index("additional"):]:
         raise SpecError(file, "axis", "main axes must come before additional axes")
+    axes = _couplings(file, axes)
 
     # [defaults]: what a move that leaves a clause out takes, checked as the clause table
     # (compiler.clauses) says; a bound from [robot] caps the built-in default.
@@ -336,16 +374,8 @@ def parse_spec(text: str, file: str = "<spec>") -> Spec:
     else:
         top.get("io", "table", None)
 
-    tool = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
-    if "kinematics" in data:
-        k = _Reader(file, "kinematics", top.get("kinematics", "table"))
-        raw_tool = k.get("tool", "table", {})
-        t = _Reader(file, "kinematics.tool", raw_tool)
-        tool = _pose_values(t)
-        t.finish()
-        k.finish()
-    else:
-        top.get("kinematics", "table", None)
+    kinematics = _parameters(file, "kinematics", top.get("kinematics", "table", {}))
+    tool, mounting = kinematics["tool"], kinematics["mounting"]
     named = _named_frames(file, data, top)
 
     tables = {section: _parameters(file, section, top.get(section, "table", {})) for section in params.SPEC_SECTIONS}
@@ -355,16 +385,22 @@ def parse_spec(text: str, file: str = "<spec>") -> Spec:
     top.finish()
     typed = {section: params.settings(section, values) for section, values in tables.items()}
     return Spec(name, file, axes, defaults, max_speed, max_acc, inputs, outputs, tool, typed["controller"],
-                _canonical_hash(data), description, typed["simulation"], typed["safety"], named)
+                _canonical_hash(data), description, typed["simulation"], typed["safety"], named, mounting)
 
 
-_POSE_KEYS = ("x", "y", "z", "roll", "pitch", "yaw")
+#: A named frame's or tool's table is a pose table (compiler.params) with a name.
+_POSE_PARAM = params.section_params("kinematics")["mounting"]
 
 
 def _pose_values(r: "_Reader") -> tuple[float, ...]:
-    """x, y, z (mm), roll, pitch, yaw (deg) of a table, each optional (0)."""
-    return tuple(r.get(key, "number", 0.0, expect=f"a number ({'mm' if i < 3 else 'deg'})")
-                 for i, key in enumerate(_POSE_KEYS))
+    """x, y, z (mm), roll, pitch, yaw (deg) of a pose table (the orientation as roll,
+    pitch, yaw or as a quaternion), each key optional (0)."""
+    keys = params.POSE_KEYS + params.QUAT_KEYS
+    r.used.update(keys)
+    try:
+        return _POSE_PARAM.check({k: v for k, v in r.table.items() if k in keys})
+    except params.ParamError as exc:
+        raise SpecError(r.file, r.key(exc.field) if exc.field else r.prefix, exc.reason) from None
 
 
 def _named_frames(file: str, data: dict, top: "_Reader") -> tuple:
@@ -417,7 +453,8 @@ def _parameters(file: str, section: str, table: dict) -> dict:
         try:
             values[key] = param.check(value)
         except params.ParamError as exc:
-            raise SpecError(file, f"{section}.{key}", exc.reason) from None
+            where = f"{section}.{key}" + (f".{exc.field}" if exc.field else "")
+            raise SpecError(file, where, exc.reason) from None
     for key, param in accepted.items():
         values.setdefault(key, param.default)
     return values

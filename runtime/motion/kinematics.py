@@ -103,7 +103,7 @@ from __future__ import annotations
 from math import atan2, ceil, cos, inf, isfinite, pi, sin, sqrt
 from typing import Sequence
 
-from compiler.geometry import normalise, rotation_to_rpy
+from compiler.geometry import normalise, rotation_to_rpy, rpy_to_matrix
 from compiler.spec import DH, Spec
 from compiler.values import Joint, Pose, Position, Quat, Rpy
 
@@ -152,15 +152,6 @@ def configuration_name(configuration: int) -> str:
         "back" if configuration & SHOULDER_BACK else "front",
         "elbow down" if configuration & ELBOW_DOWN else "elbow up",
         "wrist flipped" if configuration & WRIST_FLIP else "wrist not flipped"))
-
-
-def rpy_to_matrix(roll: float, pitch: float, yaw: float) -> tuple:
-    """``Rz(yaw) Ry(pitch) Rx(roll)`` (degrees) as a 3x3 nested tuple."""
-    r, p, y = roll * _D2R, pitch * _D2R, yaw * _D2R
-    cr, sr, cp, sp, cy, sy = cos(r), sin(r), cos(p), sin(p), cos(y), sin(y)
-    return ((cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr),
-            (sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr),
-            (-sp, cp * sr, cp * cr))
 
 
 def matrix_to_rpy(matrix) -> tuple[float, float, float]:
@@ -235,7 +226,9 @@ class Kinematics:
 
     def __init__(self, source, tool: Sequence[float] | None = None,
                  limits: Sequence[tuple[float, float]] | None = None,
-                 names: Sequence[str] | None = None, home: Sequence[float] | None = None):
+                 names: Sequence[str] | None = None, home: Sequence[float] | None = None,
+                 directions: Sequence[int] | None = None, couplings: Sequence | None = None,
+                 mounting: Sequence[float] | None = None):
         if isinstance(source, Spec):
             axes = source.main_axes
             if len(axes) != 6:
@@ -250,6 +243,9 @@ class Kinematics:
             limits = [(ax.min, ax.max) for ax in axes] if limits is None else limits
             names = [ax.name for ax in axes] if names is None else names
             home = [ax.home for ax in axes] if home is None else home
+            directions = [ax.direction for ax in axes] if directions is None else directions
+            couplings = [ax.coupling for ax in axes] if couplings is None else couplings
+            mounting = source.mounting if mounting is None else mounting
         else:
             rows = []
             for row in source:
@@ -274,6 +270,16 @@ class Kinematics:
         self.names, self.tool, self.limits, self.home = names, tool, limits, home
         self.dh = tuple(tuple(float(v) for v in row) for row in rows)
         self._check_geometry()
+        self._joint_map(directions, couplings)
+        self.mounting = tuple(float(v) for v in mounting) if mounting is not None else (0.0,) * 6
+        if len(self.mounting) != 6 or not all(isfinite(v) for v in self.mounting):
+            raise ValueError("mounting needs six finite numbers (x, y, z, roll, pitch, yaw)")
+        if self.mounting == (0.0,) * 6:
+            self._mount = self._mount_t = None
+        else:
+            mr = rpy_to_matrix(*self.mounting[3:])
+            self._mount = tuple(mr[i] + (self.mounting[i],) for i in range(3))
+            self._mount_t = tuple(tuple(mr[j][i] for j in range(3)) for i in range(3))
 
         (a1, al1, d1, o1), (a2, al2, d2, o2), (a3, al3, d3, o3), \
             (a4, al4, d4, o4), (a5, al5, d5, o5), (a6, al6, d6, o6) = self.dh
@@ -318,13 +324,74 @@ class Kinematics:
             a1, d1, a2, s1, s1 * s3, s3, s4, s5, -s4 * s5, l3, self._phi,
             self._doff * self._doff, s1 * self._doff, self._reach[0], self._reach[1],
             1.0 / (2.0 * abs(a2) * l3), vsign, *self._wc_off, self._c_rot_identity,
-            *offs, *(v for lo_hi in limits for v in lo_hi),
+            *offs, *(v for lo_hi in limits for v in lo_hi), *self._dirs, *self._k,
         )
+
+    def _joint_map(self, directions, couplings) -> None:
+        """The joint values' map to the DH angles: ``theta_i = direction_i q_i +
+        theta_offset_i (+ factor q_j for a coupled axis i = 2, 3 and an earlier j)``."""
+        dirs = tuple(directions) if directions is not None else (1,) * 6
+        if len(dirs) != 6 or any(d not in (1, -1) for d in dirs):
+            raise ValueError(f"directions must be six values 1 or -1, got {dirs}")
+        k = {}
+        for i, coupling in enumerate(couplings if couplings is not None else (None,) * 6):
+            if coupling is None:
+                continue
+            j, factor = coupling
+            if i not in (1, 2) or not 0 <= j < i or not isfinite(factor):
+                raise ValueError(f"axis {self.names[i]}: only axes 2 and 3 may be coupled, to an earlier axis")
+            k[i, j] = float(factor)
+        self.directions = dirs
+        self.couplings = tuple(couplings) if couplings is not None else (None,) * 6
+        self._dirs = tuple(float(d) for d in dirs)
+        self._k = (k.get((1, 0), 0.0), k.get((2, 0), 0.0), k.get((2, 1), 0.0))  # k21, k31, k32
+        self._plain = self._dirs == (1.0,) * 6 and not k
 
     def with_tool(self, tool: Sequence[float]) -> "Kinematics":
         """The same arm with another tool (x, y, z, roll, pitch, yaw in the flange frame):
         what ``use tool`` plans with. Not for a tick (builds the tables, about 50 us)."""
-        return Kinematics(self.dh, tool=tool, limits=self.limits, names=self.names, home=self.home)
+        return Kinematics(self.dh, tool=tool, limits=self.limits, names=self.names, home=self.home,
+                          directions=self.directions, couplings=self.couplings, mounting=self.mounting)
+
+    def _angles(self, joints) -> tuple:
+        """The DH angles less their offsets (deg) of joint values: the joint values
+        themselves unless an axis turns the other way or is coupled."""
+        q = _main(joints)
+        if self._plain:
+            return q
+        d1, d2, d3, d4, d5, d6 = self._dirs
+        k21, k31, k32 = self._k
+        q1, q2, q3, q4, q5, q6 = q
+        return (d1 * q1, d2 * q2 + k21 * q1, d3 * q3 + k31 * q1 + k32 * q2, d4 * q4, d5 * q5, d6 * q6)
+
+    def _mounted(self, m: tuple) -> tuple:
+        """A flat 3x4 in the robot's base frame, in the world frame (the mounting's)."""
+        if self._mount is None:
+            return m
+        (a00, a01, a02, ax), (a10, a11, a12, ay), (a20, a21, a22, az) = self._mount
+        r00, r01, r02, px, r10, r11, r12, py, r20, r21, r22, pz = m
+        return (a00 * r00 + a01 * r10 + a02 * r20, a00 * r01 + a01 * r11 + a02 * r21,
+                a00 * r02 + a01 * r12 + a02 * r22, a00 * px + a01 * py + a02 * pz + ax,
+                a10 * r00 + a11 * r10 + a12 * r20, a10 * r01 + a11 * r11 + a12 * r21,
+                a10 * r02 + a11 * r12 + a12 * r22, a10 * px + a11 * py + a12 * pz + ay,
+                a20 * r00 + a21 * r10 + a22 * r20, a20 * r01 + a21 * r11 + a22 * r21,
+                a20 * r02 + a21 * r12 + a22 * r22, a20 * px + a21 * py + a22 * pz + az)
+
+    def _unmounted(self, target: tuple) -> tuple:
+        """A target ``(r00 .. r22, x, y, z)`` in the world frame, in the robot's base frame."""
+        if self._mount_t is None:
+            return target
+        (b00, b01, b02), (b10, b11, b12), (b20, b21, b22) = self._mount_t
+        r00, r01, r02, r10, r11, r12, r20, r21, r22, x, y, z = target
+        mx, my, mz = self.mounting[:3]
+        x, y, z = x - mx, y - my, z - mz
+        return (b00 * r00 + b01 * r10 + b02 * r20, b00 * r01 + b01 * r11 + b02 * r21,
+                b00 * r02 + b01 * r12 + b02 * r22,
+                b10 * r00 + b11 * r10 + b12 * r20, b10 * r01 + b11 * r11 + b12 * r21,
+                b10 * r02 + b11 * r12 + b12 * r22,
+                b20 * r00 + b21 * r10 + b22 * r20, b20 * r01 + b21 * r11 + b22 * r21,
+                b20 * r02 + b21 * r12 + b22 * r22,
+                b00 * x + b01 * y + b02 * z, b10 * x + b11 * y + b12 * z, b20 * x + b21 * y + b22 * z)
 
     # ---- geometry --------------------------------------------------------------------
     def _check_geometry(self) -> None:
@@ -369,6 +436,8 @@ class Kinematics:
         """Flat 3x4 of the TCP: the DH product by columns (X, Y, Z, p), then the tool."""
         if isinstance(joints, Joint):
             joints = joints.main
+        if not self._plain:
+            joints = self._angles(joints)
         x0 = y1 = z2 = 1.0
         x1 = x2 = y0 = y2 = z0 = z1 = p0 = p1 = p2 = 0.0
         n = 0
@@ -407,6 +476,12 @@ class Kinematics:
                 p2 += a * x2
         if n != 6:
             raise ValueError(f"expected six joint values, got {n}")
+        if self._mount is not None:
+            return self._mounted(self._flange_tool(x0, x1, x2, y0, y1, y2, z0, z1, z2, p0, p1, p2))
+        return self._flange_tool(x0, x1, x2, y0, y1, y2, z0, z1, z2, p0, p1, p2)
+
+    def _flange_tool(self, x0, x1, x2, y0, y1, y2, z0, z1, z2, p0, p1, p2) -> tuple:
+        """The flat 3x4 of the TCP from the flange's columns X, Y, Z and origin p."""
         if self._tool_identity:
             return (x0, y0, z0, p0, x1, y1, z1, p1, x2, y2, z2, p2)
         (t00, t01, t02, tx), (t10, t11, t12, ty), (t20, t21, t22, tz) = self._tool_m
@@ -421,11 +496,16 @@ class Kinematics:
                 x2 * t00 + y2 * t10 + z2 * t20, x2 * t01 + y2 * t11 + z2 * t21,
                 x2 * t02 + y2 * t12 + z2 * t22, p2 + x2 * tx + y2 * ty + z2 * tz)
 
+    def _base_frame(self) -> tuple:
+        """The robot's base (the first DH frame) in the world frame, 3x4."""
+        return self._mount or ((1.0, 0.0, 0.0, 0.0), (0.0, 1.0, 0.0, 0.0), (0.0, 0.0, 1.0, 0.0))
+
     def frames(self, joints: Sequence[float]) -> list[tuple]:
-        """The 4x4 matrices T_01 .. T_06 (flange) and the TCP, in the base frame."""
+        """The 4x4 matrices T_01 .. T_06 (flange) and the TCP, in the world frame (the
+        base frame when the robot stands at the origin)."""
         out = []
-        m = ((1.0, 0.0, 0.0, 0.0), (0.0, 1.0, 0.0, 0.0), (0.0, 0.0, 1.0, 0.0))
-        for (off, ca, sa, a, d), q in zip(self._links, _main(joints)):
+        m = self._base_frame()
+        for (off, ca, sa, a, d), q in zip(self._links, self._angles(joints)):
             t = q * _D2R + off
             ct, st = cos(t), sin(t)
             m = _mul34(m, ((ct, -st * ca, st * sa, a * ct), (st, ct * ca, -ct * sa, a * st), (0.0, sa, ca, d)))
@@ -434,19 +514,25 @@ class Kinematics:
         return out
 
     def jacobian(self, joints: Sequence[float]) -> tuple:
-        """The geometric Jacobian of the TCP in the base frame, 6x6 nested tuples: rows
+        """The geometric Jacobian of the TCP in the world frame, 6x6 nested tuples: rows
         vx, vy, vz (mm per rad of joint motion), wx, wy, wz (rad per rad); column i is
-        ``(z_{i-1} x (p_tcp - o_{i-1}), z_{i-1})``. Multiply joint rates by pi/180 first
-        when they are in deg/s."""
+        ``(z_{i-1} x (p_tcp - o_{i-1}), z_{i-1})`` times the axis's direction (plus a
+        coupled axis's share). Multiply joint rates by pi/180 first when they are in deg/s."""
         fr = self.frames(joints)
         pe = (fr[6][0][3], fr[6][1][3], fr[6][2][3])
         cols = []
-        prev = ((1.0, 0.0, 0.0, 0.0), (0.0, 1.0, 0.0, 0.0), (0.0, 0.0, 1.0, 0.0))
+        prev = self._base_frame()
         for i in range(6):
             zx, zy, zz = prev[0][2], prev[1][2], prev[2][2]
             dx, dy, dz = pe[0] - prev[0][3], pe[1] - prev[1][3], pe[2] - prev[2][3]
             cols.append((zy * dz - zz * dy, zz * dx - zx * dz, zx * dy - zy * dx, zx, zy, zz))
             prev = fr[i]
+        if not self._plain:  # d theta / d q: the directions, and the coupled axes' shares
+            k21, k31, k32 = self._k
+            mixed = [tuple(d * v for v in col) for d, col in zip(self._dirs, cols)]
+            mixed[0] = tuple(v + k21 * b + k31 * c for v, b, c in zip(mixed[0], cols[1], cols[2]))
+            mixed[1] = tuple(v + k32 * c for v, c in zip(mixed[1], cols[2]))
+            cols = mixed
         return tuple(tuple(col[r] for col in cols) for r in range(6))
 
     def singularity_margins(self, joints: Sequence[float]) -> tuple[float, float, float]:
@@ -455,7 +541,7 @@ class Kinematics:
         ``|sin(theta3 - phi)|``, 0 with the arm stretched or folded; ``|sin(theta5)|``).
         The Jacobian's determinant is +- shoulder * a2 * L3 * elbow * wrist (mm^3), with
         L3 = sqrt(a3^2 + d4^2) the forearm from axis 3 to the wrist centre."""
-        q = _main(joints)
+        q = self._angles(joints)
         offs = self._offs
         t3 = q[2] * _D2R + offs[2] * _D2R
         t5 = q[4] * _D2R + offs[4] * _D2R
@@ -474,7 +560,7 @@ class Kinematics:
 
     def configuration(self, joints: Sequence[float]) -> int:
         """The configuration id (SHOULDER_BACK | ELBOW_DOWN | WRIST_FLIP bits) of joint values."""
-        q = _main(joints)
+        q = self._angles(joints)
         x, v = self._arm_plane(q)
         sb = 1 if x < 0.0 else 0
         cid = sb
@@ -486,7 +572,7 @@ class Kinematics:
 
     def configuration_and_margins(self, joints: Sequence[float]) -> tuple[int, tuple[float, float, float]]:
         """:meth:`configuration` and :meth:`singularity_margins` of joint values at once."""
-        q = _main(joints)
+        q = self._angles(joints)
         offs = self._offs
         x, v = self._arm_plane(q)
         sb = 1 if x < 0.0 else 0
@@ -506,7 +592,7 @@ class Kinematics:
         if configuration is not None and (type(configuration) is not int or not 0 <= configuration <= 7):
             raise ValueError(f"configuration must be an integer 0..7, got {configuration!r}")
         near = self.home if near is None else _main(near)
-        sols, fails = self._candidates(_target(pose), near, configuration, True)
+        sols, fails = self._candidates(self._unmounted(_target(pose)), near, configuration, True)
         if sols:
             best = sols[0]
             for c in sols:
@@ -522,7 +608,7 @@ class Kinematics:
         joints)`` sorted by id; each angle in its representation nearest ``near``
         (default: the home position). Empty when there is none (:meth:`inverse` says why)."""
         near = self.home if near is None else _main(near)
-        out = [(c[0], c[1]) for c in self._candidates(_target(pose), near, None)[0] if c[2] == _OK]
+        out = [(c[0], c[1]) for c in self._candidates(self._unmounted(_target(pose)), near, None)[0] if c[2] == _OK]
         out.sort()
         return out
 
@@ -568,7 +654,8 @@ class Kinematics:
         r00, r01, r02, r10, r11, r12, r20, r21, r22, px, py, pz = target
         (a1, d1, a2, s1, s13, s3, s4, s5, mtau, l3, phi, doff2, dlat, rmax, rmin, inv2, vsign,
          cx, cy, cz, c_rot_identity, o1, o2, o3, o4, o5, o6,
-         lo1, hi1, lo2, hi2, lo3, hi3, lo4, hi4, lo5, hi5, lo6, hi6) = self._ik
+         lo1, hi1, lo2, hi2, lo3, hi3, lo4, hi4, lo5, hi5, lo6, hi6,
+         dq1, dq2, dq3, dq4, dq5, dq6, k21, k31, k32) = self._ik
         n1, n2, n3, n4, n5, n6 = near
         wx = px - (r00 * cx + r01 * cy + r02 * cz)
         wy = py - (r10 * cx + r11 * cy + r12 * cz)
@@ -626,7 +713,7 @@ class Kinematics:
                 elbow_singular = "singular: elbow singularity (arm folded)"
             cc = rb * wx - dlat * wy
             ss = rb * wy + dlat * wx
-            q1 = atan2(ss, cc) * _R2D - o1
+            q1 = dq1 * (atan2(ss, cc) * _R2D - o1)  # the joint value of the DH angle
             q1 += 360.0 * ((n1 - q1 + 180.0) // 360.0)
             if not lo1 <= q1 <= hi1:
                 q = _fit(q1, lo1, hi1, n1)
@@ -667,7 +754,7 @@ class Kinematics:
                 vs = vsign[sb][eb]
                 t3 = phi + vs * beta
                 t2 = base - atan2(vs * lsb, au)
-                q2 = t2 * _R2D - o2
+                q2 = dq2 * (t2 * _R2D - o2 - k21 * q1)
                 q2 += 360.0 * ((n2 - q2 + 180.0) // 360.0)
                 if not lo2 <= q2 <= hi2:
                     q = _fit(q2, lo2, hi2, n2)
@@ -675,7 +762,7 @@ class Kinematics:
                         fails.append((_LIMIT, (1, q2), cid0 if want is None else want))
                         continue
                     q2 = q
-                q3 = t3 * _R2D - o3
+                q3 = dq3 * (t3 * _R2D - o3 - k31 * q1 - k32 * q2)
                 q3 += 360.0 * ((n3 - q3 + 180.0) // 360.0)
                 if not lo3 <= q3 <= hi3:
                     q = _fit(q3, lo3, hi3, n3)
@@ -719,13 +806,15 @@ class Kinematics:
                 m20 = s3 * s23 * h0 - s13 * c23 * w20
                 m21 = s3 * s23 * h1 - s13 * c23 * w21
                 # the two wrist solutions: (t4, t5, t6) and (t4 + 180, -t5, t6 + 180) deg
-                q4a = atan2(s5 * m12, s5 * m02) * _R2D - o4
-                q5a = atan2(sn5, c5) * _R2D
-                q6a = atan2(-s4 * m21, s4 * m20) * _R2D - o6
+                q4a = dq4 * (atan2(s5 * m12, s5 * m02) * _R2D - o4)
+                t5a = atan2(sn5, c5) * _R2D
+                q6a = dq6 * (atan2(-s4 * m21, s4 * m20) * _R2D - o6)
+                q5a = dq5 * (t5a - o5)
+                q5b = dq5 * (-t5a - o5)
                 # axis 5's angular distance from near bounds each one's distance from below:
                 # the nearer first, the other only if it can still be better
-                d5a = (q5a - o5 - n5 + 180.0) % 360.0 - 180.0
-                d5b = (-q5a - o5 - n5 + 180.0) % 360.0 - 180.0
+                d5a = (q5a - n5 + 180.0) % 360.0 - 180.0
+                d5b = (q5b - n5 + 180.0) % 360.0 - 180.0
                 d5a *= d5a
                 d5b *= d5b
                 for wb in ((0, 4) if d5a <= d5b else (4, 0)):
@@ -735,13 +824,13 @@ class Kinematics:
                         if prune and e123 + d5b >= best:
                             continue
                         q4 = q4a + 180.0
-                        q5 = -q5a - o5
+                        q5 = q5b
                         q6 = q6a + 180.0
                     else:
                         if prune and e123 + d5a >= best:
                             continue
                         q4 = q4a
-                        q5 = q5a - o5
+                        q5 = q5a
                         q6 = q6a
                     q4 += 360.0 * ((n4 - q4 + 180.0) // 360.0)
                     if not lo4 <= q4 <= hi4:
@@ -782,12 +871,13 @@ class Kinematics:
         (lo4, hi4), (lo5, hi5), (lo6, hi6) = self.limits[3:]
         n4, n5, n6 = near[3:]
         tau = -self._mtau
-        t4 = (n4 + o4) * _D2R
+        d4, d5, d6 = self._dirs[3:]
+        t4 = (d4 * n4 + o4) * _D2R
         if m22 > 0.0:  # theta5 = 0 or 180 such that only theta4 + theta6 counts
             t6 = atan2(tau * m01, -tau * m00) - t4
         else:
             t6 = t4 - atan2(tau * m01, tau * m00)
-        raw = (n4, atan2(0.0, c5) * _R2D - o5, t6 * _R2D - o6)
+        raw = (n4, d5 * (atan2(0.0, c5) * _R2D - o5), d6 * (t6 * _R2D - o6))
         fitted = [_fit(v, lo, hi, n) for v, lo, hi, n in zip(raw, (lo4, lo5, lo6), (hi4, hi5, hi6), (n4, n5, n6))]
         ids = [c for c in (cid0, cid0 | 4) if want is None or c == want]
         if None in fitted:

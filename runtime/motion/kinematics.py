@@ -25,9 +25,14 @@ Conventions
 -----------
 * **Units at the API**: lengths in mm, angles in degrees (joint values, roll/pitch/yaw).
 * **DH (standard, "distal")**: link ``i`` is ``Rz(theta_i) Tz(d_i) Tx(a_i) Rx(alpha_i)``
-  with ``theta_i = q_i + theta_offset_i`` where ``q_i`` is the joint value (what
-  ``joint(mainjoint(...))`` holds, what the axis limits bound). The flange is frame 6;
-  the TCP is ``T_06 * T_tool``.
+  with ``theta_i = direction_i q_i + theta_offset_i`` where ``q_i`` is the joint value
+  (what ``joint(mainjoint(...))`` holds, what the axis limits bound) and ``direction_i``
+  is 1 or -1 (``[[axis]] direction``: KUKA's A1 turns about -z). A coupled axis (2 or 3,
+  ``[[axis]] coupling``) adds ``factor x q_j`` of an earlier axis ``j`` (FANUC's J3,
+  measured from the horizontal: ``theta_3 = q_3 - q_2 + ...``). The flange is frame 6;
+  the TCP is ``T_mount * T_06 * T_tool``, ``T_mount`` the robot's base in the world frame
+  (``[kinematics] mounting``; the identity on the floor): poses given to and returned
+  by every method are in the world frame.
 * **Orientation (roll, pitch, yaw)**: ``R = Rz(yaw) Ry(pitch) Rx(roll)`` -- roll about x,
   pitch about y, yaw about z of the base (fixed axes, applied in that order; the same
   as intrinsic z-y'-x''). docs/language.md does not fix a convention; this is the one

@@ -329,7 +329,7 @@ class Kinematics:
             a1, d1, a2, s1, s1 * s3, s3, s4, s5, -s4 * s5, l3, self._phi,
             self._doff * self._doff, s1 * self._doff, self._reach[0], self._reach[1],
             1.0 / (2.0 * abs(a2) * l3), vsign, *self._wc_off, self._c_rot_identity,
-            *offs, *(v for lo_hi in limits for v in lo_hi), *self._dirs, *self._k,
+            *offs, *(v for lo_hi in limits for v in lo_hi), *map(float, self.directions), *self._k,
         )
 
     def _joint_map(self, directions, couplings) -> None:
@@ -346,11 +346,10 @@ class Kinematics:
             if i not in (1, 2) or not 0 <= j < i or not isfinite(factor):
                 raise ValueError(f"axis {self.names[i]}: only axes 2 and 3 may be coupled, to an earlier axis")
             k[i, j] = float(factor)
-        self.directions = dirs
+        self.directions = tuple(int(d) for d in dirs)
         self.couplings = tuple(couplings) if couplings is not None else (None,) * 6
-        self._dirs = tuple(float(d) for d in dirs)
         self._k = (k.get((1, 0), 0.0), k.get((2, 0), 0.0), k.get((2, 1), 0.0))  # k21, k31, k32
-        self._plain = self._dirs == (1.0,) * 6 and not k
+        self._plain = self.directions == (1,) * 6 and not k
 
     def with_tool(self, tool: Sequence[float]) -> "Kinematics":
         """The same arm with another tool (x, y, z, roll, pitch, yaw in the flange frame):
@@ -364,7 +363,7 @@ class Kinematics:
         q = _main(joints)
         if self._plain:
             return q
-        d1, d2, d3, d4, d5, d6 = self._dirs
+        d1, d2, d3, d4, d5, d6 = self.directions
         k21, k31, k32 = self._k
         q1, q2, q3, q4, q5, q6 = q
         return (d1 * q1, d2 * q2 + k21 * q1, d3 * q3 + k31 * q1 + k32 * q2, d4 * q4, d5 * q5, d6 * q6)
@@ -534,7 +533,7 @@ class Kinematics:
             prev = fr[i]
         if not self._plain:  # d theta / d q: the directions, and the coupled axes' shares
             k21, k31, k32 = self._k
-            mixed = [tuple(d * v for v in col) for d, col in zip(self._dirs, cols)]
+            mixed = [tuple(d * v for v in col) for d, col in zip(self.directions, cols)]
             mixed[0] = tuple(v + k21 * b + k31 * c for v, b, c in zip(mixed[0], cols[1], cols[2]))
             mixed[1] = tuple(v + k32 * c for v, c in zip(mixed[1], cols[2]))
             cols = mixed
@@ -876,7 +875,7 @@ class Kinematics:
         (lo4, hi4), (lo5, hi5), (lo6, hi6) = self.limits[3:]
         n4, n5, n6 = near[3:]
         tau = -self._mtau
-        d4, d5, d6 = self._dirs[3:]
+        d4, d5, d6 = self.directions[3:]
         t4 = (d4 * n4 + o4) * _D2R
         if m22 > 0.0:  # theta5 = 0 or 180 such that only theta4 + theta6 counts
             t6 = atan2(tau * m01, -tau * m00) - t4

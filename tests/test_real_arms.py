@@ -22,6 +22,8 @@ from __future__ import annotations
 
 import csv
 import functools
+import re
+import shlex
 import math
 from dataclasses import dataclass
 from math import pi, radians
@@ -36,7 +38,7 @@ from compiler.spec import load_spec
 from runtime.motion.kinematics import Kinematics
 from runtime.system import RobotSystem, RunOptions
 
-from conftest import PROGRAMS
+from conftest import PROGRAMS, ROOT, run_cli
 
 ROBOTS = PROGRAMS / "robots"
 
@@ -289,3 +291,31 @@ def test_a_program_runs_and_the_tcp_is_the_urdf_tool0(arm, tmp_path):
     target = urdf_tool0(arm, moves[-1]["target"])
     assert math.dist(tcp[:3], target[:3, 3]) <= 0.01, (tcp, target)
     assert _angle(_rpy_matrix(*tcp[3:]), target[:3, :3]) <= 1e-6, (tcp, target)
+
+
+# ---- docs/robots.md ------------------------------------------------------------------------------
+
+def _doc_commands() -> list[list[str]]:
+    """The ``irl`` commands of docs/robots.md's shell blocks, as argument lists."""
+    text = (ROOT / "docs" / "robots.md").read_text(encoding="utf-8")
+    blocks = re.findall(r"```sh\n(.*?)```", text, re.S)
+    return [shlex.split(line)[1:] for block in blocks for line in block.splitlines()
+            if line.startswith(".venv/bin/irl ")]
+
+
+def test_the_commands_in_docs_robots_md_run(tmp_path):
+    """Every ``irl`` command docs/robots.md shows succeeds (in-process; its files under a
+    temporary directory instead of out/), and every shipped arm is in its table."""
+    commands = _doc_commands()
+    assert len(commands) >= 4
+    for argv in commands:
+        argv = [str(tmp_path / a[len("out/"):]) if a.startswith("out/") else
+                str(ROOT / a) if a.startswith("programs/") else a for a in argv]
+        code, out, err = run_cli(*argv)
+        assert code == 0, (argv, out, err)
+    text = (ROOT / "docs" / "robots.md").read_text(encoding="utf-8")
+    shipped = sorted(path.stem for path in ROBOTS.glob("*.spc"))
+    assert shipped == sorted(arm.name for arm in ARMS)
+    for name in shipped:
+        assert f"| `{name}.spc` |" in text, name
+        assert (ROBOTS / f"{name}.irl").exists(), name

@@ -62,6 +62,12 @@ class _Parser(argparse.ArgumentParser):
         raise UsageError(f"{message}\n{self.format_usage().strip()}")
 
 
+def joint_values(values) -> str:
+    """Joint values as a summary shows them: to 0.001, comma-separated, no "-0.000" (an axis
+    resting a hair below zero is at 0.000 as far as a reader can tell)."""
+    return ", ".join(f"{round(x, 3) + 0.0:.3f}" for x in values)
+
+
 def _print(env: Environment, text: str = "") -> None:
     env.stdout.write(text + "\n")
 
@@ -256,7 +262,7 @@ def _print_summary(env: Environment, s: dict) -> None:
     _print(env, "")
     if s.get("stop"):
         _print(env, f"  stopped: category {s['stop']['category']} (docs/safety.md)")
-    _print(env, "  final position: " + ", ".join(f"{x:.3f}" for x in s["final_position"]))
+    _print(env, "  final position: " + joint_values(s["final_position"]))
     _print(env, f"  largest following error: {s['max_following_error']:.4f}")
     servo = s["deadlines"].get("servo", {}).get("misses", 0)
     _print(env, f"  deadline misses: {s['deadline_misses']} of {s['ticks']} ticks late (the servo's: {servo})")

@@ -276,7 +276,7 @@ def cmd_submit(args, env) -> int:
         if final["state"] == "completed":
             summary = final.get("summary") or {}
             cli._print(env, f"program {job} completed: {len(summary.get('moves', []))} moves, final position "
-                            + ", ".join(f"{x:.3f}" for x in summary.get("final_position", [])))
+                            + cli.joint_values(summary.get("final_position", [])))
             return cli.EXIT_OK
         cli._print(env, f"program {job} {final['state']}: {final.get('fault')}")
         return cli.EXIT_INVALID

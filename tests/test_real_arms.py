@@ -319,3 +319,32 @@ def test_the_commands_in_docs_robots_md_run(tmp_path):
     for name in shipped:
         assert f"| `{name}.spc` |" in text, name
         assert (ROBOTS / f"{name}.irl").exists(), name
+
+
+# ---- the issue's sequence on the shipped Staubli --------------------------------------------------
+
+STAUBLI_SEQUENCE = """program staubli;
+seq
+  move ptp joint(mainjoint(0,0,90,0,45,0));
+  move ptp joint(mainjoint(0,0,90,180,45,0)) speed_ptp := 1 acc_ptp := 1;
+  wait 0.5 sec;
+endseq
+endprogram;
+"""
+
+
+@pytest.mark.parametrize("encoder_counts", [4096, 65536])
+def test_the_staubli_full_acceleration_wrist_move_and_dwell_complete(encoder_counts, tmp_path):
+    """Issue 27: a legal full-acceleration ptp of J4 then a dwell on the TX2-60 ended in a
+    false category-0 stop ("J4 moved 11 encoder counts while the robot must be at rest");
+    with the shipped encoders and with encoders 16 times finer (the tolerance in counts is
+    then 16 times smaller an angle) it completes, the arm where the program left it."""
+    text = (ROBOTS / "staubli_tx2_60.spc").read_text(encoding="utf-8")
+    text = re.sub(r"(?m)^encoder_counts = 4096", f"encoder_counts = {encoder_counts}", text)
+    spec_path = tmp_path / "staubli.spc"
+    spec_path.write_text(text, encoding="utf-8")
+    program = tmp_path / "staubli.irl"
+    program.write_text(STAUBLI_SEQUENCE, encoding="utf-8")
+    code, out, err = run_cli("run", program, "--spec", spec_path)
+    assert code == 0 and "completed" in out, out + err
+    assert "final position: 0.000, 0.000, 90.000, 180.000, 45.000, 0.000" in out, out

@@ -149,7 +149,8 @@ def arms(draw) -> dict:
             "drift_after": draw(st.floats(0.0, 0.05), label="drift after the timeout")}
 
 
-@settings(max_examples=12, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@pytest.mark.long
+@settings(max_examples=10, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(arm=arms())
 def test_a_healthy_arm_comes_into_position_and_a_drifting_one_is_stopped(arm, tmp_path_factory):
     """Random arms (limits, gear and encoder, kp, ki, the drive's lag) with the least
@@ -273,7 +274,8 @@ def test_the_faults_name_the_axis_the_counts_and_the_parameters(tmp_path):
                 system.executive.step()
         # A3's drive drifts at kp x 20 counts: the servo's P term holds it there (its I term slowly)
         a3 = spec.axes[2]
-        system.backend.set_drive_offset(2, system.backend.drive_offsets[2] + spec.controller.kp * 20 / a3.counts_per_unit)
+        backend = system.backend
+        backend.set_drive_offset(2, backend.drive_offsets[2] + spec.controller.kp * 20 / a3.counts_per_unit)
         while not system.supervisor.done:
             system.executive.step()
         summary = system.finish()
@@ -282,7 +284,8 @@ def test_the_faults_name_the_axis_the_counts_and_the_parameters(tmp_path):
             assert "A3 not in position 1 s after its reference came to rest" in summary["fault"], summary["fault"]
             assert "in_position_window, in_position_time, in_position_timeout" in summary["fault"]
         else:
-            assert "A3 moved 11 encoder counts from the reference it came into position at" in summary["fault"], summary["fault"]
+            assert "A3 moved 11 encoder counts from the reference it came into position at" in summary["fault"], \
+                summary["fault"]
             assert "(allowed: 10)" in summary["fault"]
         assert at_rest_and_safe(system)
 

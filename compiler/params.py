@@ -122,6 +122,17 @@ def describe(value: object, limit: int = 60) -> str:
     return text if len(text) <= limit else text[:limit - 3] + "..."
 
 
+def is_number(value: object) -> bool:
+    """A finite number a specification may hold (not a bool, below 1e300 in size: a TOML
+    integer too large for a float is not one)."""
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        return False
+    try:
+        return math.isfinite(value) and abs(value) < 1e300
+    except OverflowError:
+        return False
+
+
 def _number(x: float) -> str:
     return f"{x:g}"
 
@@ -243,11 +254,7 @@ class Param:
                                      "yaw or qw, qx, qy, qz")
         numbers = {}
         for key, v in value.items():
-            try:
-                ok = not isinstance(v, bool) and isinstance(v, (int, float)) and math.isfinite(v) and abs(v) < 1e300
-            except OverflowError:
-                ok = False
-            if not ok:
+            if not is_number(v):
                 unit = "mm" if key in "xyz" else "deg" if key in POSE_KEYS else "a quaternion's component"
                 raise ParamError(self.key, f"expected a number ({unit}), got {describe(v)}", True, key)
             numbers[key] = float(v)

@@ -185,11 +185,7 @@ class _Reader:
             return default
         value = self.table[name]
         if kind == "number":
-            ok = isinstance(value, (int, float)) and not isinstance(value, bool)
-            try:
-                ok = ok and math.isfinite(value) and abs(value) < 1e300
-            except OverflowError:  # a TOML integer too large for a float
-                ok = False
+            ok = params.is_number(value)
             value = float(value) if ok else value
         elif kind == "integer":
             ok = isinstance(value, int) and not isinstance(value, bool)

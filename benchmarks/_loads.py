@@ -13,7 +13,7 @@ ROOT = Path(__file__).resolve().parents[1]
 #: A client that keeps 32 ``status`` requests in flight, as fast as the server answers.
 FLOOD = """
 import signal, sys, zmq
-from runtime import protocol
+from runtime.wire import protocol
 signal.signal(signal.SIGTERM, lambda *_: sys.exit(0))
 sock = zmq.Context().socket(zmq.DEALER)
 sock.connect(sys.argv[1])
@@ -39,7 +39,7 @@ finally:
 #: A telemetry subscriber that reads everything.
 SUBSCRIBE = """
 import signal, sys, zmq
-from runtime import protocol
+from runtime.wire import protocol
 signal.signal(signal.SIGTERM, lambda *_: sys.exit(0))
 sock = zmq.Context().socket(zmq.SUB)
 sock.setsockopt(zmq.SUBSCRIBE, protocol.TELEMETRY_TOPIC)

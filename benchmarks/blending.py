@@ -29,10 +29,10 @@ sys.path.insert(0, str(ROOT))
 
 from compiler.driver import compile_source  # noqa: E402
 from compiler.spec import load_spec  # noqa: E402
-from runtime.component import DataPort  # noqa: E402
+from runtime.loop.component import DataPort  # noqa: E402
 from runtime.motion import blend as blend_module  # noqa: E402
-from runtime.system import RobotSystem, RunOptions  # noqa: E402
-from runtime.components import trajectory as tg_module  # noqa: E402
+from runtime.loop.system import RobotSystem, RunOptions  # noqa: E402
+from runtime.loop.components import trajectory as tg_module  # noqa: E402
 
 SPEC = ROOT / "programs" / "lola15.spc"
 PERIOD = 0.005

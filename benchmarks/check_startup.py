@@ -5,7 +5,7 @@ of the medians. Goal (issues 2, 26): <= 8x. Start-up as a user meets it at every
 the first: Lark's parser tables and Python's bytecode come from their caches (the first,
 unmeasured run writes them; a PYTHONDONTWRITEBYTECODE in the environment is left out, or
 each run would compile every module of the compiler from source again). It also lists
-what the check imported of what it does not need (runtime.cli.NOT_FOR_CHECKING).
+what the check imported of what it does not need (runtime.cli.main.NOT_FOR_CHECKING).
 Run: .venv/bin/python benchmarks/check_startup.py [--runs N]
 """
 from __future__ import annotations
@@ -48,7 +48,7 @@ def main() -> int:
 
     probe = subprocess.run(
         [sys.executable, "-c",
-         "import sys; from runtime.cli import NOT_FOR_CHECKING, main; main(['check', 'programs/test.irl']);"
+         "import sys; from runtime.cli.main import NOT_FOR_CHECKING, main; main(['check', 'programs/test.irl']);"
          "heavy = sorted(m for m in sys.modules if any(m == n or m.startswith(n + '.') for n in NOT_FOR_CHECKING));"
          "print('heavy modules imported:', heavy or 'none', file=sys.stderr)"],
         cwd=ROOT, capture_output=True, text=True)

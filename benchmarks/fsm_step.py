@@ -24,7 +24,7 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from runtime.fsm import FSM, State, Transition  # noqa: E402
+from runtime.loop.fsm import FSM, State, Transition  # noqa: E402
 
 N_STATES = 5
 

@@ -26,7 +26,7 @@ _CHILD = r"""
 import sys
 sys.path.insert(0, {root!r})
 from compiler.driver import compile_file
-from runtime.system import RobotSystem, RunOptions
+from runtime.loop.system import RobotSystem, RunOptions
 from benchmarks.sim_speed import bare_loop
 from runtime import accel
 mode, ticks = sys.argv[1], int(sys.argv[2])

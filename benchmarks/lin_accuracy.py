@@ -66,7 +66,7 @@ def main() -> int:
             continue
         planned += 1
         start = (x, y, z)
-        interp = Interpolator(q0, limits)  # as the servo makes them (runtime/components/servo.py)
+        interp = Interpolator(q0, limits)  # as the servo makes them (runtime/loop/components/servo.py)
         t, k = 0.0, 0
         steps = int(math.ceil(stream.duration / PERIOD)) + 2
         for n in range(steps + 1):

@@ -27,7 +27,7 @@ sys.path.insert(0, str(ROOT))
 
 from compiler.driver import compile_file  # noqa: E402
 from compiler.objcode import encode  # noqa: E402
-from runtime import protocol  # noqa: E402
+from runtime.wire import protocol  # noqa: E402
 from _stats import free_port, percentile  # noqa: E402
 
 ECHO = """
@@ -73,7 +73,7 @@ def main() -> int:
     args = ap.parse_args()
     ports = [free_port() for _ in range(3)]
     state = tempfile.mkdtemp(prefix="irl-bench-")
-    server = subprocess.Popen([sys.executable, "-m", "runtime.cli", "serve", "--spec", str(ROOT / "programs" / "lola15.spc"),
+    server = subprocess.Popen([sys.executable, "-m", "runtime.cli.main", "serve", "--spec", str(ROOT / "programs" / "lola15.spc"),
                                "--state-dir", state, "--endpoint", f"tcp://127.0.0.1:{ports[0]}",
                                "--telemetry", f"tcp://127.0.0.1:{ports[1]}"],
                               cwd=ROOT, stderr=subprocess.DEVNULL)

@@ -22,7 +22,7 @@ sys.path.insert(0, str(ROOT))
 
 from compiler.driver import compile_file  # noqa: E402
 from runtime import accel  # noqa: E402
-from runtime.system import RobotSystem, RunOptions  # noqa: E402
+from runtime.loop.system import RobotSystem, RunOptions  # noqa: E402
 
 
 def bare_loop(ticks: int, n: int = 6) -> float:

@@ -24,7 +24,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from compiler.spec import load_spec  # noqa: E402
-from runtime.sim import AlphaBeta, SimRobot  # noqa: E402
+from runtime.hardware.sim import AlphaBeta, SimRobot  # noqa: E402
 from _stats import percentile  # noqa: E402
 
 DT = 0.001

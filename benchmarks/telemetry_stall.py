@@ -23,7 +23,7 @@ sys.path.insert(0, str(ROOT))
 
 from compiler.driver import compile_file  # noqa: E402
 from compiler.objcode import encode  # noqa: E402
-from runtime.client import Client  # noqa: E402
+from runtime.client.client import Client  # noqa: E402
 from _stats import free_port  # noqa: E402
 
 
@@ -52,7 +52,7 @@ def main() -> int:
     spec = work / "lola15.spc"
     spec.write_text((ROOT / "programs" / "lola15.spc").read_text(encoding="utf-8")
                     .replace('servo_miss_policy = "firm"', 'servo_miss_policy = "soft"'), encoding="utf-8")
-    server = subprocess.Popen([sys.executable, "-m", "runtime.cli", "serve", "--spec",
+    server = subprocess.Popen([sys.executable, "-m", "runtime.cli.main", "serve", "--spec",
                                str(spec), "--state-dir", str(work),
                                "--endpoint", endpoint, "--telemetry", telemetry], cwd=ROOT, stderr=subprocess.DEVNULL)
     ctx = zmq.Context.instance()

@@ -24,7 +24,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from compiler.driver import compile_source  # noqa: E402
-from runtime.vm import VM, VMStatus  # noqa: E402
+from runtime.loop.vm import VM, VMStatus  # noqa: E402
 
 PROGRAM = """\
 program speed;

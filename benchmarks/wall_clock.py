@@ -12,7 +12,7 @@ and the median ratio is the figure.
 Loads (issue 15): ``--load N`` starts N CPU-bound processes beside both loops for the
 whole measurement; both loops' thread runs under the same scheduling, by default the
 runtime's (SCHED_FIFO 50, memory locked, where permitted), chosen with ``--rt-priority N``
-(0: normal scheduling) / ``--[no-]lock-memory`` / ``--cpu N`` (``runtime/realtime.py``; the
+(0: normal scheduling) / ``--[no-]lock-memory`` / ``--cpu N`` (``runtime/loop/realtime.py``; the
 line printed says what the host granted). Compare, for example, ``--load 2`` with and
 without ``--rt-priority 0``.
 Run: .venv/bin/python benchmarks/wall_clock.py [--seconds S] [--blocks N] [--rounds N] [--load N]
@@ -33,9 +33,9 @@ sys.path.insert(0, str(ROOT))
 import numpy as np  # noqa: E402
 
 from compiler.driver import compile_file  # noqa: E402
-from runtime import realtime  # noqa: E402
-from runtime.executive import MissPolicy, WallClock  # noqa: E402
-from runtime.system import RobotSystem, RunOptions  # noqa: E402
+from runtime.loop import realtime  # noqa: E402
+from runtime.loop.executive import MissPolicy, WallClock  # noqa: E402
+from runtime.loop.system import RobotSystem, RunOptions  # noqa: E402
 
 TICK = 0.001
 

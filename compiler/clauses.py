@@ -6,9 +6,9 @@ Everything else reads :data:`CLAUSES`: the parser's "did you mean" (``compiler.s
 the object code's clause mask, whose bit order is the table's order
 (``compiler.objcode``), the checker's clause diagnostics (``compiler.check``), the
 specification's ``[defaults]`` (``compiler.spec``), the runtime's check of every move it
-is handed (:func:`validate_move_clauses`, ``runtime.components.trajectory``) and the
+is handed (:func:`validate_move_clauses`, ``runtime.loop.components.trajectory``) and the
 documentation's tables (:func:`markdown`, :func:`defaults_markdown`, rendered into
-``docs/language.md`` by ``python -m runtime.docgen --write``). Nothing else declares a
+``docs/language.md`` by ``python -m runtime.cli.docgen --write``). Nothing else declares a
 clause's range.
 
 A message about a value says what (the clause and its value), and the allowed range:

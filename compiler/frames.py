@@ -8,7 +8,7 @@ Everything else reads :data:`FRAME_KINDS`: the specification loader's ``[[frame]
 ``use`` statement (``compiler.check``), the instruction table (``compiler.objcode``), the
 runtime's check of every value made active (:func:`problem`, called by the trajectory
 generator) and the documentation (:func:`markdown`, rendered into docs/language.md by
-``python -m runtime.docgen --write``).
+``python -m runtime.cli.docgen --write``).
 
 Imports nothing from Lark, NumPy or ZeroMQ.
 """

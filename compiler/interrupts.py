@@ -4,7 +4,7 @@ what a handler may not do.
 
 Read by the checker (``compiler.check``: options, condition, handler), the code generator
 (``compiler.codegen``), the object code's decoder and verifier (``compiler.objcode``:
-the interrupt table and the condition's code) and the VM (``runtime.vm``). Imports
+the interrupt table and the condition's code) and the VM (``runtime.loop.vm``). Imports
 nothing from Lark, NumPy or ZeroMQ.
 """
 from __future__ import annotations

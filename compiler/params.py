@@ -82,7 +82,7 @@ QUAT_KEYS = ("qw", "qx", "qy", "qz")
 QUAT_NORM_TOLERANCE = 1e-3
 REPORT_COLUMNS = ("sens_pos", "desi_pos", "out_vel", "following_error", "tcp")
 #: Columns a report may also have (not by default): io, every digital input then output (0/1);
-#: move, the number and source line of the program's move under way (runtime.components.report).
+#: move, the number and source line of the program's move under way (runtime.loop.components.report).
 #: frame, the names of the active tool and base and the tool centre point in that base.
 REPORT_COLUMNS_OPTIONAL = ("io", "move", "frame")
 
@@ -453,7 +453,7 @@ PARAMS: tuple[Param, ...] = (
        doc="time between setpoints of the homing sequence; must equal trajectory.period"),
     _p("trajectory", "budget", "integer", 200, "instructions", 1, 10_000, change="live",
        doc="object-code instructions the interpreter runs per update at most (on the wall clock each "
-           "update is also bounded in time: runtime.vm.TIME_SLICE)"),
+           "update is also bounded in time: runtime.loop.vm.TIME_SLICE)"),
     _p("trajectory", "period", "period", 0.005, "s", change="configuration",
        doc="time between setpoints of the program's motion; must equal initialization.period"),
     _p("report", "period", "period", 0.01, "s", change="configuration", doc="time between two logged rows"),

@@ -190,7 +190,7 @@ _GEOMETRIC = (Position, Pose, Rpy, Quat)
 
 def geometry_markdown() -> str:
     """docs/language.md's table of the geometric operators and built-ins (python -m
-    runtime.docgen), from :data:`GEOMETRY` and :data:`GEOMETRIC_BUILTINS`."""
+    runtime.cli.docgen), from :data:`GEOMETRY` and :data:`GEOMETRIC_BUILTINS`."""
     lines = ["| expression | result | meaning |", "|---|---|---|"]
     for (op, left, right), (result, _fn, doc) in GEOMETRY.items():
         lines.append(f"| {left} `{op}` {right} | {result} | {doc} |")

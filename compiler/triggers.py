@@ -4,7 +4,7 @@ allowed amounts, and what it may do.
 
 Read by the checker (``compiler.check``), the code generator and the instruction table
 (``compiler.objcode``: the operands of ``TRIGGER_OUT`` and ``TRIGGER_SET`` are indexes
-into :data:`PLACES` and :data:`UNITS`), the runtime (``runtime.vm``, the trajectory
+into :data:`PLACES` and :data:`UNITS`), the runtime (``runtime.loop.vm``, the trajectory
 generator and ``runtime.motion``: :func:`problem` checks every trigger a program hands
 over) and the documentation (:func:`markdown`). Imports nothing from Lark, NumPy or ZeroMQ.
 """

@@ -20,7 +20,7 @@ import warnings
 from pathlib import Path
 from types import ModuleType
 
-from . import kernels as source
+from runtime import kernels as source
 
 #: The environment variable that chooses: "python" forces the source; unset (or "auto"):
 #: the compiled module when it is usable.
@@ -34,7 +34,7 @@ def source_digest(path: Path | None = None) -> str:
 
 def _compiled_module() -> ModuleType | None:
     try:
-        from . import _kernels_c
+        from runtime import _kernels_c
     except ImportError:
         return None
     return _kernels_c

@@ -1,10 +1,10 @@
 """The per-axis arithmetic of the 1 ms loop, as plain typed functions.
 
 Four loops run for every axis on every 1 ms tick: the simulated drives and encoders
-(:class:`~runtime.sim.robot.SimRobot`), the alpha-beta estimator
-(:class:`~runtime.sim.estimator.AlphaBeta`), the servo law
-(:class:`~runtime.components.servo.ServoController`) and the robot interface's command
-clamp (:class:`~runtime.components.robot_interface.RobotInterface`). Once per 5 ms
+(:class:`~runtime.hardware.sim.robot.SimRobot`), the alpha-beta estimator
+(:class:`~runtime.hardware.sim.estimator.AlphaBeta`), the servo law
+(:class:`~runtime.loop.components.servo.ServoController`) and the robot interface's command
+clamp (:class:`~runtime.loop.components.robot_interface.RobotInterface`). Once per 5 ms
 setpoint, the servo's interpolator (:mod:`runtime.motion.interpolator`) computes each
 axis's segment to the next setpoint (:func:`segments`). The components own their state
 and their checks; this module holds only their inner loops.
@@ -142,7 +142,7 @@ def safety_check(commands: tuple[float, ...], previous: tuple[float, ...], veloc
                  high: tuple[float, ...], reaction: float, braking: tuple[float, ...], counts: tuple[int, ...],
                  last_counts: list[int], travel: list[float], window: list[float], plausible: tuple[float, ...],
                  dt: float, leak: float) -> int:
-    """The safety supervisor's per-axis checks of one 1 ms command (:mod:`runtime.components.safety`).
+    """The safety supervisor's per-axis checks of one 1 ms command (:mod:`runtime.loop.components.safety`).
 
     Per axis ``i``, in this order, the first violation is returned as ``kind * 256 + i``
     (0: every axis passed):

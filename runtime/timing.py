@@ -20,6 +20,6 @@ SETPOINT_PERIOD: float = component_params("trajectory")["period"].default  # typ
 assert SETPOINT_PERIOD == component_params("initialization")["period"].default
 #: s: the report's period (one logged row).
 REPORT_PERIOD: float = component_params("report")["period"].default  # type: ignore[assignment]
-#: s: the default time between two exchanges with a PLC (runtime.fieldbus; off the loop,
+#: s: the default time between two exchanges with a PLC (runtime.hardware.fieldbus; off the loop,
 #: on the exchange's own thread; a fieldbus file may choose from TICK to 1 s).
 FIELDBUS_POLL = 0.01

@@ -34,8 +34,8 @@ from hypothesis import settings
 from compiler.driver import compile_file
 from compiler.objcode import encode
 from compiler.spec import load_spec
-from runtime.cli import Environment, main
-from runtime.client import Client, ClientError
+from runtime.cli.main import Environment, main
+from runtime.client.client import Client, ClientError
 
 settings.register_profile("ci", derandomize=True, database=None, deadline=None)
 settings.register_profile("explore", deadline=None)
@@ -52,7 +52,7 @@ SERVER_PROGRAMS = Path(__file__).resolve().parent / "server_programs"
 
 
 def run_cli(*argv) -> tuple[int, str, str]:
-    """``irl ARGV`` in-process (``runtime.cli.main(argv, env)``): (status, stdout, stderr)."""
+    """``irl ARGV`` in-process (``runtime.cli.main.main(argv, env)``): (status, stdout, stderr)."""
     out, err = io.StringIO(), io.StringIO()
     code = main([str(a) for a in argv], Environment(stdout=out, stderr=err))
     return code, out.getvalue(), err.getvalue()
@@ -99,7 +99,7 @@ def pytest_collection_modifyitems(config, items):
 
 # ---- irl serve, end to end (tests/test_server.py and others) -----------------------------------------
 _SCRIPT = Path(sys.executable).with_name("irl")
-IRL = [str(_SCRIPT)] if _SCRIPT.exists() else [sys.executable, "-m", "runtime.cli"]
+IRL = [str(_SCRIPT)] if _SCRIPT.exists() else [sys.executable, "-m", "runtime.cli.main"]
 
 START, CALIBRATE, INITIALIZE, MOVE, STOP = (
     "Start Robot", "Calibrate Offsets", "Initialization Sequence", "Move Robot", "Stop Robot")
@@ -145,7 +145,7 @@ def soft_deadline_spec(directory: Path) -> Path:
 
 def run_irl(*args, timeout: float = 60.0, stdin: str | None = None) -> subprocess.CompletedProcess:
     """Run an ``irl`` command to its end; the output is text. A client command runs
-    in-process (``runtime.cli.main(argv, env)``: the same code without a new interpreter's
+    in-process (``runtime.cli.main.main(argv, env)``: the same code without a new interpreter's
     imports, about 0.4 s of CPU each); ``irl serve`` is a process of its own."""
     argv = [str(a) for a in args]
     if argv[0] == "serve":

@@ -18,7 +18,7 @@ PACKAGES = ("grammar", "compiler", "runtime")
 LAYERS: tuple[tuple[str, ...], ...] = (
     ("grammar",),
     ("compiler",),
-    ("runtime.kernels", "runtime.accel", "runtime.timing", "runtime.faults"),
+    ("runtime", "runtime.kernels", "runtime.accel", "runtime.timing", "runtime.config", "runtime.places"),
     ("runtime.motion",),
     ("runtime.wire",),
     ("runtime.hardware",),
@@ -26,7 +26,6 @@ LAYERS: tuple[tuple[str, ...], ...] = (
     ("runtime.server",),
     ("runtime.client",),
     ("runtime.cli",),
-    ("runtime",),
 )
 
 MAX_FIELDS = 30
@@ -98,9 +97,13 @@ def imports(known: dict[str, Path] | None = None) -> list[Import]:
 
 
 def layer(module: str) -> int:
-    for index, prefixes in enumerate(LAYERS):
-        if any(module == p or module.startswith(p + ".") for p in prefixes):
-            return index
+    best = None
+    for index, prefixes in enumerate(LAYERS):  # the longest prefix decides
+        for p in prefixes:
+            if (module == p or module.startswith(p + ".")) and (best is None or len(p) > len(best[1])):
+                best = (index, p)
+    if best is not None:
+        return best[0]
     raise KeyError(f"{module} is in no layer of tests/house.py LAYERS")
 
 

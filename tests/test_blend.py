@@ -25,13 +25,13 @@ from hypothesis import strategies as st
 from compiler.driver import compile_source
 from compiler.objcode import Program, verify
 from compiler.spec import SpecError, load_spec
-from runtime.cli import Environment, main
-from runtime.component import DataPort
-from runtime.components.trajectory import LOOKAHEAD, lookahead_depth
+from runtime.cli.main import Environment, main
+from runtime.loop.component import DataPort
+from runtime.loop.components.trajectory import LOOKAHEAD, lookahead_depth
 from runtime.motion.kinematics import Kinematics
-from runtime.supervisor import MOVE
-from runtime.system import RobotSystem, RunOptions
-from runtime.vm import VM, VMStatus
+from runtime.loop.supervisor import MOVE
+from runtime.loop.system import RobotSystem, RunOptions
+from runtime.loop.vm import VM, VMStatus
 
 from conftest import PROGRAMS, SPEC_PATH, SPEC
 AXES = SPEC.axes

@@ -786,7 +786,7 @@ def test_the_shipped_palletizing_program_keeps_every_joint_limit_end_to_end():
     (homing included), the setpoints and the drives' commands stay within the limits."""
     from compiler.driver import compile_source
     from limits_watch import LimitWatch, run_cycle
-    from runtime.system import RobotSystem, RunOptions
+    from runtime.loop.system import RobotSystem, RunOptions
 
     path = ROOT / "programs" / "palletize.irl"
     result = compile_source(path.read_text(encoding="utf-8"), str(path), ROOT / "programs" / "lola15.spc")

@@ -10,7 +10,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from runtime.sim.cell import RULES, Cell, ScenarioError, load_scenario, parse_scenario
+from runtime.hardware.sim.cell import RULES, Cell, ScenarioError, load_scenario, parse_scenario
 from runtime.timing import TICK
 
 from conftest import ROOT, SPEC, run_cli as run
@@ -217,8 +217,8 @@ def test_an_input_forced_by_hand_releases_a_waiting_program_and_outputs_cannot_b
     from compiler.driver import compile_source
     from compiler.objcode import encode
 
-    from runtime.protocol import ProtocolError
-    from runtime.server import ServeOptions, Server
+    from runtime.wire.protocol import ProtocolError
+    from runtime.server.server import ServeOptions, Server
 
     source = (f'program w;\nsystem_specification "{ROOT / "programs" / "lola15.spc"}";\nseq\n'
               '  wait for in[5] timeout 30 sec;\n  print "released";\nendseq\nendprogram;\n')
@@ -256,8 +256,8 @@ def test_a_timeline_counts_from_the_start_of_each_programs_move_robot(tmp_path):
     both the input toggled at ``at = 0.5`` is in the 1 ms report 0.5 s after Move Robot
     began, within a tick."""
     from compiler.driver import compile_source
-    from runtime.supervisor import MOVE
-    from runtime.system import RobotSystem, RunOptions
+    from runtime.loop.supervisor import MOVE
+    from runtime.loop.system import RobotSystem, RunOptions
 
     spec_path = ROOT / "programs" / "lola15.spc"
     result = compile_source(f'program p;\nsystem_specification "{spec_path}";\nseq\n'

@@ -9,7 +9,7 @@ import json
 
 import numpy as np
 
-from runtime.cli import Environment, main
+from runtime.cli.main import Environment, main
 
 from conftest import ROOT
 

@@ -31,9 +31,9 @@ from compiler.objcode import OP, ObjectCodeError, clause_names, encode, verify
 from compiler.params import describe
 from compiler.spec import SpecError, load_spec, parse_spec
 from compiler.values import Joint
-from runtime.cli import Environment, main
+from runtime.cli.main import Environment, main
 from runtime.motion.planner import scaled_limits
-from runtime.vm import VM, VMStatus
+from runtime.loop.vm import VM, VMStatus
 
 from conftest import SPEC_PATH, SPEC
 

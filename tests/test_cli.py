@@ -1,4 +1,4 @@
-"""The ``irl`` command, run in-process through ``runtime.cli.main(argv, env)``.
+"""The ``irl`` command, run in-process through ``runtime.cli.main.main(argv, env)``.
 
 Exit status: 0 ok, 1 invalid program or object file, 2 usage or file error, 70 a bug.
 """
@@ -18,7 +18,7 @@ import pytest
 from compiler.disasm import instructions
 from compiler.objcode import BY_NAME, FORMAT_VERSION, decode, load
 from compiler.spec import load_spec
-from runtime.cli import NOT_FOR_CHECKING, Environment, main
+from runtime.cli.main import NOT_FOR_CHECKING, Environment, main
 
 from conftest import ROOT, TEST_IRL, SPEC_PATH as SPEC, run_cli as run
 DIAG = re.compile(r"^(?P<file>\S+):(?P<line>\d+):(?P<col>\d+): error: (?P<msg>.+)$")
@@ -515,12 +515,13 @@ def test_spec_number_beyond_float_range(work, old, new, key):
 # ---- irl check stays light (issue 26) --------------------------------------------------------
 
 #: The runtime modules `irl` itself is made of (the command line and the names it offers).
-CLI_MODULES = {"runtime", "runtime.cli", "runtime.faults", "runtime.timing"}
+CLI_MODULES = {"runtime", "runtime.cli", "runtime.cli.main", "runtime.cli.common", "runtime.hardware",
+               "runtime.hardware.faults", "runtime.timing"}
 
 
 def modules_imported_by(*argv: str) -> set[str]:
     """The modules a fresh interpreter has imported after running ``irl ARGV`` in it."""
-    probe = ("import sys; from runtime.cli import main; code = main(sys.argv[1:]); "
+    probe = ("import sys; from runtime.cli.main import main; code = main(sys.argv[1:]); "
              "print(code, *sorted(sys.modules), file=sys.stderr)")
     proc = subprocess.run([sys.executable, "-c", probe, *argv], cwd=ROOT, capture_output=True, text=True,
                           timeout=60)
@@ -546,7 +547,7 @@ def test_a_command_parsed_alone_takes_the_same_arguments_as_in_the_whole_parser(
     each command must come out the same as in the parser that declares them all."""
     import argparse
 
-    from runtime.cli import build_parser
+    from runtime.cli.main import build_parser
 
     def commands(parser):
         sub = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction))

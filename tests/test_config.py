@@ -89,10 +89,10 @@ def test_sample_standard_matches_the_component_defaults():
     import inspect
     import tomllib
 
-    from runtime.components.initialization import Initialization
-    from runtime.components.report import Report
-    from runtime.components.trajectory import TrajectoryGenerator
-    from runtime.vm import VM
+    from runtime.loop.components.initialization import Initialization
+    from runtime.loop.components.report import Report
+    from runtime.loop.components.trajectory import TrajectoryGenerator
+    from runtime.loop.vm import VM
 
     def default(function, parameter):
         return inspect.signature(function).parameters[parameter].default

@@ -247,8 +247,8 @@ def test_language_md_covers_every_statement():
 
 def test_protocol_page_describes_every_operation_and_error_code():
     """docs/protocol.md is what a client in another language is written from: every
-    operation and every error code of runtime/protocol.py must be on it."""
-    from runtime import protocol
+    operation and every error code of runtime/wire/protocol.py must be on it."""
+    from runtime.wire import protocol
 
     text = (ROOT / "docs" / "protocol.md").read_text(encoding="utf-8")
     headings = [line for line in text.splitlines() if line.startswith("### ")]
@@ -263,18 +263,18 @@ def test_protocol_page_describes_every_operation_and_error_code():
 
 def test_generated_tables_are_up_to_date():
     """docs/safety.md, docs/runtime.md and docs/language.md hold tables rendered from their
-    one declaration (compiler.params, runtime.components.safety.CATEGORIES,
+    one declaration (compiler.params, runtime.loop.components.safety.CATEGORIES,
     compiler.clauses)."""
-    from runtime import docgen
+    from runtime.cli import docgen
 
     pages = docgen.pages()
     assert {p.name for p in pages} >= {"safety.md", "runtime.md", "language.md"}
     for page in pages:
         text = page.read_text(encoding="utf-8")
-        assert docgen.render(text) == text, f"{page.name} is stale: python -m runtime.docgen --write"
+        assert docgen.render(text) == text, f"{page.name} is stale: python -m runtime.cli.docgen --write"
     text = (ROOT / "docs" / "safety.md").read_text(encoding="utf-8")
     from compiler.params import PARAMS
-    from runtime.components.safety import CATEGORIES
+    from runtime.loop.components.safety import CATEGORIES
 
     for param in PARAMS:
         assert f"`{param.key}`" in text, param.key
@@ -287,7 +287,7 @@ def test_generated_tables_are_up_to_date():
 
 
 def test_docgen_check_and_write(tmp_path, monkeypatch):
-    from runtime import docgen
+    from runtime.cli import docgen
 
     page = tmp_path / "x.md"
     page.write_text("a\n<!-- generated: categories -->\nold\n<!-- end generated -->\nb\n", encoding="utf-8")
@@ -323,7 +323,7 @@ DOC_PROGRAMS = _doc_programs()
 def test_every_program_in_the_docs_compiles_and_runs_to_completion(tmp_path, page, line, text):
     import shutil
 
-    from runtime.cli import Environment, main
+    from runtime.cli.main import Environment, main
 
     shutil.copy(ROOT / "programs" / "lola15.spc", tmp_path / "lola15.spc")
     shutil.copytree(ROOT / "programs" / "lib", tmp_path / "lib")  # the modules the examples import

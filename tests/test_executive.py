@@ -1,4 +1,4 @@
-"""The cyclic executive (runtime/executive.py) with fake components: phase order within
+"""The cyclic executive (runtime/loop/executive.py) with fake components: phase order within
 a tick, periods, enabling, the two clocks, deadline-miss policies (on a fake wall clock
 whose time the test moves), lateness statistics and the checks on ``add``."""
 from __future__ import annotations
@@ -11,8 +11,8 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from runtime.component import Component
-from runtime.executive import PHASES, Executive, MissPolicy, SimClock, TaskStats, WallClock
+from runtime.loop.component import Component
+from runtime.loop.executive import PHASES, Executive, MissPolicy, SimClock, TaskStats, WallClock
 
 TICK = 0.001
 BIN = 10e-6  # the lateness histogram's bin width
@@ -529,7 +529,7 @@ def test_the_wall_clock_spins_briefly_only_where_its_thread_runs_real_time():
     import os
     import threading
 
-    from runtime.executive import SPIN_NORMAL, SPIN_REALTIME
+    from runtime.loop.executive import SPIN_NORMAL, SPIN_REALTIME
 
     clock = WallClock()
     clock.wait_until(clock.now())

@@ -1,6 +1,6 @@
 """Issue 13, "How we will know": the fault matrix.
 
-Every fault the simulated arm can inject (``runtime.sim.robot.FAULTS``) x every phase of a
+Every fault the simulated arm can inject (``runtime.hardware.sim.robot.FAULTS``) x every phase of a
 cycle (Calibrate Offsets; the homing steps Find Sensors, Find Index, Go To Start; Move
 Robot during a move; an operator pause) x two axes (A2, a main axis, and A5, a wrist
 axis). Each cell runs a fresh ``RobotSystem`` (seed 0, simulated clock) from power-up with
@@ -8,7 +8,7 @@ a program that moves both axes in both its moves, injects the fault a few ms aft
 phase is entered, and lets the cycle run to its end (a pause is resumed 0.5 s after the
 fault). The expected outcome of every cell is written down in EXPECTED below; each cell
 asserts it: completed or faulted, the fault naming the axis, the part and where it was
-found, the stop category that runtime/components/safety.py CATEGORIES documents for the
+found, the stop category that runtime/loop/components/safety.py CATEGORIES documents for the
 cause, no limit exceeded (``tests/limits_watch.py``, which reads the arm's true positions
 and the drives' real commands), and the arm at rest with brakes applied and torque off at
 the end.
@@ -28,10 +28,10 @@ import pytest
 
 from compiler.driver import compile_source
 from limits_watch import LimitWatch, at_rest_and_safe
-from runtime.components.safety import CATEGORIES
-from runtime.sim.robot import FAULTS
-from runtime.supervisor import CALIBRATE, INITIALIZE, MOVE, STOP
-from runtime.system import RobotSystem, RunOptions
+from runtime.loop.components.safety import CATEGORIES
+from runtime.hardware.sim.robot import FAULTS
+from runtime.loop.supervisor import CALIBRATE, INITIALIZE, MOVE, STOP
+from runtime.loop.system import RobotSystem, RunOptions
 
 from conftest import SPEC_PATH, SPEC
 AXES = [a.name for a in SPEC.axes]

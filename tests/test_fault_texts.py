@@ -18,13 +18,13 @@ TRANSLATORS = {"_describe", "_why"}
 
 #: (file, function) -> why the exception's text may be used there (never a fault text).
 ALLOWED = {
-    ("runtime/cli.py", "main"): "the command line's last guard: a bug report on stderr, exit 70",
-    ("runtime/server.py", "_handle"): "a server bug: the client's 'internal' error reply (and the log)",
-    ("runtime/robotloop.py", "command"): "a loop bug: the server's 'internal' error reply",
-    ("runtime/system.py", "_poll"): "the print thread keeps the exception object to raise it again in the caller",
-    ("runtime/robotloop.py", "_child"): "the loop process could not start: irl serve says so and exits 2",
-    ("runtime/protocol.py", "_decode"): "a request that is not msgpack: the kind of decoding error in the reply",
-    ("runtime/protocol.py", "decode_reply"): "a reply that is not msgpack: the kind of decoding error",
+    ("runtime/cli/main.py", "main"): "the command line's last guard: a bug report on stderr, exit 70",
+    ("runtime/server/server.py", "_handle"): "a server bug: the client's 'internal' error reply (and the log)",
+    ("runtime/loop/robotloop.py", "command"): "a loop bug: the server's 'internal' error reply",
+    ("runtime/loop/system.py", "_poll"): "the print thread keeps the exception object to raise it again in the caller",
+    ("runtime/loop/robotloop.py", "_child"): "the loop process could not start: irl serve says so and exits 2",
+    ("runtime/wire/protocol.py", "_decode"): "a request that is not msgpack: the kind of decoding error in the reply",
+    ("runtime/wire/protocol.py", "decode_reply"): "a reply that is not msgpack: the kind of decoding error",
     ("compiler/objcode.py", "decode"): "object code that is not msgpack: the kind of decoding error",
 }
 

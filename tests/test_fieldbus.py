@@ -14,7 +14,7 @@ from pathlib import Path
 
 import pytest
 
-from runtime.fieldbus import FieldbusError, ModbusIo, load_fieldbus, parse_fieldbus
+from runtime.hardware.fieldbus import FieldbusError, ModbusIo, load_fieldbus, parse_fieldbus
 
 from conftest import ROOT, SPEC_PATH, SPEC
 COILS, DISCRETE = 1, 2  # Modbus function codes: read coils, read discrete inputs
@@ -307,7 +307,7 @@ def test_a_plc_that_answers_without_the_inputs_stops_the_robot_with_complete_fil
     import csv
     import io as io_
 
-    from runtime.system import RobotSystem, RunOptions
+    from runtime.loop.system import RobotSystem, RunOptions
 
     from conftest import free_port
 

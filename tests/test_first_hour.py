@@ -7,7 +7,7 @@ import json
 import re
 from pathlib import Path
 
-from runtime.cli import Environment, build_parser, main
+from runtime.cli.main import Environment, build_parser, main
 
 from conftest import ROOT, run_cli as run
 
@@ -123,7 +123,7 @@ def test_submit_wait_shows_print_output_while_the_program_runs(tmp_path):
 
 
 def test_the_plot_shows_all_five_phases_from_the_states_file(tmp_path):
-    from runtime.plot import phases, read_report, read_transitions
+    from runtime.cli.plot import phases, read_report, read_transitions
 
     code, _, err = run("run", ROOT / "programs" / "test.irl", "--report", tmp_path / "r.csv", "--plot",
                        tmp_path / "r.png")
@@ -139,7 +139,7 @@ from hypothesis import given, strategies as st  # noqa: E402
 
 @given(st.lists(st.tuples(st.floats(0.0, 10.0), st.text(min_size=1, max_size=30)), min_size=1, max_size=8))
 def test_phase_labels_never_overlap(raw):
-    from runtime.plot import label_rows
+    from runtime.cli.plot import label_rows
 
     spans, t = [], 0.0
     for width, name in raw:
@@ -237,8 +237,8 @@ def test_on_the_wall_clock_print_output_is_handed_over_as_it_comes_and_never_by_
     import threading
 
     from compiler.driver import compile_file
-    from runtime.supervisor import RobotMemory
-    from runtime.system import RobotSystem, RunOptions
+    from runtime.loop.supervisor import RobotMemory
+    from runtime.loop.system import RobotSystem, RunOptions
 
     result = compile_file(str(_printing(tmp_path)), None)
     n = len(result.spec.axes)

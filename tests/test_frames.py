@@ -151,7 +151,7 @@ def test_the_name_of_an_active_frame_is_its_expressions_text(tmp_path):
 # ---- the runtime ---------------------------------------------------------------------------
 
 def run_program(tmp_path: Path, body: str, decls: str = "", spec: Path = LOLA, report: bool = False):
-    from runtime.system import RobotSystem, RunOptions
+    from runtime.loop.system import RobotSystem, RunOptions
 
     result = compile_program(tmp_path, body, decls, spec)
     assert result.ok, result.diagnostics
@@ -263,7 +263,7 @@ def test_hand_made_object_code_cannot_make_a_non_pose_or_a_non_finite_frame_acti
     """The trajectory generator checks every value ``USE_*`` hands it (object code is
     untrusted): an error at the line, the robot at rest, nothing planned with it."""
     from runtime.motion.moves import Frames
-    from runtime.system import RobotSystem, RunOptions
+    from runtime.loop.system import RobotSystem, RunOptions
 
     system = RobotSystem(SPEC, RunOptions(state_dir=tmp_path / "s"))
     host = system.trajectory
@@ -278,7 +278,7 @@ def test_hand_made_object_code_cannot_make_a_non_pose_or_a_non_finite_frame_acti
 
 
 def test_telemetry_samples_carry_the_tool_base_and_tcp():
-    from runtime.server import Server, ServeOptions
+    from runtime.server.server import Server, ServeOptions
 
     server = Server(load_spec(CELL), ServeOptions())
     frames = ["pallet_station", [650.0, -180.0, 250.0, 0.0, 0.0, 10.0], "gripper", [0.0, 0.0, 180.0, 0.0, 0.0, 0.0]]
@@ -294,7 +294,7 @@ def test_telemetry_samples_carry_the_tool_base_and_tcp():
 
 
 def test_the_example_runs_and_its_report_plots(tmp_path, monkeypatch):
-    from runtime.cli import main
+    from runtime.cli.main import main
 
     monkeypatch.chdir(ROOT)
     report = tmp_path / "tool_change.csv"

@@ -3,7 +3,7 @@
 Every test records the programs the engine calls, in order, in a list and asserts the
 exact sequence. Then: construction errors, ordered transitions, modes, requests,
 sub-machines, diagrams, a property test over random small machines, and tests marked
-xfail(strict=True) for rules of runtime/fsm.py that look wrong (each says why in its
+xfail(strict=True) for rules of runtime/loop/fsm.py that look wrong (each says why in its
 reason; they pass the day the engine is changed, and then the mark must go).
 
 No timing here: the cost of a step is measured by benchmarks/fsm_step.py.
@@ -18,7 +18,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from runtime.fsm import AUTOMATIC, FSM, REACTIVE, FSMError, State, Transition
+from runtime.loop.fsm import AUTOMATIC, FSM, REACTIVE, FSMError, State, Transition
 
 
 # ---- helpers -----------------------------------------------------------------------------
@@ -891,7 +891,7 @@ def test_property_random_machines_keep_the_invariants(spec):
         assert not sub.active or sub.finished or m.state == host
 
 
-# ---- rules that were wrong in runtime/fsm.py, fixed; kept as regression tests ------------------
+# ---- rules that were wrong in runtime/loop/fsm.py, fixed; kept as regression tests ------------------
 
 def test_fixed_an_event_posted_by_an_entry_program_reaches_the_next_step():
     calls = []

@@ -22,7 +22,7 @@ from pathlib import Path
 
 import pytest
 
-from runtime.cli import Environment, main
+from runtime.cli.main import Environment, main
 
 from conftest import ROOT, PROGRAMS
 GOLDEN = ROOT / "tests" / "golden"

@@ -410,8 +410,8 @@ def test_a_mutation_of_the_interpolant_fails_the_checks(name, monkeypatch):
 def test_the_servo_takes_setpoints_with_and_without_accelerations():
     """desi_pos carries (t, positions, velocities) or (t, positions, velocities,
     accelerations); the servo interpolates both (C1 between a mix), within the limits."""
-    from runtime.component import DataPort
-    from runtime.components.servo import ServoController
+    from runtime.loop.component import DataPort
+    from runtime.loop.components.servo import ServoController
 
     ports = {name: DataPort(name) for name in ("sens_pos", "desi_pos", "init_pos", "out_vel")}
     servo = ServoController(SPEC, ports["sens_pos"], ports["desi_pos"], ports["init_pos"], ports["out_vel"],

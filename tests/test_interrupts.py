@@ -14,7 +14,7 @@ from hypothesis import HealthCheck, event, example, given, settings
 from hypothesis import strategies as st
 
 from compiler.objcode import OP, InterruptInfo, ObjectCodeError, ProcInfo, decode, encode, verify
-from runtime.vm import VM, VMStatus
+from runtime.loop.vm import VM, VMStatus
 
 from test_vm import DISPATCHES, FakeHost, compile_text, line_of, program_text, raw_program
 
@@ -225,8 +225,8 @@ def run_with_curtain(tmp_path, body: str, decls: str, breaks: list[float]):
     from limits_watch import LimitWatch
 
     from compiler.driver import compile_source
-    from runtime.sim.cell import parse_scenario
-    from runtime.system import RobotSystem, RunOptions
+    from runtime.hardware.sim.cell import parse_scenario
+    from runtime.loop.system import RobotSystem, RunOptions
 
     (tmp_path / "lola15.spc").write_text((ROOT / "programs" / "lola15.spc").read_text())
     result = compile_source(program_text(body, decls), str(tmp_path / "p.irl"))
@@ -419,7 +419,7 @@ def _shared_system():
     own (as the server runs them), 60 s at most per cycle (a hang fails fast)."""
     from limits_watch import LimitWatch
 
-    from runtime.system import RobotSystem, RunOptions
+    from runtime.loop.system import RobotSystem, RunOptions
 
     system = RobotSystem(SPEC, RunOptions(state_dir=tempfile.mkdtemp(), max_time=60.0))
     watch = LimitWatch(system)
@@ -537,8 +537,8 @@ def test_a_handler_starts_at_most_5_ms_after_its_condition_becomes_true(tmp_path
     first out[...]) comes at most 5 ms after the input changed, at every phase of the check
     and of the 1 ms tick (the toggles sweep both), during a move on the simulated robot."""
     from compiler.driver import compile_source
-    from runtime.sim.cell import parse_scenario
-    from runtime.system import RobotSystem, RunOptions
+    from runtime.hardware.sim.cell import parse_scenario
+    from runtime.loop.system import RobotSystem, RunOptions
 
     decls = ("interrupt curtain when in[5] priority 1 continue;\nseq\n  out[9] := true;\n  wait for not in[5];\n"
              "  out[9] := false;\nendseq\nendinterrupt;\n")
@@ -571,7 +571,7 @@ def test_irl_run_after_then_halt_says_completed_and_exits_0(tmp_path):
     exit status 0, and its log's last line names the interrupt."""
     import io
 
-    from runtime.cli import Environment, main
+    from runtime.cli.main import Environment, main
 
     decls = "interrupt lost when in[5] stop then halt;\nseq\n  print \"part lost\";\nendseq\nendinterrupt;\n"
     body = (f"  enable lost;\n  move ptp {HOME};\n  move ptp joint(mainjoint(60, -20, 40, 0, 50, 0)) speed_ptp := 0.3;\n"

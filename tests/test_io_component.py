@@ -1,4 +1,4 @@
-"""The digital I/O as a component (runtime/components/io.py): ``io``, in the lifecycle like
+"""The digital I/O as a component (runtime/loop/components/io.py): ``io``, in the lifecycle like
 the others, with ``inputs`` and ``outputs`` ports, one sense task (the cell, the inputs, the
 backend's health), and its backends behind one interface (the simulated robot's own I/O,
 a PLC's: tests/test_fieldbus.py)."""
@@ -9,9 +9,9 @@ import pytest
 
 from compiler.driver import compile_source
 from compiler.objcode import encode
-from runtime.sim.cell import parse_scenario
-from runtime.sim.robot import SimRobot
-from runtime.system import RobotSystem, RunOptions
+from runtime.hardware.sim.cell import parse_scenario
+from runtime.hardware.sim.robot import SimRobot
+from runtime.loop.system import RobotSystem, RunOptions
 from runtime.timing import TICK
 
 from conftest import SPEC_PATH, SPEC
@@ -41,7 +41,7 @@ def cycle(system: RobotSystem, prog, after_tick=None, ticks: int = 200_000, repo
 def test_the_io_component_is_listed_with_its_lifecycle_and_keeps_its_scripting_interface(tmp_path):
     """`components` lists io with a lifecycle state (stopped between programs, running in
     one); `help io`, `io.inputs`, `io.in[n]` and the forcing of an input are as before."""
-    from runtime.server import ServeOptions, Server
+    from runtime.server.server import ServeOptions, Server
 
     source = (f'program w;\nsystem_specification "{SPEC_PATH}";\nseq\n'
               '  wait for in[5] timeout 30 sec;\n  print "released";\nendseq\nendprogram;\n')
@@ -192,7 +192,7 @@ def test_a_plc_that_cannot_be_reached_refuses_the_program_at_begin(tmp_path):
     a program refused at ``begin`` while it cannot be reached, with the reason."""
     from conftest import free_port
 
-    from runtime.fieldbus import ModbusIo, parse_fieldbus
+    from runtime.hardware.fieldbus import ModbusIo, parse_fieldbus
 
     port = free_port()  # nothing listens there
     config = parse_fieldbus({"modbus": {"host": "127.0.0.1", "port": port, "poll": 0.005, "timeout": 0.05}}, SPEC)

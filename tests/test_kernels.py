@@ -306,7 +306,7 @@ def test_integers_are_taken_as_floats_alike():
 def run_paper_program(tmp_path: Path, kernels: str) -> tuple[dict, bytes, bytes]:
     report = tmp_path / f"{kernels}.csv"
     env = dict(os.environ, IRL_KERNELS=kernels)
-    done = subprocess.run([sys.executable, "-m", "runtime.cli", "run", str(ROOT / "programs" / "test.irl"),
+    done = subprocess.run([sys.executable, "-m", "runtime.cli.main", "run", str(ROOT / "programs" / "test.irl"),
                            "--report", str(report), "--json"], capture_output=True, text=True, env=env,
                           cwd=ROOT, timeout=300, check=False)
     assert done.returncode == 0, done.stderr

@@ -1,5 +1,5 @@
 """Issue 13, item 7: the smaller failures an adversarial user found, each through the CLI
-(``runtime.cli.main`` in-process) or the network protocol (a real ``irl serve`` on
+(``runtime.cli.main.main`` in-process) or the network protocol (a real ``irl serve`` on
 loopback, simulated clock):
 
 1. an integer literal of 4,301+ digits ended ``irl check`` with an internal error;
@@ -229,7 +229,7 @@ def test_keys_secret_files_are_0600_from_the_start_and_a_new_directory_0700(tmp_
 
     import zmq.auth
 
-    from runtime.keys import check_server_keys
+    from runtime.wire.keys import check_server_keys
 
     check_server_keys(d)
     public, secret = zmq.auth.load_certificate(d / "client.key_secret")
@@ -260,12 +260,12 @@ class _Served:
     """``irl serve --sim-clock`` on free loopback ports (a subprocess), with a client."""
 
     def __init__(self, tmp_path: Path, *extra: str):
-        from runtime.client import Client, ClientError
+        from runtime.client.client import Client, ClientError
 
         self.endpoint = f"tcp://127.0.0.1:{_free_port()}"
         tmp_path.mkdir(parents=True, exist_ok=True)
         self.log_path = tmp_path / "serve.log"
-        cmd = [sys.executable, "-m", "runtime.cli", "serve", "--spec", str(SPEC), "--sim-clock",
+        cmd = [sys.executable, "-m", "runtime.cli.main", "serve", "--spec", str(SPEC), "--sim-clock",
                "--state-dir", str(tmp_path / "state"), "--endpoint", self.endpoint,
                "--telemetry", f"tcp://127.0.0.1:{_free_port()}", *extra]
         with open(self.log_path, "wb") as log:
@@ -291,7 +291,7 @@ class _Served:
         return self.client.request(op, args)
 
     def error(self, op: str, args: dict | None = None):
-        from runtime.client import ClientError
+        from runtime.client.client import ClientError
 
         with pytest.raises(ClientError) as err:
             self.request(op, args)
@@ -372,7 +372,7 @@ def test_report_offsets_beyond_the_file_or_not_integers_are_bad_requests(serve, 
 
 # ---- 5. a bounded queue -------------------------------------------------------------------------
 def test_the_queue_is_bounded_for_programs_and_reconfigurations(serve, tmp_path):
-    from runtime.protocol import MAX_QUEUED
+    from runtime.wire.protocol import MAX_QUEUED
 
     assert MAX_QUEUED == 100  # the number docs/protocol.md and README.md give
     server = serve("--config", str(CONFIG))
@@ -445,7 +445,7 @@ def test_the_queue_is_bounded_for_programs_and_reconfigurations(serve, tmp_path)
     ("", False),
 ])
 def test_endpoint_classification(endpoint, local):
-    from runtime.server import is_local_endpoint
+    from runtime.server.server import is_local_endpoint
 
     assert is_local_endpoint(endpoint) is local
 
@@ -453,7 +453,7 @@ def test_endpoint_classification(endpoint, local):
 def _spy_server(monkeypatch) -> list:
     """Replace the server so that the CLI can be run without binding anything: returns
     the list of ServeOptions it was asked to serve with."""
-    import runtime.server
+    import runtime.server.server
 
     served = []
 
@@ -462,12 +462,12 @@ def _spy_server(monkeypatch) -> list:
             raise AssertionError("a Server was made: the endpoint check came too late")
 
     def fake_serve(spec, options, configurations=None, stderr=None):
-        runtime.server.check_endpoints(options)
+        runtime.server.server.check_endpoints(options)
         served.append(options)
         return 0
 
-    monkeypatch.setattr(runtime.server, "Server", NoServer)
-    monkeypatch.setattr(runtime.server, "serve", fake_serve)
+    monkeypatch.setattr(runtime.server.server, "Server", NoServer)
+    monkeypatch.setattr(runtime.server.server, "serve", fake_serve)
     return served
 
 
@@ -516,7 +516,7 @@ def test_serve_allows_a_remote_endpoint_with_the_flag_or_with_keys(tmp_path, mon
 def test_the_server_itself_refuses_to_bind_a_remote_endpoint_without_keys(tmp_path):
     """The same check guards ``serve()`` and ``Server.bind()`` for callers other than the CLI."""
     from compiler.spec import load_spec
-    from runtime.server import InsecureEndpoint, Server, ServeOptions, serve
+    from runtime.server.server import InsecureEndpoint, Server, ServeOptions, serve
 
     spec = load_spec(SPEC)
     options = ServeOptions(endpoint=f"tcp://0.0.0.0:{_free_port()}", telemetry=f"tcp://127.0.0.1:{_free_port()}",

@@ -348,7 +348,7 @@ def run_program(q0, moves) -> tuple[list, list]:
 
 def servo_references(q0, setpoints) -> list:
     """The servo's 1 ms references of ``setpoints`` (its interpolator, one setpoint period
-    behind, as runtime/components/servo.py takes them), and a few more at rest."""
+    behind, as runtime/loop/components/servo.py takes them), and a few more at rest."""
     interpolator = Interpolator(tuple(q0), LIMITS)
     references, k = [], 0
     for setpoint in setpoints + [(setpoints[-1][0] + SETPOINT_PERIOD * i,) + setpoints[-1][1:] for i in (1, 2)]:

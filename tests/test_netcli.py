@@ -5,9 +5,9 @@ from __future__ import annotations
 
 import pytest
 
-from runtime.cli import UsageError
-from runtime.keys import KeyError_, check_server_keys, make_keys
-from runtime.netcli import _cell_endpoint
+from runtime.cli.main import UsageError
+from runtime.wire.keys import KeyError_, check_server_keys, make_keys
+from runtime.cli.netcli import _cell_endpoint
 
 from conftest import ROOT, run_cli as run
 
@@ -123,7 +123,7 @@ def test_a_progress_line_never_says_none(status):
     """``irl submit --wait`` and ``irl status``: a program that has started but whose line
     the server does not know yet (its first snapshot not in) is shown without a line, not
     as 'line None'."""
-    from runtime.netcli import _job_line, _progress_line, _telemetry_line
+    from runtime.cli.netcli import _job_line, _progress_line, _telemetry_line
 
     texts = [_job_line(status), _progress_line(status["id"], status)]
     sample = {"seq": 1, "t": 0.0, "kind": "sample", "state": status.get("fsm", "Idle"), "program": status["id"],
@@ -140,7 +140,7 @@ def test_watch_with_no_server_says_so_and_exits_2(monkeypatch):
     silence: no telemetry within the reply timeout (5 s; shortened here) is exit 2."""
     import socket
 
-    from runtime import netcli
+    from runtime.cli import netcli
 
     monkeypatch.setattr(netcli, "REPLY_TIMEOUT", 0.3)
     with socket.socket() as s:
@@ -154,8 +154,8 @@ def _examples() -> list[str]:
     """Every example that ``irl call --help`` and the console's ``help`` give."""
     import re
 
-    from runtime.netcli import CALL_HELP
-    from runtime.scripting import HELP_TEXT
+    from runtime.cli.netcli import CALL_HELP
+    from runtime.wire.scripting import HELP_TEXT
 
     found = re.findall(r"'([^']+)'", CALL_HELP)
     for line in HELP_TEXT.splitlines():
@@ -176,7 +176,7 @@ def test_control_replay_feeds_and_the_help_examples_from_the_irl_command(tmp_pat
     import msgpack
     import zmq
 
-    from runtime.netcli import control_file
+    from runtime.cli.netcli import control_file
     from conftest import ServerProcess
 
     monkeypatch.setenv("XDG_STATE_HOME", str(tmp_path / "xdg"))

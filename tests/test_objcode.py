@@ -490,7 +490,7 @@ from pathlib import Path as _Path
 from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
 
-from runtime.vm import VM, VMStatus
+from runtime.loop.vm import VM, VMStatus
 from test_vm import FakeHost
 
 _EXAMPLES = ("cycle_control", "joint_jog", "approach_retreat", "pick_place", "pallet_frame", "waypoints",

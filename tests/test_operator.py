@@ -11,10 +11,10 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from compiler.driver import compile_file
-from runtime.executive import Executive, SimClock
+from runtime.loop.executive import Executive, SimClock
 from runtime.motion.stops import REST_VELOCITY, StopRamp
-from runtime.supervisor import MOVE, RECONFIGURE, STOP
-from runtime.system import RobotSystem, RunOptions
+from runtime.loop.supervisor import MOVE, RECONFIGURE, STOP
+from runtime.loop.system import RobotSystem, RunOptions
 
 from conftest import ROOT
 PAPER = compile_file(ROOT / "programs" / "test.irl")

@@ -9,7 +9,7 @@ from pathlib import Path
 
 import pytest
 
-from runtime.cli import Environment
+from runtime.cli.main import Environment
 
 from conftest import TEST_IRL, SPEC_PATH as SPEC, run_cli as run
 DEFAULT_GROUPS = ["sens_pos", "desi_pos", "out_vel", "following_error", "tcp"]
@@ -31,8 +31,8 @@ LINES = [4, 6, 7]
 def moves_of(program: Path) -> list[dict]:
     """The program's moves as they ran (line, t_start, t_end), from a run in-process (the
     simulated clock: the same times as irl run's)."""
-    from runtime.cli import _load_program
-    from runtime.system import RobotSystem, RunOptions
+    from runtime.cli.main import _load_program
+    from runtime.loop.system import RobotSystem, RunOptions
 
     compiled, spec = _load_program(str(program), None, Environment())
     system = RobotSystem(spec, RunOptions())
@@ -110,9 +110,9 @@ def test_the_move_columns_count_the_moves_and_name_their_lines(three):
 
 def test_the_move_columns_from_a_configuration(tmp_path):
     """report.columns with "move" (as irl serve --config sets it): the same columns."""
-    from runtime.cli import _load_program
+    from runtime.cli.main import _load_program
     from runtime.config import validate_settings
-    from runtime.system import RobotSystem, RunOptions
+    from runtime.loop.system import RobotSystem, RunOptions
 
     program = tmp_path / "three.irl"
     program.write_text(THREE_MOVES.format(spec=SPEC), encoding="utf-8")
@@ -157,7 +157,7 @@ def test_a_report_columns_list_replaces_the_default_in_its_order(tmp_path):
 # ---- what the plot draws ------------------------------------------------------------------------
 
 def test_homing_steps_of_the_paper_program_span_its_initialization(paper):
-    from runtime.plot import homing_steps, phases, read_report, read_transitions
+    from runtime.cli.plot import homing_steps, phases, read_report, read_transitions
 
     times, states, _ = read_report(paper["default"])
     steps = homing_steps(times, states)
@@ -171,7 +171,7 @@ def test_homing_steps_of_the_paper_program_span_its_initialization(paper):
 
 
 def test_homing_steps_from_rows():
-    from runtime.plot import homing_steps
+    from runtime.cli.plot import homing_steps
 
     times = [0.0, 0.1, 0.2, 0.3, 0.4, 0.5, 0.6, 0.7]
     states = ["Calibrate Offsets", "Initialization Sequence/Find Sensors", "Initialization Sequence/Find Sensors",
@@ -186,7 +186,7 @@ def test_homing_steps_from_rows():
 def test_move_starts_from_the_move_columns(paper):
     import numpy as np
 
-    from runtime.plot import move_starts, read_report
+    from runtime.cli.plot import move_starts, read_report
 
     times, _, cols = read_report(paper["moves"])
     starts = move_starts(times, cols)
@@ -215,7 +215,7 @@ def _labels_never_overlap(fig) -> list[str]:
 def test_the_plot_names_the_homing_steps_and_marks_each_move(paper, tmp_path):
     import matplotlib.pyplot as plt
 
-    from runtime.plot import figure, plot_report
+    from runtime.cli.plot import figure, plot_report
 
     fig = figure(paper["moves"])
     try:
@@ -246,7 +246,7 @@ def test_many_moves_labels_never_overlap(paper, tmp_path):
     none over another, in at most four rows; every move keeps its line."""
     import matplotlib.pyplot as plt
 
-    from runtime.plot import MARK_ROWS, figure
+    from runtime.cli.plot import MARK_ROWS, figure
 
     header, rows = rows_of(paper["moves"])
     moving = [k for k, r in enumerate(rows) if r[1] == "Move Robot"]

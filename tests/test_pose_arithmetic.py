@@ -149,7 +149,7 @@ def test_a_lin_move_in_a_turned_frame_reaches_the_hand_computed_world_pose(tmp_p
     from compiler.driver import compile_source
     from compiler.spec import load_spec
     from runtime.motion.kinematics import Kinematics
-    from runtime.system import RobotSystem, RunOptions
+    from runtime.loop.system import RobotSystem, RunOptions
 
     frame = Pose(Position(650, -180, 250), Rpy(0, 0, 10))
     local = Pose(Position(150, 120, 0), Rpy(180, 30, 180))

@@ -9,7 +9,7 @@ from pathlib import Path
 import msgpack
 import zmq
 
-from runtime import protocol
+from runtime.wire import protocol
 from conftest import SERVER_PROGRAMS as PROGRAMS, ServerProcess, objcode
 
 from conftest import ROOT
@@ -260,7 +260,7 @@ def test_a_cancelled_program_is_said_on_telemetry(tmp_path):
         events = [m for m in replay["messages"] if m["kind"] == "event" and m["event"] == "program"
                   and m["program"] == second]
         assert [(e["state"], e["fault"]) for e in events] == [("cancelled", "removed from the queue by the operator")]
-        from runtime.protocol import SAMPLE_FIELDS  # every field a sample has is declared (and documented)
+        from runtime.wire.protocol import SAMPLE_FIELDS  # every field a sample has is declared (and documented)
 
         samples = [m for m in replay["messages"] if m["kind"] == "sample"]
         assert any("line" in m for m in samples)
@@ -352,8 +352,8 @@ def test_an_envelope_of_at_most_16_frames_is_a_request_and_a_longer_one_is_not(h
     """docs/protocol.md, Framing: a request frame alone, or after an envelope of at most
     MAX_ENVELOPE_FRAMES frames whose last is the empty delimiter; the reply goes back with
     that envelope. Anything else is not a request."""
-    from runtime.protocol import MAX_ENVELOPE_FRAMES
-    from runtime.server import envelope
+    from runtime.wire.protocol import MAX_ENVELOPE_FRAMES
+    from runtime.server.server import envelope
 
     assert MAX_ENVELOPE_FRAMES == 16
     frames = [b"peer", *hops, *([b""] if delimited else []), b"request"]
@@ -438,7 +438,7 @@ def _in_process_server():
     ``_handle`` with the connection they came on; replies read from ``outbox``)."""
     if "server" not in _SERVER:
         from compiler.spec import load_spec
-        from runtime.server import Server, ServeOptions
+        from runtime.server.server import Server, ServeOptions
 
         import tempfile
 

@@ -19,7 +19,7 @@ from compiler import frames, geometry, semantics
 from compiler.semantics import EvalError
 from compiler.values import Pose, Position, Quat
 from runtime.motion import kinematics, rotation
-from runtime.vm import VMStatus
+from runtime.loop.vm import VMStatus
 
 from test_vm import compile_text, program_text, raw_program, run
 

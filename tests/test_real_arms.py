@@ -36,7 +36,7 @@ from hypothesis import strategies as st
 from compiler.driver import compile_file
 from compiler.spec import load_spec
 from runtime.motion.kinematics import Kinematics
-from runtime.system import RobotSystem, RunOptions
+from runtime.loop.system import RobotSystem, RunOptions
 
 from conftest import PROGRAMS, ROOT, run_cli
 

@@ -12,9 +12,9 @@ from pathlib import Path
 import pytest
 
 from compiler.spec import load_spec
-from runtime import realtime
-from runtime.executive import DEADLINE_HINT, Executive, MissPolicy, SimClock
-from runtime.system import RobotSystem, RunOptions
+from runtime.loop import realtime
+from runtime.loop.executive import DEADLINE_HINT, Executive, MissPolicy, SimClock
+from runtime.loop.system import RobotSystem, RunOptions
 from runtime.timing import TICK
 
 from conftest import ROOT, SPEC_PATH as SPEC_FILE, run_cli as run
@@ -89,7 +89,7 @@ def test_scheduling_says_what_it_got_and_never_raises():
 def test_real_time_scheduling_is_asked_for_by_default_and_the_flags_choose_a_priority_or_turn_it_off():
     """As ros2_control's controller manager: SCHED_FIFO 50 with memory locked unless told
     otherwise; --rt-priority 0 is normal scheduling (memory not locked unless asked)."""
-    from runtime.cli import build_parser
+    from runtime.cli.main import build_parser
 
     parser = build_parser()
     for command in (["run", "x.irl", "--realtime"], ["serve", "--spec", "x.spc"], ["latency"]):
@@ -175,7 +175,7 @@ def test_the_summary_counts_each_late_tick_once_never_more_misses_than_ticks(lat
     --realtime summary said more misses than ticks)."""
     from unittest import mock
 
-    with mock.patch("runtime.system.SimClock", lambda tick: _LateClock(tick, late)):
+    with mock.patch("runtime.loop.system.SimClock", lambda tick: _LateClock(tick, late)):
         system = RobotSystem(SPEC, RunOptions(max_time=0.06, deadline_policy="soft"))
     assert system.clock.late is late
     ran: list[int] = []
@@ -285,7 +285,7 @@ def test_the_paper_program_gives_the_same_report_bytes_in_either_process_layout(
     and states files, byte for byte."""
     from conftest import ServerProcess, wait_end
 
-    from runtime.server import ServeOptions, Server
+    from runtime.server.server import ServeOptions, Server
 
     code, _, err = run("run", PAPER, "--report", tmp_path / "run.csv", "--state-dir", tmp_path / "run-state")
     assert code == 0, err
@@ -430,7 +430,7 @@ def test_a_program_completes_on_the_wall_clock_while_a_client_floods_status_requ
 # ---- the channel between the server and its loop ---------------------------------------------------
 
 def test_the_channel_carries_messages_whole_and_in_order_and_says_when_the_other_end_is_gone():
-    from runtime.channel import ChannelClosed, pair
+    from runtime.wire.channel import ChannelClosed, pair
 
     a, b = pair()
     big = {"kind": "finished", "summary": {"log": ["x" * 1000] * 2000}}  # 2 MB: many reads
@@ -454,7 +454,7 @@ def test_a_channel_whose_reader_stops_never_blocks_the_sender_it_drops_and_count
     """The loop's side of the channel when the server stalls: every send returns at once;
     a telemetry snapshot is dropped as soon as anything waits, any message once the
     bounded outbox is full; nothing blocks."""
-    from runtime import channel
+    from runtime.wire import channel
 
     monkeypatch.setattr(channel, "OUTBOX_BYTES", 64 << 10)
     a, b = channel.pair()

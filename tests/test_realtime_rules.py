@@ -17,7 +17,7 @@ import pytest
 
 import limits_watch
 from compiler.driver import compile_source
-from runtime.system import RobotSystem, RunOptions
+from runtime.loop.system import RobotSystem, RunOptions
 
 from conftest import ROOT, SPEC_PATH, SPEC
 

@@ -3,7 +3,7 @@ five phases (Start Robot, Calibrate Offsets, Initialization Sequence, Move Robot
 Robot), the report, determinism, injected faults, run-time errors, object files, the
 calibration memory, ``irl plot``, ``irl fsm`` and the example programs.
 
-Everything runs in-process through ``runtime.cli.main(argv, env)``; a full run of
+Everything runs in-process through ``runtime.cli.main.main(argv, env)``; a full run of
 programs/test.irl takes about a second of wall time (25 s simulated), so the runs are
 shared through module-scoped fixtures where they can be.
 """
@@ -22,7 +22,7 @@ from hypothesis import strategies as st
 
 from compiler.driver import compile_file
 from compiler.spec import load_spec
-from runtime.system import RobotSystem, RunOptions
+from runtime.loop.system import RobotSystem, RunOptions
 
 from conftest import PROGRAMS, SPEC_PATH, SPEC, TEST_IRL, run_cli as run
 AXES = SPEC.axes
@@ -286,7 +286,7 @@ def test_the_report_writer_never_dies_of_a_row_and_keeps_every_other_one(batches
     is written, to the end."""
     import tempfile
 
-    from runtime.components.report import ReportWriter
+    from runtime.loop.components.report import ReportWriter
 
     header = ["time", "state", "in_1", "in_2", "sens_pos_A1"]
     with tempfile.TemporaryDirectory() as directory:

@@ -1,7 +1,7 @@
 """Issue 13: the robot cannot be driven past its limits.
 
 One regression test (or more) for every way the arm was driven into its end stops, and
-for each of the safety supervisor's checks (runtime/components/safety.py), through the CLI,
+for each of the safety supervisor's checks (runtime/loop/components/safety.py), through the CLI,
 the protocol (the server's request handlers, in-process) or a running system. The
 ``LimitWatch`` (tests/limits_watch.py) reads the simulated arm's true positions and the
 commands the drives really got, every tick: nothing here trusts the runtime's own account.
@@ -17,14 +17,14 @@ from compiler.driver import compile_source
 from compiler.objcode import encode
 from compiler.spec import SpecError, parse_spec
 from limits_watch import IdleHost, LimitWatch, at_rest_and_safe, run_cycle
-from runtime import protocol
-from runtime.cli import main
-from runtime.components.safety import CATEGORIES
+from runtime.wire import protocol
+from runtime.cli.main import main
+from runtime.loop.components.safety import CATEGORIES
 from runtime.config import ConfigError, parse_configurations
-from runtime.protocol import ProtocolError
-from runtime.server import ServeOptions, Server
-from runtime.supervisor import INITIALIZE, MOVE, StateFile
-from runtime.system import RobotSystem, RunOptions
+from runtime.wire.protocol import ProtocolError
+from runtime.server.server import ServeOptions, Server
+from runtime.loop.supervisor import INITIALIZE, MOVE, StateFile
+from runtime.loop.system import RobotSystem, RunOptions
 
 from conftest import SPEC_PATH, SPEC, TEST_IRL
 AXES = [a.name for a in SPEC.axes]
@@ -35,7 +35,7 @@ STOP_TOLERANCE = 0.5
 def run_cli(*argv) -> tuple[int, str, str]:
     import io
 
-    from runtime.cli import Environment
+    from runtime.cli.main import Environment
 
     out, err = io.StringIO(), io.StringIO()
     code = main([str(a) for a in argv], Environment(stdout=out, stderr=err))
@@ -534,7 +534,7 @@ def test_a_string_that_grows_without_bound_stops_the_program_at_its_line():
 
 def test_a_forged_object_cannot_allocate_without_bound():
     from compiler.objcode import OP, MAX_ARRAY_ELEMENTS, MAX_STRING_LENGTH, ObjectCodeError, load
-    from runtime.vm import ERROR, VM
+    from runtime.loop.vm import ERROR, VM
 
     forged = program("  print 1;\n")
     code = ((OP.CONST, 0), (OP.MAKE_ARRAY, MAX_ARRAY_ELEMENTS), (OP.MAKE_ARRAY, MAX_ARRAY_ELEMENTS),
@@ -553,7 +553,7 @@ def test_a_forged_object_cannot_allocate_without_bound():
 
 
 def test_the_interpreter_time_per_update_is_bounded_on_the_wall_clock():
-    from runtime.vm import VM
+    from runtime.loop.vm import VM
 
     prog = program("  while true do\n    i := i + 1;\n  endwhile;\n", "var i : integer;\n")
 

@@ -1,9 +1,9 @@
 """Issue 13, "How we will know": a stateful property test that drives a real runtime and
 searches for counter-examples to the safety supervisor's guarantees.
 
-A hypothesis ``RuleBasedStateMachine`` builds a ``runtime.server.Server`` in-process
+A hypothesis ``RuleBasedStateMachine`` builds a ``runtime.server.server.Server`` in-process
 (simulated clock, its own state directory, never bound: no sockets) and plays the I/O
-thread: it encodes each request with ``runtime.protocol``, decodes it as the server does,
+thread: it encodes each request with ``runtime.wire.protocol``, decodes it as the server does,
 calls the ``op_*`` handler, queues a loop command for the loop (``server.commands``,
 carried out by the next ``server.turn(idle_wait=False)``) and reads the loop's replies
 from ``server.outbox``. Time advances only by turns of the loop (one 1 ms tick each).
@@ -14,7 +14,7 @@ blends); pause / resume / abort (the running program, a queued one, an unknown o
 emergency stop / speed override (valid and invalid); scripting writes and operations
 (valid, out of range, NaN, huge, safety-relevant, lifecycle operations, the supervisor's
 mode and requests); fault injections into the simulated arm (every kind of
-``runtime.sim.robot.FAULTS``, any axis), now or when the program reaches a phase (a step
+``runtime.hardware.sim.robot.FAULTS``, any axis), now or when the program reaches a phase (a step
 of the homing, a move, a pause, Stop Robot); repairs between programs; restarts (a new
 server on the same state directory: a freshly powered-up arm, faults gone, calibration
 from the file, no initialization). Several rules first take the program to a phase
@@ -101,11 +101,11 @@ from hypothesis.stateful import (
 from compiler.driver import compile_source
 from compiler.objcode import encode
 from limits_watch import LimitWatch, at_rest_and_safe
-from runtime import protocol
-from runtime.protocol import ProtocolError
-from runtime.server import LoopCommand, ServeOptions, Server
-from runtime.sim.robot import FAULTS
-from runtime.supervisor import INITIALIZE, MOVE
+from runtime.wire import protocol
+from runtime.wire.protocol import ProtocolError
+from runtime.server.server import LoopCommand, ServeOptions, Server
+from runtime.hardware.sim.robot import FAULTS
+from runtime.loop.supervisor import INITIALIZE, MOVE
 
 from conftest import SPEC_PATH, SPEC
 AXES = [a.name for a in SPEC.axes]

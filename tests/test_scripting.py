@@ -1,4 +1,4 @@
-"""The parser of the text scripting interface (runtime/scripting.py).
+"""The parser of the text scripting interface (runtime/wire/scripting.py).
 
 * Every documented form parses to its command, with value types checked (an int stays an
   int: SetProperty(..., 2) == SetProperty(..., 2.0) == SetProperty(..., True) in Python).
@@ -19,8 +19,8 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-import runtime.scripting as scripting
-from runtime.scripting import (
+import runtime.wire.scripting as scripting
+from runtime.wire.scripting import (
     HELP_TEXT,
     MAX_LENGTH,
     CallOperation,

@@ -42,8 +42,8 @@ import msgpack
 import pytest
 import zmq
 
-from runtime import protocol
-from runtime.client import Client, ClientError, Subscriber
+from runtime.wire import protocol
+from runtime.client.client import Client, ClientError, Subscriber
 
 from conftest import (  # (the server helpers and fixtures: start_server, server, wall_server)
     ROOT, TEST_IRL, SPEC_PATH as SPEC, SERVER_PROGRAMS as PROGRAMS, IRL, START, CALIBRATE, INITIALIZE, MOVE, STOP, ALL_PHASES, TERMINAL, SAFETY, free_port, objcode, run_irl, no_traceback, ServerProcess, status, wait_for, wait_end, moving, phases, submit,
@@ -85,7 +85,7 @@ def test_submit_of_a_program_for_another_specification_names_both_files_and_the_
     import shlex
 
     from compiler.spec import load_spec
-    from runtime.cli import Environment, main
+    from runtime.cli.main import Environment, main
 
     def irl(*argv) -> tuple[int, str, str]:
         out, err = io.StringIO(), io.StringIO()
@@ -679,7 +679,7 @@ def test_curve_keys(start_server, tmp_path):
     assert good.request("hello")["robot"] == "lola_15"  # still serving the keyed client
     assert server.alive()
 
-    # the server's own handshake handler (runtime.connections) guards the telemetry too
+    # the server's own handshake handler (runtime.server.connections) guards the telemetry too
     subscribers = [Subscriber(server.telemetry, keys=keys), Subscriber(server.telemetry, keys=other),
                    Subscriber(server.telemetry)]
     try:
@@ -729,7 +729,7 @@ class Events:
     """Every telemetry event, collected by a thread of its own (a subscriber that keeps up)."""
 
     def __init__(self, endpoint: str):
-        from runtime.client import Subscriber
+        from runtime.client.client import Subscriber
 
         self.subscriber = Subscriber(endpoint)
         self.events: list[dict] = []

@@ -1,5 +1,5 @@
-"""The simulated robot (runtime/sim/robot.py) and the alpha-beta estimator
-(runtime/sim/estimator.py): drive lag and offset, brakes, hard stops, encoder, index
+"""The simulated robot (runtime/hardware/sim/robot.py) and the alpha-beta estimator
+(runtime/hardware/sim/estimator.py): drive lag and offset, brakes, hard stops, encoder, index
 pulses, homing sensors, faults, digital I/O, determinism; estimator tracking."""
 from __future__ import annotations
 
@@ -10,7 +10,7 @@ import statistics
 import pytest
 
 from compiler.spec import parse_spec
-from runtime.sim import FAULTS, AlphaBeta, SimRobot, critically_damped_gains
+from runtime.hardware.sim import FAULTS, AlphaBeta, SimRobot, critically_damped_gains
 
 from conftest import SPEC
 DT = 0.001

@@ -25,8 +25,8 @@ from hypothesis import strategies as st
 from compiler import clauses, params
 from compiler.driver import compile_source
 from compiler.spec import SpecError, parse_spec
-from runtime.cli import Environment, main
-from runtime.system import RobotSystem, RunOptions
+from runtime.cli.main import Environment, main
+from runtime.loop.system import RobotSystem, RunOptions
 
 from conftest import ROOT
 SPEC_TEXT = (ROOT / "programs" / "lola15.spc").read_text(encoding="utf-8")

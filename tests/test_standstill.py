@@ -1,4 +1,4 @@
-"""Standstill monitoring starts when each axis is in position (runtime/components/safety.py,
+"""Standstill monitoring starts when each axis is in position (runtime/loop/components/safety.py,
 docs/safety.md "Standstill").
 
 The false emergency stop of the issue: on an arm with a fast wrist (the Staubli TX2-60's
@@ -14,7 +14,7 @@ import pytest
 from compiler.driver import compile_source
 from compiler.spec import parse_spec
 from limits_watch import LimitWatch, at_rest_and_safe, run_cycle
-from runtime.system import RobotSystem, RunOptions
+from runtime.loop.system import RobotSystem, RunOptions
 
 from conftest import SPEC_PATH
 
@@ -73,7 +73,7 @@ from hypothesis import HealthCheck, given, settings  # noqa: E402
 from hypothesis import strategies as st  # noqa: E402
 
 from compiler import params  # noqa: E402
-from runtime.supervisor import MOVE  # noqa: E402
+from runtime.loop.supervisor import MOVE  # noqa: E402
 
 
 def with_table(text: str, table: str, **values) -> str:

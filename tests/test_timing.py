@@ -14,8 +14,8 @@ PERIODS = {0.001, 0.005, 0.01}
 #: Numbers of the same value that are no period: (file, the name on their line).
 NOT_PERIODS = {("motion/paths.py", "POINT_TOL"), ("motion/pathcheck.py", "START_TOL"),
                ("motion/pathtiming.py", "SETTLED"), ("motion/pathtiming.py", "STOP_LOWEST"),
-               ("netcli.py", "WATCH_SLACK"),
-               ("components/initialization.py", "SETTLE_WINDOW")}
+               ("cli/netcli.py", "WATCH_SLACK"),
+               ("loop/components/initialization.py", "SETTLE_WINDOW")}
 
 
 def period_literals(path: Path) -> list[tuple[int, str]]:

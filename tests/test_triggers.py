@@ -27,7 +27,7 @@ DOWN = "rpy(180, 30, 180)"
 def run_recorded(tmp_path: Path, body: str, decls: str = "", override: float = 100.0):
     """The program on the simulated robot; every 1 ms tick: (time, the servo's reference,
     the digital outputs)."""
-    from runtime.system import RobotSystem, RunOptions
+    from runtime.loop.system import RobotSystem, RunOptions
 
     (tmp_path / "lola15.spc").write_text((ROOT / "programs" / "lola15.spc").read_text())
     result = compile_source(program_text(body, decls), str(tmp_path / "p.irl"))
@@ -175,7 +175,7 @@ def test_a_stopped_moves_triggers_go_with_the_rest_of_it(tmp_path):
             "  trigger when 200 mm after start do out[1] := true;\n"
             "  trigger when 15 mm before end do out[2] := true;\n"
             f"  move lin {pose_text((950.0, 0.0, 400.0, 180.0, 30.0, 180.0))} speed := 150;\n")
-    from runtime.system import RobotSystem, RunOptions
+    from runtime.loop.system import RobotSystem, RunOptions
 
     (tmp_path / "lola15.spc").write_text((ROOT / "programs" / "lola15.spc").read_text())
     result = compile_source(program_text(body), str(tmp_path / "p.irl"))
@@ -227,7 +227,7 @@ def test_the_vm_hands_triggers_to_the_next_move_and_hand_made_code_is_checked(tm
     ("5", ("out", 1, True), "must be a number"),
 ])
 def test_the_trajectory_generator_checks_every_trigger_it_is_handed(tmp_path, amount, action, message):
-    from runtime.system import RobotSystem, RunOptions
+    from runtime.loop.system import RobotSystem, RunOptions
 
     system = RobotSystem(SPEC, RunOptions(state_dir=tmp_path / "s"))
     problem = system.trajectory.trigger(0, 1, amount, action)

@@ -1,4 +1,4 @@
-"""The object-code interpreter (runtime/vm.py): programs compiled from source run on a
+"""The object-code interpreter (runtime/loop/vm.py): programs compiled from source run on a
 fake host (a settable clock, moves recorded, inputs, outputs, the log), step by step,
 as the Trajectory Generator runs them."""
 from __future__ import annotations
@@ -15,8 +15,8 @@ from compiler.driver import compile_source
 from compiler.objcode import BY_CODE, INSTRUCTIONS, OP, Program, verify
 from compiler.semantics import EvalError
 from compiler.values import Joint, Pose, Position, Rpy, format_value
-from runtime import vm as vm_module
-from runtime.vm import HANDLERS, VM, VMError, VMStatus, build_dispatch
+from runtime.loop import vm as vm_module
+from runtime.loop.vm import HANDLERS, VM, VMError, VMStatus, build_dispatch
 
 from conftest import PROGRAMS
 DISPATCHES = ("inline", "table")

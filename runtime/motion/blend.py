@@ -38,9 +38,9 @@ from math import ceil
 
 import numpy as np
 
-from ..timing import TICK
-from .interpolator import Interpolator
-from .trajectory import Trajectory
+from runtime.timing import TICK
+from runtime.motion.interpolator import Interpolator
+from runtime.motion.trajectory import Trajectory
 
 #: The verification grid (s): the servo's tick, where the 1 ms references are made.
 STEP = TICK

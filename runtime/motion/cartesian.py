@@ -33,13 +33,13 @@ import numpy.ma  # noqa: F401  (np.unique imports it on its first call: in a tic
 
 from compiler.values import Joint
 
-from ..timing import SETPOINT_PERIOD, TICK
-from .kinematics import Kinematics, KinematicsError
-from .stops import DERIVATIVE_STEP, MIN_DERIVATIVE_STEP, PathStop
-from .trajectory import Result, Trajectory
-from .pathcheck import CheckedPath, PathError, _percent, check_path, joint_limits
-from .paths import CircPath, LinPath, CartesianMove, _positive
-from .pathtiming import (ConstantSpeed, PathProfile, nominal_profile, path_derivatives, path_profile,
+from runtime.timing import SETPOINT_PERIOD, TICK
+from runtime.motion.kinematics import Kinematics, KinematicsError
+from runtime.motion.stops import DERIVATIVE_STEP, MIN_DERIVATIVE_STEP, PathStop
+from runtime.motion.trajectory import Result, Trajectory
+from runtime.motion.pathcheck import CheckedPath, PathError, _percent, check_path, joint_limits
+from runtime.motion.paths import CircPath, LinPath, CartesianMove, _positive
+from runtime.motion.pathtiming import (ConstantSpeed, PathProfile, nominal_profile, path_derivatives, path_profile,
                          predicted_ratios, uniform_scale, warped_profile)
 
 __all__ = ["JOINT_LIMIT_SHARE", "CartesianInput", "JointStream", "joint_limit_scale", "plan_cartesian"]

@@ -95,7 +95,7 @@ from __future__ import annotations
 
 import math
 
-from ..accel import kernels
+from runtime.accel import kernels
 
 __all__ = ["ACCELERATION_FACTOR", "VELOCITY_OVERSHOOT", "Interpolator"]
 

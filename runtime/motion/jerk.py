@@ -113,9 +113,9 @@ from __future__ import annotations
 from math import cbrt, isfinite, sqrt
 from numbers import Real
 
-from .planner import DISTANCE_EPSILON, MAX_DURATION, PtpInput, SynchronizedTrajectory, _fmt
-from .stops import LineStop, StopRamp
-from .trajectory import Result, Trajectory
+from runtime.motion.planner import DISTANCE_EPSILON, MAX_DURATION, PtpInput, SynchronizedTrajectory, _fmt
+from runtime.motion.stops import LineStop, StopRamp
+from runtime.motion.trajectory import Result, Trajectory
 
 __all__ = [
     "JerkProfile",

@@ -58,8 +58,8 @@ from typing import Callable
 
 from compiler.triggers import PLACES, UNITS
 
-from .moves import MovePlanner, MoveRecord, MoveRequest, Segment
-from .trajectory import Trajectory
+from runtime.motion.moves import MovePlanner, MoveRecord, MoveRequest, Segment
+from runtime.motion.trajectory import Trajectory
 
 __all__ = ["RATE_CHANGE_MARGIN", "MotionQueue", "PlanningWorker"]
 

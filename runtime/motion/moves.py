@@ -28,13 +28,13 @@ from compiler.frames import IDENTITY
 from compiler.triggers import PLACES, UNITS
 from compiler.values import Joint, Pose
 
-from .blend import Limits, blend_offset
-from .cartesian import CartesianInput, plan_cartesian
-from .jerk import plan_ptp_jerk
-from .kinematics import Kinematics, KinematicsError
-from .pathcheck import JointLimits
-from .planner import PtpInput, plan_ptp, scaled_limits
-from .trajectory import Trajectory
+from runtime.motion.blend import Limits, blend_offset
+from runtime.motion.cartesian import CartesianInput, plan_cartesian
+from runtime.motion.jerk import plan_ptp_jerk
+from runtime.motion.kinematics import Kinematics, KinematicsError
+from runtime.motion.pathcheck import JointLimits
+from runtime.motion.planner import PtpInput, plan_ptp, scaled_limits
+from runtime.motion.trajectory import Trajectory
 
 __all__ = ["Frames", "MovePlanner", "MoveRecord", "MoveRequest", "Segment"]
 

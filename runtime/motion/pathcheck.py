@@ -46,7 +46,7 @@ from typing import Sequence
 from compiler.spec import Axis, Spec
 from compiler.values import Joint
 
-from .kinematics import (
+from runtime.motion.kinematics import (
     ELBOW_DOWN,
     SHOULDER_BACK,
     WRIST_FLIP,
@@ -54,8 +54,8 @@ from .kinematics import (
     KinematicsError,
     configuration_name,
 )
-from .paths import CartesianMove, _positive
-from .rotation import matrix_to_quat, quat_angle, rpy_to_quat
+from runtime.motion.paths import CartesianMove, _positive
+from runtime.motion.rotation import matrix_to_quat, quat_angle, rpy_to_quat
 
 __all__ = ["CheckedPath", "JointLimits", "joint_limits", "MAX_JOINT_STEP", "MIN_SAMPLES", "PathError", "START_TOL", "check_path"]
 

@@ -49,10 +49,10 @@ from math import atan2, cos, inf, isfinite, pi, sin, sqrt
 
 from compiler.values import Pose, Quat
 
-from .jerk import time_optimal_profile
-from .kinematics import matrix_to_rpy
-from .pathtiming import PathProfile
-from .rotation import _R2D, _Slerp, _rpy_of_quat, quat_to_rpy, rpy_to_quat
+from runtime.motion.jerk import time_optimal_profile
+from runtime.motion.kinematics import matrix_to_rpy
+from runtime.motion.pathtiming import PathProfile
+from runtime.motion.rotation import _R2D, _Slerp, _rpy_of_quat, quat_to_rpy, rpy_to_quat
 
 __all__ = ["CartesianMove", "CircPath", "DEFAULT_JERK_FACTOR", "LinPath", "ORIENTATION_RADIUS", "POINT_TOL",
            "pose_tuple"]

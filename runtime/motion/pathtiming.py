@@ -71,7 +71,7 @@ from typing import Sequence
 
 import numpy as np
 
-from ..timing import TICK
+from runtime.timing import TICK
 
 __all__ = ["CRUISE_SHARE", "GROUP", "ConstantSpeed", "PathDerivatives", "PathProfile", "WarpedProfile", "joint_ratios",
            "nominal_profile", "path_derivatives", "path_gains", "path_profile", "predicted_ratios", "uniform_scale",

@@ -35,9 +35,9 @@ from dataclasses import dataclass
 from math import isfinite
 from numbers import Real
 
-from .stops import StopRamp
-from .trajectory import Result, Trajectory
-from .profiles import (
+from runtime.motion.stops import StopRamp
+from runtime.motion.trajectory import Result, Trajectory
+from runtime.motion.profiles import (
     TrapezoidalProfile,
     _minimum_duration,
     _profile_with_duration,

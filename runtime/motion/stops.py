@@ -20,8 +20,8 @@ from __future__ import annotations
 from math import sqrt
 from typing import TYPE_CHECKING, Sequence
 
-from .kinematics import KinematicsError
-from .trajectory import Trajectory
+from runtime.motion.kinematics import KinematicsError
+from runtime.motion.trajectory import Trajectory
 
 #: The half-width (s) of the central differences that give the joint velocities and
 #: accelerations of a move along a path (lin, circ, and their stops) at a setpoint.
@@ -33,7 +33,7 @@ DERIVATIVE_STEP = 1e-4
 MIN_DERIVATIVE_STEP = 1e-7
 
 if TYPE_CHECKING:
-    from .cartesian import JointStream
+    from runtime.motion.cartesian import JointStream
 
 __all__ = ["REST_VELOCITY", "JerkStop", "LineStop", "PathStop", "StopRamp"]
 

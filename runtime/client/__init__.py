@@ -1,0 +1,2 @@
+"""What a client of ``irl serve`` needs: requests and replies over :mod:`runtime.wire`.
+"""

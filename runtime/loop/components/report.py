@@ -1,0 +1,350 @@
+"""Report: every 10 ms, one row of what the components exchanged.
+
+Columns: time, FSM state, and per axis ``sens_pos``, ``desi_pos`` (the servo's reference),
+``out_vel`` (the velocity command to the drives, after the safety supervisor) and the
+following error (the ``columns`` setting chooses among these, the TCP, and optionally the
+I/O and the ``move`` group: ``move``, the number of the program's move under way or last
+started, from 1, 0 before the first, and ``line``, the source line of the move under way, 0
+when none is: ``irl plot`` marks each move's start with them). The report
+records from Calibrate Offsets to the end of Stop Robot (the robot at rest, brakes
+applied). The real-time side only appends a tuple of numbers; every 100 ms (ten rows)
+it hands the batch, with the state transitions since the last one, to a writer thread
+through a bounded queue, and the thread formats, writes and flushes both the CSV and
+``<report>.states.csv``, whole lines only: a crash (kill -9) loses at most the last
+100 ms of either, and the loop never does I/O. The bytes written depend only on the rows:
+with the simulated clock the same program and seed give the same files.
+"""
+from __future__ import annotations
+
+import queue
+import threading
+from operator import sub as _sub
+from pathlib import Path
+
+from compiler.frames import IDENTITY, pose_of, values_of
+from compiler.params import component_params
+from compiler.semantics import compose, inverse
+
+from runtime.loop.component import Component, DataPort
+from runtime.motion.moves import Frames
+from runtime.timing import REPORT_PERIOD
+
+FLUSH_PERIOD = 0.1  # s of rows per batch handed to the writer (10 rows at the default 10 ms)
+COLUMNS = ["sens_pos", "desi_pos", "out_vel", "following_error"]  # the per-axis quantities
+TCP = "tcp"  # the tool centre point: x, y, z (mm), roll, pitch, yaw (deg), from the measured joints
+TCP_FIELDS = ("x", "y", "z", "roll", "pitch", "yaw")
+FRAME = "frame"  # the active tool's and base's names, and the tool centre point in that base
+IO = "io"  # every digital input, then every output: in_1.., out_1.. (0 or 1)
+MOVE = "move"  # the move under way: its number (moves started so far) and source line (0: at rest)
+MOVE_FIELDS = ("move", "line")
+
+
+def is_io(name: str) -> bool:
+    """Whether a report column is a digital input or output (``in_3``, ``out_12``)."""
+    kind, _, number = name.partition("_")
+    return kind in ("in", "out") and number.isdigit()
+
+
+def is_text(name: str) -> bool:
+    """Whether a report column holds a name (the frame group's ``tool`` and ``base``)."""
+    return name in ("tool", "base")
+
+
+def _csv_text(text: str) -> str:
+    """A name as one CSV field (quoted when it holds a comma, a quote or a line break)."""
+    return '"' + text.replace('"', '""') + '"' if any(c in text for c in ',"\r\n') else text
+
+
+def is_integer(name: str) -> bool:
+    """Whether a report column holds whole numbers (written with %d): an input or output,
+    or the move group's ``move`` and ``line``."""
+    return name in MOVE_FIELDS or is_io(name)
+
+
+class ReportWriter(threading.Thread):
+    """Formats and writes batches of rows; not real-time (its own thread)."""
+
+    def __init__(self, path: Path, header: list[str], expand=None):
+        super().__init__(name="report-writer", daemon=True)
+        self.path = path
+        self.states_path = path.with_suffix(".states.csv")
+        self.queue: queue.Queue = queue.Queue(maxsize=1000)
+        self.header = header
+        self.expand = expand  # when set: row -> the row written (joints -> the TCP, in the active tool and base)
+        self.error: str | None = None
+        self.rows_written = 0
+        self.bad_rows = 0  # rows (or transitions) that could not be formatted: left out, counted
+        # one C-level format per row (time to the ms, the state, every value to 1e-6, I/O 0 or 1,
+        # the move's number and line as integers)
+        self.row_format = "%.3f,%s," + ",".join(["%d" if is_integer(name) else "%s" if is_text(name) else "%.6f"
+                                                 for name in header[2:]]) + "\n"
+
+    def run(self) -> None:
+        """Until the None that ends the report. The thread never dies of a row: a row it
+        cannot format (one that does not fit the header) is left out and counted
+        (``bad_rows``), every other row and transition is written; a write that fails is
+        said in ``error``. Either way :meth:`problem` says it, and the summary with it."""
+        try:
+            with open(self.path, "w", encoding="utf-8", newline="") as f, \
+                    open(self.states_path, "w", encoding="utf-8", newline="") as states:
+                f.write(",".join(self.header) + "\n")
+                f.flush()
+                states.write(STATES_HEADER)
+                states.flush()
+                while True:
+                    item = self.queue.get()
+                    if item is None:
+                        break
+                    batch, transitions = item
+                    if transitions:
+                        states.write(self._lines(transitions, state_row)[0])
+                        states.flush()
+                    if not batch:
+                        continue
+                    text, written = self._lines(batch, self._row)
+                    f.write(text)
+                    f.flush()
+                    self.rows_written += written
+        except OSError as exc:
+            self.error = f"cannot write the report {self.path}: {exc.strerror or exc}"
+        except Exception:  # noqa: BLE001 - said, never a silent death (the rows so far are on disk)
+            self.error = f"the report writer of {self.path} stopped on an internal error: the rows after it are lost"
+
+    def _row(self, row: tuple) -> str:
+        if self.expand is not None:
+            row = self.expand(row)
+        return self.row_format % row
+
+    def _lines(self, items, line) -> tuple[str, int]:
+        """Whole lines of the items that can be formatted, and how many; the others are
+        counted in ``bad_rows``."""
+        try:
+            return "".join([line(item) for item in items]), len(items)
+        except Exception:  # noqa: BLE001 - a row of another shape: each on its own, the bad ones left out
+            lines = []
+            for item in items:
+                try:
+                    lines.append(line(item))
+                except Exception:  # noqa: BLE001
+                    self.bad_rows += 1
+            return "".join(lines), len(lines)
+
+    def problem(self) -> str | None:
+        """What went wrong writing the files, in the operator's terms (None: nothing)."""
+        parts = [self.error] if self.error else []
+        if self.bad_rows:
+            parts.append(f"{self.bad_rows} rows of {self.path.name} were left out: they did not fit its "
+                         f"{len(self.header)} columns (every other row is kept)")
+        return "; ".join(parts) or None
+
+
+class TcpOf:
+    """The tool centre point of joint values with a move's tool, in the world frame or in
+    its base (:class:`~runtime.motion.moves.Frames`). Not real-time: the report's writer
+    and the server call it; the arm with each tool is built once (the latest 16 kept)."""
+
+    def __init__(self, kinematics):
+        self.kinematics = kinematics
+        self._tools: dict = {}
+
+    def _arm(self, tool: tuple):
+        k = self.kinematics
+        if tool == k.tool:
+            return k
+        arm = self._tools.get(tool)
+        if arm is None:
+            if len(self._tools) >= 16:
+                self._tools.pop(next(iter(self._tools)))
+            arm = self._tools[tool] = k.with_tool(tool)
+        return arm
+
+    def world(self, joints, frames) -> tuple:
+        """x, y, z, roll, pitch, yaw of the TCP in the world frame (the spec's tool: None)."""
+        return self._arm(self.kinematics.tool if frames is None else frames.tool).forward(joints)
+
+    def in_base(self, joints, frames, world: tuple | None = None) -> tuple:
+        """The same in the move's base (``world``: :meth:`world` of the same joints and
+        frames, when the caller has it already)."""
+        if world is None:
+            world = self.world(joints, frames)
+        if frames is None or frames.base == IDENTITY:
+            return world
+        return values_of(compose(inverse(pose_of(frames.base)), pose_of(world)))
+
+
+class Report(Component):
+    PROPERTIES = component_params("report")
+
+    def __init__(self, spec, sens_pos: DataPort, out_vel: DataPort, servo, state_of, period: float = REPORT_PERIOD,
+                 history=lambda: (), io: tuple = ()):
+        super().__init__("report", period)
+        self.spec = spec
+        self.sens_pos, self.out_vel, self.servo = sens_pos, out_vel, servo
+        self.state_of = state_of  # callable -> the FSM's current state path
+        self.history = history  # callable -> the FSM's transitions so far: (time, from, to)
+        self.io = io  # the io component's ports (inputs, outputs): the io columns
+        self.motion = None  # the trajectory generator's motion queue (the move columns; set by the supervisor)
+        self._transitions_sent = 0
+        self.names = [a.name for a in spec.axes]
+        self._zeros = (0.0,) * len(self.names)
+        self.path: Path | None = None
+        self.writer: ReportWriter | None = None
+        self.batch: list = []
+        self.dropped = 0
+        self.main = len(spec.main_axes)
+        self.tcp = tcp_of(spec)  # None when the spec's kinematics are not usable
+        # the base and tool of the move under way (the trajectory generator's; set by the system)
+        default_frames = Frames.default(spec)
+        self.frames_now = lambda: default_frames
+        # which quantities the rows hold, in this order (the TCP when the kinematics allow)
+        self.columns = list(COLUMNS) + ([TCP] if self.tcp is not None else [])
+
+    def _names_of(self, kind: str) -> list[str]:
+        if kind == TCP:
+            return [f"tcp_{f}" for f in TCP_FIELDS]
+        if kind == IO:
+            return [f"in_{n}" for n in range(1, self.spec.inputs + 1)] + \
+                [f"out_{n}" for n in range(1, self.spec.outputs + 1)]
+        if kind == MOVE:
+            return list(MOVE_FIELDS)
+        if kind == FRAME:
+            return ["tool", "base"] + [f"base_{f}" for f in TCP_FIELDS]
+        return [f"{kind}_{n}" for n in self.names]
+
+    def header(self) -> list[str]:
+        cols = ["time", "state"]
+        for kind in self.columns:
+            cols += self._names_of(kind)
+        return cols
+
+    def open(self, path: str | Path | None) -> None:
+        """Not real-time: where to write (None: rows are made but not kept)."""
+        self.path = Path(path) if path else None
+        self.writer = None
+        self.batch = []
+        self.dropped = 0
+        self._transitions_sent = 0
+        if self.path is not None:
+            try:
+                self.path.parent.mkdir(parents=True, exist_ok=True)
+            except OSError:
+                pass  # the writer reports the problem when it cannot open the file
+            self.writer = ReportWriter(self.path, self.header(), self._expander())
+            self.writer.start()
+
+    def _expander(self):
+        """Not real-time: the writer's row -> written row, when the rows hold joints for the
+        TCP (the tcp and frame groups: the joints and the move's frames); else None."""
+        if TCP not in self.columns and FRAME not in self.columns:
+            return None
+        tcp = self.tcp
+        if tcp is None:  # (the configuration loader refuses tcp without kinematics)
+            return None
+        main = self.main
+        layout = []
+        for kind in self.columns:
+            if kind == TCP:
+                layout.append((main + 1, lambda seg: tcp.world(seg[:-1], seg[-1])))
+            elif kind == FRAME:
+                layout.append((main + 1, lambda seg: (_csv_text(seg[-1].tool_name), _csv_text(seg[-1].base_name),
+                                                      *tcp.in_base(seg[:-1], seg[-1]))))
+            else:
+                layout.append((len(self._names_of(kind)), None))
+
+        def expand(row: tuple) -> tuple:
+            out = [row[0], row[1]]
+            i = 2
+            for width, fn in layout:
+                segment = row[i:i + width]
+                i += width
+                out.extend(segment if fn is None else fn(segment))
+            return tuple(out)
+        return expand
+
+    def update(self, now: float) -> None:
+        """Real-time: append one row; hand a full batch to the writer (never blocks)."""
+        zeros = self._zeros
+        pos = self.sens_pos.value or zeros
+        servo = self.servo
+        reference = servo.reference
+        values = {"sens_pos": pos, "desi_pos": reference, "out_vel": self.out_vel.value or zeros,
+                  "following_error": tuple(map(_sub, reference, servo.position)),
+                  }
+        if IO in self.columns:
+            inputs, outputs = self.io
+            values[IO] = (*inputs.value, *outputs.value)
+        if MOVE in self.columns:
+            values[MOVE] = self._move()
+        if TCP in self.columns or FRAME in self.columns:  # the writer turns these joints into the TCP
+            values[TCP] = values[FRAME] = (*pos[:self.main], self.frames_now())
+        row = (now, self.state_of())
+        for kind in self.columns:
+            row += values[kind]
+        self.batch.append(row)
+        if len(self.batch) * self.period >= FLUSH_PERIOD - 1e-9:
+            self._hand_over()
+
+    def _move(self) -> tuple[int, int]:
+        """Real-time: (the number of the move under way or last started, from 1: 0 before
+        the first; the source line of the move under way, 0 when none is). A move resumed
+        after a pause is the same move; in a blend, the move blended into."""
+        motion = self.motion
+        if motion is None:
+            return (0, 0)
+        moves = motion.moves
+        started = len(moves)
+        return (started, moves[-1].line if started and motion.line is not None else 0)
+
+    def _hand_over(self) -> None:
+        if self.writer is not None:
+            history = self.history()
+            transitions = history[self._transitions_sent:] if len(history) > self._transitions_sent else ()
+            if self.batch or transitions:
+                try:
+                    self.writer.queue.put_nowait((self.batch, transitions))
+                    self._transitions_sent += len(transitions)
+                except queue.Full:
+                    self.dropped += len(self.batch)
+        self.batch = []
+
+    def on_stop(self) -> None:
+        self._hand_over()
+
+    def close(self) -> str | None:
+        """Not real-time: flush and close the file; returns an error message or None."""
+        self._hand_over()
+        if self.writer is not None:
+            writer, self.writer = self.writer, None
+            try:
+                writer.queue.put(None, timeout=10)  # (a writer that ended on an error no longer empties it)
+            except queue.Full:
+                pass
+            writer.join(timeout=10)
+            problems = [writer.problem()]
+            if writer.is_alive():
+                problems.append(f"the report writer did not finish {writer.path.name} within 10 s: its last rows "
+                                "may be missing")
+            if self.dropped:
+                problems.append(f"{self.dropped} rows were not written: the report writer fell behind")
+            return "; ".join(p for p in problems if p) or None
+        return None
+
+
+def tcp_of(spec) -> TcpOf | None:
+    """Not real-time: the TCP of the specification's arm, or None when its kinematics are
+    not usable (no DH data, not a six-axis arm with a spherical wrist)."""
+    from runtime.motion.kinematics import Kinematics
+
+    try:
+        return TcpOf(Kinematics(spec))
+    except ValueError:
+        return None
+
+
+STATES_HEADER = "time,from,to\n"
+
+
+def state_row(transition) -> str:
+    """One line of ``<report>.states.csv``: a transition (time, from, to)."""
+    t, source, target = transition
+    return f"{t:.3f},{source or ''},{target}\n"

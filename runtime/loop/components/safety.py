@@ -1,0 +1,399 @@
+"""Safety Supervisor: the last word before the drives, every 1 ms, in every phase.
+
+It sits between the servo (``out_vel``) and the robot interface (``drive_cmd``), and
+trusts neither the planner, nor the servo law, nor the operator, nor the configuration
+(see docs/safety.md). Every tick, with the drives powered and the brakes not holding:
+
+* **commanded velocity** of every axis within ``max_velocity x velocity_limit_scale``
+  (before an axis is referenced by homing: within ``homing_velocity_factor x
+  search_velocity``);
+* **commanded acceleration**: the command may change by at most ``acceleration_factor
+  x max_acceleration x tick`` from one tick to the next;
+* **software position limits** (referenced axes): where the axis would come to rest if a
+  stop began now (``x + v reaction_time + v |v| / (2 max_acceleration)``) must lie within
+  ``min - limit_tolerance .. max + limit_tolerance``, so the robot stops *before* a limit;
+* **encoder plausibility**: an axis commanded ``plausibility_distance`` of recent travel
+  (remembered for about ``plausibility_time``) without a single encoder count, or one whose
+  encoder runs the other way over a window;
+* **command watchdog**: no fresh command from the servo for two ticks;
+* **following error** beyond the servo's limit (which is never off: at most 10);
+* **standstill** while the robot must be at rest (held by a program, paused, brakes
+  closing): each axis must come *into position* (within ``in_position_window`` counts of
+  the servo's reference for ``in_position_time``, and no sooner than the servo may need to
+  settle it: :func:`compiler.params.settle_time`) within ``in_position_timeout`` of the
+  reference coming to rest; from then on that reference is fixed and the axis may not move
+  more than ``standstill_tolerance`` counts from it;
+* **stops on the path** (pause, abort) that do not reach rest within their planned time
+  plus ``stop_time_margin``.
+
+A violation is a fault, never a silent clamp: the safety itself stops the robot, with
+the category of :data:`CATEGORIES` (IEC 60204-1): 0, torque off and brakes at once; 1, its
+own ramp of every axis's velocity command to zero at the axis's max_acceleration, then
+brakes, then torque off. A stop of any other origin (an emergency stop, a component's
+fault, an abort) goes through :meth:`SafetySupervisor.stop_robot` too. The ramp needs neither
+the planner nor the servo nor the encoders.
+
+Real-time: :meth:`update` and :meth:`stop_robot` (plain floats, one tuple per tick; the per-axis
+checks are :func:`runtime.kernels.safety_check` and, at rest, :func:`runtime.kernels.standstill_check`);
+the rest runs between cycles.
+"""
+from __future__ import annotations
+
+import math
+
+from compiler.params import settle_time
+
+from runtime.accel import kernels
+from runtime.loop.component import Component, DataPort
+from runtime.timing import TICK
+
+safety_check = kernels.safety_check
+direction_check = kernels.direction_check
+standstill_check = kernels.standstill_check
+
+#: Ticks without a fresh servo command before the robot stops (the command watchdog).
+WATCHDOG_TICKS = 2
+#: Ticks of the encoder-direction window.
+DIRECTION_WINDOW = 50
+#: Seconds the brakes may take to engage before the stop goes on to torque off anyway.
+BRAKE_TIMEOUT = 1.0
+
+#: Stop categories (IEC 60204-1): what stops the robot how. One declaration; docs/safety.md
+#: renders it (:func:`categories_markdown`).
+CATEGORIES: dict[str, tuple[int, str]] = {
+    "velocity": (1, "a commanded velocity beyond the axis's limit"),
+    "acceleration": (1, "a commanded velocity that changes faster than the acceleration limit allows"),
+    "position limit": (1, "an axis that would come to rest beyond its software limit"),
+    "encoder": (0, "an encoder that does not count, or counts the wrong way, while its axis is commanded"),
+    "standstill": (0, "an axis that moves from its standstill reference while the robot must be at rest"),
+    "in position": (0, "an axis that does not come into position within [safety] in_position_timeout of the "
+                       "servo's reference coming to rest"),
+    "watchdog": (1, "no fresh command from the servo for two ticks"),
+    "following error": (1, "the servo's following error beyond its limit"),
+    "stop overdue": (1, "a stop on the path (pause, abort) that does not reach rest in time"),
+    "drift": (0, "a drive that drifts beyond [safety] max_drive_drift under a zero command (calibration)"),
+    "emergency stop": (1, "the operator's emergency stop (irl estop)"),
+    "abort": (1, "the operator's abort: a stop on the path, then brakes"),
+    "fault": (1, "any other fault: a component's (homing, deadline, report, program error), a time limit, "
+                 "a shutdown"),
+    "pause": (2, "the operator's pause or the program's: a stop on the path, drives powered, standstill "
+                 "monitored"),
+}
+
+_KINDS = {kernels.OVER_VELOCITY: "velocity", kernels.OVER_ACCELERATION: "acceleration",
+          kernels.OVER_LIMIT: "position limit", kernels.NO_COUNTS: "encoder", kernels.WRONG_WAY: "encoder",
+          kernels.NOT_STILL: "standstill", kernels.NOT_IN_POSITION: "in position"}
+
+
+def categories_markdown() -> str:
+    lines = ["| cause | category | what |", "|---|---|---|"]
+    for cause, (category, what) in CATEGORIES.items():
+        lines.append(f"| {cause} | {category} | {what} |")
+    return "\n".join(lines) + "\n"
+
+
+class SafetySupervisor(Component):
+    PROPERTIES: dict = {}
+    OPERATIONS: tuple[str, ...] = ()
+
+    def __init__(self, spec, robot, servo, out_vel: DataPort, drive_cmd: DataPort, clock, tick: float = TICK):
+        super().__init__("safety", tick)
+        self.spec, self.robot, self.servo = spec, robot, servo
+        self.out_vel, self.drive_cmd = out_vel, drive_cmd
+        self.clock = clock
+        self.tick = tick
+        axes = spec.axes
+        self.axes = axes
+        self.n = n = len(axes)
+        safety = spec.safety  # validated (compiler.params), every key present
+        self.reaction = safety.stop_reaction_time
+        self.tolerance = safety.limit_tolerance
+        self.standstill_tolerance = safety.standstill_tolerance
+        self.in_position_window = safety.in_position_window
+        self.in_position_time = safety.in_position_time
+        self.in_position_timeout = safety.in_position_timeout
+        self._in_window, self._tolerance = float(self.in_position_window), float(self.standstill_tolerance)
+        # per axis: how long after its reference comes to rest the servo may still swing it through the
+        # window (compiler.params.settle_time): an axis is not in position before
+        controller, lag = spec.controller, spec.simulation.drive_time_constant
+        self.settle_times = tuple(settle_time(a, lag, controller.kp, controller.ki, self.in_position_window)
+                                  for a in axes)
+        self.stop_time_margin = safety.stop_time_margin
+        self.deceleration = tuple(a.max_acceleration for a in axes)
+        self.braking = tuple(1.0 / (2.0 * a.max_acceleration) for a in axes)
+        self.step_limits = tuple(safety.acceleration_factor * a.max_acceleration * tick for a in axes)
+        self.plausible = tuple(safety.plausibility_distance for _ in axes)
+        self.leak = 1.0 - tick / safety.plausibility_time
+        self.counts_per_unit = tuple(a.counts_per_unit for a in axes)
+        self.homing_limits = tuple(safety.homing_velocity_factor * a.search_velocity for a in axes)
+        self._zeros = (0.0,) * n
+        self.velocity_limit_scale = 1.0
+        self.velocity_limits = tuple(a.max_velocity for a in axes)
+        self.referenced = [False] * n  # per axis: its encoder's zero is known (limits apply)
+        self.following_error_limit = spec.controller.following_error_limit
+        self._refresh_limits()
+        self.fault: str | None = None
+        self.largest_ratio = 0.0  # diagnostics: nothing; see the tests' own measurements
+        self.reset()
+
+    # -- set-up (not real-time) --
+    def set_velocity_limit_scale(self, scale: float) -> None:
+        self.velocity_limit_scale = scale
+        self.velocity_limits = tuple(a.max_velocity * scale for a in self.axes)
+        self._refresh_limits()
+
+    def set_referenced(self, axis: int | None, referenced: bool = True) -> None:
+        """Real-time safe: ``axis`` (None: every axis) is referenced (its limits apply and
+        it may move at full speed) or not."""
+        for i in range(self.n) if axis is None else (axis,):
+            self.referenced[i] = referenced
+        self._refresh_limits()
+
+    def _refresh_limits(self) -> None:
+        inf = math.inf
+        lows, highs, speeds = [], [], []
+        for i, a in enumerate(self.axes):
+            if self.referenced[i]:
+                lows.append(a.min - self.tolerance)
+                highs.append(a.max + self.tolerance)
+                speeds.append(self.velocity_limits[i])
+            else:
+                lows.append(-inf)
+                highs.append(inf)
+                speeds.append(min(self.velocity_limits[i], self.homing_limits[i]))
+        self.low, self.high, self.speed_limits = tuple(lows), tuple(highs), tuple(speeds)
+
+    def reset(self) -> None:
+        """Not real-time: a new cycle (the drives are enabled again by Start Robot)."""
+        self.fault = None
+        self.category: int | None = None  # the stop under way (None: none)
+        self.stop_reason: str | None = None
+        self.at_rest = False  # the stop has ended: brakes applied, torque off
+        self._ramp_from = self._zeros
+        self._ramp_t = 0.0
+        self._ramp_end = 0.0
+        self._stop_phase = ""
+        self._stop_t = 0.0
+        self.previous = self._zeros  # the last command passed to the drives
+        self._writes = -1
+        self._stale = 0
+        self._last_counts = [0] * self.n
+        self._travel = [0.0] * self.n
+        self._window = [0.0] * self.n
+        self._window_counts = [0] * self.n
+        self._window_ticks = 0
+        self._armed = False  # the drives may move (brakes released or releasing); checks run
+        self.standstill_expected = False  # someone who knows says the robot must be at rest
+        self._position_deadline = math.nan  # the time every axis must be in position by (NaN: not at rest)
+        self._reference_rest = math.nan  # the time the servo's reference came to rest
+        nan = math.nan
+        self._since = [nan] * self.n  # per axis: within the window since (NaN: not within)
+        self._fixed = [nan] * self.n  # per axis: its standstill reference (NaN: not in position yet)
+        self._away = [0.0] * self.n  # per axis: counts from that reference (or the servo's), last tick
+        self.rest_deadline: float | None = None  # a stop on the path must reach rest by then
+
+    def on_start(self) -> bool:
+        self.reset()
+        return True
+
+    # -- the 1 ms guard (real-time) --
+    def update(self, now: float) -> None:
+        """Real-time (guard): check the servo's command and pass it to the drives, or
+        carry out a stop."""
+        if self.category is not None:
+            self._stopping(now)
+            return
+        robot = self.robot
+        if not robot.brakes_released():  # the brakes hold: nothing can move
+            self._armed = False
+            self.drive_cmd.write(self._zeros, now)
+            self.previous = self._zeros
+            return
+        port = self.out_vel
+        counts = robot.counts
+        if not self._armed:  # the brakes have just released: start watching from here
+            self._armed = True
+            self._writes = port.writes
+            self._last_counts[:] = counts
+            self._window_counts[:] = counts
+            for i in range(self.n):
+                self._travel[i] = 0.0
+                self._window[i] = 0.0
+        if port.writes == self._writes:
+            self._stale += 1
+            if self._stale >= WATCHDOG_TICKS:
+                self._violation("watchdog", f"no fresh command from the servo for {self._stale} ms "
+                                            "while the brakes are released (the servo stopped or stalled)", now)
+                return
+            command = self.previous  # one tick late: repeat the last command (checked before)
+        else:
+            self._stale = 0
+            self._writes = port.writes
+            command = port.value
+            code = safety_check(command, self.previous, self.speed_limits, self.step_limits, robot.positions,
+                                self.low, self.high, self.reaction, self.braking, counts, self._last_counts,
+                                self._travel, self._window, self.plausible, self.tick, self.leak)
+            if code:
+                self._axis_violation(code, command, now)
+                return
+        self._window_ticks += 1
+        if self._window_ticks >= DIRECTION_WINDOW:
+            self._window_ticks = 0
+            code = direction_check(self._window, counts, self._window_counts, self.counts_per_unit, self.plausible)
+            if code:
+                self._axis_violation(code, command, now)
+                return
+        if self.servo.worst_error > self.following_error_limit:
+            self._violation("following error", f"following error {self.servo.worst_error:.3f} beyond the limit "
+                                                f"{self.following_error_limit:g} (the servo did not stop)", now)
+            return
+        if self.standstill_expected:
+            if self._position_deadline != self._position_deadline:  # rest has just begun: the servo's
+                self._reference_rest = now + self.servo.setpoint_period  # reference stops a setpoint period later
+                self._position_deadline = self._reference_rest + self.in_position_timeout
+            segments, s, _ = self.servo.reference_segments
+            code = standstill_check(robot.positions, segments, s, self.counts_per_unit, self._in_window,
+                                    self._tolerance, self.in_position_time, self.settle_times, self._reference_rest,
+                                    now, self._position_deadline, self._since, self._fixed, self._away)
+            if code:
+                self._axis_violation(code, command, now)
+                return
+        elif self._position_deadline == self._position_deadline:
+            self._not_at_rest()
+        if self.rest_deadline is not None and now > self.rest_deadline:
+            self._violation("stop overdue", "the stop on the path did not reach rest within its planned time "
+                                            f"and {self.stop_time_margin:g} s", now)
+            return
+        self.previous = command
+        self.drive_cmd.write(command, now)
+
+    def _not_at_rest(self) -> None:
+        """Real-time: the robot may move again: every axis's in-position state is forgotten."""
+        nan = math.nan
+        self._position_deadline = nan
+        for i in range(self.n):
+            self._since[i] = nan
+            self._fixed[i] = nan
+
+    @property
+    def in_position(self) -> tuple[bool, ...]:
+        """Per axis: in position, its standstill monitored against a fixed reference."""
+        return tuple([f == f for f in self._fixed])
+
+    def expect_standstill(self, expected: bool) -> None:
+        """Real-time safe: the robot must (or may no longer) be at rest: each axis must come
+        into position (within ``in_position_window`` counts of the servo's reference for
+        ``in_position_time``, not before its :attr:`settle_times`) within
+        ``in_position_timeout`` of the reference coming to rest, and from then on stay within
+        ``standstill_tolerance`` counts of that reference.
+        Reaching rest also ends a :meth:`expect_rest_within`."""
+        if expected:
+            self.rest_deadline = None
+        self.standstill_expected = expected
+
+    def expect_rest_within(self, seconds: float) -> None:
+        """Real-time safe: a stop on the path began; it must reach rest (see
+        :meth:`expect_standstill`) within ``seconds`` plus ``stop_time_margin``."""
+        deadline = self.clock.tick_time + seconds + self.stop_time_margin
+        if self.rest_deadline is None or deadline < self.rest_deadline:
+            self.rest_deadline = deadline
+
+    def rest_not_expected(self) -> None:
+        """Real-time safe: the stop on the path was called off before it reached rest (a
+        resume): its deadline no longer applies."""
+        self.rest_deadline = None
+
+    # -- violations and stops (real-time) --
+    def _axis_violation(self, code: int, command, now: float) -> None:
+        kind, i = divmod(code, 256)
+        a = self.axes[i]
+        unit = a.unit
+        if kind == kernels.OVER_VELOCITY:
+            limit = self.speed_limits[i]
+            why = "velocity_limit_scale" if self.referenced[i] else "not referenced yet: homing speed"
+            text = (f"{a.name} commanded at {command[i]:.3f} {unit}/s, beyond its limit {limit:g} {unit}/s "
+                    f"({why})")
+        elif kind == kernels.OVER_ACCELERATION:
+            change = (command[i] - self.previous[i]) / self.tick
+            text = (f"{a.name} command changes at {change:.0f} {unit}/s^2, beyond "
+                    f"{self.step_limits[i] / self.tick:g} {unit}/s^2 ([safety] acceleration_factor x "
+                    "max_acceleration)")
+        elif kind == kernels.OVER_LIMIT:
+            x = self.robot.positions[i]
+            rest = x + command[i] * self.reaction + command[i] * abs(command[i]) * self.braking[i]
+            text = (f"{a.name} at {x:.3f} {unit}, commanded at {command[i]:.3f} {unit}/s, would come to rest at "
+                    f"{rest:.3f} {unit}, beyond its software limits {a.min:g}..{a.max:g} {unit}")
+        elif kind == kernels.NO_COUNTS:
+            text = (f"{a.name} commanded {self._travel[i]:+.3f} {unit} of travel without a single encoder count "
+                    "(encoder frozen, drive not responding, or the axis blocked)")
+        elif kind == kernels.WRONG_WAY:
+            text = f"the encoder of {a.name} counts against the commanded direction (encoder or drive wired wrong)"
+        elif kind == kernels.NOT_STILL:
+            text = (f"{a.name} moved {abs(self._away[i]):.0f} encoder counts from the reference it came into position "
+                    f"at, while the robot must be at rest (allowed: {self.standstill_tolerance})")
+        else:
+            away = self._away[i]
+            within = abs(away) <= self.in_position_window
+            text = (f"{a.name} not in position {self.in_position_timeout:g} s after its reference came to rest: "
+                    f"{away:+.0f} encoder counts ({away / a.counts_per_unit:+.4f} {unit}) from the servo's reference"
+                    f"{', within the window for less than in_position_time' if within else ''} (in position: within "
+                    f"{self.in_position_window} counts for {self.in_position_time:g} s; [safety] in_position_window, "
+                    f"in_position_time, in_position_timeout)")
+        self._violation(_KINDS[kind], text, now)
+
+    def _violation(self, cause: str, text: str, now: float) -> None:
+        category = CATEGORIES[cause][0]
+        self.fault = f"safety: {text} (stop category {category})"
+        self.stop_robot(category, self.fault, now)
+
+    def stop_robot(self, category: int, reason: str, now: float | None = None) -> None:
+        """Real-time safe: stop the robot now, by ``category`` (0 or 1; a stop already
+        under way only ever gets stricter). Category 1 ramps every axis's command from
+        the last one passed to the drives to zero at the axis's max_acceleration, then
+        applies the brakes, then takes the torque off; category 0 does both at once."""
+        now = self.clock.tick_time if now is None else now
+        if self.category is not None and self.category <= category:
+            return
+        if self.category is None:
+            self.stop_reason = reason
+        self.category = category
+        self.at_rest = False
+        self._stop_t = now
+        if category == 0:
+            self.robot.disable_drives()
+            self.robot.apply_brakes()
+            self._stop_phase = "brakes"
+            self.drive_cmd.write(self._zeros, now)
+            self.previous = self._zeros
+            return
+        self._ramp_from = self.previous
+        self._ramp_t = 0.0
+        self._ramp_end = max((abs(v) / a for v, a in zip(self.previous, self.deceleration)), default=0.0)
+        self._stop_phase = "ramp"
+
+    @property
+    def stopping(self) -> bool:
+        return self.category is not None
+
+    def _stopping(self, now: float) -> None:
+        phase = self._stop_phase
+        robot = self.robot
+        if phase == "ramp":
+            self._ramp_t += self.tick
+            t = self._ramp_t
+            command = tuple([v - a * t if v > a * t else v + a * t if v < -a * t else 0.0
+                             for v, a in zip(self._ramp_from, self.deceleration)])
+            self.previous = command
+            self.drive_cmd.write(command, now)
+            if t >= self._ramp_end:
+                robot.apply_brakes()
+                self._stop_phase = "brakes"
+                self._stop_t = now
+            return
+        self.drive_cmd.write(self._zeros, now)
+        self.previous = self._zeros
+        if phase == "brakes":
+            if robot.brakes_applied() or now - self._stop_t > BRAKE_TIMEOUT:
+                robot.disable_drives()
+                self._stop_phase = "done"
+                self.at_rest = True

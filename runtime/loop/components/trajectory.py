@@ -1,0 +1,429 @@
+"""Trajectory Generator: the program's interpreter and its motion host, every 5 ms.
+
+It runs the program's object code (``runtime.loop.vm``, a bounded number of instructions per
+update) and feeds the moves it hands over to the motion queue
+(:mod:`runtime.motion.motionqueue`: planning, look-ahead, blending, the override,
+pause/resume/abort), whose setpoint it writes to ``desi_pos`` (time, positions,
+velocities) every period; the servo interpolates them to 1 ms.
+
+Look-ahead: a move instruction hands a request to the queue and the program runs on: up
+to ``lookahead`` moves (the specification's ``[controller] lookahead``, default 4) may
+wait planned ahead of the robot; the VM stops running ahead at instructions that must
+happen where the robot really is (waits, digital I/O, ``print``, ``pause``; see
+``runtime.loop.vm``).
+
+Planning is synchronous on the simulated clock (deterministic: simulated time does not
+pass); on the wall clock it runs on one planning worker, started by :meth:`load`.
+
+A move that cannot be planned (a refused path, an unreachable pose) stops the program
+at its line: the moves before it are completed first, then the program ends with the
+error, as if there were no look-ahead.
+"""
+from __future__ import annotations
+
+import time
+
+from compiler.clauses import MoveClauses, validate_move_clauses
+from compiler.frames import BY_KEYWORD as FRAME_BY_KEYWORD
+from compiler.frames import IDENTITY, describe_name, pose_of, values_of
+from compiler.frames import problem as frame_problem
+from compiler.objcode import Program
+from compiler.params import component_params, describe
+from compiler.spec import DEFAULT_LOOKAHEAD
+from compiler.semantics import EvalError, compose
+from compiler.triggers import MAX_PENDING as MAX_TRIGGERS
+from compiler.triggers import problem as trigger_problem
+from compiler.values import Joint, Pose
+
+from runtime.loop.component import Component, DataPort
+from runtime.motion.kinematics import Kinematics
+from runtime.motion.motionqueue import MotionQueue, PlanningWorker
+from runtime.motion.moves import Frames, MoveRecord, MovePlanner, MoveRequest
+from runtime.timing import SETPOINT_PERIOD
+from runtime.loop.vm import DONE, ERROR, VM
+
+__all__ = ["LOOKAHEAD", "MAX_LOG_LINES", "MoveRecord", "TIME_SLICE", "TrajectoryGenerator"]
+
+#: Moves planned ahead of the robot by default (``[controller] lookahead``).
+LOOKAHEAD = DEFAULT_LOOKAHEAD
+#: Seconds of interpreter time per update on the wall clock (runtime.loop.vm: the step ends at
+#: the first slice of instructions after it); none on the simulated clock (deterministic).
+TIME_SLICE = 0.0005
+#: Lines of the operator log (print) kept per program; later ones are counted, not kept.
+MAX_LOG_LINES = 10_000
+
+
+def motion_profile(spec) -> str:
+    """The PTP velocity profile the specification asks for (``[controller] profile``,
+    checked when the specification was loaded)."""
+    return spec.controller.profile
+
+
+def lookahead_depth(spec) -> int:
+    """How many moves may be planned ahead of the robot (``[controller] lookahead``,
+    0..16, default 4; 0: the program waits for each move to end)."""
+    return spec.controller.lookahead
+
+
+def _build_kinematics(spec) -> tuple[Kinematics | None, str | None]:
+    """Not real-time: the robot's kinematics, or None and why a pose cannot be used."""
+    try:
+        return Kinematics(spec), None
+    except ValueError as exc:
+        return None, f"this robot's kinematics are not usable for poses: {exc}"
+
+
+class TrajectoryGenerator(Component):
+    """Operator control (real-time safe, called between ticks): :meth:`pause` stops the
+    program before its next instruction and brings the motion to a controlled stop on
+    its path; :meth:`resume` continues; :meth:`abort` stops the same way, then ends the
+    program with a fault; ``override`` (percent) scales the time of the moves, the one
+    under way too. The motion itself is :attr:`motion`, a
+    :class:`~runtime.motion.motionqueue.MotionQueue`."""
+
+    PROPERTIES = component_params("trajectory")
+
+    def __init__(self, spec, robot, desi_pos: DataPort, sens_pos: DataPort, clock, period: float = SETPOINT_PERIOD):
+        super().__init__("trajectory", period)
+        self.spec, self.robot, self.desi_pos, self.sens_pos = spec, robot, desi_pos, sens_pos
+        self.clock = clock
+        self.n = len(spec.axes)
+        self.axes = spec.axes
+        self.budget = 200
+        self.lookahead = lookahead_depth(spec)
+        self.program: Program | None = None
+        self.vm: VM | None = None
+        self.log_lines: list[tuple[float, int, str]] = []
+        self.fault: str | None = None
+        self.start_position: tuple | None = None  # the commanded position to plan from (else sens_pos)
+        self.safety = None  # the safety supervisor: told when the motion is at rest, and of stops on the path
+        self.io = None  # the io component (runtime.loop.components.io): the program's inputs and outputs
+        # the robot's kinematics, built here (never in a tick), or why poses cannot be used
+        kinematics, problem = _build_kinematics(spec)
+        self.planner = MovePlanner(spec.axes, spec.main_axes, motion_profile(spec), kinematics, problem)
+        self.motion = MotionQueue(self.planner, spec.axes, holds=self._holds, program_line=self._program_line)
+        self.default_frames = Frames.default(spec)
+        self._forget()
+
+    def load(self, program: Program | None) -> None:
+        """Not real-time: the program to run at the next start; forgets the last one
+        (its moves and log, its fault, an abort). On the wall clock, starts the planning
+        worker the first time (never in a tick)."""
+        if not self.clock.simulated and self.motion.worker is None:
+            self.motion.worker = PlanningWorker()
+        self.program = program
+        self._forget()
+
+    def _forget(self) -> None:
+        self.vm = None
+        self.triggers: list = []  # handed over by the program, for its next move
+        self.frames = self.default_frames  # the active base and tool (use base, use tool)
+        self.log_lines = []
+        self.log_dropped = 0
+        self.fault = None
+        self.motion.reset()
+
+    def on_start(self) -> bool:
+        """Run the loaded program from its beginning."""
+        if self.program is None:
+            return False
+        self._forget()
+        position = self.start_position or self.sens_pos.read() or (0.0,) * self.n
+        self.motion.start(position, self.period)
+        self.vm = VM(self.program, self, self.budget)
+        # the first setpoint at this tick's time, as every later one (never the wall clock's
+        # now: after a stall of the host that lies ahead of the ticks, and the servo would
+        # interpolate from it to where the move is by then)
+        now = self.clock.tick_time
+        self.desi_pos.write((now, self.motion.positions, self.motion.velocities), now)
+        return True
+
+    def _holds(self) -> bool:
+        """The motion queue starts no new move: no program, or it paused itself."""
+        vm = self.vm
+        return vm is None or vm.paused
+
+    def _program_line(self) -> int:
+        return self.vm.line if self.vm is not None else 0
+
+    # ---- what the rest of the runtime reads ----
+    def frames_now(self) -> Frames:
+        """Real-time: the base and tool of the move under way or last started (what the
+        report and telemetry give the TCP in); the defaults before the first."""
+        moves = self.motion.moves
+        frames = moves[-1].frames if moves else None
+        return self.default_frames if frames is None else frames
+
+    @property
+    def moves(self) -> list[MoveRecord]:
+        """The moves of the program so far, as they ran."""
+        return self.motion.moves
+
+    @property
+    def trajectory(self):
+        """What is being sampled now (a move or a stop); None when the robot is not moving."""
+        return self.motion.current
+
+    @property
+    def override(self) -> float:
+        """The speed override in percent (1-100); see :attr:`MotionQueue.override`."""
+        return self.motion.override
+
+    @override.setter
+    def override(self, percent: float) -> None:
+        self.motion.override = percent
+
+    @property
+    def velocity_limit_scale(self) -> float:
+        return self.motion.velocity_limit_scale
+
+    @velocity_limit_scale.setter
+    def velocity_limit_scale(self, scale: float) -> None:
+        """robot.velocity_limit_scale: the override's rate never exceeds it."""
+        self.motion.velocity_limit_scale = scale
+
+    @property
+    def finished(self) -> bool:
+        """The program ended (DONE) and all its motion is complete."""
+        return self.vm is not None and self.vm.status is DONE and self.fault is None and self.motion.done()
+
+    @property
+    def line(self) -> int:
+        """The source line of the move the robot is executing (stopping on, or waiting to
+        resume); else of the instruction the program is at."""
+        line = self.motion.line
+        return self._program_line() if line is None else line
+
+    @property
+    def paused(self) -> bool:
+        """Held by the operator or by the program's ``pause``."""
+        return self.vm is not None and (self.motion.paused or self.vm.paused)
+
+    def _busy(self) -> bool:
+        """The program has something left to do: instructions, or motion it handed over."""
+        vm = self.vm
+        return vm is not None and (vm.status < DONE or not self.motion.done())
+
+    # ---- the 5 ms update (real-time) ----
+    def update(self, now: float) -> None:
+        """Real-time: sample the motion, write the setpoint, then let the VM run its budget."""
+        motion = self.motion
+        motion.sample(now)
+        self._take_motion_events()
+        accelerations = motion.accelerations
+        self.desi_pos.write((now, motion.positions, motion.velocities) if accelerations is None
+                            else (now, motion.positions, motion.velocities, accelerations), now)
+        safety = self.safety
+        if safety is not None:
+            safety.expect_standstill(motion.at_rest())
+        vm = self.vm
+        if vm is not None and vm.status < DONE:
+            vm.step(None if self.clock.simulated else time.perf_counter() + TIME_SLICE)
+        failed = motion.plan_waiting()
+        if failed is not None:
+            vm.fail(*failed)
+        self._take_motion_events()
+        if self.fault is None and vm is not None and vm.status is ERROR and motion.done(triggers=False):
+            e = vm.error  # an error ends the program once the moves before it are done
+            where = vm.program.file_at(e.offset)
+            self.fault = f"program error at {f'{where} ' if where else ''}line {e.line}: {e.message}"
+
+    def _take_motion_events(self) -> None:
+        """A move that could not be planned in the background stops the program at its
+        line; an abort at rest (or a rest that cannot be planned) ends it."""
+        motion = self.motion
+        if motion.failed is not None:
+            problem, line = motion.failed
+            motion.failed = None
+            self.vm.fail(problem, line)
+        if motion.ended is not None:
+            self.fault = self.fault or motion.ended
+            motion.ended = None
+            self.vm.abort()
+
+    # ---- operator control (real-time safe) ----
+    def pause(self) -> bool:
+        """Hold the program; the motion decelerates to rest on its path. False if there
+        is no program to pause."""
+        if not self._busy() or self.motion.abort_reason is not None:
+            return False
+        self.vm.pause()
+        self._expect_rest(self.motion.pause())
+        return True
+
+    def resume(self) -> bool:
+        """Continue after :meth:`pause` (or the program's ``pause``)."""
+        if not self.paused or self.motion.abort_reason is not None:
+            return False
+        self.vm.resume()
+        if self.safety is not None:
+            self.safety.rest_not_expected()
+        self.motion.resume()
+        self._take_motion_events()
+        return True
+
+    def abort(self, reason: str = "aborted by the operator") -> bool:
+        """A controlled stop, then end the program with ``reason`` as its fault."""
+        if not self._busy():
+            return False
+        if self.motion.abort_reason is None:
+            self.vm.pause()
+            self._expect_rest(self.motion.abort(reason))
+            self._take_motion_events()
+        return True
+
+    # ---- the VM's interrupts (real-time safe) ----
+    def motion_line(self) -> int | None:
+        """The source line of the move the robot is executing (None: none is)."""
+        return self.motion.line
+
+    def interrupt_stop(self) -> None:
+        """An interrupt fired with ``stop``: the motion stops on its path (held while its
+        handler runs)."""
+        self._expect_rest(self.motion.interrupt_stop())
+
+    def interrupt_release(self) -> None:
+        """Its handler ended with ``then resume``: the motion goes on (the rest of the
+        interrupted move from where the robot stopped)."""
+        if self.safety is not None and not self.motion.paused:
+            self.safety.rest_not_expected()
+        self.motion.interrupt_release()
+        self._take_motion_events()
+
+    def interrupt_halt(self, reason: str) -> None:
+        """The program ends by an interrupt (``then halt``, or ``halt`` in a handler): the
+        motion stops on its path and the moves not yet made are dropped, without a fault."""
+        self._expect_rest(self.motion.abort(reason, fault=False))
+        self._take_motion_events()
+
+    def _expect_rest(self, within: float | None) -> None:
+        if within is not None and self.safety is not None:
+            self.safety.expect_rest_within(within)
+
+    # ---- the VM's motion host ----
+    def now(self) -> float:
+        """The program's time (waits, timeouts): the tick's, as the motion's."""
+        return self.clock.tick_time
+
+    def move(self, kind: str, targets: tuple, clauses: dict, line: int) -> str | None:
+        """The VM's move instruction: check the move, hand it to the motion queue; the
+        problem of a move that cannot be made (the program stops at its line)."""
+        checked = validate_move_clauses(kind, clauses, self.spec)  # the clause table's rules and defaults
+        if isinstance(checked, str):
+            return checked
+        frames = self.frames
+        if frames.base != IDENTITY:  # pose targets are in the active base
+            base = pose_of(frames.base)
+            targets = tuple(compose(base, t) if isinstance(t, Pose) else t for t in targets)
+        if kind == "ptp":
+            target = targets[0]
+            if isinstance(target, Pose):
+                if self.planner.kinematics is None:
+                    return self.planner.kinematics_problem
+            elif not isinstance(target, Joint) or len(target.axes) != self.n:
+                return f"the target must be a joint value with {self.n} axes"
+            request = MoveRequest(kind, (target,), checked.speed, checked.acc, checked.approx, line, frames=frames,
+                                  triggers=self._take_triggers())
+        else:
+            request, problem = self._cartesian_request(kind, targets, checked, line)
+            if problem is not None:
+                return problem
+        return self.motion.add(request)
+
+    def _take_triggers(self) -> tuple:
+        triggers, self.triggers = tuple(self.triggers), []
+        return triggers
+
+    def trigger(self, place: int, unit: int, amount: object, action: tuple) -> str | None:
+        """The VM's ``TRIGGER_OUT`` / ``TRIGGER_SET``: a trigger of the next move
+        (compiler.triggers); the problem, else None. Object code is untrusted: never raises."""
+        problem = trigger_problem(place, unit, amount)
+        if problem is not None:
+            return problem
+        if len(self.triggers) >= MAX_TRIGGERS:
+            return f"more than {MAX_TRIGGERS} triggers for one move"
+        if action[0] == "out":
+            _kind, n, value = action
+            if not (isinstance(n, int) and not isinstance(n, bool) and 1 <= n <= self.spec.outputs):
+                return f"digital output {describe(n)} does not exist (1..{self.spec.outputs})"
+            if not isinstance(value, bool):
+                return f"a digital output's value must be true or false, not {describe(value)}"
+        self.triggers.append((place, unit, float(amount), action))
+        return None
+
+    def fire_triggers(self, now: float) -> None:
+        """Real-time, every 1 ms: the triggers whose place the servo's reference has reached
+        (within this tick): an output switched, or a variable set."""
+        due = self.motion.due
+        if not due:
+            return
+        keep = []
+        for at, action in due:
+            if at > now + 1e-9:
+                keep.append((at, action))
+            elif action[0] == "out":
+                self.io.set_output(action[1], action[2])
+            elif self.vm is not None:
+                self.vm.globals[action[1]] = action[2]
+        due[:] = keep
+
+    def use_frame(self, keyword: str, name: object, value: object) -> str | None:
+        """The VM's ``USE_BASE`` / ``USE_TOOL``: make ``value`` the active base or tool for
+        the moves handed over after it (compiler.frames' bounds); the problem, else None.
+        Object code is untrusted: never raises."""
+        kind = FRAME_BY_KEYWORD.get(keyword)
+        if kind is None:  # pragma: no cover - the VM names one of the two
+            return f"unknown frame kind {keyword!r}"
+        if not isinstance(value, Pose):
+            return f"use {keyword}: expected a pose, not {describe(value)}"
+        values = values_of(value)
+        problem = frame_problem(kind, values)
+        if problem is not None:
+            return problem
+        self.frames = self.frames.using(keyword, describe_name(name if isinstance(name, str) else "?"),
+                                        tuple(float(v) for v in values))
+        return None
+
+    def queue_ready(self) -> bool:
+        """May the program hand over another move (is there room in the look-ahead)?
+        With ``lookahead = 0``: only when the last move has ended."""
+        if self.lookahead == 0:
+            return self.motion_done()
+        return self.motion.queued < self.lookahead
+
+    def _cartesian_request(self, kind: str, targets: tuple, clauses: MoveClauses, line: int):
+        """``move lin TARGET`` / ``move circ VIA, TARGET``: the path is checked whole
+        against the kinematics, the axis limits and velocities before it starts (a refused
+        move leaves the robot where it is, and the program stops at its line with the
+        reason and where along the path it fails)."""
+        if self.planner.kinematics is None:
+            return None, self.planner.kinematics_problem
+        if not all(isinstance(target, (Joint, Pose)) for target in targets):
+            return None, f"a {kind} target must be a pose or a joint value"
+        return MoveRequest(kind, tuple(targets), clauses.speed, clauses.acc, clauses.approx, line,
+                           frames=self.frames, triggers=self._take_triggers()), None
+
+    def motion_done(self) -> bool:
+        """Every move handed over has ended (and no stop is under way)."""
+        return self.motion.done()
+
+    def read_input(self, n: int) -> bool:
+        if not 1 <= n <= self.spec.inputs:
+            raise EvalError(f"digital input {n} does not exist (1..{self.spec.inputs})")
+        return self.io.input(n)
+
+    def write_output(self, n: int, value: bool) -> None:
+        if not 1 <= n <= self.spec.outputs:
+            raise EvalError(f"digital output {n} does not exist (1..{self.spec.outputs})")
+        self.io.set_output(n, value)
+
+    def log(self, text: str, line: int) -> None:
+        """The operator log: at most MAX_LOG_LINES lines per program (then one line that
+        says how many more were not kept)."""
+        if len(self.log_lines) < MAX_LOG_LINES:
+            self.log_lines.append((self.clock.tick_time, line, text))
+        else:
+            self.log_dropped += 1
+            if self.log_dropped == 1:
+                self.log_lines.append((self.clock.tick_time, line, f"(more than {MAX_LOG_LINES} lines: the rest of "
+                                                              "the log is not kept)"))

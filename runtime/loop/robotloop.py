@@ -1,0 +1,350 @@
+"""The real-time side of ``irl serve``: one robot, its loop, and nothing else.
+
+:class:`RobotLoop` owns the :class:`~runtime.loop.system.RobotSystem` (executive, components,
+supervisor, robot interface). It runs at most one cycle of the supervisor at a time (a
+program, or a reconfiguration) when the server says ``start``, carries out the operator
+commands the server forwards (a bounded number per tick, between ticks), and sends back
+what the server needs: replies, telemetry events, a snapshot of the robot every 10 ms
+(the server answers ``status`` and publishes telemetry from it), and the summary when
+a cycle ends. It decodes no network request, encodes no telemetry for the network and
+never waits on the server: whatever it sends goes through a :class:`~runtime.wire.channel.Channel`
+(or, in one process, a deque).
+
+``irl serve`` runs it in a process of its own (:func:`start_process`), at the real-time
+priority asked for; tests drive it in-process, tick by tick. Both run the same code, and
+with the simulated clock both give the same report bytes.
+
+Messages to the loop: ``{"op": NAME, "ref": N, ...}`` with NAME one of :data:`COMMANDS`;
+every one is answered by ``{"kind": "reply", "ref": N, "ok": true, "result": ...}`` or
+``{"kind": "reply", "ref": N, "ok": false, "code": C, "message": M}``. Messages from the
+loop (``kind``): ``ready`` (once, with the settings' baseline and the scheduling it got),
+``failed`` (it could not start), ``snapshot``, ``event`` (a state transition or a
+program's ``log`` line, for telemetry), ``finished`` (a cycle ended: its summary),
+``reply``.
+"""
+from __future__ import annotations
+
+import gc
+import math
+import os
+import signal
+import sys
+import time
+from collections import deque
+from typing import Callable
+
+from compiler.objcode import ObjectCodeError, load
+
+from runtime.wire.protocol import ProtocolError
+from runtime.loop.supervisor import MOVE
+from runtime.loop.system import RobotSystem, RunOptions
+
+__all__ = ["COMMANDS", "COMMANDS_PER_TICK", "RobotLoop", "TELEMETRY_EVERY", "start_process"]
+
+TELEMETRY_EVERY = 10  # ticks between snapshots while a cycle runs (10 ms)
+IDLE_SNAPSHOT_PERIOD = 0.5  # s between snapshots while idle
+COMMANDS_PER_TICK = 8  # operator commands applied at most per tick
+EXIT_TIMEOUT = 15.0  # s an exit waits for the robot to come to rest before an emergency stop
+
+
+class RobotLoop:
+    """The robot and its loop. ``send(message, droppable)`` hands a message to the server
+    (never waits; returns False when it was dropped)."""
+
+    def __init__(self, spec, options: RunOptions, send: Callable[..., bool]):
+        self.system = RobotSystem(spec, options)
+        self.send = send
+        self.job: int | None = None  # the running cycle's program id (the server's)
+        self.abort_reason: str | None = None
+        self.front: dict = {}  # the server's state a script may read (configuration, override)
+        self.commands: deque = deque()
+        self.exit_reason: str | None = None
+        self._exit_deadline: float | None = None
+        self._seen_states = 0
+        self._seen_log = 0
+        self._last_idle_snapshot = -math.inf
+        self._gc_was_enabled = True
+
+    # ---- what the server asks ----------------------------------------------------------
+    def ready(self, scheduling: str | None = None) -> dict:
+        return {"kind": "ready", "baseline": self.system.settings(), "pid": os.getpid(), "scheduling": scheduling,
+                "snapshot": self.snapshot()}
+
+    def command(self, message: dict) -> None:
+        """Carry out one command and send its reply (and, before it, a fresh snapshot:
+        a client that reads the status after the reply sees the command's effect)."""
+        ref = message.get("ref")
+        try:
+            handler = COMMANDS[message["op"]][0]
+            result = handler(self, message)
+            reply = {"kind": "reply", "ref": ref, "ok": True, "result": result}
+        except ProtocolError as exc:
+            reply = {"kind": "reply", "ref": ref, "ok": False, "code": exc.code, "message": exc.message}
+        except Exception as exc:  # a bug: the server hears of it, the loop goes on
+            reply = {"kind": "reply", "ref": ref, "ok": False, "code": "internal",
+                     "message": f"{type(exc).__name__}: {exc}"}
+        self.send(self.snapshot())
+        self.send(reply)
+
+    def _start(self, m: dict) -> dict:
+        if self.job is not None:
+            raise ProtocolError("refused", f"program {self.job} is running")
+        if self.exit_reason is not None:
+            raise ProtocolError("refused", self.exit_reason)
+        system = self.system
+        try:
+            program = load(m["object"], None) if m.get("object") is not None else None
+        except ObjectCodeError as exc:
+            raise ProtocolError("invalid_program", f"the object code is invalid: {exc}") from None
+        try:
+            system.begin(program, m.get("report"), settings=m.get("settings"))
+        except (ValueError, OSError) as exc:
+            raise ProtocolError("refused", str(exc)) from None
+        system.trajectory.override = m.get("override", 100.0)
+        self.job = m["job"]
+        self.abort_reason = None
+        self._seen_states = self._seen_log = 0
+        # The loop allocates small, cycle-free objects every tick; reference counting frees
+        # them. A cyclic collection would walk the heap at an arbitrary tick: paused for the
+        # cycle (as RobotSystem.run does), run when it ends.
+        self._gc_was_enabled = gc.isenabled()
+        gc.freeze()
+        gc.disable()
+        return {"t": system.clock.now()}
+
+    def _meant(self, m: dict) -> None:
+        """Refuse a command meant for another program than the running one."""
+        wanted = m.get("program")
+        if wanted is not None and wanted != self.job:
+            raise ProtocolError("refused", f"program {wanted} is not the running program"
+                                           + (f" (program {self.job} is)" if self.job is not None else ""))
+
+    def _pause(self, m: dict) -> dict:
+        system = self.system
+        self._meant(m)
+        if self.job is None or system.supervisor.fsm.state != MOVE:
+            raise ProtocolError("refused", "no program is moving the robot")
+        if system.trajectory.paused:
+            raise ProtocolError("refused", f"program {self.job} is already paused")
+        if not system.trajectory.pause():
+            raise ProtocolError("refused", "the program cannot be paused now (it is ending)")
+        return {"program": self.job, "paused": True}
+
+    def _resume(self, m: dict) -> dict:
+        self._meant(m)
+        if self.job is None or not self.system.trajectory.resume():
+            raise ProtocolError("refused", "no program is paused")
+        return {"program": self.job, "paused": False}
+
+    def _abort(self, m: dict) -> dict:
+        wanted = m.get("program")
+        if self.job is None or (wanted is not None and wanted != self.job):
+            raise ProtocolError("not_found" if wanted is not None else "refused",
+                                f"program {wanted} is neither running nor queued" if wanted is not None
+                                else "no program is running")
+        self.stop(m.get("reason") or "aborted by the operator")
+        return {"program": self.job, "state": "aborting"}
+
+    def _estop(self, m: dict) -> dict:
+        if self.job is not None:
+            self.abort_reason = "emergency stop"
+            self.system.emergency_stop()
+        return {"program": self.job}
+
+    def _override(self, m: dict) -> dict:
+        percent = float(m["percent"])
+        if not 1.0 <= percent <= 100.0:  # checked by the server too: the loop trusts no one
+            raise ProtocolError("bad_request", f"override: percent must be within 1..100, got {percent:g}")
+        self.system.trajectory.override = percent
+        self.front["override"] = percent
+        return {"override": percent}
+
+    def _call(self, m: dict) -> dict:
+        from runtime.server.scripting_service import call, loop_targets
+
+        self.front = dict(m.get("front") or {})
+        result = call(loop_targets(self), self.job, m["text"])
+        return result() if callable(result) else result
+
+    def _settings(self, m: dict) -> dict:
+        if self.job is not None:
+            raise ProtocolError("refused", "settings change only between programs")
+        self.system.apply_settings(m["settings"])
+        return {"applied": True}
+
+    def _exit(self, m: dict) -> dict:
+        self.exit_reason = m.get("reason") or "the server is shutting down"
+        if self.job is not None:
+            self.stop(self.exit_reason)
+            self._exit_deadline = time.monotonic() + EXIT_TIMEOUT
+        return {"exiting": True}
+
+    # ---- the loop ------------------------------------------------------------------------
+    def stop(self, reason: str) -> None:
+        """Bring the running cycle to an end: a controlled stop on the path while moving,
+        else through Stop Robot at once."""
+        self.abort_reason = self.abort_reason or reason
+        system = self.system
+        if system.supervisor.fsm.state == MOVE and system.trajectory.running:
+            system.trajectory.abort(reason)
+        else:
+            system.supervisor.request_stop(reason)
+
+    def turn(self) -> None:
+        """Between two ticks: the queued commands (at most COMMANDS_PER_TICK); then one
+        tick of the running cycle (real-time), or an idle snapshot now and then."""
+        commands = self.commands
+        if self.job is None:  # no cycle, no io task: the I/O's ports as the backend has it now (a PLC's)
+            self.system.io.refresh()
+        for _ in range(COMMANDS_PER_TICK):
+            if not commands:
+                break
+            self.command(commands.popleft())
+        if self.job is None:
+            now = time.monotonic()
+            if now - self._last_idle_snapshot >= IDLE_SNAPSHOT_PERIOD:
+                self._last_idle_snapshot = now
+                self.send(self.snapshot(), True)
+            return
+        ex = self.system.executive
+        ex.step()
+        if ex.ticks % TELEMETRY_EVERY == 0:
+            self.progress()
+        if self.system.supervisor.done:
+            self.finish()
+        elif self._exit_deadline is not None and time.monotonic() > self._exit_deadline:
+            self._exit_deadline = None  # once: the emergency stop's own ramp then ends the cycle
+            self.system.emergency_stop("the robot did not come to rest within "
+                                       f"{EXIT_TIMEOUT:g} s of the shutdown")
+
+    def progress(self) -> None:
+        """The state transitions and log lines since the last call, then a snapshot."""
+        system = self.system
+        history = system.supervisor.fsm.history
+        t = system.clock.now()
+        while self._seen_states < len(history):
+            at, source, target = history[self._seen_states]
+            self._seen_states += 1
+            self.send({"kind": "event", "event": "state", "from": source, "to": target, "at": at, "t": t})
+        lines = system.trajectory.log_lines
+        while self._seen_log < len(lines):
+            at, line, text = lines[self._seen_log]
+            self._seen_log += 1
+            self.send({"kind": "event", "event": "log", "program": self.job, "line": line, "text": text, "at": at,
+                       "t": t})
+        self.send(self.snapshot(), True)
+
+    def snapshot(self) -> dict:
+        """What the server answers ``status`` and publishes as a telemetry sample from."""
+        system = self.system
+        memory = system.memory
+        snap = {"kind": "snapshot", "t": system.clock.now(), "job": self.job,
+                "state": system.supervisor.fsm.path() if self.job is not None else "Idle",
+                "position": list(system.robot.positions),
+                "inputs": list(system.io.inputs.read()), "outputs": list(system.io.outputs.read()),
+                "frames": list(system.trajectory.frames_now()),
+                "calibrated": memory.calibrated, "initialized": memory.initialized,
+                "calibration": memory.calibration_why, "initialization": memory.initialization_why}
+        if self.job is not None:
+            t = system.trajectory
+            snap.update(line=t.line, moves_done=t.motion.completed, paused=t.paused,
+                        following_error=max((abs(e) for e in system.servo.following_error), default=0.0))
+        return snap
+
+    def finish(self) -> None:
+        """Not real-time: the cycle ended; flush its files and send its summary."""
+        summary = self.system.finish()
+        if self._gc_was_enabled:
+            gc.enable()
+        gc.unfreeze()
+        self.progress()
+        job, self.job = self.job, None
+        self.send({"kind": "finished", "job": job, "summary": summary,
+                   "aborted": self.abort_reason is not None, "t": self.system.clock.now()})
+        self.send(self.snapshot())
+
+    def run(self, channel) -> None:
+        """The loop process's main loop, until an ``exit`` has brought the robot to rest
+        (or the server is gone: then the running cycle is stopped first)."""
+        from runtime.wire.channel import ChannelClosed
+
+        while True:
+            try:
+                if self.job is None and not self.commands:
+                    if self.exit_reason is not None:
+                        break
+                    channel.wait(0.05)  # idle: nothing moves, brakes on (not a real-time state)
+                self.commands.extend(channel.receive())
+            except ChannelClosed:
+                if self.exit_reason is None:
+                    self._exit({"reason": "the server process ended"})
+                    if self.job is None:
+                        break
+            self.turn()
+            if channel.pending:
+                channel.flush()
+        channel.drain(5.0)
+
+
+#: The commands the loop carries out: name -> (handler, what it does).
+COMMANDS: dict[str, tuple[Callable[[RobotLoop, dict], dict], str]] = {
+    "start": (RobotLoop._start, "begin a cycle: job, object (bytes; none: a reconfiguration), report, settings, "
+                                "override"),
+    "pause": (RobotLoop._pause, "pause the moving program on its path"),
+    "resume": (RobotLoop._resume, "resume a paused program"),
+    "abort": (RobotLoop._abort, "stop the running program (program: only if it is this one), reason"),
+    "estop": (RobotLoop._estop, "emergency stop (category 1) of the running program"),
+    "override": (RobotLoop._override, "speed override, percent (1-100)"),
+    "call": (RobotLoop._call, "a scripting command (text), with the server's state a script may read (front)"),
+    "settings": (RobotLoop._settings, "apply validated settings between programs"),
+    "exit": (RobotLoop._exit, "bring the robot to rest and end the loop (reason)"),
+}
+
+
+def _child(spec, options: RunOptions, scheduling, channel, servers_end) -> None:
+    """The loop process: build the robot, ask for real-time scheduling, serve the loop."""
+    servers_end.close()  # (inherited: kept open, the server's death would never be seen)
+    signal.signal(signal.SIGINT, signal.SIG_IGN)  # the server decides how to stop (Ctrl-C reaches both)
+
+    loop_ref: list = []
+
+    def terminate(*_):  # a SIGTERM sent to this process alone: bring the robot to rest, then end
+        if loop_ref and loop_ref[0].exit_reason is None:
+            loop_ref[0].commands.append({"op": "exit", "ref": None, "reason": "the loop process was terminated"})
+
+    signal.signal(signal.SIGTERM, terminate)
+    try:
+        loop = RobotLoop(spec, options, channel.send)
+    except Exception as exc:
+        channel.send({"kind": "failed", "error": f"{type(exc).__name__}: {exc}"})
+        channel.drain(5.0)
+        os._exit(1)
+    loop_ref.append(loop)
+    got = None
+    if options.realtime:  # by default (none given) the real-time scheduling irl serve asks for
+        from runtime.loop.realtime import DEFAULT, apply
+
+        got = apply(scheduling if scheduling is not None else DEFAULT)
+    sys.setswitchinterval(0.0005)  # a helper thread (a planner, the report writer) hands the GIL back quickly
+    channel.send(loop.ready(got))
+    try:
+        loop.run(channel)
+    finally:
+        channel.close()
+    os._exit(0)
+
+
+def start_process(spec, options: RunOptions, scheduling):
+    """Fork the loop process; returns (process, the server's end of the channel). Call
+    before the server starts any thread or ZeroMQ context (a fork copies only the caller)."""
+    import multiprocessing
+
+    from runtime.wire.channel import pair
+
+    ours, theirs = pair()
+    context = multiprocessing.get_context("fork")
+    process = context.Process(target=_child, args=(spec, options, scheduling, theirs, ours), name="irl-loop",
+                              daemon=True)
+    process.start()
+    theirs.close()
+    return process, ours

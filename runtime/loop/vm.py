@@ -1,0 +1,1047 @@
+"""The object-code interpreter: runs a verified :class:`compiler.objcode.Program` inside
+the Trajectory Generator's 5 ms update.
+
+Each :meth:`VM.step` executes at most ``budget`` instructions and returns; it never
+blocks and never does I/O itself. Everything the program needs from the world (the
+clock, moves, digital I/O, the operator log) goes through a :class:`MotionHost`, which
+the trajectory component implements. An instruction that has to wait for the world
+(a move, a dwell, a ``wait for``, ``pause``) ends the step with status ``WAITING``; the
+next step checks the wait again and carries on when it is over (the lecture's rule: no
+action waits in a loop for the world to change).
+
+What the operators and built-in functions compute comes from
+:mod:`compiler.semantics`, the definition the compiler's constant folding also uses.
+A run-time error never escapes :meth:`VM.step`: the VM stops with status ``ERROR`` and
+a :class:`VMError` naming the source line.
+
+Dispatch. The handlers (``op_<name>`` methods, one per instruction) are collected from
+the instruction table when this module is imported, and the import fails if any
+instruction has none. Two loops run them:
+
+* ``dispatch="inline"`` (the default): the most frequent instructions (loads, stores,
+  constants, ``+ - *``, comparisons, jumps) are executed inline by an if-chain ordered
+  by frequency, the others through the handler table;
+* ``dispatch="table"``: every instruction through the handler table. It is the
+  reference the inline loop is tested against, and the baseline of
+  ``benchmarks/vm_speed.py``.
+
+Measured with ``benchmarks/vm_speed.py`` (an arithmetic loop, Python 3.11): the inline
+loop takes about 170 ns per instruction, the table loop about 280 ns (1.6x slower).
+
+Real-time notes: ``step``, ``pause``, ``resume`` and ``abort`` run in the real-time
+loop. ``step`` allocates only what the program's own values need (arrays, strings,
+joint and pose values, call frames) and the few objects of a move hand-over.
+
+Bounds (no program, and no forged object file, can stall the loop or exhaust memory):
+
+* instructions: at most ``budget`` per step (``trajectory.budget``, 1..10,000);
+* time: given a ``deadline`` (the wall clock; the trajectory generator gives
+  :data:`TIME_SLICE` per update), the step runs in slices of :data:`SLICE` instructions
+  and ends at the first slice boundary after the deadline (the program goes on at the
+  next step). On the simulated clock there is no deadline: the run stays deterministic;
+* values: a string of at most :data:`compiler.semantics.MAX_STRING_LENGTH` characters,
+  an array of at most :data:`compiler.objcode.MAX_ARRAY_ELEMENTS` elements (all levels
+  together), at most :data:`MAX_CALL_DEPTH` nested calls; a program that exceeds one
+  stops with an error at its line. The longest single instruction is therefore bounded
+  too (copying the largest array);
+* the operator log: ``print`` lines of at most MAX_STRING_LENGTH characters, and the
+  host keeps a bounded number of them.
+"""
+from __future__ import annotations
+
+import enum
+from dataclasses import dataclass
+from typing import Protocol
+
+from time import perf_counter
+
+from compiler.objcode import BUILTIN_NAMES, FIELDS, INSTRUCTIONS, MAX_ARRAY_ELEMENTS, OP, Program, clause_names
+from compiler.semantics import (INT_MAX, INT_MIN, MAX_STRING_LENGTH, EvalError, binary, call_builtin,
+                                check_index, get_axis, get_field, make_joint, make_pos, make_quat, make_rpy,
+                                set_axis, unary)
+from compiler.values import Pose, format_number, format_value
+
+#: Deepest nesting of procedure calls before the program is stopped with an error.
+MAX_CALL_DEPTH = 200
+
+#: Instructions run between two looks at the step's deadline.
+SLICE = 32
+
+#: What ``print`` puts between its values. The example programs and the language
+#: reference write their own spaces (``print "cycle ", n, ": ", kind;``), so the values
+#: are joined without a separator.
+PRINT_SEPARATOR = ""
+
+
+_NUMBER_TYPES = (int, float)  # (type(x) in: bool is not a number here)
+
+
+class VMStatus(enum.IntEnum):
+    READY = 0  # not started
+    RUNNING = 1  # the budget was used up: call step again
+    WAITING = 2  # waiting for motion, a dwell, a 'wait for' condition, or pause
+    DONE = 3  # END or HALT reached
+    ERROR = 4  # a run-time error, or aborted by the operator
+
+
+READY, RUNNING, WAITING, DONE, ERROR = (VMStatus.READY, VMStatus.RUNNING, VMStatus.WAITING,
+                                         VMStatus.DONE, VMStatus.ERROR)
+
+
+@dataclass(frozen=True)
+class VMError:
+    """A run-time error: what went wrong and where (source line and column, code offset)."""
+
+    message: str
+    line: int
+    column: int
+    offset: int
+
+    def __str__(self) -> str:
+        return f"line {self.line}: {self.message}"
+
+
+class MotionHost(Protocol):
+    """What the VM needs from the world; the trajectory component implements it.
+    Every method is called from the real-time loop and must not block."""
+
+    def now(self) -> float:
+        """Seconds, the executive's clock."""
+
+    def move(self, kind: str, targets: tuple, clauses: dict, line: int) -> str | None:
+        """Hand over a move: ``kind`` is "ptp", "lin" or "circ"; ``targets`` is
+        ``(target,)``, or ``(via, end)`` for circ; ``clauses`` holds only the clauses the
+        program gave ({name: value}). None when accepted, else an error message (which
+        stops the program with an error at ``line``)."""
+
+    def motion_done(self) -> bool:
+        """True when the robot has finished every move handed over."""
+
+    def queue_ready(self) -> bool:
+        """True when the program may hand over another move (look-ahead room). Optional:
+        a host without it gets one move at a time (``motion_done``)."""
+
+    def read_input(self, n: int) -> bool:
+        """Digital input n (from 1). May raise EvalError for a number out of range."""
+
+    def write_output(self, n: int, value: bool) -> None:
+        """Set digital output n (from 1). May raise EvalError for a number out of range."""
+
+    def log(self, text: str, line: int) -> None:
+        """The operator log: ``print`` statements and VM notices."""
+
+    def trigger(self, place: int, unit: int, amount: object, action: tuple) -> str | None:
+        """A path trigger of the next move (compiler.triggers): ``action`` is ``("out", n,
+        value)`` or ``("set", global slot, value)``. None when accepted, else the problem."""
+
+    def motion_line(self) -> int | None:
+        """The source line of the move the robot is executing, or None (what an
+        interrupt's log line names: the program itself may have run ahead)."""
+
+    def interrupt_stop(self) -> None:
+        """An interrupt fired with ``stop``: bring the motion to a stop on its path and hold
+        it until :meth:`interrupt_release`."""
+
+    def interrupt_release(self) -> None:
+        """The handler of an interrupt with ``stop`` ended (``then resume``): go on."""
+
+    def interrupt_halt(self, reason: str) -> None:
+        """The program ends by an interrupt: stop on the path, drop the moves not made."""
+
+    def use_frame(self, keyword: str, name: str, value: object) -> str | None:
+        """``use base`` / ``use tool`` (``keyword``): make the pose ``value``, called
+        ``name``, the active base or tool for the moves after it. None when accepted, else
+        the problem (which stops the program at the statement's line)."""
+
+
+# What a step is waiting for before it can execute the next instruction.
+_NO_WAIT, _W_MOTION, _W_DWELL, _W_QUEUE = 0, 1, 2, 3
+
+# The return offset of an interrupt handler's frame: its RET goes back to the program.
+_FROM_INTERRUPT = -1
+
+_CLAUSE_NAMES = tuple(tuple(clause_names(mask)) for mask in range(1 << 6))
+
+
+def array_elements(value) -> int:
+    """How many elements an array value holds, all levels together (1 for a non-array)."""
+    count = 1
+    while type(value) is list:
+        count *= len(value)
+        if not value:
+            return 0
+        value = value[0]
+    return count
+
+
+def copy_array(array: list) -> list:
+    """A deep copy of an array value (arrays hold arrays or immutable values)."""
+    if array and type(array[0]) is list:
+        return [copy_array(item) for item in array]
+    return array[:]
+
+
+#: The instructions whose ZeroDivisionError or OverflowError is the program's arithmetic.
+_ARITHMETIC = frozenset({OP.ADD, OP.SUB, OP.MUL, OP.DIV, OP.IDIV, OP.MOD, OP.NEG, OP.TO_REAL, OP.CALL_BUILTIN})
+
+
+def _describe(exc: Exception, op: int | None = None) -> str:
+    """The operator's message for an exception raised while executing instruction ``op``:
+    the program's own errors (EvalError) say what the program did wrong; anything else is
+    said in the program's terms, the instruction that failed, never as the exception's own
+    text (a Python message such as "tuple index out of range" means nothing at a robot)."""
+    if isinstance(exc, EvalError):
+        return str(exc)
+    if op in _ARITHMETIC:  # (the same exceptions from the host are its failure, not the program's)
+        if isinstance(exc, ZeroDivisionError):
+            return "division by zero"
+        if isinstance(exc, OverflowError):
+            return "numeric overflow"
+    what = ""
+    if op is not None and 0 <= op < len(INSTRUCTIONS):
+        instruction = INSTRUCTIONS[op]
+        what = f" while carrying out {instruction.name} ({instruction.doc.rstrip('.').lower()})"
+    return f"internal error of the runtime{what}: not a fault of the program"
+
+
+class VM:
+    """Runs one program; see the module docstring.
+
+    Attributes: ``status`` (:class:`VMStatus`), ``error`` (:class:`VMError` or None),
+    ``line`` (the line of the instruction executing or last executed),
+    ``moves_issued`` (moves the host accepted), ``paused`` (by the operator or a
+    ``pause`` statement).
+    """
+
+    def __init__(self, program: Program, host: MotionHost, budget: int = 200, *,
+                 dispatch: str = "inline", max_call_depth: int = MAX_CALL_DEPTH):
+        """Not real-time: decodes the code into flat lists once. ``program`` must have
+        been verified (:func:`compiler.objcode.verify`): the VM trusts its structure."""
+        if budget < 1:
+            raise ValueError(f"budget must be at least 1 instruction per step, not {budget}")
+        if dispatch not in ("inline", "table"):
+            raise ValueError(f"dispatch must be 'inline' or 'table', not {dispatch!r}")
+        self.program = program
+        self.host = host
+        self.budget = budget
+        self.max_call_depth = max_call_depth
+        self.status = READY
+        self.error: VMError | None = None
+        self.moves_issued = 0
+        self.instructions = 0  # instructions executed so far
+        self.paused = False
+        self._queue_ready = getattr(host, "queue_ready", host.motion_done)
+        # the machine
+        self.pc = 0
+        self.stack: list = []
+        self.globals: list = [None] * len(program.globals)
+        self.locals: list = []  # the current procedure's slots (the main program has none)
+        self.frames: list[tuple[int, list]] = []  # (return offset, caller's locals)
+        # the code, flattened: opcode and operand (None, one int, or a tuple of ints)
+        self._ops = [instr[0] for instr in program.code]
+        self._args = [None if len(instr) == 1 else instr[1] if len(instr) == 2 else tuple(instr[1:])
+                      for instr in program.code]
+        self._consts = list(program.constants)
+        self._procs = [(p.entry, p.params, len(p.locals), p.name) for p in program.procedures]
+        self._handlers = [handler.__get__(self) for handler in HANDLERS]
+        self._run = self._run_inline if dispatch == "inline" else self._run_table
+        self._here = 0  # offset of the instruction executing or last executed
+        self._yield = False  # set by a handler: end this step after the instruction
+        self._wait = _NO_WAIT
+        self._dwell_seconds = 0.0
+        self._dwell_until: float | None = None
+        self._deadline: float | None = None  # of the current 'wait for', or None
+        self._timeout = 0.0
+        # interrupts (compiler.interrupts): per entry (name, condition entry, handler, stop, halt)
+        self._ints = [(x.name, program.procedures[x.condition].entry, x.handler, x.stop, x.halt)
+                      for x in program.interrupts]
+        self._int_order = sorted(range(len(self._ints)), key=lambda i: (program.interrupts[i].priority, i))
+        self._enabled = [False] * len(self._ints)
+        self._was = [False] * len(self._ints)  # its condition at the last check
+        self._pending = [False] * len(self._ints)  # fired, its handler not run yet
+        self._armed = 0  # how many are enabled
+        self._handling: tuple | None = None  # (interrupt, the program's state to go back to, its line)
+        self._back_here: int | None = None  # the program's offset, when a handler has just returned
+
+    # -- the operator's side (real-time) ------------------------------------------------
+    @property
+    def line(self) -> int:
+        """The source line of the instruction executing or last executed (0 if none)."""
+        return self.program.line_at(self._here)[0]
+
+    @property
+    def offset(self) -> int:
+        """The code offset of the instruction executing or last executed."""
+        return self._here
+
+    def pause(self) -> None:
+        """Real-time. Hold the program before its next instruction until :meth:`resume`."""
+        if self.status < DONE:
+            self.paused = True
+
+    def resume(self) -> None:
+        """Real-time. Continue after :meth:`pause` or a ``pause`` statement."""
+        self.paused = False
+
+    def abort(self) -> None:
+        """Real-time. Stop the program for good: status ERROR, "aborted by the operator"."""
+        if self.status < DONE:
+            self._stop_with("aborted by the operator", self._here)
+            self.paused = False
+
+    def fail(self, message: str, line: int) -> None:
+        """Real-time. Stop the program with an error found by the host after the VM ran on
+        (a move that could not be planned): status ERROR, the error at source ``line``,
+        even if the program has reached its end meanwhile (look-ahead)."""
+        if self.status is not ERROR:
+            self.error = VMError(message, line, 0, self._here)
+            self.status = ERROR
+            self._wait = _NO_WAIT
+            self.paused = False
+            self._end_handling()
+
+    # -- running (real-time) --------------------------------------------------------------
+    def step(self, deadline: float | None = None) -> VMStatus:
+        """Real-time. Execute at most ``budget`` instructions; stop early at a wait, or
+        at the first slice of :data:`SLICE` instructions that ends after ``deadline``
+        (``time.perf_counter`` seconds; None: no time bound).
+
+        Returns the new status: RUNNING (budget or time used up), WAITING, DONE or ERROR.
+        Never raises.
+        """
+        status = self.status
+        if status >= DONE:
+            return status
+        if self._back_here is not None:  # (the loop that ran the handler's RET ended at the handler)
+            self._here, self._back_here = self._back_here, None
+        if self._armed:
+            try:
+                self._check_interrupts()
+            except Exception as exc:  # an input the host refuses: stop, never raise
+                self._stop_with(_describe(exc, OP.IN_GET), self._here)
+                return ERROR
+        if self.paused:
+            self.status = WAITING
+            return WAITING
+        if self._handling is None and True in self._pending:
+            self._fire()
+        if self._wait:
+            try:
+                if not self._wait_over():
+                    self.status = WAITING
+                    return WAITING
+            except Exception as exc:  # the host failed: stop, never raise
+                self._stop_with(_describe(exc, OP.WAIT_TEST), self._here)
+                return ERROR
+            self._wait = _NO_WAIT
+        self.status = RUNNING
+        if deadline is None:
+            self._run(self.budget)
+            return self.status
+        left = self.budget
+        while left > 0:
+            chunk = SLICE if left > SLICE else left
+            self._run(chunk)
+            left -= chunk
+            if self.status is not RUNNING or perf_counter() > deadline:
+                break
+        return self.status
+
+    # -- interrupts (real-time) ----------------------------------------------------------
+    def _check_interrupts(self) -> None:
+        """Every enabled interrupt's condition: an edge (true now, not at the last check)
+        makes it pending, except while its own handler runs."""
+        handling = self._handling[0] if self._handling is not None else -1
+        for i, enabled in enumerate(self._enabled):
+            if enabled:
+                now = self._condition(i)
+                if now and not self._was[i] and i != handling:
+                    self._pending[i] = True
+                self._was[i] = now
+
+    def _condition(self, i: int) -> bool:
+        """Evaluate interrupt ``i``'s condition: straight-line code of the few instructions
+        the verifier allows there (compiler.interrupts.CONDITION_OPS); reads the inputs now."""
+        ops, args, consts, globals_ = self._ops, self._args, self._consts, self.globals
+        pc = self._ints[i][1]
+        stack: list = []
+        while True:
+            op = ops[pc]
+            if op == OP.CONST:
+                stack.append(consts[args[pc]])
+            elif op == OP.LOAD_GLOBAL:
+                stack.append(globals_[args[pc]])
+            elif op == OP.IN_GET:
+                n = stack.pop()
+                try:
+                    stack.append(self.host.read_input(n))
+                except Exception as exc:  # the host's refusal (EvalError), or its failure
+                    raise EvalError(f"interrupt {self._ints[i][0]}: {_describe(exc, op)}") from None
+            elif op == OP.NOT:
+                stack.append(not stack.pop())
+            elif op == OP.AND:
+                b = stack.pop()
+                stack[-1] = stack[-1] and b
+            elif op == OP.OR:
+                b = stack.pop()
+                stack[-1] = stack[-1] or b
+            else:  # RET_VALUE
+                value = stack.pop()
+                if type(value) is not bool:
+                    raise EvalError(f"interrupt {self._ints[i][0]}: its condition is not a bool")
+                return value
+            pc += 1
+
+    def _fire(self) -> None:
+        """Run the handler of the pending interrupt of the highest priority: the program's
+        state is kept, the motion stops on its path (``stop``), the handler starts."""
+        i = next(k for k in self._int_order if self._pending[k])
+        self._pending[i] = False
+        name, _cond, handler, stop, _halt = self._ints[i]
+        moving = self.host.motion_line()
+        line = self.line if moving is None else moving
+        if stop:
+            self.host.interrupt_stop()
+        self.host.log(f"interrupt {name} fired {'at' if moving is None else 'during the move at'} line {line}"
+                      f"{'' if stop else ' (the robot goes on)'}", line)
+        self._handling = (i, (self.pc, self._here, self._wait, self._dwell_seconds, self._dwell_until,
+                              self._deadline, self._timeout), line)
+        entry, _params, slots, _name = self._procs[handler]
+        self.frames.append((_FROM_INTERRUPT, self.locals))
+        self.locals = [None] * slots
+        self.pc = entry
+        self._wait = _NO_WAIT
+
+    def _handler_done(self) -> int:
+        """The handler returned: the program goes on where it was (``then resume``), or
+        ends (``then halt``). Ends the step (the inline loop's locals change)."""
+        i, saved, line = self._handling
+        self._handling = None
+        name, _cond, _handler, stop, halt = self._ints[i]
+        if halt:
+            return self._halt_by_interrupt(name, line)
+        if stop:
+            self.host.interrupt_release()
+        pc, self._back_here, self._wait, self._dwell_seconds, self._dwell_until, self._deadline, self._timeout = saved
+        self._yield = True
+        return pc
+
+    def _halt_by_interrupt(self, name: str, line: int) -> int:
+        """The program ends by interrupt ``name`` (which fired at ``line``)."""
+        self.host.interrupt_halt(f"ended by interrupt {name}")
+        self.host.log(f"interrupt {name} ended the program (it fired at line {line})", line)
+        self._enabled = [False] * len(self._ints)
+        self._armed = 0
+        return self._end(self._here)
+
+    # enable and disable act where the robot is (as out[...] does): an interrupt guards the
+    # moves after its enable, and the moves before its disable
+    def op_int_enable(self, i, pc):
+        if not self._at_robot():
+            return pc
+        if not self._enabled[i]:
+            self._enabled[i] = True
+            self._armed += 1
+        self._was[i] = False  # a condition already true fires at the next check
+        return pc + 1
+
+    def op_int_disable(self, i, pc):
+        if not self._at_robot():
+            return pc
+        if self._enabled[i]:
+            self._enabled[i] = False
+            self._armed -= 1
+        self._pending[i] = False
+        return pc + 1
+
+    def _wait_over(self) -> bool:
+        """Is the wait started by the last instruction over? (Asks the host.)"""
+        wait = self._wait
+        host = self.host
+        if wait == _W_QUEUE:
+            return self._queue_ready()
+        if wait == _W_MOTION:
+            return host.motion_done()
+        if wait == _W_DWELL:
+            if self._dwell_until is None:
+                if not host.motion_done():
+                    return False
+                self._dwell_until = host.now() + self._dwell_seconds
+            return host.now() >= self._dwell_until
+        return True
+
+    def _await(self, wait: int) -> None:
+        """Start a wait; when it is not over at once, end the step with WAITING."""
+        self._wait = wait
+        if self._wait_over():
+            self._wait = _NO_WAIT
+        else:
+            self._block()
+
+    def _block(self) -> None:
+        self.status = WAITING
+        self._yield = True
+
+    def _at_robot(self) -> bool:
+        """For an instruction that must happen where the robot really is (I/O, print,
+        ``wait for``, ``pause``): True when every move handed over has ended; else the
+        step ends waiting for the motion, and the instruction runs again after it (its
+        handler returns its own offset and has not touched the stack). In an interrupt's
+        handler, at once: it acts beside the motion."""
+        if self._handling is not None or self.host.motion_done():
+            return True
+        self._wait = _W_MOTION
+        self._block()
+        return False
+
+    def _stop_with(self, message: str, offset: int) -> None:
+        line, column = self.program.line_at(offset)
+        self.error = VMError(message, line, column, offset)
+        self.status = ERROR
+        self._here = offset
+        self._wait = _NO_WAIT
+        self._end_handling()
+
+    def _end_handling(self) -> None:
+        """The program stops with an error while an interrupt's handler runs: the handler
+        never returns, so an interrupt with ``stop`` would hold the motion for ever (the
+        program, waiting for its moves to end before its error ends it, with it). The
+        motion stops for good instead, its moves not made dropped (as ``then halt``): the
+        error then ends the program with the robot at rest."""
+        handling, self._handling = self._handling, None
+        if handling is not None and self._ints[handling[0]][3]:
+            try:
+                self.host.interrupt_halt(f"program error in interrupt {self._ints[handling[0]][0]}")
+            except Exception:  # never raise: the program has ended with its error anyway
+                pass
+
+    def _run_table(self, budget: int) -> None:
+        """Every instruction through the handler table."""
+        n = budget
+        ops, args, handlers = self._ops, self._args, self._handlers
+        pc = here = self.pc
+        try:
+            while n:
+                n -= 1
+                here = pc
+                pc = handlers[ops[pc]](args[pc], pc)
+                if self._yield:
+                    self._yield = False
+                    break
+        except Exception as exc:  # never raise out of step()
+            self.instructions += budget - n
+            self._stop_with(_describe(exc, ops[here]), here)
+            return
+        self.instructions += budget - n
+        self.pc = pc
+        self._here = here
+
+    def _run_inline(self, budget: int) -> None:
+        """The frequent instructions inline, ordered by frequency; the rest through the
+        handler table. Each inline case computes exactly what its handler computes."""
+        n = budget
+        ops, args, consts, handlers = self._ops, self._args, self._consts, self._handlers
+        globals_ = self.globals
+        locals_ = self.locals
+        stack = self.stack
+        push, pop = stack.append, stack.pop
+        LOAD_GLOBAL, CONST, LOAD_LOCAL, STORE_GLOBAL, STORE_LOCAL = (
+            OP.LOAD_GLOBAL, OP.CONST, OP.LOAD_LOCAL, OP.STORE_GLOBAL, OP.STORE_LOCAL)
+        JUMP_IF_FALSE, JUMP, ADD, SUB, MUL = OP.JUMP_IF_FALSE, OP.JUMP, OP.ADD, OP.SUB, OP.MUL
+        LT, LE, GT, GE, EQ, NE = OP.LT, OP.LE, OP.GT, OP.GE, OP.EQ, OP.NE
+        GET_ITEM = OP.GET_ITEM
+        lo, hi = INT_MIN, INT_MAX
+        numbers = _NUMBER_TYPES
+        pc = here = self.pc
+        try:
+            while n:
+                n -= 1
+                here = pc
+                op = ops[pc]
+                if op == LOAD_GLOBAL:
+                    push(globals_[args[pc]])
+                    pc += 1
+                elif op == CONST:
+                    push(consts[args[pc]])
+                    pc += 1
+                elif op == LOAD_LOCAL:
+                    push(locals_[args[pc]])
+                    pc += 1
+                elif op == STORE_GLOBAL:
+                    globals_[args[pc]] = pop()
+                    pc += 1
+                elif op == STORE_LOCAL:
+                    locals_[args[pc]] = pop()
+                    pc += 1
+                elif op == JUMP_IF_FALSE:
+                    pc = pc + 1 if pop() else args[pc]
+                elif op == ADD:
+                    b = pop()
+                    a = stack[-1]
+                    try:
+                        r = a + b
+                    except TypeError:  # positions, poses, orientations: semantics.binary
+                        r = None
+                    # the common results here; anything else (strings, overflow,
+                    # non-finite reals) through semantics.binary
+                    if (lo <= r <= hi) if type(r) is int else (type(r) is float and r - r == 0.0):
+                        stack[-1] = r
+                    else:
+                        stack[-1] = binary("+", a, b)
+                    pc += 1
+                elif op == JUMP:
+                    pc = args[pc]
+                elif op == LE:
+                    b = pop()
+                    stack[-1] = stack[-1] <= b
+                    pc += 1
+                elif op == LT:
+                    b = pop()
+                    stack[-1] = stack[-1] < b
+                    pc += 1
+                elif op == GE:
+                    b = pop()
+                    stack[-1] = stack[-1] >= b
+                    pc += 1
+                elif op == GT:
+                    b = pop()
+                    stack[-1] = stack[-1] > b
+                    pc += 1
+                elif op == EQ:
+                    b = pop()
+                    stack[-1] = stack[-1] == b
+                    pc += 1
+                elif op == NE:
+                    b = pop()
+                    stack[-1] = stack[-1] != b
+                    pc += 1
+                elif op == SUB:
+                    b = pop()
+                    a = stack[-1]
+                    try:
+                        r = a - b
+                    except TypeError:  # positions, poses, orientations: semantics.binary
+                        r = None
+                    if (lo <= r <= hi) if type(r) is int else (type(r) is float and r - r == 0.0):
+                        stack[-1] = r
+                    else:
+                        stack[-1] = binary("-", a, b)
+                    pc += 1
+                elif op == MUL:
+                    b = pop()
+                    a = stack[-1]
+                    ta = type(a)
+                    # numbers only here: a string or an array times an integer (object code the
+                    # compiler never makes) would allocate before semantics.binary refuses it
+                    r = a * b if (ta is float or ta is int) and type(b) in numbers else None
+                    if (lo <= r <= hi) if type(r) is int else (type(r) is float and r - r == 0.0):
+                        stack[-1] = r
+                    else:
+                        stack[-1] = binary("*", a, b)
+                    pc += 1
+                elif op == GET_ITEM:
+                    index = pop()
+                    array = stack[-1]
+                    i = index - args[pc]
+                    if not 0 <= i < len(array):
+                        i = check_index(index, args[pc], len(array))  # raises
+                    stack[-1] = array[i]
+                    pc += 1
+                else:
+                    pc = handlers[op](args[pc], pc)
+                    locals_ = self.locals  # CALL and RET switch frames
+                    if self._yield:
+                        self._yield = False
+                        break
+        except Exception as exc:  # never raise out of step()
+            self.instructions += budget - n
+            self._stop_with(_describe(exc, ops[here]), here)
+            return
+        self.instructions += budget - n
+        self.pc = pc
+        self._here = here
+
+    # -- the handlers: op_<name>(operand, pc) -> the next pc --------------------------------
+    # ``operand`` is None for an instruction without operands, the operand for one with
+    # one, and a tuple for one with two. A handler that ends the step sets _yield (and
+    # the status).
+
+    def _pop_n(self, n: int) -> list:
+        stack = self.stack
+        if not n:
+            return []
+        values = stack[-n:]
+        del stack[-n:]
+        return values
+
+    def op_nop(self, _, pc):
+        return pc + 1
+
+    def op_const(self, k, pc):
+        self.stack.append(self._consts[k])
+        return pc + 1
+
+    def op_load_global(self, g, pc):
+        self.stack.append(self.globals[g])
+        return pc + 1
+
+    def op_store_global(self, g, pc):
+        self.globals[g] = self.stack.pop()
+        return pc + 1
+
+    def op_load_local(self, slot, pc):
+        self.stack.append(self.locals[slot])
+        return pc + 1
+
+    def op_store_local(self, slot, pc):
+        self.locals[slot] = self.stack.pop()
+        return pc + 1
+
+    def op_copy(self, _, pc):
+        stack = self.stack
+        if type(stack[-1]) is list:
+            stack[-1] = copy_array(stack[-1])
+        return pc + 1
+
+    def op_to_real(self, _, pc):
+        stack = self.stack
+        stack[-1] = float(stack[-1])
+        return pc + 1
+
+    def op_neg(self, _, pc):
+        stack = self.stack
+        stack[-1] = unary("-", stack[-1])
+        return pc + 1
+
+    def op_not(self, _, pc):
+        stack = self.stack
+        stack[-1] = unary("not", stack[-1])
+        return pc + 1
+
+    def _binary(self, op: str, pc: int) -> int:
+        stack = self.stack
+        b = stack.pop()
+        stack[-1] = binary(op, stack[-1], b)
+        return pc + 1
+
+    def op_add(self, _, pc):
+        return self._binary("+", pc)
+
+    def op_sub(self, _, pc):
+        return self._binary("-", pc)
+
+    def op_mul(self, _, pc):
+        return self._binary("*", pc)
+
+    def op_div(self, _, pc):
+        return self._binary("/", pc)
+
+    def op_idiv(self, _, pc):
+        return self._binary("div", pc)
+
+    def op_mod(self, _, pc):
+        return self._binary("mod", pc)
+
+    def op_eq(self, _, pc):
+        return self._binary("=", pc)
+
+    def op_ne(self, _, pc):
+        return self._binary("<>", pc)
+
+    def op_lt(self, _, pc):
+        return self._binary("<", pc)
+
+    def op_le(self, _, pc):
+        return self._binary("<=", pc)
+
+    def op_gt(self, _, pc):
+        return self._binary(">", pc)
+
+    def op_ge(self, _, pc):
+        return self._binary(">=", pc)
+
+    def op_and(self, _, pc):
+        return self._binary("and", pc)
+
+    def op_or(self, _, pc):
+        return self._binary("or", pc)
+
+    def op_call_builtin(self, operands, pc):
+        fn, argc = operands
+        self.stack.append(call_builtin(BUILTIN_NAMES[fn], self._pop_n(argc)))
+        return pc + 1
+
+    def op_make_joint(self, operands, pc):
+        main, add = operands
+        values = self._pop_n(main + add)
+        self.stack.append(make_joint(values[:main], values[main:]))
+        return pc + 1
+
+    def op_make_pos(self, _, pc):
+        self.stack.append(make_pos(*self._pop_n(3)))
+        return pc + 1
+
+    def op_make_rpy(self, _, pc):
+        self.stack.append(make_rpy(*self._pop_n(3)))
+        return pc + 1
+
+    def op_make_quat(self, _, pc):
+        self.stack.append(make_quat(*self._pop_n(4)))
+        return pc + 1
+
+    def op_make_pose(self, _, pc):
+        stack = self.stack
+        orientation = stack.pop()
+        stack[-1] = Pose(stack[-1], orientation)
+        return pc + 1
+
+    def op_make_array(self, n, pc):
+        stack = self.stack
+        element = stack[-1]
+        if n * array_elements(element) > MAX_ARRAY_ELEMENTS:
+            raise EvalError(f"an array of {n} x {array_elements(element)} elements is larger than "
+                            f"{MAX_ARRAY_ELEMENTS} elements, the largest allowed")
+        if type(element) is list:
+            stack[-1] = [copy_array(element) for _ in range(n)]
+        else:
+            stack[-1] = [element] * n
+        return pc + 1
+
+    def op_get_item(self, low, pc):
+        stack = self.stack
+        index = stack.pop()
+        array = stack[-1]
+        stack[-1] = array[check_index(index, low, len(array))]
+        return pc + 1
+
+    def op_set_item(self, low, pc):
+        stack = self.stack
+        value = stack.pop()
+        index = stack.pop()
+        array = stack.pop()
+        array[check_index(index, low, len(array))] = value
+        return pc + 1
+
+    def op_get_axis(self, _, pc):
+        stack = self.stack
+        axis = stack.pop()
+        stack[-1] = get_axis(stack[-1], axis)
+        return pc + 1
+
+    def op_set_axis(self, _, pc):
+        stack = self.stack
+        value = stack.pop()
+        axis = stack.pop()
+        stack[-1] = set_axis(stack[-1], axis, value)
+        return pc + 1
+
+    def op_get_field(self, f, pc):
+        stack = self.stack
+        stack[-1] = get_field(stack[-1], FIELDS[f])
+        return pc + 1
+
+    def op_jump(self, target, pc):
+        return target
+
+    def op_jump_if_false(self, target, pc):
+        return pc + 1 if self.stack.pop() else target
+
+    def op_call(self, p, pc):
+        entry, params, slots, name = self._procs[p]
+        if len(self.frames) >= self.max_call_depth:
+            raise EvalError(f"too many nested procedure or function calls (more than {self.max_call_depth}) "
+                            f"calling {name}: is the recursion endless?")
+        frame = [None] * slots
+        if params:
+            stack = self.stack
+            frame[:params] = stack[-params:]
+            del stack[-params:]
+        self.frames.append((pc + 1, self.locals))
+        self.locals = frame
+        return entry
+
+    def op_ret(self, _, pc):
+        back, self.locals = self.frames.pop()
+        if back == _FROM_INTERRUPT:
+            return self._handler_done()
+        return back
+
+    # A function is called as a procedure is; its RET_VALUE leaves the result on the stack,
+    # where the caller's expression goes on from (the verifier checked the depths).
+    op_call_func = op_call
+    op_ret_value = op_ret
+
+    # The host reports an I/O number out of range as EvalError (its message stops the
+    # program); any other exception is the host's failure (see _describe).
+    def op_in_get(self, _, pc):
+        if not self._at_robot():
+            return pc
+        stack = self.stack
+        stack[-1] = bool(self.host.read_input(stack[-1]))
+        return pc + 1
+
+    def op_out_set(self, _, pc):
+        if not self._at_robot():
+            return pc
+        stack = self.stack
+        value = stack.pop()
+        n = stack.pop()
+        self.host.write_output(n, value)
+        return pc + 1
+
+    def _move(self, kind: str, targets: int, mask: int, pc: int) -> int:
+        names = _CLAUSE_NAMES[mask]
+        clauses = dict(zip(names, self._pop_n(len(names)))) if names else {}
+        problem = self.host.move(kind, tuple(self._pop_n(targets)), clauses, self.program.line_at(pc)[0])
+        if problem is not None:
+            raise EvalError(str(problem))
+        self.moves_issued += 1
+        self._motion_barrier()
+        return pc + 1
+
+    def _motion_barrier(self) -> None:
+        """After a move: run on (look-ahead) while the host has room for another move;
+        else wait until it has. END and HALT need no wait: the program is finished when
+        its motion is (the host's business)."""
+        self._await(_W_QUEUE)
+
+    def op_move_ptp(self, mask, pc):
+        return self._move("ptp", 1, mask, pc)
+
+    def op_move_lin(self, mask, pc):
+        return self._move("lin", 1, mask, pc)
+
+    def op_move_circ(self, mask, pc):
+        return self._move("circ", 2, mask, pc)
+
+    def op_trigger_out(self, operands, pc):
+        place, unit = operands
+        stack = self.stack
+        value, n, amount = stack.pop(), stack.pop(), stack.pop()
+        problem = self.host.trigger(place, unit, amount, ("out", n, value))
+        if problem is not None:
+            raise EvalError(problem)
+        return pc + 1
+
+    def op_trigger_set(self, operands, pc):
+        place, unit, g = operands
+        stack = self.stack
+        value, amount = stack.pop(), stack.pop()
+        problem = self.host.trigger(place, unit, amount, ("set", g, value))
+        if problem is not None:
+            raise EvalError(problem)
+        return pc + 1
+
+    def _use(self, keyword: str, name: int, pc: int) -> int:
+        problem = self.host.use_frame(keyword, self.program.constants[name], self.stack.pop())
+        if problem is not None:
+            raise EvalError(problem)
+        return pc + 1
+
+    def op_use_base(self, name, pc):
+        return self._use("base", name, pc)
+
+    def op_use_tool(self, name, pc):
+        return self._use("tool", name, pc)
+
+    def op_dwell(self, _, pc):
+        seconds = self.stack.pop()
+        if seconds < 0:
+            raise EvalError(f"wait {format_number(seconds)} sec: a wait cannot be negative")
+        self._dwell_seconds = float(seconds)
+        # (in an interrupt's handler the wait starts at once, beside the motion)
+        self._dwell_until = self.host.now() + seconds if self._handling is not None else None
+        self._await(_W_DWELL)
+        return pc + 1
+
+    def op_wait_begin(self, timeout, pc):
+        if not self._at_robot():
+            return pc
+        if timeout:
+            seconds = self.stack.pop()
+            if seconds < 0:
+                raise EvalError(f"wait for ... timeout {format_number(seconds)} sec: "
+                                f"a time-out cannot be negative")
+            self._timeout = seconds
+            self._deadline = self.host.now() + seconds
+        else:
+            self._deadline = None
+        return pc + 1
+
+    def op_wait_test(self, target, pc):
+        if self.stack.pop():
+            self._deadline = None
+            return pc + 1
+        deadline = self._deadline
+        if deadline is not None and self.host.now() >= deadline:
+            self._deadline = None
+            self.host.log(f"wait for timed out after {format_number(self._timeout)} s",
+                          self.program.line_at(pc)[0])
+            return pc + 1
+        self._block()  # test again next cycle
+        return target
+
+    def op_print(self, n, pc):
+        if not self._at_robot():
+            return pc
+        parts, length = [], 0
+        for v in self._pop_n(n):
+            if length > MAX_STRING_LENGTH:
+                break
+            part = v if type(v) is str else format_value(v)
+            parts.append(part)
+            length += len(part)
+        text = PRINT_SEPARATOR.join(parts)
+        if len(text) > MAX_STRING_LENGTH:  # a line of the operator log is at most this long
+            text = text[:MAX_STRING_LENGTH - 3] + "..."
+        self.host.log(text, self.program.line_at(pc)[0])
+        return pc + 1
+
+    def op_pause(self, _, pc):
+        if not self._at_robot():
+            return pc
+        self.paused = True
+        self.host.log("paused by the program: resume to continue", self.program.line_at(pc)[0])
+        self._block()
+        return pc + 1
+
+    def _end(self, pc: int) -> int:
+        self.status = DONE
+        self._yield = True
+        return pc
+
+    def op_halt(self, _, pc):
+        if self._handling is not None:  # 'halt' in a handler: as 'then halt'
+            self._here = pc
+            i, _saved, line = self._handling
+            self._handling = None
+            return self._halt_by_interrupt(self._ints[i][0], line)
+        return self._armed_end(pc)
+
+    def op_end(self, _, pc):
+        return self._armed_end(pc)
+
+    def _armed_end(self, pc: int) -> int:
+        """The program's end: with interrupts enabled, not before the motion has ended (so
+        they can still fire during the last moves)."""
+        if self._armed and not self.host.motion_done():
+            self._wait = _W_MOTION
+            self._block()
+            return pc
+        return self._end(pc)
+
+
+def build_dispatch(cls: type = VM) -> tuple:
+    """The handler of every instruction, indexed by opcode, from the instruction table.
+    Raises ImportError naming each instruction that has no ``op_<name>`` method."""
+    if [d.code for d in INSTRUCTIONS] != list(range(len(INSTRUCTIONS))):
+        raise ImportError("runtime.loop.vm: the instruction table's opcodes are not 0..n-1 in order")
+    handlers = [getattr(cls, "op_" + d.name.lower(), None) for d in INSTRUCTIONS]
+    missing = [d.name for d, h in zip(INSTRUCTIONS, handlers) if not callable(h)]
+    if missing:
+        raise ImportError(f"runtime.loop.vm: no VM handler for instruction(s) {', '.join(missing)}")
+    return tuple(handlers)
+
+
+#: The handler of each opcode (unbound ``VM.op_*`` functions); checked at import.
+HANDLERS = build_dispatch()

@@ -1,0 +1,1127 @@
+"""``irl serve``: one robot on the network (see docs/protocol.md).
+
+Two processes (docs/runtime.md, "Process layout"). The **loop process**
+(runtime/loop/robotloop.py) owns the robot: the executive, the components, the supervisor, the
+robot interface, the report files. It runs one cycle of the supervisor at a time (Start
+Robot ... Stop Robot; calibration and initialization are remembered) when the server
+says ``start``, applies the operator commands forwarded to it between ticks (a bounded
+number per tick), and sends back replies, telemetry events, a snapshot of the robot
+every 10 ms and each cycle's summary. It asks for real-time scheduling for itself.
+
+The **server** process owns the network and everything that is not real-time: the ROUTER
+socket (it decodes and checks every request, answers the ones that only read, hello,
+status, report chunks, from the loop's latest snapshot and its own job table, and
+verifies submitted object code), the program queue, the configuration file, and the
+telemetry PUB socket (it encodes and publishes what the loop sent; non-blocking sends
+with a bounded queue: a subscriber that stops reading loses messages, never slows
+anything). The two exchange messages through a :class:`~runtime.wire.channel.Channel` that the
+loop never waits on. Nothing a client sends can raise into the loop: a bad request gets
+an error reply and the server keeps serving; a flood of requests costs the server's
+time, not the loop's.
+
+Tests drive the same server with the loop in-process (``ServeOptions(loop_process=False)``),
+turn by turn: one turn is one tick.
+"""
+from __future__ import annotations
+
+import collections
+import hmac
+import itertools
+import logging
+import os
+import secrets
+import signal
+import sys
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+import zmq
+
+from compiler.objcode import OP, ObjectCodeError, Program, load, spec_mismatch
+
+from runtime.places import DEFAULT_ENDPOINT, DEFAULT_TELEMETRY, default_state_dir
+from runtime.wire import protocol
+from runtime.config import merge_settings
+from runtime.loop.components.report import tcp_of
+from runtime.server.feeds import Feeds
+from runtime.motion.moves import Frames
+from runtime.wire.protocol import ProtocolError
+from runtime.loop.robotloop import EXIT_TIMEOUT
+from runtime.loop.system import RunOptions
+
+log = logging.getLogger("irl.serve")
+
+HISTORY = 200  # finished programs kept for status
+LOOP_START_TIMEOUT = 30.0  # s the server waits for the loop process to be ready
+CLOSE_LINGER_MS = 1000  # ms a closing server gives its last replies and telemetry to reach connected peers
+
+
+@dataclass
+class ServeOptions:
+    endpoint: str = DEFAULT_ENDPOINT
+    telemetry: str = DEFAULT_TELEMETRY
+    state_dir: str | Path | None = None
+    sim_clock: bool = False
+    seed: int = 0
+    keys: str | Path | None = None  # CURVE key directory (see runtime.wire.keys)
+    #: Bind endpoints other machines can reach without CURVE keys (see check_endpoints).
+    allow_insecure_remote: bool = False
+    #: The servo's deadline policy ("hard", "firm", "soft"); None: the specification's.
+    deadline_policy: str | None = None
+    #: Real-time scheduling for the loop process (wall clock only): a runtime.loop.realtime.Scheduling;
+    #: None: runtime.loop.realtime.DEFAULT (SCHED_FIFO, memory locked, where the host permits it).
+    scheduling: object = None
+    #: The loop in a process of its own (False: in this one, driven by ``Server.turn``: tests).
+    loop_process: bool = True
+    #: What the simulated cell does with the I/O (runtime.hardware.sim.cell.Scenario), or None.
+    cell: object = None
+    #: The I/O on a PLC (runtime.hardware.fieldbus.ModbusConfig), or None.
+    fieldbus: object = None
+
+
+INSECURE_FLAG = "--insecure-allow-remote-without-encryption"
+
+
+class InsecureEndpoint(Exception):
+    """An endpoint reachable from other machines, without CURVE keys and without the
+    explicit permission (:data:`INSECURE_FLAG`)."""
+
+
+def is_local_endpoint(endpoint: str) -> bool:
+    """Whether only this machine can connect to a ZeroMQ endpoint bound here:
+    ``ipc://`` and ``inproc://``, and ``tcp://`` (or ``ws://``) on a loopback address
+    (127.0.0.0/8, ::1, ``localhost``). Anything else is taken as reachable from the
+    network: ``*``, 0.0.0.0, ::, another address, a host or interface name (``eth0``),
+    and the other transports (pgm, epgm, udp, tipc, vmci...)."""
+    import ipaddress
+
+    scheme, sep, rest = endpoint.partition("://")
+    scheme = scheme.lower()
+    if not sep:
+        return False
+    if scheme in ("ipc", "inproc"):
+        return True
+    if scheme not in ("tcp", "ws", "wss"):
+        return False
+    address = rest.split("/", 1)[0]  # ws://host:port/path
+    host, sep, _port = address.rpartition(":")
+    if not sep or not host:
+        return False
+    if host.startswith("[") and host.endswith("]"):
+        host = host[1:-1]
+    if host.lower() == "localhost":
+        return True
+    try:
+        ip = ipaddress.ip_address(host)
+    except ValueError:
+        return False  # a host or interface name: it may well face the network
+    if isinstance(ip, ipaddress.IPv6Address) and ip.ipv4_mapped is not None:
+        ip = ip.ipv4_mapped
+    return ip.is_loopback
+
+
+def check_endpoints(options: ServeOptions) -> None:
+    """Refuse (InsecureEndpoint, with what to do) to serve the robot unencrypted and
+    unauthenticated on an endpoint other machines can reach, unless asked explicitly."""
+    if options.keys or options.allow_insecure_remote:
+        return
+    for what, endpoint in (("request", options.endpoint), ("telemetry", options.telemetry)):
+        if not is_local_endpoint(endpoint):
+            raise InsecureEndpoint(
+                f"refusing to bind the {what} endpoint {endpoint} without CURVE keys: other machines can reach "
+                f"it (only loopback, 127.0.0.0/8, ::1 or localhost, and ipc:// are local), so anyone on the "
+                f"network could "
+                + ("submit programs to the robot, move it and change its settings"
+                   if what == "request" else "watch the robot's telemetry")
+                + f". Give --keys DIR (make them with 'irl keys DIR') to require authenticated, encrypted "
+                  f"clients, or, on a network you trust completely, {INSECURE_FLAG}")
+
+
+class Job:
+    """One submitted program and what became of it."""
+
+    def __init__(self, job_id: int, name: str, program: Program | None, report: Path | None,
+                 settings: dict | None = None, configuration: str | None = None):
+        self.id = job_id
+        self.name = name
+        self.program = program
+        self.report = report
+        self.settings = settings  # a reconfiguration (no program): the settings to apply
+        self.configuration = configuration
+        self.state = "queued"  # queued, running, completed, faulted, aborted, cancelled
+        self.fault: str | None = None
+        self.submitted = time.time()
+        self.started: float | None = None
+        self.ended: float | None = None
+        self.summary: dict | None = None
+        self.moves_total = moves_total(program) if program is not None else 0
+        self.object: bytes | None = None  # the verified object code, for the loop
+
+    def as_dict(self, summary: bool = True) -> dict:
+        d = {"id": self.id, "name": self.name, "state": self.state, "fault": self.fault,
+             "submitted": self.submitted, "started": self.started, "ended": self.ended,
+             "report": str(self.report) if self.report else None, "moves_total": self.moves_total,
+             "kind": "program" if self.settings is None else "reconfiguration"}
+        if self.summary is not None:
+            d.update(line=None, moves_done=sum(1 for m in self.summary["moves"] if m["actual_duration"] is not None))
+            if summary:
+                d["summary"] = self.summary
+        return d
+
+
+def moves_total(program: Program) -> int | None:
+    """How many moves the program makes, when that is known without running it (no
+    loops, no procedure calls); else None."""
+    moves = 0
+    for offset, instr in enumerate(program.code):
+        op = instr[0]
+        if op in (OP.MOVE_PTP, OP.MOVE_LIN, OP.MOVE_CIRC):
+            moves += 1
+        elif op == OP.CALL or (op in (OP.JUMP, OP.JUMP_IF_FALSE) and instr[1] <= offset):
+            return None
+    return moves
+
+
+class LoopCommand:
+    """What an ``op_*`` handler returns for a request the loop must carry out: the
+    command's name and arguments (runtime.loop.robotloop.COMMANDS); the loop's reply becomes
+    the client's (through ``finish``, when given, for what the server adds to it)."""
+
+    __slots__ = ("op", "args", "finish", "failed", "version")
+
+    def __init__(self, op: str, finish=None, failed=None, **args):
+        self.op = op
+        self.args = args
+        self.finish = finish  # result -> the client's result (may raise ProtocolError)
+        self.failed = failed  # called with the loop's refusal
+        self.version = protocol.VERSION  # the request's protocol version (its reply's)
+
+
+class Wait:
+    """What ``op_wait`` returns: answer when ``program`` has ended, or at ``deadline``."""
+
+    __slots__ = ("program", "deadline")
+
+    def __init__(self, program: int, deadline: float):
+        self.program = program
+        self.deadline = deadline
+
+
+class Control:
+    """Control's holder (protocol 2, ``control``): the connection that took it (the
+    identity the server gave it, runtime.server.connections), the token ``take`` returned, the
+    name shown, the lease and the time of its last request."""
+
+    __slots__ = ("connection", "token", "name", "lease", "last")
+
+    def __init__(self, connection: str | None, token: str, name: str, lease: float):
+        self.connection = connection
+        self.token = token
+        self.name = name
+        self.lease = lease
+        self.last = time.monotonic()
+
+    def owns(self, connection: str | None, token: str | None) -> bool:
+        """Whether a request from ``connection`` carrying ``token`` is the holder's (a
+        connection without an identity is nobody's)."""
+        if connection is not None and connection == self.connection:
+            return True
+        return token is not None and hmac.compare_digest(token.encode(), self.token.encode())
+
+
+class LoopGone(Exception):
+    """The loop process ended, or never became ready."""
+
+
+class Server:
+    def __init__(self, spec, options: ServeOptions, configurations=None):
+        self.spec = spec
+        # the specification's file as a client on this host can name it (messages)
+        self.spec_file = os.path.abspath(spec.file) if os.path.isfile(spec.file) else spec.file
+        self.options = options
+        self.tcp = tcp_of(spec)  # the sample's TCP (None: the robot's kinematics give none)
+        state_dir = Path(options.state_dir) if options.state_dir else default_state_dir()
+        self.state_dir = state_dir
+        session = time.strftime("%Y%m%d-%H%M%S") + f"-{os.getpid()}"
+        self.report_dir = state_dir / "reports" / session
+        self.jobs: dict[int, Job] = {}
+        self.queue: collections.deque[Job] = collections.deque()
+        self.finished: collections.deque[int] = collections.deque()
+        self.current: Job | None = None
+        self.next_id = 1
+        self.override = 100.0
+        self.commands: collections.deque = collections.deque()  # (identity, request id, LoopCommand) to forward
+        self.outbox: collections.deque = collections.deque()  # (identity, reply bytes) when no socket is bound
+        self.inbox: collections.deque = collections.deque()  # messages of an in-process loop
+        self.pending: dict[int, tuple] = {}  # ref -> (identity, request id, LoopCommand) awaiting the loop
+        self._ref = 0
+        self.snapshot: dict = {}  # the loop's latest
+        self.stop_reason: str | None = None
+        self._stopping = False  # the loop was told to stop the running program and end (shutdown)
+        self.telemetry_seq = 0
+        self.telemetry_sent = 0
+        self.telemetry_history: collections.deque = collections.deque(maxlen=protocol.TELEMETRY_HISTORY)
+        self.last_sample: dict | None = None
+        self.feeds = Feeds()  # the subscribers' chosen fields and rates (the feed request)
+        self.waiters: list = []  # (Wait, identity, request id, version) of unanswered waits
+        self.controller: Control | None = None  # control's holder (protocol 2)
+        self.controls_taken = 0  # (an unnamed holder is shown as "client #N")
+        self.loop_scheduling: str | None = None
+        self.loop_gone: str | None = None  # why the loop process ended (then no program runs)
+        self.loop = self.process = self.channel = None
+        self.router = self.pub = self.connections = None
+        run_options = RunOptions(seed=options.seed, realtime=not options.sim_clock, state_dir=state_dir,
+                                 deadline_policy=options.deadline_policy, cell=options.cell,
+                                 fieldbus=options.fieldbus)
+        # the loop first: the fork copies only this thread, before any ZeroMQ context exists
+        if options.loop_process:
+            from runtime.loop.robotloop import start_process
+
+            self.process, self.channel = start_process(spec, run_options, options.scheduling)
+            ready = self._await("ready", LOOP_START_TIMEOUT)
+        else:
+            from runtime.loop.robotloop import RobotLoop
+
+            self.loop = RobotLoop(spec, run_options, self._from_loop)
+            ready = self.loop.ready()
+        self.snapshot = ready["snapshot"]
+        self.loop_scheduling = ready["scheduling"]
+        self.loop_pid = ready["pid"]
+        self.baseline = ready["baseline"]  # what a configuration's missing keys fall back to
+        self.configurations = configurations
+        self.configuration = None
+        if configurations is not None:
+            from runtime.config import validate_settings
+
+            self.configuration = configurations.default
+            try:
+                settings = validate_settings(merge_settings(self.baseline,
+                                                            configurations[configurations.default].settings),
+                                             f"configuration {configurations.default!r} over the start-up settings")
+                self._ask(LoopCommand("settings", settings=settings))
+            except BaseException:
+                self._stop_loop()
+                raise
+        self.ctx = zmq.Context()
+
+    @property
+    def system(self):
+        """The robot, when the loop runs in this process (tests); else AttributeError."""
+        if self.loop is None:
+            raise AttributeError("the loop runs in its own process: its system is not here")
+        return self.loop.system
+
+    # ---- the loop -------------------------------------------------------------------------
+    def _from_loop(self, message: dict, droppable: bool = False) -> bool:
+        self.inbox.append(message)
+        return True
+
+    def _send_loop(self, command: LoopCommand, identity=None, request_id=None) -> None:
+        self._ref += 1
+        self.pending[self._ref] = (identity, request_id, command)
+        message = {"op": command.op, "ref": self._ref, **command.args}
+        if self.loop is not None:
+            self.loop.commands.append(message)
+        else:
+            self.channel.send(message)
+
+    def _forward(self) -> None:
+        while self.commands:
+            identity, request_id, command = self.commands.popleft()
+            self._send_loop(command, identity, request_id)
+
+    def _receive(self) -> list:
+        if self.loop is not None:
+            messages = list(self.inbox)
+            self.inbox.clear()
+            return messages
+        from runtime.wire.channel import ChannelClosed
+
+        try:
+            return self.channel.receive()
+        except ChannelClosed:
+            raise LoopGone(self._loop_gone()) from None
+
+    def _loop_gone(self) -> str:
+        process = self.process  # (kept until _stop_loop has joined it: a LoopGone may be raised meanwhile)
+        process.join(1.0)
+        code = process.exitcode
+        how = "still running" if code is None else (f"killed by signal {-code}" if code < 0 else f"exit status {code}")
+        return f"the real-time loop process ({process.pid}) ended unexpectedly ({how})"
+
+    def _await(self, kind: str, timeout: float) -> dict:
+        """Not real-time: wait for the loop's next message of ``kind`` (handling the others)."""
+        deadline = time.monotonic() + timeout
+        while True:
+            for message in self._receive():
+                if message["kind"] == "failed":
+                    raise LoopGone(f"the real-time loop could not start: {message['error']}")
+                if message["kind"] == kind:
+                    return message
+                self._on_loop(message)
+            remaining = deadline - time.monotonic()
+            if remaining <= 0:
+                raise LoopGone(f"the real-time loop sent no {kind!r} within {timeout:g} s")
+            if self.loop is not None:
+                self.loop.turn()
+            else:
+                self.channel.wait(min(remaining, 0.1))
+
+    def request(self, op: str, args: dict | None = None):
+        """Not real-time (tests, tools): one request's result, a loop command carried out
+        and waited for; raises ProtocolError when refused."""
+        result = getattr(self, f"op_{op}")(args or {})
+        return self._ask(result) if isinstance(result, LoopCommand) else result
+
+    def _ask(self, command: LoopCommand, timeout: float = LOOP_START_TIMEOUT):
+        """Not real-time: one command and its result (ProtocolError when refused)."""
+        self._send_loop(command)
+        ref = self._ref
+        deadline = time.monotonic() + timeout
+        while ref in self.pending:
+            for message in self._receive():
+                if message["kind"] == "reply" and message["ref"] == ref:
+                    self.pending.pop(ref)
+                    if not message["ok"]:
+                        if command.failed is not None:
+                            command.failed(message)
+                        raise ProtocolError(message["code"], message["message"])
+                    result = message["result"]
+                    return command.finish(result) if command.finish is not None else result
+                self._on_loop(message)
+            if time.monotonic() > deadline:
+                raise LoopGone(f"the real-time loop did not answer {command.op!r} within {timeout:g} s")
+            if self.loop is not None:
+                self.loop.turn()
+            else:
+                self.channel.wait(0.1)
+
+    def _on_loop(self, message: dict) -> None:
+        kind = message["kind"]
+        if kind == "snapshot":
+            self.snapshot = message
+            self._publish_sample()
+        elif kind == "reply":
+            self._on_reply(message)
+        elif kind == "event":
+            del message["kind"]
+            self._publish({"kind": "event", **message})
+        elif kind == "finished":
+            self._finish_current(message)
+
+    def _on_reply(self, message: dict) -> None:
+        entry = self.pending.pop(message["ref"], None)
+        if entry is None:
+            return
+        identity, request_id, command = entry
+        if message["ok"]:
+            result = message["result"]
+            try:
+                if command.finish is not None:
+                    result = command.finish(result)
+                reply = protocol.ok(request_id, result, command.version)
+            except ProtocolError as exc:
+                reply = protocol.error(request_id, exc.code, exc.message, command.version)
+        else:
+            if command.failed is not None:
+                command.failed(message)
+            reply = protocol.error(request_id, message["code"], message["message"], command.version)
+        if identity is not None:
+            self._reply(identity, reply)
+
+    def _dispatch(self) -> bool:
+        """Start the next program when the loop is free; bring the shutdown along. False
+        once a shutdown is done (the robot at rest, no program running)."""
+        if self.stop_reason is not None and self.queue:  # a shutdown: what waits will never run
+            self._cancel_queue(f"cancelled: {self.stop_reason}")
+        if self.current is None:
+            if self.stop_reason is not None:
+                return False
+            if self.queue and self.loop_gone is None:
+                self._start_next()
+        elif self.stop_reason is not None and not self._stopping:
+            # the loop stops the program on its path, and makes it an emergency stop if the
+            # robot is not at rest within robotloop.EXIT_TIMEOUT
+            self._stopping = True
+            self._send_loop(LoopCommand("exit", reason=self.stop_reason))
+        return True
+
+    def turn(self, idle_wait: bool = True) -> bool:
+        """With the loop in this process: one turn of it (the forwarded commands, then one
+        tick of the running program, or of the next one started), and what it sent
+        handled. False once a shutdown is done. Tests drive the server turn by turn (no
+        sockets: they call the ``op_*`` handlers and read ``outbox``)."""
+        if not self._dispatch():
+            return False
+        self._forward()
+        self.loop.turn()
+        for message in self._receive():
+            self._on_loop(message)
+        self._answer_waiters()
+        return True
+
+    def request_shutdown(self, reason: str = "the server is shutting down") -> None:
+        """Safe from a signal handler: stop after bringing the robot to rest."""
+        if self.stop_reason is None:
+            self.stop_reason = reason
+
+    def _start_next(self) -> None:
+        job = self.queue.popleft()
+        try:
+            self.report_dir.mkdir(parents=True, exist_ok=True)
+        except OSError as exc:
+            self._end(job, "faulted", f"cannot make {self.report_dir}: {exc.strerror or exc}")
+            return
+        job.state, job.started = "running", time.time()
+        self.current = job
+        log.info("program %d (%s) started", job.id, job.name)
+
+        def started(result: dict) -> dict:
+            self._publish({"kind": "event", "event": "program", "program": job.id, "state": "running",
+                           "t": result["t"]})
+            return result
+
+        def refused(reply: dict) -> None:  # the program cannot run here
+            self._end(job, "faulted", reply["message"])
+
+        self._send_loop(LoopCommand("start", finish=started, failed=refused, job=job.id, object=job.object,
+                                    report=str(job.report) if job.report else None,
+                                    settings=job.settings, override=self.override))
+
+    def _finish_current(self, message: dict) -> None:
+        job = self.current
+        if job is None or job.id != message["job"]:
+            return
+        job.summary = message["summary"]
+        fault = job.summary["fault"]
+        if fault is None and job.configuration is not None:
+            self.configuration = job.configuration
+        self._end(job, "completed" if fault is None else "aborted" if message["aborted"] else "faulted", fault)
+
+    def _end(self, job: Job, state: str, fault: str | None) -> None:
+        """A program has ended (``completed``, ``faulted``, ``aborted``) or will never run
+        (``cancelled``): kept for status, said on telemetry, its waiters answered."""
+        job.state, job.fault, job.ended = state, fault, time.time()
+        if job is self.current:
+            self.current = None
+        self._retire(job)
+        log.info("program %d %s%s", job.id, state, f": {fault}" if fault else "")
+        self._publish({"kind": "event", "event": "program", "program": job.id, "state": state, "fault": fault})
+        self._answer_waiters()
+
+    def _retire(self, job: Job) -> None:
+        job.program = job.object = None  # the code is not needed any more
+        self.finished.append(job.id)
+        while len(self.finished) > HISTORY:
+            self.jobs.pop(self.finished.popleft(), None)
+
+    # ---- telemetry --------------------------------------------------------------------------
+    def _publish(self, message: dict) -> None:
+        self.telemetry_seq += 1
+        message["v"] = protocol.VERSION
+        message["seq"] = self.telemetry_seq
+        message.setdefault("t", self.snapshot.get("t", 0.0))
+        self.telemetry_history.append(message)  # (for replay: the telemetry request)
+        if message["kind"] == "sample":
+            self.last_sample = message
+        if self.pub is None:  # not bound (driven turn by turn, in-process)
+            return
+        try:
+            self.pub.send_multipart((protocol.TELEMETRY_TOPIC, protocol.pack(message)), zmq.NOBLOCK)
+            self.telemetry_sent += 1
+        except zmq.Again:
+            pass
+        for topic, fed in self.feeds.outgoing(message):
+            try:
+                self.pub.send_multipart((topic, protocol.pack(fed)), zmq.NOBLOCK)
+            except zmq.Again:
+                pass
+
+    def _tcp_fields(self, snap: dict) -> dict:
+        """The sample's tool, base and TCP (in the world frame and in that base), from the
+        loop's snapshot: its measured position and the move's frames."""
+        raw = snap.get("frames")
+        if not raw:
+            return {}
+        frames = Frames(raw[0], tuple(raw[1]), raw[2], tuple(raw[3]))
+        fields = {"tool": frames.tool_name, "base": frames.base_name, "tcp": None, "tcp_base": None}
+        if self.tcp is not None:
+            joints = snap["position"][:len(self.spec.main_axes)]
+            world = self.tcp.world(joints, frames)  # (the forward kinematics once for both)
+            fields["tcp"] = list(world)
+            fields["tcp_base"] = list(self.tcp.in_base(joints, frames, world))
+        return fields
+
+    def _poll_subscriptions(self) -> None:
+        """Which telemetry topics have subscribers (XPUB's subscription messages)."""
+        for _ in range(1000):
+            try:
+                self.feeds.subscription(self.pub.recv(zmq.NOBLOCK))
+            except zmq.ZMQError:  # (zmq.Again: none left)
+                return
+
+    def _publish_sample(self) -> None:
+        snap = self.snapshot
+        job = self.current
+        running = job is not None and snap.get("job") == job.id
+        sample = {"kind": "sample", "state": snap["state"] if running else "Idle",
+                  "program": job.id if running else None, "queued": len(self.queue),
+                  "override": self.override, "position": snap["position"], "inputs": snap["inputs"],
+                  "outputs": snap["outputs"], "t": snap["t"]}
+        sample.update(self._tcp_fields(snap))
+        if running and "line" in snap:
+            sample.update(line=snap["line"], moves_done=snap["moves_done"], moves_total=job.moves_total,
+                          paused=snap["paused"], following_error=snap["following_error"])
+        self._publish(sample)
+
+    # ---- sockets and the server's own loop ------------------------------------------------
+    def bind(self) -> None:
+        """Bind the request and telemetry sockets (raises zmq.ZMQError when taken)."""
+        check_endpoints(self.options)
+        from runtime.server.connections import Connections
+
+        ctx = self.ctx
+        self.router = ctx.socket(zmq.ROUTER)
+        self.pub = ctx.socket(zmq.XPUB)  # a PUB that says which topics have subscribers (feeds)
+        authorized = None
+        if self.options.keys:
+            from runtime.wire.keys import server_security
+
+            authorized = server_security(self.options.keys, (self.router, self.pub))
+        # every connection's handshake is answered here: each gets an identity of its own
+        # (control is bound to it, not to a routing id a client can choose; and with CURVE,
+        # only the authorized keys connect)
+        self.connections = Connections(ctx, authorized)
+        self.connections.protect(self.router)
+        if authorized is not None:
+            self.connections.protect(self.pub)
+        self.router.setsockopt(zmq.MAXMSGSIZE, protocol.TRANSPORT_MAX_BYTES)
+        self.router.setsockopt(zmq.LINGER, 0)
+        # handover: a connection with a routing id another one has takes it over (libzmq closes
+        # the older one); without it libzmq ignores the newer connection for good when the older
+        # one has not closed yet (a client that reconnects at once would be locked out, and
+        # anyone could squat on a client's id). Control does not depend on routing ids.
+        self.router.setsockopt(zmq.ROUTER_HANDOVER, 1)
+        self.router.setsockopt(zmq.SNDHWM, 10_000)
+        self.router.bind(self.options.endpoint)
+        self.pub.setsockopt(zmq.SNDHWM, 1000)  # bounded: a slow subscriber loses messages
+        self.pub.setsockopt(zmq.LINGER, 0)
+        self.pub.bind(self.options.telemetry)
+
+    def close(self) -> None:
+        self._stop_loop()
+        for sock in (self.router, self.pub):
+            if sock is not None:  # the last replies and events (the queue cancelled, the shutdown) still go out
+                sock.close(linger=CLOSE_LINGER_MS)
+        if self.connections is not None:
+            self.connections.close()
+        self.ctx.term()
+
+    def _stop_loop(self) -> None:
+        """End the loop process (it brings the robot to rest first). A loop already told
+        to exit by the shutdown (``_stopping``) is ending on its own: it is not asked
+        again (it may have closed its end of the channel already), only waited for."""
+        process = self.process
+        if process is None:
+            return
+        if process.is_alive():
+            if not self._stopping:
+                self._stopping = True
+                try:
+                    self._ask(LoopCommand("exit", reason=self.stop_reason or "the server is closing"), timeout=5.0)
+                except (LoopGone, ProtocolError):
+                    pass  # it ended meanwhile, or it refused: the join below says
+            process.join(EXIT_TIMEOUT + 5.0)
+            if process.is_alive():
+                log.error("the loop process %d did not end: terminated", process.pid)
+                process.kill()
+                process.join(1.0)
+        self.process = None
+        self.channel.close()
+
+    def serve(self) -> int:
+        """Run until a shutdown is requested (``request_shutdown``) and the robot is at
+        rest; returns the exit status."""
+        if self.loop is not None:  # the loop in this process (a debugging layout): one thread does all
+            while self.turn():
+                self._poll_requests(0)
+            self._publish({"kind": "event", "event": "shutdown", "reason": self.stop_reason})
+            return 0
+        log.info("loop: %s (process %d)", self.loop_scheduling or "simulated clock", self.loop_pid)
+        poller = zmq.Poller()
+        poller.register(self.router, zmq.POLLIN)
+        poller.register(self.channel.fileno(), zmq.POLLIN)
+        poller.register(self.pub, zmq.POLLIN)
+        poller.register(self.connections.socket, zmq.POLLIN)
+        while self._dispatch():
+            if self.loop_gone is not None:  # keep answering (status says why), refuse work
+                self._poll_requests(200, poller)
+                continue
+            try:
+                self._forward()
+                self._poll_requests(5 if self.channel.pending else (50 if self.waiters else 200), poller)
+                for message in self._receive():
+                    self._on_loop(message)
+                self.channel.flush()
+                self._answer_waiters()
+            except LoopGone as exc:
+                log.error("%s: the server answers requests but runs no program; restart it", exc)
+                poller.unregister(self.channel.fileno())
+                self._fail_all(str(exc))
+        self._publish({"kind": "event", "event": "shutdown", "reason": self.stop_reason})
+        return 1 if self.loop_gone is not None else 0
+
+    def _poll_requests(self, timeout: int, poller=None) -> None:
+        if poller is not None:
+            events = dict(poller.poll(timeout))
+            if self.connections.socket in events:
+                self.connections.answer()
+            if self.pub in events:
+                self._poll_subscriptions()
+            if self.router not in events:
+                return
+        elif self.pub is not None:
+            self.connections.answer()
+            self._poll_subscriptions()
+        for _ in range(100):
+            try:
+                parts = self.router.recv_multipart(zmq.NOBLOCK, copy=False)
+            except zmq.Again:
+                return
+            except zmq.ZMQError:
+                return
+            self._handle([part.bytes for part in parts], self._connection(parts[0]))
+
+    def _connection(self, frame) -> str | None:
+        """Who sent a message: the identity the server gave its connection (see
+        runtime.server.connections); an ``inproc://`` connection (no handshake, no identity: only
+        this process can make one) is known by its routing id."""
+        identity = self.connections.of(frame)
+        if identity is None and self.options.endpoint.startswith("inproc://"):
+            identity = "inproc:" + frame.bytes.hex()
+        return identity
+
+    def _fail_all(self, reason: str) -> None:
+        """The loop is gone: the running program faulted, the waiting ones cancelled."""
+        self.loop_gone = reason
+        if self.current is not None:
+            self._end(self.current, "faulted", reason)
+        self._cancel_queue(reason)
+        for identity, request_id, _command in self.pending.values():
+            if identity is not None:
+                self._reply(identity, protocol.error(request_id, "internal", reason))
+        self.pending.clear()
+
+    def _reply(self, identity: list, reply: bytes) -> None:
+        if self.router is None:  # not bound: the caller reads the outbox itself
+            self.outbox.append((identity, reply))
+            return
+        try:
+            self.router.send_multipart([*identity, reply], zmq.NOBLOCK)
+        except zmq.ZMQError:
+            pass  # the client went away or its queue is full: the reply is dropped
+
+    def _handle(self, frames: list[bytes], connection: str | None = None) -> None:
+        """One request (``connection``: the identity of the connection it came on, see
+        _connection): reply now, or forward a command whose reply the loop makes."""
+        # ROUTER frames: identity, [envelope ending in an empty delimiter (REQ clients, proxies)], payload
+        if len(frames) < 2:
+            return
+        identity, payload = envelope(frames)
+        request_id = None
+        version = protocol.VERSION
+        try:
+            if payload is None:
+                raise ProtocolError("bad_message", f"expected one message frame after the envelope, got "
+                                                   f"{len(frames) - len(identity)} frames (an envelope ends with an "
+                                                   "empty frame, and holds at most "
+                                                   f"{protocol.MAX_ENVELOPE_FRAMES} frames)")
+            request_id, op, args, version, token = protocol.decode(payload)
+            holder = self._check_control(connection, token, op, args)
+            handler = getattr(self, f"op_{op}")
+            result = self.op_control(args, connection, holder) if op == "control" else handler(args)
+            if isinstance(result, LoopCommand):  # to be carried out by the loop
+                if self.loop_gone is not None:
+                    raise ProtocolError("refused", f"{self.loop_gone}: restart irl serve")
+                result.version = version
+                self.commands.append((identity, request_id, result))
+                return
+            if isinstance(result, Wait):  # answered when the program ends (or at the deadline)
+                self.waiters.append((result, identity, request_id, version))
+                self._answer_waiters()
+                return
+            reply = protocol.ok(request_id, result, version)
+        except ProtocolError as exc:
+            reply = protocol.error(exc.request_id if exc.request_id is not None else request_id, exc.code,
+                                   exc.message, exc.version or version)
+        except Exception as exc:  # a bug: answer and keep serving
+            log.exception("request failed")
+            reply = protocol.error(request_id, "internal", f"{type(exc).__name__}: {exc}", version)
+        self._reply(identity, reply)
+
+    def _holder(self) -> Control | None:
+        """Control's holder, once its lease is checked (it ends ``lease`` seconds after the
+        holder's last request)."""
+        holder = self.controller
+        if holder is not None and time.monotonic() - holder.last > holder.lease:
+            log.info("control of %s ended: no request from it for %g s", holder.name, holder.lease)
+            self.controller = holder = None
+        return holder
+
+    def _check_control(self, connection: str | None, token: str | None, op: str, args: dict) -> bool:
+        """Whether the request is control's holder's (it came on the connection that took
+        control, or carries its token; then it renews the lease). Refuses a controlling
+        request from anyone else while a client holds control."""
+        holder = self._holder()
+        if holder is None:
+            return False
+        if holder.owns(connection, token):
+            holder.last = time.monotonic()
+            return True
+        if op in protocol.CONTROLLING and not (op == "call" and self._reads_only(args)) or \
+                (op == "control" and args.get("take")):
+            left = holder.lease - (time.monotonic() - holder.last)
+            stale = " (the token this request carries is not the holder's: a token is void once control is given " \
+                    "back or its lease ends)" if token is not None else ""
+            raise ProtocolError("refused", f"{holder.name} holds control of the robot (for {left:.1f} s more "
+                                           f"without a request from it): this client may read, and estop{stale}")
+        return False
+
+    @staticmethod
+    def _reads_only(args: dict) -> bool:
+        from runtime.wire.scripting import CallOperation, SetProperty, ScriptError, parse
+
+        try:
+            return not isinstance(parse(args["text"]), (SetProperty, CallOperation))
+        except ScriptError:
+            return True  # (answered with its script_error)
+
+    def op_control(self, args: dict, connection: str | None = None, holder: bool = False) -> dict:
+        """``take: true``: this connection (and whoever sends the token returned) holds
+        control; the holder taking it again changes its name and lease. ``take: false``:
+        the holder gives it back (refused from another client while one holds it)."""
+        current = self._holder()
+        if not args["take"]:
+            if current is not None:
+                if not holder:
+                    raise ProtocolError("refused", f"{current.name} holds control of the robot, not this client: "
+                                                   "only the holder (its connection, or a request with its token) "
+                                                   "gives it back")
+                log.info("control given back by %s", current.name)
+                self.controller = None
+            return {"control": False}
+        lease = float(args.get("lease", protocol.DEFAULT_LEASE))
+        if not protocol.MIN_LEASE <= lease <= protocol.MAX_LEASE:
+            raise ProtocolError("bad_request", f"control: lease must be from {protocol.MIN_LEASE:g} to "
+                                               f"{protocol.MAX_LEASE:g} s, got {lease:g}")
+        if current is None:
+            self.controls_taken += 1
+            name = str(args.get("name") or f"client #{self.controls_taken}")[:100]
+            current = self.controller = Control(connection, secrets.token_urlsafe(32), name, lease)
+        else:  # the holder again (anyone else was refused): a new name or lease, the same token
+            current.name = str(args.get("name") or current.name)[:100]
+            current.lease = lease
+            current.last = time.monotonic()
+        log.info("control taken by %s (lease %g s)", current.name, lease)
+        return {"control": True, "name": current.name, "lease": lease, "token": current.token}
+
+    def _answer_waiters(self, now: float | None = None) -> None:
+        """Answer every ``wait`` whose program has ended, or whose deadline has passed."""
+        if not self.waiters:
+            return
+        now = time.monotonic() if now is None else now
+        keep = []
+        for entry in self.waiters:
+            wait, identity, request_id, version = entry
+            job = self.jobs.get(wait.program)
+            ended = job is None or job.state not in ("queued", "running")
+            if not ended and now < wait.deadline:
+                keep.append(entry)
+                continue
+            if job is None:
+                reply = protocol.error(request_id, "not_found", f"no program {wait.program} (finished programs are "
+                                                                f"kept for the last {HISTORY})", version)
+            else:
+                result = self._running(job) if job is self.current else job.as_dict()
+                if not ended:
+                    result["timed_out"] = True
+                reply = protocol.ok(request_id, result, version)
+            self._reply(identity, reply)
+        self.waiters = keep
+
+    # ---- operations (a LoopCommand result is carried out by the loop) ----------------------------
+    def op_hello(self, args: dict) -> dict:
+        return {"protocol": protocol.VERSION, "protocols": list(protocol.VERSIONS), "robot": self.spec.name,
+                "spec_hash": self.spec.hash,
+                "axes": [a.name for a in self.spec.axes],
+                "clock": "simulated" if self.options.sim_clock else "wall",
+                "configuration": self.configuration,
+                "configurations": list(self.configurations.names()) if self.configurations else [],
+                "pid": os.getpid(), "loop_pid": self.loop_pid, "loop_scheduling": self.loop_scheduling}
+
+    def _running(self, job: Job) -> dict:
+        """A running job as status shows it (from the loop's latest snapshot)."""
+        snap = self.snapshot
+        d = job.as_dict()
+        if snap.get("job") == job.id and "line" in snap:
+            d.update(line=snap["line"], moves_done=snap["moves_done"], paused=snap["paused"], fsm=snap["state"])
+        else:  # started, the loop's first snapshot of it not yet here
+            d.update(line=None, moves_done=0, paused=False, fsm="Start Robot")
+        return d
+
+    def op_status(self, args: dict) -> dict:
+        current = self.current
+        if "program" in args:
+            job = self.jobs.get(args["program"])
+            if job is None:
+                raise ProtocolError("not_found", f"no program {args['program']} (ids start at 1; finished "
+                                                 f"programs are kept for the last {HISTORY})")
+            return self._running(job) if job is current else job.as_dict()
+        snap = self.snapshot
+        running = self._running(current) if current else None
+        return {"state": running["fsm"] if running else "Idle",
+                "running": running,
+                "queue": [job.id for job in self.queue],
+                "programs": [job.as_dict(summary=False) for job in list(self.jobs.values())[-21:]
+                             if job.state != "running"][-20:],
+                "override": self.override, "configuration": self.configuration,
+                "calibrated": snap.get("calibrated"), "initialized": snap.get("initialized"),
+                "calibration": snap.get("calibration"), "initialization": snap.get("initialization"),
+                "position": snap.get("position"), "inputs": snap.get("inputs"), "outputs": snap.get("outputs"),
+                "shutting_down": self.stop_reason is not None,
+                "control": holder.name if (holder := self._holder()) is not None else None,
+                "loop_gone": self.loop_gone}
+
+    def _check_queue_room(self) -> None:
+        """Refuse (``queue_full``) a program or reconfiguration beyond MAX_QUEUED waiting
+        ones (the running one does not count)."""
+        if len(self.queue) >= protocol.MAX_QUEUED:
+            raise ProtocolError("queue_full", f"the queue is full: it holds {len(self.queue)} programs waiting to "
+                                              f"run, at most {protocol.MAX_QUEUED} may wait; submit again when "
+                                              "one has started (or abort queued ones)")
+
+    def _check_accepting(self) -> None:
+        if self.stop_reason is not None:
+            raise ProtocolError("refused", "the server is shutting down")
+        if self.loop_gone is not None:
+            raise ProtocolError("refused", f"{self.loop_gone}: restart irl serve")
+
+    def op_submit(self, args: dict) -> dict:
+        self._check_queue_room()  # before verifying: a full queue costs no verification
+        data = args["object"]
+        try:
+            program = load(data, None)
+        except ObjectCodeError as exc:
+            raise ProtocolError("invalid_program", f"the object code is invalid: {exc}") from None
+        if program.spec_hash != self.spec.hash:
+            raise ProtocolError("wrong_robot", "the program was " + spec_mismatch(
+                program, self.spec, spec_file=self.spec_file, unknown="its file is not known to this runtime",
+                instead="submit it to a runtime started with the specification it was "
+                                            "compiled for (irl serve --spec {})"))
+        others = [r for r in program.robots if r != self.spec.name]
+        if others:
+            raise ProtocolError("wrong_robot", f"the program moves robot {others[0]!r}, but this runtime drives "
+                                               f"{self.spec.name!r}")
+        self._check_accepting()
+        name = str(args.get("name") or program.name or "program")[:200]
+        job = Job(self.next_id, name, program, self.report_dir / f"program-{self.next_id}.csv")
+        job.object = bytes(data)
+        self.next_id += 1
+        self.jobs[job.id] = job
+        self.queue.append(job)
+        log.info("program %d (%s) queued", job.id, name)
+        return {"program": job.id, "queued": len(self.queue)}
+
+    def op_pause(self, args: dict) -> LoopCommand:
+        return LoopCommand("pause", program=args.get("program"))
+
+    def op_resume(self, args: dict) -> LoopCommand:
+        return LoopCommand("resume", program=args.get("program"))
+
+    def op_wait(self, args: dict) -> Wait:
+        timeout = float(args.get("timeout", 60.0))
+        if not 0.0 < timeout <= protocol.MAX_WAIT:
+            raise ProtocolError("bad_request", f"wait: timeout must be more than 0 and at most "
+                                               f"{protocol.MAX_WAIT:g} s, got {timeout:g}")
+        if args["program"] not in self.jobs:
+            raise ProtocolError("not_found", f"no program {args['program']} (ids start at 1; finished programs "
+                                             f"are kept for the last {HISTORY})")
+        return Wait(args["program"], time.monotonic() + timeout)
+
+    #: The most telemetry messages one ``telemetry`` reply carries (ask again from the last).
+    REPLAY_CHUNK = 2000
+
+    def op_telemetry(self, args: dict) -> dict:
+        result = {"seq": self.telemetry_seq, "sample": self.last_sample}
+        since = args.get("since")
+        if since is not None:
+            if not 0 <= since <= self.telemetry_seq:
+                raise ProtocolError("bad_request", f"telemetry: since must be a seq from 0 to the latest, "
+                                                   f"{self.telemetry_seq}, got {since}")
+            history = self.telemetry_history
+            oldest = history[0]["seq"] if history else self.telemetry_seq + 1
+            start = max(since + 1, oldest)
+            messages = [m for m in itertools.islice(history, start - oldest, None)][:self.REPLAY_CHUNK]
+            result.update(messages=messages, missing=start - (since + 1),
+                          more=bool(messages) and messages[-1]["seq"] < self.telemetry_seq)
+        return result
+
+    def op_feed(self, args: dict) -> dict:
+        return self.feeds.request(args)
+
+    def op_abort(self, args: dict):
+        wanted = args.get("program")
+        if wanted is not None and (self.current is None or self.current.id != wanted):
+            for job in self.queue:
+                if job.id == wanted:
+                    self.queue.remove(job)
+                    self._end(job, "cancelled", "removed from the queue by the operator")
+                    return {"program": wanted, "state": "cancelled"}
+            job = self.jobs.get(wanted)
+            if job is not None:
+                raise ProtocolError("refused", f"program {wanted} has already ended ({job.state})")
+            raise ProtocolError("not_found", f"program {wanted} is neither running nor queued (no such program)")
+        if self.current is None:
+            raise ProtocolError("refused", "no program is running")
+        return LoopCommand("abort", program=self.current.id, reason="aborted by the operator")
+
+    def op_estop(self, args: dict) -> LoopCommand:
+        cancelled = self._cancel_queue("cancelled by an emergency stop")
+        return LoopCommand("estop", finish=lambda result: {**result, "cancelled": cancelled})
+
+    def _cancel_queue(self, reason: str) -> list[int]:
+        cancelled = []
+        while self.queue:
+            job = self.queue.popleft()
+            self._end(job, "cancelled", reason)
+            cancelled.append(job.id)
+        return cancelled
+
+    def op_override(self, args: dict) -> LoopCommand:
+        percent = float(args["percent"])
+        if not 1.0 <= percent <= 100.0:
+            raise ProtocolError("bad_request", f"override: percent must be within 1..100, got {percent:g}")
+
+        def applied(result: dict) -> dict:
+            self.override = result["override"]
+            return result
+        return LoopCommand("override", finish=applied, percent=percent)
+
+    def op_call(self, args: dict):
+        from runtime.server.scripting_service import ServerTarget, call, parse_call, runs_in_server
+
+        text = args["text"]
+        front = {"configuration": self.configuration, "override": self.override,
+                 "configurations": list(self.configurations.names()) if self.configurations else []}
+        if runs_in_server(parse_call(text)):
+            target = ServerTarget(front, reconfigure=lambda name: self.op_reconfigure({"name": name}))
+            return call({ServerTarget.name: target}, None, text)
+        return LoopCommand("call", text=text, front=front)
+
+    def op_reconfigure(self, args: dict) -> dict:
+        """Re-read the configuration file and queue a Robot Reconfiguration cycle with the
+        named configuration; an invalid file or name is refused and nothing changes."""
+        if self.configurations is None or self.configurations.path is None:
+            raise ProtocolError("refused", "this server has no configuration file (start it with --config FILE.toml)")
+        from runtime.config import ConfigError, load_configurations, validate_settings
+
+        name = args["name"]
+        try:
+            configurations = load_configurations(self.configurations.path)
+            settings = validate_settings(merge_settings(self.baseline, configurations[name].settings),
+                                         f"{configurations.path.name}: configuration {name!r} over the start-up "
+                                         "settings")
+        except ConfigError as exc:
+            raise ProtocolError("refused", f"{exc} (the configuration in force, {self.configuration!r}, stays)") \
+                from None
+        self._check_accepting()
+        self._check_queue_room()
+        job = Job(self.next_id, f"reconfigure {name}", None, None, settings=settings, configuration=name)
+        self.next_id += 1
+        self.jobs[job.id] = job
+        self.queue.append(job)
+        self.configurations = configurations
+        return {"requested": name, "program": job.id}
+
+    def op_report(self, args: dict) -> dict:
+        job = self.jobs.get(args["program"])
+        if job is None:
+            raise ProtocolError("not_found", f"no program {args['program']}")
+        which = args.get("file", "report")
+        if which not in ("report", "states"):
+            raise ProtocolError("bad_request", "report: file must be \"report\" or \"states\"")
+        if job.report is None:
+            raise ProtocolError("not_found", f"program {job.id} is a reconfiguration: it has no {which} file")
+        path = job.report if which == "report" else job.report.with_suffix(".states.csv")
+        offset = args.get("offset", 0)  # an int (not a bool): protocol.decode_request checked the type
+        try:
+            with open(path, "rb") as f:
+                size = os.fstat(f.fileno()).st_size
+                if not 0 <= offset <= size:
+                    raise ProtocolError("bad_request", f"report: offset must be an integer from 0 to the size of "
+                                                       f"the {which} file ({size} bytes now), got {offset}")
+                f.seek(offset)
+                data = f.read(protocol.MAX_CHUNK_BYTES)
+        except FileNotFoundError:
+            raise ProtocolError("not_found", f"program {job.id} has no {which} file yet") from None
+        except OSError as exc:
+            raise ProtocolError("internal", f"cannot read {path}: {exc.strerror or exc}") from None
+        final = job.state not in ("queued", "running")
+        return {"data": data, "offset": offset, "size": size, "final": final,
+                "eof": final and offset + len(data) >= size}
+
+
+def envelope(frames: list[bytes]) -> tuple[list[bytes], bytes | None]:
+    """``(envelope, payload)`` of a message the ROUTER received: the frames a reply goes
+    back with, and the request (None when the frames are not one request). The first frame
+    is the connection's identity; a request is the last frame, alone after it (a DEALER) or
+    after an envelope that ends with an empty delimiter frame (a REQ, or a client behind a
+    proxy); anything else is answered as a ``bad_message`` to the identity alone."""
+    if len(frames) == 2:
+        return frames[:1], frames[1]
+    if frames[-2] == b"" and len(frames) - 2 <= protocol.MAX_ENVELOPE_FRAMES:  # (identity, envelope, request)
+        return frames[:-1], frames[-1]
+    return frames[:1] + ([b""] if frames[1] == b"" else []), None
+
+
+def serve(spec, options: ServeOptions, configurations=None, stderr=None) -> int:
+    """Run a server until SIGINT/SIGTERM; returns the exit status."""
+    handler = logging.StreamHandler(stderr or sys.stderr)
+    handler.setFormatter(logging.Formatter("irl serve: %(message)s"))
+    log.addHandler(handler)
+    log.setLevel(logging.INFO)
+    from runtime.config import ConfigError
+
+    try:
+        check_endpoints(options)
+    except InsecureEndpoint as exc:
+        log.error("%s", exc)
+        log.removeHandler(handler)
+        return 2
+    if not options.keys and not (is_local_endpoint(options.endpoint) and is_local_endpoint(options.telemetry)):
+        log.warning("serving without CURVE keys on an endpoint other machines can reach (%s): anyone on the "
+                    "network can control the robot", INSECURE_FLAG)
+    try:
+        server = Server(spec, options, configurations)
+    except (ConfigError, LoopGone) as exc:
+        log.error("%s", exc)
+        log.removeHandler(handler)
+        return 2
+    try:
+        server.bind()
+    except zmq.ZMQError as exc:
+        log.error("cannot bind %s / %s: %s", options.endpoint, options.telemetry, exc)
+        server.close()
+        return 2
+    for sig in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(sig, lambda *_: server.request_shutdown())
+    log.info("robot %s (%d axes), %s clock; requests on %s, telemetry on %s, state in %s", spec.name,
+             len(spec.axes), "simulated" if options.sim_clock else "wall", options.endpoint, options.telemetry,
+             server.state_dir)
+    try:
+        return server.serve()
+    finally:
+        server.close()
+        log.info("stopped")
+        log.removeHandler(handler)

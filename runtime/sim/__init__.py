@@ -1,8 +1,0 @@
-"""The simulated robot (drives, joints, brakes, encoders, index pulses, homing sensors,
-digital I/O, faults) and the alpha-beta state estimator. Pure Python: no NumPy."""
-from __future__ import annotations
-
-from .estimator import DEFAULT_TIME_CONSTANT, AlphaBeta, critically_damped_gains
-from .robot import FAULTS, SimRobot
-
-__all__ = ["FAULTS", "SimRobot", "AlphaBeta", "critically_damped_gains", "DEFAULT_TIME_CONSTANT"]

@@ -28,7 +28,6 @@ Run: .venv/bin/python benchmarks/kinematics.py [--poses N] [--seed S]
 """
 from __future__ import annotations
 
-import argparse
 import math
 import random
 import sys
@@ -42,7 +41,7 @@ import numpy as np  # noqa: E402
 
 from compiler.spec import load_spec  # noqa: E402
 from runtime.motion.kinematics import Kinematics, configuration_name  # noqa: E402
-from _stats import percentiles  # noqa: E402
+from _stats import LOLA15, arguments, percentiles  # noqa: E402
 
 GOAL_POS = 1e-9  # m
 GOAL_ROT = 1e-9  # rad
@@ -67,12 +66,10 @@ def errors(m, t) -> tuple[float, float]:
 
 
 def main() -> int:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--poses", type=int, default=10000)
-    ap.add_argument("--seed", type=int, default=1)
+    ap = arguments(__doc__, poses=10000, seed=1)
     args = ap.parse_args()
 
-    spec = load_spec(ROOT / "programs" / "lola15.spc")
+    spec = load_spec(LOLA15)
     kin = Kinematics(spec)
     rng = random.Random(args.seed)
     pc = time.perf_counter_ns

@@ -34,7 +34,6 @@ Run: .venv/bin/python benchmarks/planner.py [--moves N] [--seed S] [--independen
 """
 from __future__ import annotations
 
-import argparse
 import gc
 import math
 import random
@@ -49,7 +48,7 @@ from compiler.spec import load_spec  # noqa: E402
 from runtime.motion.jerk import _minimum_duration, plan_ptp_jerk  # noqa: E402
 from runtime.motion.planner import PtpInput  # noqa: E402
 from runtime.motion.planner import Result  # noqa: E402
-from _stats import percentiles  # noqa: E402
+from _stats import LOLA15, arguments, percentiles  # noqa: E402
 
 try:
     import ruckig
@@ -69,14 +68,12 @@ def ptp_input(move, mode: str) -> PtpInput:
 
 
 def main() -> int:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--moves", type=int, default=1000)
-    ap.add_argument("--seed", type=int, default=1)
+    ap = arguments(__doc__, moves=1000, seed=1)
     ap.add_argument("--independent", action="store_true",
                     help="draw the limit fractions per axis instead of per move")
     args = ap.parse_args()
 
-    spec = load_spec(ROOT / "programs" / "lola15.spc")
+    spec = load_spec(LOLA15)
     axes = spec.main_axes
     n = len(axes)
     rng = random.Random(args.seed)

@@ -22,7 +22,6 @@ Run: .venv/bin/python benchmarks/ptp_planner.py [--moves N] [--seed S]
 """
 from __future__ import annotations
 
-import argparse
 import math
 import random
 import sys
@@ -35,7 +34,7 @@ sys.path.insert(0, str(ROOT))
 from compiler.spec import load_spec  # noqa: E402
 from runtime.motion.interpolator import Interpolator  # noqa: E402
 from runtime.motion.planner import PtpInput, Result, plan_ptp, scaled_limits  # noqa: E402
-from _stats import percentiles  # noqa: E402
+from _stats import LOLA15, arguments, percentiles  # noqa: E402
 
 TICK = 0.005  # s, trajectory generator period
 SERVO = 0.001  # s
@@ -67,12 +66,10 @@ def analytic_optimum(start, target, v, a) -> float:
 
 
 def main() -> int:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--moves", type=int, default=1000)
-    ap.add_argument("--seed", type=int, default=1)
+    ap = arguments(__doc__, moves=1000, seed=1)
     args = ap.parse_args()
 
-    spec = load_spec(ROOT / "programs" / "lola15.spc")
+    spec = load_spec(LOLA15)
     axes = spec.main_axes
     n_axes = len(axes)
     rng = random.Random(args.seed)

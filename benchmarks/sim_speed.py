@@ -10,7 +10,6 @@ Run: .venv/bin/python benchmarks/sim_speed.py [--runs N] [--seed N]
 """
 from __future__ import annotations
 
-import argparse
 import gc
 import statistics
 import sys
@@ -23,6 +22,7 @@ sys.path.insert(0, str(ROOT))
 from compiler.driver import compile_file  # noqa: E402
 from runtime import accel  # noqa: E402
 from runtime.loop.system import RobotSystem, RunOptions  # noqa: E402
+from _stats import arguments  # noqa: E402
 
 
 def bare_loop(ticks: int, n: int = 6) -> float:
@@ -35,9 +35,7 @@ def bare_loop(ticks: int, n: int = 6) -> float:
 
 
 def main() -> int:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--runs", type=int, default=5)
-    ap.add_argument("--seed", type=int, default=0)
+    ap = arguments(__doc__, runs=5, seed=0)
     args = ap.parse_args()
     result = compile_file(ROOT / "programs" / "test.irl")
     print(f"per-axis kernels: {accel.DESCRIPTION}")

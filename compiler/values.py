@@ -7,7 +7,8 @@ mm, angles in degrees.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import astuple, dataclass
+from typing import ClassVar
 
 
 @dataclass(frozen=True, slots=True)
@@ -48,41 +49,45 @@ class Joint:
         return text + ")"
 
 
+class _Numbers:
+    """A literal written as its keyword and its numbers, in the order of its fields."""
+
+    __slots__ = ()
+    KEYWORD: ClassVar[str] = ""
+
+    def __str__(self) -> str:
+        return f"{self.KEYWORD}({_nums(astuple(self))})"
+
+
 @dataclass(frozen=True, slots=True)
-class Position:
+class Position(_Numbers):
     """``pos(x, y, z)`` in mm."""
 
+    KEYWORD: ClassVar[str] = "pos"
     x: float
     y: float
     z: float
 
-    def __str__(self) -> str:
-        return f"pos({_nums((self.x, self.y, self.z))})"
-
 
 @dataclass(frozen=True, slots=True)
-class Rpy:
+class Rpy(_Numbers):
     """``rpy(roll, pitch, yaw)`` in degrees."""
 
+    KEYWORD: ClassVar[str] = "rpy"
     roll: float
     pitch: float
     yaw: float
 
-    def __str__(self) -> str:
-        return f"rpy({_nums((self.roll, self.pitch, self.yaw))})"
-
 
 @dataclass(frozen=True, slots=True)
-class Quat:
+class Quat(_Numbers):
     """``quat(w, x, y, z)``, a unit quaternion."""
 
+    KEYWORD: ClassVar[str] = "quat"
     w: float
     x: float
     y: float
     z: float
-
-    def __str__(self) -> str:
-        return f"quat({_nums((self.w, self.x, self.y, self.z))})"
 
 
 @dataclass(frozen=True, slots=True)

@@ -41,12 +41,12 @@ from compiler.driver import compile_file  # noqa: E402
 from compiler.objcode import encode  # noqa: E402
 from runtime.loop import realtime  # noqa: E402
 from runtime.client.client import Client  # noqa: E402
+from runtime.wire.protocol import TERMINAL  # noqa: E402
 
 sys.path.insert(0, str(ROOT / "benchmarks"))
 from _loads import start_load, stop_load  # noqa: E402
 
 IRL = [sys.executable, "-m", "runtime.cli.main"]
-TERMINAL = ("completed", "faulted", "aborted", "cancelled")
 
 def free_port() -> int:
     with socket.socket() as s:

@@ -36,6 +36,7 @@ from compiler.objcode import encode
 from compiler.spec import load_spec
 from runtime.cli.main import Environment, main
 from runtime.client.client import Client, ClientError
+from runtime.wire.protocol import TERMINAL  # noqa: F401  (the states a job ends in; tests import it from here)
 
 settings.register_profile("ci", derandomize=True, database=None, deadline=None)
 settings.register_profile("explore", deadline=None)
@@ -104,7 +105,6 @@ IRL = [str(_SCRIPT)] if _SCRIPT.exists() else [sys.executable, "-m", "runtime.cl
 START, CALIBRATE, INITIALIZE, MOVE, STOP = (
     "Start Robot", "Calibrate Offsets", "Initialization Sequence", "Move Robot", "Stop Robot")
 ALL_PHASES = (START, CALIBRATE, INITIALIZE, MOVE, STOP)
-TERMINAL = ("completed", "faulted", "aborted", "cancelled")
 SAFETY = 120.0  # s: a wait that takes longer than this has hung (not a timing assertion)
 
 

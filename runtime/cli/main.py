@@ -209,6 +209,7 @@ def cmd_run(args, env: Environment) -> int:
         return EXIT_INVALID
     program, spec = loaded
     from runtime.loop.system import RobotSystem, RunOptions
+    from runtime.wire.messages import io_sources_problem
 
     faults = []
     for item in args.inject or []:
@@ -230,6 +231,9 @@ def cmd_run(args, env: Environment) -> int:
     if given and not args.realtime:
         raise UsageError(f"{' and '.join(given)} {'is' if len(given) == 1 else 'are'} for the wall clock: "
                          "add --realtime")
+    problem = io_sources_problem(bool(args.fieldbus), bool(args.cell_scenario), args.realtime, "run")
+    if problem is not None:
+        raise UsageError(problem)
     cell = None
     if args.cell_scenario:
         from runtime.hardware.sim.cell import ScenarioError, load_scenario
@@ -242,10 +246,6 @@ def cmd_run(args, env: Environment) -> int:
     if args.fieldbus:
         from runtime.hardware.fieldbus import FieldbusError, load_fieldbus
 
-        if not args.realtime:
-            raise UsageError("--fieldbus needs --realtime (the PLC lives in real time)")
-        if cell is not None:
-            raise UsageError("--fieldbus and --cell-scenario both drive the inputs: choose one")
         try:
             fieldbus = load_fieldbus(args.fieldbus, spec)
         except FieldbusError as exc:

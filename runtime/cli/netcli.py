@@ -16,7 +16,6 @@ from pathlib import Path
 from runtime.cli import common
 from runtime.places import DEFAULT_ENDPOINT, DEFAULT_TELEMETRY, default_state_dir
 
-TERMINAL = ("completed", "faulted", "aborted", "cancelled")
 #: Seconds a command waits for a reply (``--timeout``), and ``irl watch`` for telemetry
 #: (a server sends an idle sample every 0.5 s, so a silence this long means none is there).
 REPLY_TIMEOUT = 5.0
@@ -151,6 +150,7 @@ def cmd_control(args, env) -> int:
 def cmd_serve(args, env) -> int:
     from compiler.spec import SpecError, load_spec
     from runtime.server.server import InsecureEndpoint, ServeOptions, check_endpoints, serve
+    from runtime.wire.messages import io_sources_problem
 
     from runtime.loop.realtime import given, scheduling
 
@@ -173,6 +173,9 @@ def cmd_serve(args, env) -> int:
         spec = load_spec(args.spec)
     except SpecError as exc:
         raise common.UsageError(str(exc)) from None
+    problem = io_sources_problem(bool(args.fieldbus), bool(args.cell_scenario), not args.sim_clock, "serve")
+    if problem is not None:
+        raise common.UsageError(problem)
     cell = None
     if args.cell_scenario:
         from runtime.hardware.sim.cell import ScenarioError, load_scenario
@@ -185,8 +188,6 @@ def cmd_serve(args, env) -> int:
     if args.fieldbus:
         from runtime.hardware.fieldbus import FieldbusError, load_fieldbus
 
-        if args.sim_clock or args.cell_scenario:
-            raise common.UsageError("--fieldbus needs the wall clock and no --cell-scenario (the PLC sets the inputs)")
         try:
             options.fieldbus = load_fieldbus(args.fieldbus, spec)
         except FieldbusError as exc:
@@ -253,6 +254,7 @@ def cmd_submit(args, env) -> int:
                 common.say(env, json.dumps({"program": job, "queued": reply["queued"], "endpoint": args.endpoint}))
             return common.EXIT_OK
         final, shown = _wait(client, job, env, since, quiet=args.json)
+        from runtime.wire.protocol import JobState
         if args.report:
             out = Path(args.report)
             client.download(job, "report", out)
@@ -260,10 +262,10 @@ def cmd_submit(args, env) -> int:
             common.warn(env, f"report written to {out}")
         if args.json:
             common.say(env, json.dumps(final, default=str))
-            return common.EXIT_OK if final["state"] == "completed" else common.EXIT_INVALID
+            return common.EXIT_OK if final["state"] == JobState.COMPLETED else common.EXIT_INVALID
         for entry in (final.get("summary") or {}).get("log", [])[shown:]:  # print output telemetry had lost
             common.say(env, common.log_line(entry["time"], entry["line"], entry["text"]))
-        if final["state"] == "completed":
+        if final["state"] == JobState.COMPLETED:
             summary = final.get("summary") or {}
             common.say(env, f"program {job} completed: {len(summary.get('moves', []))} moves, final position "
                             + common.joint_values(summary.get("final_position", [])))
@@ -278,6 +280,8 @@ def _wait(client, job: int, env, since: int, quiet: bool = False) -> tuple[dict,
     """Poll the program's status, showing one progress line and the program's ``print``
     output as it comes (from the telemetry after ``since``; unless ``quiet``), until it
     has ended. Returns its final status and how many print lines were shown."""
+    from runtime.wire.protocol import TERMINAL
+
     tty = hasattr(env.stdout, "isatty") and env.stdout.isatty() and not quiet
     last = None
     shown = 0
@@ -313,7 +317,9 @@ def _wait(client, job: int, env, since: int, quiet: bool = False) -> tuple[dict,
 def _progress_line(job: int, status: dict) -> str:
     """``irl submit --wait``'s line: where the program is (without a line while the
     server does not know it yet: the program has just started)."""
-    if status["state"] == "queued":
+    from runtime.wire.protocol import JobState
+
+    if status["state"] == JobState.QUEUED:
         return f"program {job}: queued"
     total = status.get("moves_total")
     moves = f"{status.get('moves_done') or 0}/{total if total is not None else '?'}"
@@ -380,13 +386,15 @@ def cmd_status(args, env) -> int:
 
 
 def _job_line(job: dict) -> str:
+    from runtime.wire.protocol import JobState
+
     text = f"program {job['id']} ({job['name']}): {job['state']}"
-    if job["state"] == "running":
+    if job["state"] == JobState.RUNNING:
         total = job.get("moves_total")
         at = f", line {job['line']}" if job.get("line") is not None else ""
         text += (f", {job.get('fsm') or ''}{at}, moves {job.get('moves_done') or 0}/"
                  f"{total if total is not None else '?'}" + (" (paused)" if job.get("paused") else ""))
-    elif job.get("fault") and job["state"] != "running":
+    elif job.get("fault") and job["state"] != JobState.RUNNING:
         text += f": {job['fault']}"
     return text
 

@@ -28,6 +28,7 @@ from runtime.hardware.sim.estimator import AlphaBeta
 from runtime.hardware.sim.robot import SimRobot
 from runtime.loop.supervisor import RobotMemory, StateFile, Supervisor
 from runtime.timing import REPORT_PERIOD, SETPOINT_PERIOD, TICK
+from runtime.wire.messages import io_sources_problem
 
 
 @dataclass
@@ -67,11 +68,10 @@ class RobotSystem:
         self.trajectory = TrajectoryGenerator(spec, self.robot, p["desi_pos"], p["sens_pos"], self.clock)
         self.trajectory.safety = self.safety
         io_backend = backend_of(self.backend)  # the digital I/O: the robot's own, or a PLC's over a fieldbus
+        problem = io_sources_problem(options.fieldbus is not None, options.cell is not None, options.realtime)
+        if problem is not None:
+            raise ValueError(problem)
         if options.fieldbus is not None:
-            if options.cell is not None:
-                raise ValueError("a fieldbus and a cell scenario both drive the inputs: choose one")
-            if not options.realtime:
-                raise ValueError("a fieldbus needs the wall clock (the PLC lives in real time): run with --realtime")
             from runtime.hardware.fieldbus import ModbusIo
 
             io_backend = ModbusIo(options.fieldbus, spec.inputs, spec.outputs)

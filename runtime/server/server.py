@@ -46,7 +46,7 @@ from runtime.config import merge_settings
 from runtime.loop.components.report import tcp_of
 from runtime.server.feeds import Feeds
 from runtime.motion.moves import Frames
-from runtime.wire.protocol import ProtocolError
+from runtime.wire.protocol import JobState, ProtocolError
 from runtime.loop.robotloop import EXIT_TIMEOUT
 from runtime.loop.system import RunOptions
 
@@ -149,7 +149,7 @@ class Job:
         self.report = report
         self.settings = settings  # a reconfiguration (no program): the settings to apply
         self.configuration = configuration
-        self.state = "queued"  # queued, running, completed, faulted, aborted, cancelled
+        self.state = JobState.QUEUED
         self.fault: str | None = None
         self.submitted = time.time()
         self.started: float | None = None
@@ -471,19 +471,19 @@ class Server:
         try:
             self.report_dir.mkdir(parents=True, exist_ok=True)
         except OSError as exc:
-            self._end(job, "faulted", f"cannot make {self.report_dir}: {exc.strerror or exc}")
+            self._end(job, JobState.FAULTED, f"cannot make {self.report_dir}: {exc.strerror or exc}")
             return
-        job.state, job.started = "running", time.time()
+        job.state, job.started = JobState.RUNNING, time.time()
         self.current = job
         log.info("program %d (%s) started", job.id, job.name)
 
         def started(result: dict) -> dict:
-            self._publish({"kind": "event", "event": "program", "program": job.id, "state": "running",
+            self._publish({"kind": "event", "event": "program", "program": job.id, "state": JobState.RUNNING,
                            "t": result["t"]})
             return result
 
         def refused(reply: dict) -> None:  # the program cannot run here
-            self._end(job, "faulted", reply["message"])
+            self._end(job, JobState.FAULTED, reply["message"])
 
         self._send_loop(LoopCommand("start", finish=started, failed=refused, job=job.id, object=job.object,
                                     report=str(job.report) if job.report else None,
@@ -497,9 +497,10 @@ class Server:
         fault = job.summary["fault"]
         if fault is None and job.configuration is not None:
             self.configuration = job.configuration
-        self._end(job, "completed" if fault is None else "aborted" if message["aborted"] else "faulted", fault)
+        self._end(job, JobState.COMPLETED if fault is None else JobState.ABORTED if message["aborted"]
+                  else JobState.FAULTED, fault)
 
-    def _end(self, job: Job, state: str, fault: str | None) -> None:
+    def _end(self, job: Job, state: JobState, fault: str | None) -> None:
         """A program has ended (``completed``, ``faulted``, ``aborted``) or will never run
         (``cancelled``): kept for status, said on telemetry, its waiters answered."""
         job.state, job.fault, job.ended = state, fault, time.time()
@@ -706,7 +707,7 @@ class Server:
         """The loop is gone: the running program faulted, the waiting ones cancelled."""
         self.loop_gone = reason
         if self.current is not None:
-            self._end(self.current, "faulted", reason)
+            self._end(self.current, JobState.FAULTED, reason)
         self._cancel_queue(reason)
         for identity, request_id, _command in self.pending.values():
             if identity is not None:
@@ -835,7 +836,7 @@ class Server:
         for entry in self.waiters:
             wait, identity, request_id, version = entry
             job = self.jobs.get(wait.program)
-            ended = job is None or job.state not in ("queued", "running")
+            ended = job is None or job.state.ended
             if not ended and now < wait.deadline:
                 keep.append(entry)
                 continue
@@ -884,7 +885,7 @@ class Server:
                 "running": running,
                 "queue": [job.id for job in self.queue],
                 "programs": [job.as_dict(summary=False) for job in list(self.jobs.values())[-21:]
-                             if job.state != "running"][-20:],
+                             if job.state != JobState.RUNNING][-20:],
                 "override": self.override, "configuration": self.configuration,
                 "calibrated": snap.get("calibrated"), "initialized": snap.get("initialized"),
                 "calibration": snap.get("calibration"), "initialization": snap.get("initialization"),
@@ -976,8 +977,8 @@ class Server:
             for job in self.queue:
                 if job.id == wanted:
                     self.queue.remove(job)
-                    self._end(job, "cancelled", "removed from the queue by the operator")
-                    return {"program": wanted, "state": "cancelled"}
+                    self._end(job, JobState.CANCELLED, "removed from the queue by the operator")
+                    return {"program": wanted, "state": JobState.CANCELLED}
             job = self.jobs.get(wanted)
             if job is not None:
                 raise ProtocolError("refused", f"program {wanted} has already ended ({job.state})")
@@ -994,7 +995,7 @@ class Server:
         cancelled = []
         while self.queue:
             job = self.queue.popleft()
-            self._end(job, "cancelled", reason)
+            self._end(job, JobState.CANCELLED, reason)
             cancelled.append(job.id)
         return cancelled
 
@@ -1067,7 +1068,7 @@ class Server:
             raise ProtocolError("not_found", f"program {job.id} has no {which} file yet") from None
         except OSError as exc:
             raise ProtocolError("internal", f"cannot read {path}: {exc.strerror or exc}") from None
-        final = job.state not in ("queued", "running")
+        final = job.state.ended
         return {"data": data, "offset": offset, "size": size, "final": final,
                 "eof": final and offset + len(data) >= size}
 

@@ -11,6 +11,7 @@ server and the client both use it; docs/protocol.md is written from it.
 """
 from __future__ import annotations
 
+import enum
 import math
 
 import msgpack
@@ -146,6 +147,28 @@ SINCE = {"wait": 2, "telemetry": 2, "control": 2, "feed": 2}
 #: control (``estop`` never is: an emergency stop is open to every client).
 CONTROLLING = frozenset({"submit", "pause", "resume", "abort", "override", "call", "reconfigure"})
 
+
+
+class JobState(enum.StrEnum):
+    """What became of a submitted program (or reconfiguration): a job's ``state`` in
+    ``status``, ``wait`` and the ``program`` telemetry event. Its values are the strings
+    the wire carries."""
+
+    QUEUED = "queued"
+    RUNNING = "running"
+    COMPLETED = "completed"
+    FAULTED = "faulted"
+    ABORTED = "aborted"
+    CANCELLED = "cancelled"
+
+    @property
+    def ended(self) -> bool:
+        """Whether the job has ended (or will never run): its state changes no more."""
+        return self in TERMINAL
+
+
+#: The states a job ends in (it changes no more).
+TERMINAL = frozenset({JobState.COMPLETED, JobState.FAULTED, JobState.ABORTED, JobState.CANCELLED})
 
 def sample_markdown() -> str:
     """docs/protocol.md's table of the sample fields (:data:`SAMPLE_FIELDS`)."""

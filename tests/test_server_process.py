@@ -12,7 +12,7 @@ from runtime.server.server import Server
 from runtime.wire import protocol
 from runtime.wire.messages import io_sources_problem
 
-from conftest import ROOT, SPEC_PATH
+from conftest import ROOT, SPEC, SPEC_PATH
 
 
 def irl(*argv) -> tuple[int, str]:
@@ -43,3 +43,24 @@ def test_a_fieldbus_with_a_cell_or_on_the_simulated_clock_is_refused_by_one_rule
     if not wall_clock:
         code, err = irl(command, *program, "--spec", SPEC_PATH, *flags, "--fieldbus", fieldbus)
         assert code == 2 and err == f"irl: {io_sources_problem(True, False, False, command)}\n", err
+
+
+def test_the_servers_own_operation_runs_in_the_server_and_the_others_in_the_loop(tmp_path):
+    from runtime.server.server import ServeOptions
+    from runtime.wire.protocol import ProtocolError
+
+    server = Server(SPEC, ServeOptions(sim_clock=True, loop_process=False, state_dir=tmp_path / "state"))
+    try:
+        for text, code, message in (
+                ("server.reconfigure(1)", "script_error", "server.reconfigure: reconfigure() takes the configuration's "
+                                                          "name, a string"),
+                ("server.nope()", "script_error", "server has no operation 'nope' (operations: reconfigure)"),
+                ('server.reconfigure("a")', "refused", "this server has no configuration file (start it with --config "
+                                                       "FILE.toml)")):
+            with pytest.raises(ProtocolError) as caught:
+                server.request("call", {"text": text})
+            assert (caught.value.code, caught.value.message) == (code, message)
+        assert server.request("call", {"text": "server.override"})["value"] == 100.0  # (read in the loop)
+        assert "server" in server.request("call", {"text": "components"})["value"]
+    finally:
+        server.close()

@@ -160,7 +160,7 @@ class RobotLoop:
         return {"override": percent}
 
     def _call(self, m: dict) -> dict:
-        from runtime.server.scripting_service import call, loop_targets
+        from runtime.loop.scripting import call, loop_targets
 
         self.front = dict(m.get("front") or {})
         result = call(loop_targets(self), self.job, m["text"])

@@ -1010,14 +1010,15 @@ class Server:
         return LoopCommand("override", finish=applied, percent=percent)
 
     def op_call(self, args: dict):
-        from runtime.server.scripting_service import ServerTarget, call, parse_call, runs_in_server
+        from runtime.server.scripting_service import call_in_server, runs_in_server
+        from runtime.wire.scripting import parse_call
 
         text = args["text"]
         front = {"configuration": self.configuration, "override": self.override,
                  "configurations": list(self.configurations.names()) if self.configurations else []}
-        if runs_in_server(parse_call(text)):
-            target = ServerTarget(front, reconfigure=lambda name: self.op_reconfigure({"name": name}))
-            return call({ServerTarget.name: target}, None, text)
+        command = parse_call(text)
+        if runs_in_server(command):
+            return call_in_server(command, front, lambda name: self.op_reconfigure({"name": name}))
         return LoopCommand("call", text=text, front=front)
 
     def op_reconfigure(self, args: dict) -> dict:

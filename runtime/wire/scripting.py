@@ -37,6 +37,8 @@ from collections.abc import Iterator
 from dataclasses import dataclass
 from typing import NamedTuple
 
+from runtime.wire.protocol import ProtocolError
+
 MAX_LENGTH = 10_000
 _MAX_DIGITS = 4300  # Python's default limit for int(str); we keep it whatever the interpreter's setting
 
@@ -340,3 +342,63 @@ def _format(value: object, open_lists: set[int]) -> str:
         finally:
             open_lists.discard(id(value))
     return repr(value)
+
+
+# ---- what both processes of irl serve need: the server's own target, the parse as a reply, an operation's run
+def parse_call(text: str):
+    """The parsed command of a ``call`` request, or ProtocolError (``script_error``)."""
+    try:
+        return parse(text)
+    except ScriptError as exc:
+        raise ProtocolError("script_error", f"{exc} in {text[:80]!r}") from None
+
+
+class ServerTarget:
+    """The server itself (``server``): its configuration. Its operations run in the
+    server (they queue work; they never touch the robot directly: runtime/server/
+    scripting_service.py); the loop reads the values the server sent with the command
+    (``front``)."""
+
+    name = "server"
+    PROPERTIES: dict = {}
+    READ_ONLY = {"configuration": "the configuration in force", "configurations": "those of the file",
+                 "override": "speed override (percent)"}
+    OPERATIONS = ("reconfigure",)
+    IMMEDIATE = True
+    lifecycle = None
+
+    def __init__(self, front: dict, reconfigure=None):
+        self.configuration = front.get("configuration")
+        self.configurations = list(front.get("configurations") or [])
+        self.override = front.get("override", 100.0)
+        self._reconfigure = reconfigure
+
+    def reconfigure(self, name: str) -> str:
+        """Queue a Robot Reconfiguration with the named configuration."""
+        if not isinstance(name, str):
+            raise TypeError("reconfigure() takes the configuration's name, a string")
+        if self._reconfigure is None:
+            raise ValueError("reconfigure() runs in the server, not in the loop")
+        result = self._reconfigure(name)
+        return f"reconfiguration to {result['requested']!r} queued as {result['program']}"
+
+
+def check_operation(target, command: CallOperation) -> None:
+    """Refuse (``script_error``) an operation the target does not declare."""
+    if command.name not in target.OPERATIONS:
+        raise ProtocolError("script_error", f"{command.component} has no operation {command.name!r} "
+                                            f"(operations: {', '.join(target.OPERATIONS)})")
+
+
+def run_operation(where: str, operation, args: tuple, plain=lambda value: value) -> dict:
+    """Call a declared operation (``where``: ``component.name``; ``operation``: the
+    target's bound method, :func:`check_operation` passed) and say what it returned
+    (``plain``: the value as msgpack carries it); its errors as the reply's."""
+    try:
+        value = plain(operation(*args))
+    except TypeError as exc:
+        raise ProtocolError("script_error", f"{where}: {exc}") from None
+    except (ValueError, KeyError, IndexError) as exc:
+        raise ProtocolError("refused", f"{where}: {exc}") from None
+    return {"output": f"{where}(...) -> {format_value(value)}" if value is not None else f"{where}: done",
+            "value": value}

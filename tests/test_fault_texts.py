@@ -22,7 +22,7 @@ ALLOWED = {
     ("runtime/server/server.py", "_handle"): "a server bug: the client's 'internal' error reply (and the log)",
     ("runtime/loop/robotloop.py", "command"): "a loop bug: the server's 'internal' error reply",
     ("runtime/loop/system.py", "_poll"): "the print thread keeps the exception object to raise it again in the caller",
-    ("runtime/loop/robotloop.py", "_child"): "the loop process could not start: irl serve says so and exits 2",
+    ("runtime/loop/robotloop.py", "child"): "the loop process could not start: irl serve says so and exits 2",
     ("runtime/wire/protocol.py", "_decode"): "a request that is not msgpack: the kind of decoding error in the reply",
     ("runtime/wire/protocol.py", "decode_reply"): "a reply that is not msgpack: the kind of decoding error",
     ("compiler/objcode.py", "decode"): "object code that is not msgpack: the kind of decoding error",

@@ -277,20 +277,25 @@ def test_hand_made_object_code_cannot_make_a_non_pose_or_a_non_finite_frame_acti
     assert len(host.frames.tool_name) == 40
 
 
-def test_telemetry_samples_carry_the_tool_base_and_tcp():
-    from runtime.server.server import Server, ServeOptions
+def test_telemetry_samples_carry_the_tool_base_and_tcp(tmp_path):
+    from runtime.loop.robotloop import RobotLoop
+    from runtime.loop.system import RunOptions
+    from runtime.motion.moves import Frames
+    from runtime.wire.messages import Snapshot
 
-    server = Server(load_spec(CELL), ServeOptions())
-    frames = ["pallet_station", [650.0, -180.0, 250.0, 0.0, 0.0, 10.0], "gripper", [0.0, 0.0, 180.0, 0.0, 0.0, 0.0]]
+    loop = RobotLoop(load_spec(CELL), RunOptions(state_dir=tmp_path / "s"), lambda *_: True)
+    frames = Frames("pallet_station", (650.0, -180.0, 250.0, 0.0, 0.0, 10.0), "gripper", (0.0, 0.0, 180.0, 0.0, 0.0, 0.0))
     q = [10.0, -20.0, 30.0, 5.0, 40.0, -15.0]
-    fields = server._tcp_fields({"frames": frames, "position": q})
-    assert (fields["tool"], fields["base"]) == ("gripper", "pallet_station")
+    loop.system.trajectory.frames_now = lambda: frames
+    loop.system.robot.positions = q
+    snap = Snapshot.from_wire(loop.snapshot().to_wire())  # (as the server has it)
+    assert (snap.tool, snap.base) == ("gripper", "pallet_station")
     from runtime.motion.kinematics import Kinematics
 
     arm = Kinematics(load_spec(CELL)).with_tool((0.0, 0.0, 180.0, 0.0, 0.0, 0.0))
-    assert fields["tcp"] == list(arm.forward(q))
-    in_base = values_of(compose(inverse(pose_of(frames[1])), pose_of(tuple(fields["tcp"]))))
-    assert np.allclose(fields["tcp_base"], in_base)
+    assert snap.tcp == list(arm.forward(q))
+    in_base = values_of(compose(inverse(pose_of(frames.base)), pose_of(tuple(snap.tcp))))
+    assert np.allclose(snap.tcp_base, in_base)
 
 
 def test_the_example_runs_and_its_report_plots(tmp_path, monkeypatch):

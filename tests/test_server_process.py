@@ -64,3 +64,46 @@ def test_the_servers_own_operation_runs_in_the_server_and_the_others_in_the_loop
         assert "server" in server.request("call", {"text": "components"})["value"]
     finally:
         server.close()
+
+
+SERVE_AND_LIST_MODULES = """
+import os, signal, sys, threading
+from runtime.cli.main import main
+from runtime.client.client import Client
+
+endpoint, telemetry, spec, state = sys.argv[1:5]
+answers = []
+
+def one_request():
+    client = Client(endpoint, timeout=60.0)
+    try:
+        answers.append(client.request("status")["state"])
+    finally:
+        client.close()
+        os.kill(os.getpid(), signal.SIGINT)  # (irl serve stops on it, the robot at rest)
+
+threading.Thread(target=one_request, daemon=True).start()
+code = main(["serve", "--spec", spec, "--sim-clock", "--endpoint", endpoint, "--telemetry", telemetry,
+             "--state-dir", state])
+print(code, answers)
+print(" ".join(sorted(sys.modules)))
+"""
+
+
+def test_the_server_process_imports_nothing_of_the_loop_the_motion_or_the_hardware(tmp_path):
+    """``irl serve`` for real, on loopback: its process answers a request and ends having
+    imported no module of runtime.loop, runtime.motion or runtime.hardware (the loop's
+    process has them)."""
+    import subprocess
+    import sys
+
+    from conftest import free_port
+
+    endpoint, telemetry = f"tcp://127.0.0.1:{free_port()}", f"tcp://127.0.0.1:{free_port()}"
+    proc = subprocess.run([sys.executable, "-c", SERVE_AND_LIST_MODULES, endpoint, telemetry, str(SPEC_PATH),
+                           str(tmp_path / "state")], cwd=ROOT, capture_output=True, text=True, timeout=120)
+    first, modules = proc.stdout.splitlines()[-2:]
+    assert first == "0 ['Idle']", proc.stdout + proc.stderr
+    loaded = modules.split()
+    assert "runtime.server.server" in loaded and "runtime.wire.messages" in loaded
+    assert [m for m in loaded if m.startswith(("runtime.loop", "runtime.motion", "runtime.hardware"))] == []

@@ -14,7 +14,6 @@ import sys
 from pathlib import Path
 
 from runtime.cli.common import (EXIT_INTERNAL, EXIT_INVALID, EXIT_OK, EXIT_USAGE, Environment, UsageError, add_deadline_policy, compile_source, joint_values, log_line, read_object, report_diagnostics, say, spec_compiled_for, warn)
-from runtime.hardware.faults import FAULTS
 from runtime.timing import TICK
 
 
@@ -208,6 +207,7 @@ def cmd_run(args, env: Environment) -> int:
     if loaded is None:
         return EXIT_INVALID
     program, spec = loaded
+    from runtime.hardware.faults import FAULTS
     from runtime.loop.system import RobotSystem, RunOptions
     from runtime.wire.messages import io_sources_problem
 
@@ -522,6 +522,7 @@ def _dis_arguments(p) -> None:
 
 
 def _run_arguments(p) -> None:
+    from runtime.hardware.faults import FAULTS
     from runtime.loop.realtime import add_arguments
 
     p.add_argument("file", metavar="FILE.irl|FILE.irlo", help="the program, or its object code (then --spec)")

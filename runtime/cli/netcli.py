@@ -149,10 +149,9 @@ def cmd_control(args, env) -> int:
 # ---- serve ----------------------------------------------------------------------------------
 def cmd_serve(args, env) -> int:
     from compiler.spec import SpecError, load_spec
-    from runtime.server.server import InsecureEndpoint, ServeOptions, check_endpoints, serve
+    from runtime.scheduling import given, scheduling
+    from runtime.server.server import InsecureEndpoint, LoopRefused, ServeOptions, check_endpoints, serve
     from runtime.wire.messages import io_sources_problem
-
-    from runtime.loop.realtime import given, scheduling
 
     try:
         wanted = scheduling(args)  # (by default SCHED_FIFO, memory locked, where the host permits it)
@@ -176,22 +175,8 @@ def cmd_serve(args, env) -> int:
     problem = io_sources_problem(bool(args.fieldbus), bool(args.cell_scenario), not args.sim_clock, "serve")
     if problem is not None:
         raise common.UsageError(problem)
-    cell = None
-    if args.cell_scenario:
-        from runtime.hardware.sim.cell import ScenarioError, load_scenario
-
-        try:
-            cell = load_scenario(args.cell_scenario, spec)
-        except ScenarioError as exc:
-            raise common.UsageError(f"--cell-scenario: {exc}") from None
-        options.cell = cell
-    if args.fieldbus:
-        from runtime.hardware.fieldbus import FieldbusError, load_fieldbus
-
-        try:
-            options.fieldbus = load_fieldbus(args.fieldbus, spec)
-        except FieldbusError as exc:
-            raise common.UsageError(f"--fieldbus: {exc}") from None
+    # (the cell scenario's and the PLC's files are read by the loop process: the server's imports no simulator)
+    options.cell, options.fieldbus = args.cell_scenario, args.fieldbus
     configurations = None
     if args.config:
         from runtime.config import ConfigError, load_configurations
@@ -207,7 +192,10 @@ def cmd_serve(args, env) -> int:
             check_server_keys(args.keys)
         except KeyError_ as exc:
             raise common.UsageError(str(exc)) from None
-    return serve(spec, options, configurations, stderr=env.stderr)
+    try:
+        return serve(spec, options, configurations, stderr=env.stderr)
+    except LoopRefused as exc:  # the loop read the cell scenario's or the PLC's file: what is wrong with it
+        raise common.UsageError(str(exc)) from None
 
 
 # ---- submit ---------------------------------------------------------------------------------
@@ -672,7 +660,7 @@ def add_commands(declare) -> None:
                        help="allow endpoints other machines can reach without --keys: anyone on the network could "
                             "then move the robot (without it, such endpoints are refused)")
         from runtime.cli.common import add_deadline_policy
-        from runtime.loop.realtime import add_arguments
+        from runtime.scheduling import add_arguments
 
         add_deadline_policy(p)
         add_arguments(p)

@@ -10,15 +10,15 @@ a cycle ends. It decodes no network request, encodes no telemetry for the networ
 never waits on the server: whatever it sends goes through a :class:`~runtime.wire.channel.Channel`
 (or, in one process, a deque).
 
-``irl serve`` runs it in a process of its own (:func:`start_process`), at the real-time
+``irl serve`` runs it in a process of its own (:func:`child`), at the real-time
 priority asked for; tests drive it in-process, tick by tick. Both run the same code, and
 with the simulated clock both give the same report bytes.
 
-Messages to the loop: ``{"op": NAME, "ref": N, ...}`` with NAME one of :data:`COMMANDS`;
-every one is answered by ``{"kind": "reply", "ref": N, "ok": true, "result": ...}`` or
+Messages to the loop: the commands of runtime/wire/messages.py (``{"op": NAME, "ref": N,
+...}``), each carried out by its handler here (:data:`COMMANDS`); every one is answered by ``{"kind": "reply", "ref": N, "ok": true, "result": ...}`` or
 ``{"kind": "reply", "ref": N, "ok": false, "code": C, "message": M}``. Messages from the
 loop (``kind``): ``ready`` (once, with the settings' baseline and the scheduling it got),
-``failed`` (it could not start), ``snapshot``, ``event`` (a state transition or a
+``failed`` (it could not start), ``snapshot`` (runtime.wire.messages.Snapshot), ``event`` (a state transition or a
 program's ``log`` line, for telemetry), ``finished`` (a cycle ended: its summary),
 ``reply``.
 """
@@ -35,16 +35,18 @@ from typing import Callable
 
 from compiler.objcode import ObjectCodeError, load
 
-from runtime.wire.protocol import ProtocolError
+from runtime.loop.components.report import tcp_of
 from runtime.loop.supervisor import MOVE
 from runtime.loop.system import RobotSystem, RunOptions
+from runtime.wire import messages
+from runtime.wire.messages import EXIT_TIMEOUT, LoopOptions, Progress, Snapshot
+from runtime.wire.protocol import ProtocolError
 
-__all__ = ["COMMANDS", "COMMANDS_PER_TICK", "RobotLoop", "TELEMETRY_EVERY", "start_process"]
+__all__ = ["COMMANDS", "COMMANDS_PER_TICK", "EXIT_TIMEOUT", "RobotLoop", "TELEMETRY_EVERY", "child"]
 
 TELEMETRY_EVERY = 10  # ticks between snapshots while a cycle runs (10 ms)
 IDLE_SNAPSHOT_PERIOD = 0.5  # s between snapshots while idle
 COMMANDS_PER_TICK = 8  # operator commands applied at most per tick
-EXIT_TIMEOUT = 15.0  # s an exit waits for the robot to come to rest before an emergency stop
 
 
 class RobotLoop:
@@ -53,6 +55,8 @@ class RobotLoop:
 
     def __init__(self, spec, options: RunOptions, send: Callable[..., bool]):
         self.system = RobotSystem(spec, options)
+        self.tcp = tcp_of(spec)  # the snapshot's TCP (None: the robot's kinematics give none)
+        self.main_axes = len(spec.main_axes)
         self.send = send
         self.job: int | None = None  # the running cycle's program id (the server's)
         self.abort_reason: str | None = None
@@ -68,40 +72,40 @@ class RobotLoop:
     # ---- what the server asks ----------------------------------------------------------
     def ready(self, scheduling: str | None = None) -> dict:
         return {"kind": "ready", "baseline": self.system.settings(), "pid": os.getpid(), "scheduling": scheduling,
-                "snapshot": self.snapshot()}
+                "snapshot": self.snapshot().to_wire()}
 
     def command(self, message: dict) -> None:
         """Carry out one command and send its reply (and, before it, a fresh snapshot:
         a client that reads the status after the reply sees the command's effect)."""
         ref = message.get("ref")
         try:
-            handler = COMMANDS[message["op"]][0]
-            result = handler(self, message)
+            ref, command = messages.command_of(message)
+            result = COMMANDS[command.OP](self, command)
             reply = {"kind": "reply", "ref": ref, "ok": True, "result": result}
         except ProtocolError as exc:
             reply = {"kind": "reply", "ref": ref, "ok": False, "code": exc.code, "message": exc.message}
         except Exception as exc:  # a bug: the server hears of it, the loop goes on
             reply = {"kind": "reply", "ref": ref, "ok": False, "code": "internal",
                      "message": f"{type(exc).__name__}: {exc}"}
-        self.send(self.snapshot())
+        self.send(self.snapshot().to_wire())
         self.send(reply)
 
-    def _start(self, m: dict) -> dict:
+    def _start(self, m: messages.Start) -> dict:
         if self.job is not None:
             raise ProtocolError("refused", f"program {self.job} is running")
         if self.exit_reason is not None:
             raise ProtocolError("refused", self.exit_reason)
         system = self.system
         try:
-            program = load(m["object"], None) if m.get("object") is not None else None
+            program = load(m.object, None) if m.object is not None else None
         except ObjectCodeError as exc:
             raise ProtocolError("invalid_program", f"the object code is invalid: {exc}") from None
         try:
-            system.begin(program, m.get("report"), settings=m.get("settings"))
+            system.begin(program, m.report, settings=m.settings)
         except (ValueError, OSError) as exc:
             raise ProtocolError("refused", str(exc)) from None
-        system.trajectory.override = m.get("override", 100.0)
-        self.job = m["job"]
+        system.trajectory.override = m.override
+        self.job = m.job
         self.abort_reason = None
         self._seen_states = self._seen_log = 0
         # The loop allocates small, cycle-free objects every tick; reference counting frees
@@ -112,14 +116,14 @@ class RobotLoop:
         gc.disable()
         return {"t": system.clock.now()}
 
-    def _meant(self, m: dict) -> None:
+    def _meant(self, m: messages.Pause | messages.Resume) -> None:
         """Refuse a command meant for another program than the running one."""
-        wanted = m.get("program")
+        wanted = m.program
         if wanted is not None and wanted != self.job:
             raise ProtocolError("refused", f"program {wanted} is not the running program"
                                            + (f" (program {self.job} is)" if self.job is not None else ""))
 
-    def _pause(self, m: dict) -> dict:
+    def _pause(self, m: messages.Pause) -> dict:
         system = self.system
         self._meant(m)
         if self.job is None or system.supervisor.fsm.state != MOVE:
@@ -130,50 +134,50 @@ class RobotLoop:
             raise ProtocolError("refused", "the program cannot be paused now (it is ending)")
         return {"program": self.job, "paused": True}
 
-    def _resume(self, m: dict) -> dict:
+    def _resume(self, m: messages.Resume) -> dict:
         self._meant(m)
         if self.job is None or not self.system.trajectory.resume():
             raise ProtocolError("refused", "no program is paused")
         return {"program": self.job, "paused": False}
 
-    def _abort(self, m: dict) -> dict:
-        wanted = m.get("program")
+    def _abort(self, m: messages.Abort) -> dict:
+        wanted = m.program
         if self.job is None or (wanted is not None and wanted != self.job):
             raise ProtocolError("not_found" if wanted is not None else "refused",
                                 f"program {wanted} is neither running nor queued" if wanted is not None
                                 else "no program is running")
-        self.stop(m.get("reason") or "aborted by the operator")
+        self.stop(m.reason or "aborted by the operator")
         return {"program": self.job, "state": "aborting"}
 
-    def _estop(self, m: dict) -> dict:
+    def _estop(self, m: messages.Estop) -> dict:
         if self.job is not None:
             self.abort_reason = "emergency stop"
             self.system.emergency_stop()
         return {"program": self.job}
 
-    def _override(self, m: dict) -> dict:
-        percent = float(m["percent"])
+    def _override(self, m: messages.Override) -> dict:
+        percent = float(m.percent)
         if not 1.0 <= percent <= 100.0:  # checked by the server too: the loop trusts no one
             raise ProtocolError("bad_request", f"override: percent must be within 1..100, got {percent:g}")
         self.system.trajectory.override = percent
         self.front["override"] = percent
         return {"override": percent}
 
-    def _call(self, m: dict) -> dict:
+    def _call(self, m: messages.Call) -> dict:
         from runtime.loop.scripting import call, loop_targets
 
-        self.front = dict(m.get("front") or {})
-        result = call(loop_targets(self), self.job, m["text"])
+        self.front = dict(m.front or {})
+        result = call(loop_targets(self), self.job, m.text)
         return result() if callable(result) else result
 
-    def _settings(self, m: dict) -> dict:
+    def _settings(self, m: messages.Settings) -> dict:
         if self.job is not None:
             raise ProtocolError("refused", "settings change only between programs")
-        self.system.apply_settings(m["settings"])
+        self.system.apply_settings(m.settings)
         return {"applied": True}
 
-    def _exit(self, m: dict) -> dict:
-        self.exit_reason = m.get("reason") or "the server is shutting down"
+    def _exit(self, m: messages.Exit) -> dict:
+        self.exit_reason = m.reason or "the server is shutting down"
         if self.job is not None:
             self.stop(self.exit_reason)
             self._exit_deadline = time.monotonic() + EXIT_TIMEOUT
@@ -204,7 +208,7 @@ class RobotLoop:
             now = time.monotonic()
             if now - self._last_idle_snapshot >= IDLE_SNAPSHOT_PERIOD:
                 self._last_idle_snapshot = now
-                self.send(self.snapshot(), True)
+                self.send(self.snapshot().to_wire(), True)
             return
         ex = self.system.executive
         ex.step()
@@ -232,24 +236,28 @@ class RobotLoop:
             self._seen_log += 1
             self.send({"kind": "event", "event": "log", "program": self.job, "line": line, "text": text, "at": at,
                        "t": t})
-        self.send(self.snapshot(), True)
+        self.send(self.snapshot().to_wire(), True)
 
-    def snapshot(self) -> dict:
+    def snapshot(self) -> Snapshot:
         """What the server answers ``status`` and publishes as a telemetry sample from."""
         system = self.system
         memory = system.memory
-        snap = {"kind": "snapshot", "t": system.clock.now(), "job": self.job,
-                "state": system.supervisor.fsm.path() if self.job is not None else "Idle",
-                "position": list(system.robot.positions),
-                "inputs": list(system.io.inputs.read()), "outputs": list(system.io.outputs.read()),
-                "frames": list(system.trajectory.frames_now()),
-                "calibrated": memory.calibrated, "initialized": memory.initialized,
-                "calibration": memory.calibration_why, "initialization": memory.initialization_why}
+        position = list(system.robot.positions)
+        frames = system.trajectory.frames_now()
+        tcp = tcp_base = None
+        if self.tcp is not None:
+            joints = position[:self.main_axes]
+            world = self.tcp.world(joints, frames)  # (the forward kinematics once for both)
+            tcp, tcp_base = list(world), list(self.tcp.in_base(joints, frames, world))
+        progress = None
         if self.job is not None:
             t = system.trajectory
-            snap.update(line=t.line, moves_done=t.motion.completed, paused=t.paused,
-                        following_error=max((abs(e) for e in system.servo.following_error), default=0.0))
-        return snap
+            progress = Progress(t.line, t.motion.completed, t.paused,
+                                max((abs(e) for e in system.servo.following_error), default=0.0))
+        return Snapshot(system.clock.now(), self.job, system.supervisor.fsm.path() if self.job is not None else "Idle",
+                        position, list(system.io.inputs.read()), list(system.io.outputs.read()),
+                        frames.tool_name, frames.base_name, tcp, tcp_base, memory.calibrated, memory.initialized,
+                        memory.calibration_why, memory.initialization_why, progress)
 
     def finish(self) -> None:
         """Not real-time: the cycle ended; flush its files and send its summary."""
@@ -261,7 +269,7 @@ class RobotLoop:
         job, self.job = self.job, None
         self.send({"kind": "finished", "job": job, "summary": summary,
                    "aborted": self.abort_reason is not None, "t": self.system.clock.now()})
-        self.send(self.snapshot())
+        self.send(self.snapshot().to_wire())
 
     def run(self, channel) -> None:
         """The loop process's main loop, until an ``exit`` has brought the robot to rest
@@ -277,7 +285,7 @@ class RobotLoop:
                 self.commands.extend(channel.receive())
             except ChannelClosed:
                 if self.exit_reason is None:
-                    self._exit({"reason": "the server process ended"})
+                    self._exit(messages.Exit("the server process ended"))
                     if self.job is None:
                         break
             self.turn()
@@ -286,23 +294,48 @@ class RobotLoop:
         channel.drain(5.0)
 
 
-#: The commands the loop carries out: name -> (handler, what it does).
-COMMANDS: dict[str, tuple[Callable[[RobotLoop, dict], dict], str]] = {
-    "start": (RobotLoop._start, "begin a cycle: job, object (bytes; none: a reconfiguration), report, settings, "
-                                "override"),
-    "pause": (RobotLoop._pause, "pause the moving program on its path"),
-    "resume": (RobotLoop._resume, "resume a paused program"),
-    "abort": (RobotLoop._abort, "stop the running program (program: only if it is this one), reason"),
-    "estop": (RobotLoop._estop, "emergency stop (category 1) of the running program"),
-    "override": (RobotLoop._override, "speed override, percent (1-100)"),
-    "call": (RobotLoop._call, "a scripting command (text), with the server's state a script may read (front)"),
-    "settings": (RobotLoop._settings, "apply validated settings between programs"),
-    "exit": (RobotLoop._exit, "bring the robot to rest and end the loop (reason)"),
+#: The handler of every command (runtime.wire.messages.COMMANDS, which says what each does).
+COMMANDS: dict[str, Callable[[RobotLoop, messages.Command], dict]] = {
+    messages.Start.OP: RobotLoop._start,
+    messages.Pause.OP: RobotLoop._pause,
+    messages.Resume.OP: RobotLoop._resume,
+    messages.Abort.OP: RobotLoop._abort,
+    messages.Estop.OP: RobotLoop._estop,
+    messages.Override.OP: RobotLoop._override,
+    messages.Call.OP: RobotLoop._call,
+    messages.Settings.OP: RobotLoop._settings,
+    messages.Exit.OP: RobotLoop._exit,
 }
 
 
-def _child(spec, options: RunOptions, scheduling, channel, servers_end) -> None:
-    """The loop process: build the robot, ask for real-time scheduling, serve the loop."""
+def run_options(spec, options: LoopOptions) -> RunOptions:
+    """The robot's options in the loop process: the cell scenario's and the PLC's files
+    read here (ValueError: what is wrong with them, in the command line's words)."""
+    problem = options.problem()
+    if problem is not None:
+        raise ValueError(problem)
+    cell = fieldbus = None
+    if options.cell is not None:
+        from runtime.hardware.sim.cell import ScenarioError, load_scenario
+
+        try:
+            cell = load_scenario(options.cell, spec)
+        except ScenarioError as exc:
+            raise ValueError(f"--cell-scenario: {exc}") from None
+    if options.fieldbus is not None:
+        from runtime.hardware.fieldbus import FieldbusError, load_fieldbus
+
+        try:
+            fieldbus = load_fieldbus(options.fieldbus, spec)
+        except FieldbusError as exc:
+            raise ValueError(f"--fieldbus: {exc}") from None
+    return RunOptions(seed=options.seed, realtime=options.realtime, state_dir=options.state_dir,
+                      deadline_policy=options.deadline_policy, cell=cell, fieldbus=fieldbus)
+
+
+def child(spec, options: LoopOptions, channel, servers_end) -> None:
+    """The loop process (forked by the server: runtime/server/looplink.py): build the robot,
+    ask for real-time scheduling, serve the loop."""
     servers_end.close()  # (inherited: kept open, the server's death would never be seen)
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # the server decides how to stop (Ctrl-C reaches both)
 
@@ -310,21 +343,27 @@ def _child(spec, options: RunOptions, scheduling, channel, servers_end) -> None:
 
     def terminate(*_):  # a SIGTERM sent to this process alone: bring the robot to rest, then end
         if loop_ref and loop_ref[0].exit_reason is None:
-            loop_ref[0].commands.append({"op": "exit", "ref": None, "reason": "the loop process was terminated"})
+            loop_ref[0].commands.append(messages.Exit("the loop process was terminated").to_wire(None))
 
     signal.signal(signal.SIGTERM, terminate)
     try:
-        loop = RobotLoop(spec, options, channel.send)
+        run = run_options(spec, options)
+    except ValueError as exc:  # the options given: the command line's error
+        channel.send({"kind": "failed", "error": str(exc), "usage": True})
+        channel.drain(5.0)
+        os._exit(1)
+    try:
+        loop = RobotLoop(spec, run, channel.send)
     except Exception as exc:
         channel.send({"kind": "failed", "error": f"{type(exc).__name__}: {exc}"})
         channel.drain(5.0)
         os._exit(1)
     loop_ref.append(loop)
     got = None
-    if options.realtime:  # by default (none given) the real-time scheduling irl serve asks for
+    if run.realtime:  # by default (none given) the real-time scheduling irl serve asks for
         from runtime.loop.realtime import DEFAULT, apply
 
-        got = apply(scheduling if scheduling is not None else DEFAULT)
+        got = apply(options.scheduling if options.scheduling is not None else DEFAULT)
     sys.setswitchinterval(0.0005)  # a helper thread (a planner, the report writer) hands the GIL back quickly
     channel.send(loop.ready(got))
     try:
@@ -332,19 +371,3 @@ def _child(spec, options: RunOptions, scheduling, channel, servers_end) -> None:
     finally:
         channel.close()
     os._exit(0)
-
-
-def start_process(spec, options: RunOptions, scheduling):
-    """Fork the loop process; returns (process, the server's end of the channel). Call
-    before the server starts any thread or ZeroMQ context (a fork copies only the caller)."""
-    import multiprocessing
-
-    from runtime.wire.channel import pair
-
-    ours, theirs = pair()
-    context = multiprocessing.get_context("fork")
-    process = context.Process(target=_child, args=(spec, options, scheduling, theirs, ours), name="irl-loop",
-                              daemon=True)
-    process.start()
-    theirs.close()
-    return process, ours

@@ -40,15 +40,12 @@ import zmq
 
 from compiler.objcode import OP, ObjectCodeError, Program, load, spec_mismatch
 
-from runtime.places import DEFAULT_ENDPOINT, DEFAULT_TELEMETRY, default_state_dir
-from runtime.wire import protocol
 from runtime.config import merge_settings
-from runtime.loop.components.report import tcp_of
+from runtime.places import DEFAULT_ENDPOINT, DEFAULT_TELEMETRY, default_state_dir
 from runtime.server.feeds import Feeds
-from runtime.motion.moves import Frames
+from runtime.wire import messages, protocol
+from runtime.wire.messages import EXIT_TIMEOUT, LoopOptions, Snapshot
 from runtime.wire.protocol import JobState, ProtocolError
-from runtime.loop.robotloop import EXIT_TIMEOUT
-from runtime.loop.system import RunOptions
 
 log = logging.getLogger("irl.serve")
 
@@ -69,15 +66,15 @@ class ServeOptions:
     allow_insecure_remote: bool = False
     #: The servo's deadline policy ("hard", "firm", "soft"); None: the specification's.
     deadline_policy: str | None = None
-    #: Real-time scheduling for the loop process (wall clock only): a runtime.loop.realtime.Scheduling;
-    #: None: runtime.loop.realtime.DEFAULT (SCHED_FIFO, memory locked, where the host permits it).
+    #: Real-time scheduling for the loop process (wall clock only): a runtime.scheduling.Scheduling;
+    #: None: runtime.scheduling.DEFAULT (SCHED_FIFO, memory locked, where the host permits it).
     scheduling: object = None
     #: The loop in a process of its own (False: in this one, driven by ``Server.turn``: tests).
     loop_process: bool = True
-    #: What the simulated cell does with the I/O (runtime.hardware.sim.cell.Scenario), or None.
-    cell: object = None
-    #: The I/O on a PLC (runtime.hardware.fieldbus.ModbusConfig), or None.
-    fieldbus: object = None
+    #: The file of what the simulated cell does with the I/O (--cell-scenario), or None: read by the loop.
+    cell: str | Path | None = None
+    #: The file of the I/O on a PLC (--fieldbus), or None: read by the loop.
+    fieldbus: str | Path | None = None
 
 
 INSECURE_FLAG = "--insecure-allow-remote-without-encryption"
@@ -185,14 +182,13 @@ def moves_total(program: Program) -> int | None:
 
 class LoopCommand:
     """What an ``op_*`` handler returns for a request the loop must carry out: the
-    command's name and arguments (runtime.loop.robotloop.COMMANDS); the loop's reply becomes
-    the client's (through ``finish``, when given, for what the server adds to it)."""
+    command (runtime.wire.messages.COMMANDS); the loop's reply becomes the client's (through
+    ``finish``, when given, for what the server adds to it)."""
 
-    __slots__ = ("op", "args", "finish", "failed", "version")
+    __slots__ = ("command", "finish", "failed", "version")
 
-    def __init__(self, op: str, finish=None, failed=None, **args):
-        self.op = op
-        self.args = args
+    def __init__(self, command: messages.Command, finish=None, failed=None):
+        self.command = command
         self.finish = finish  # result -> the client's result (may raise ProtocolError)
         self.failed = failed  # called with the loop's refusal
         self.version = protocol.VERSION  # the request's protocol version (its reply's)
@@ -234,13 +230,40 @@ class LoopGone(Exception):
     """The loop process ended, or never became ready."""
 
 
+class LoopRefused(LoopGone):
+    """The loop process could not start with the options given (a cell scenario's or a
+    PLC's file): the command line's error."""
+
+
+def _loop_process(spec, options: LoopOptions, channel, servers_end) -> None:
+    """The forked loop process: only here is the loop imported (the server's process has
+    none of runtime.loop, runtime.motion, runtime.hardware)."""
+    from runtime.loop.robotloop import child
+
+    child(spec, options, channel, servers_end)
+
+
+def start_process(spec, options: LoopOptions):
+    """Fork the loop process; returns (process, the server's end of the channel). Call
+    before the server starts any thread or ZeroMQ context (a fork copies only the caller)."""
+    import multiprocessing
+
+    from runtime.wire.channel import pair
+
+    ours, theirs = pair()
+    context = multiprocessing.get_context("fork")
+    process = context.Process(target=_loop_process, args=(spec, options, theirs, ours), name="irl-loop", daemon=True)
+    process.start()
+    theirs.close()
+    return process, ours
+
+
 class Server:
     def __init__(self, spec, options: ServeOptions, configurations=None):
         self.spec = spec
         # the specification's file as a client on this host can name it (messages)
         self.spec_file = os.path.abspath(spec.file) if os.path.isfile(spec.file) else spec.file
         self.options = options
-        self.tcp = tcp_of(spec)  # the sample's TCP (None: the robot's kinematics give none)
         state_dir = Path(options.state_dir) if options.state_dir else default_state_dir()
         self.state_dir = state_dir
         session = time.strftime("%Y%m%d-%H%M%S") + f"-{os.getpid()}"
@@ -256,7 +279,7 @@ class Server:
         self.inbox: collections.deque = collections.deque()  # messages of an in-process loop
         self.pending: dict[int, tuple] = {}  # ref -> (identity, request id, LoopCommand) awaiting the loop
         self._ref = 0
-        self.snapshot: dict = {}  # the loop's latest
+        self.snapshot: Snapshot | None = None  # the loop's latest
         self.stop_reason: str | None = None
         self._stopping = False  # the loop was told to stop the running program and end (shutdown)
         self.telemetry_seq = 0
@@ -271,21 +294,19 @@ class Server:
         self.loop_gone: str | None = None  # why the loop process ended (then no program runs)
         self.loop = self.process = self.channel = None
         self.router = self.pub = self.connections = None
-        run_options = RunOptions(seed=options.seed, realtime=not options.sim_clock, state_dir=state_dir,
-                                 deadline_policy=options.deadline_policy, cell=options.cell,
-                                 fieldbus=options.fieldbus)
+        loop_options = LoopOptions(seed=options.seed, realtime=not options.sim_clock, state_dir=state_dir,
+                                   deadline_policy=options.deadline_policy, cell=options.cell,
+                                   fieldbus=options.fieldbus, scheduling=options.scheduling)
         # the loop first: the fork copies only this thread, before any ZeroMQ context exists
         if options.loop_process:
-            from runtime.loop.robotloop import start_process
-
-            self.process, self.channel = start_process(spec, run_options, options.scheduling)
+            self.process, self.channel = start_process(spec, loop_options)
             ready = self._await("ready", LOOP_START_TIMEOUT)
-        else:
-            from runtime.loop.robotloop import RobotLoop
+        else:  # (tests: the loop in this process)
+            from runtime.loop.robotloop import RobotLoop, run_options
 
-            self.loop = RobotLoop(spec, run_options, self._from_loop)
+            self.loop = RobotLoop(spec, run_options(spec, loop_options), self._from_loop)
             ready = self.loop.ready()
-        self.snapshot = ready["snapshot"]
+        self.snapshot = Snapshot.from_wire(ready["snapshot"])
         self.loop_scheduling = ready["scheduling"]
         self.loop_pid = ready["pid"]
         self.baseline = ready["baseline"]  # what a configuration's missing keys fall back to
@@ -299,7 +320,7 @@ class Server:
                 settings = validate_settings(merge_settings(self.baseline,
                                                             configurations[configurations.default].settings),
                                              f"configuration {configurations.default!r} over the start-up settings")
-                self._ask(LoopCommand("settings", settings=settings))
+                self._ask(LoopCommand(messages.Settings(settings)))
             except BaseException:
                 self._stop_loop()
                 raise
@@ -320,7 +341,7 @@ class Server:
     def _send_loop(self, command: LoopCommand, identity=None, request_id=None) -> None:
         self._ref += 1
         self.pending[self._ref] = (identity, request_id, command)
-        message = {"op": command.op, "ref": self._ref, **command.args}
+        message = command.command.to_wire(self._ref)
         if self.loop is not None:
             self.loop.commands.append(message)
         else:
@@ -356,6 +377,8 @@ class Server:
         while True:
             for message in self._receive():
                 if message["kind"] == "failed":
+                    if message.get("usage"):
+                        raise LoopRefused(message["error"])
                     raise LoopGone(f"the real-time loop could not start: {message['error']}")
                 if message["kind"] == kind:
                     return message
@@ -391,7 +414,7 @@ class Server:
                     return command.finish(result) if command.finish is not None else result
                 self._on_loop(message)
             if time.monotonic() > deadline:
-                raise LoopGone(f"the real-time loop did not answer {command.op!r} within {timeout:g} s")
+                raise LoopGone(f"the real-time loop did not answer {command.command.OP!r} within {timeout:g} s")
             if self.loop is not None:
                 self.loop.turn()
             else:
@@ -399,8 +422,8 @@ class Server:
 
     def _on_loop(self, message: dict) -> None:
         kind = message["kind"]
-        if kind == "snapshot":
-            self.snapshot = message
+        if kind == Snapshot.KIND:
+            self.snapshot = Snapshot.from_wire(message)
             self._publish_sample()
         elif kind == "reply":
             self._on_reply(message)
@@ -444,7 +467,7 @@ class Server:
             # the loop stops the program on its path, and makes it an emergency stop if the
             # robot is not at rest within robotloop.EXIT_TIMEOUT
             self._stopping = True
-            self._send_loop(LoopCommand("exit", reason=self.stop_reason))
+            self._send_loop(LoopCommand(messages.Exit(self.stop_reason)))
         return True
 
     def turn(self, idle_wait: bool = True) -> bool:
@@ -485,9 +508,8 @@ class Server:
         def refused(reply: dict) -> None:  # the program cannot run here
             self._end(job, JobState.FAULTED, reply["message"])
 
-        self._send_loop(LoopCommand("start", finish=started, failed=refused, job=job.id, object=job.object,
-                                    report=str(job.report) if job.report else None,
-                                    settings=job.settings, override=self.override))
+        self._send_loop(LoopCommand(messages.Start(job.id, job.object, str(job.report) if job.report else None,
+                                                   job.settings, self.override), finish=started, failed=refused))
 
     def _finish_current(self, message: dict) -> None:
         job = self.current
@@ -522,7 +544,7 @@ class Server:
         self.telemetry_seq += 1
         message["v"] = protocol.VERSION
         message["seq"] = self.telemetry_seq
-        message.setdefault("t", self.snapshot.get("t", 0.0))
+        message.setdefault("t", self.snapshot.t if self.snapshot is not None else 0.0)
         self.telemetry_history.append(message)  # (for replay: the telemetry request)
         if message["kind"] == "sample":
             self.last_sample = message
@@ -539,21 +561,6 @@ class Server:
             except zmq.Again:
                 pass
 
-    def _tcp_fields(self, snap: dict) -> dict:
-        """The sample's tool, base and TCP (in the world frame and in that base), from the
-        loop's snapshot: its measured position and the move's frames."""
-        raw = snap.get("frames")
-        if not raw:
-            return {}
-        frames = Frames(raw[0], tuple(raw[1]), raw[2], tuple(raw[3]))
-        fields = {"tool": frames.tool_name, "base": frames.base_name, "tcp": None, "tcp_base": None}
-        if self.tcp is not None:
-            joints = snap["position"][:len(self.spec.main_axes)]
-            world = self.tcp.world(joints, frames)  # (the forward kinematics once for both)
-            fields["tcp"] = list(world)
-            fields["tcp_base"] = list(self.tcp.in_base(joints, frames, world))
-        return fields
-
     def _poll_subscriptions(self) -> None:
         """Which telemetry topics have subscribers (XPUB's subscription messages)."""
         for _ in range(1000):
@@ -565,15 +572,16 @@ class Server:
     def _publish_sample(self) -> None:
         snap = self.snapshot
         job = self.current
-        running = job is not None and snap.get("job") == job.id
-        sample = {"kind": "sample", "state": snap["state"] if running else "Idle",
+        running = job is not None and snap.job == job.id
+        sample = {"kind": "sample", "state": snap.state if running else "Idle",
                   "program": job.id if running else None, "queued": len(self.queue),
-                  "override": self.override, "position": snap["position"], "inputs": snap["inputs"],
-                  "outputs": snap["outputs"], "t": snap["t"]}
-        sample.update(self._tcp_fields(snap))
-        if running and "line" in snap:
-            sample.update(line=snap["line"], moves_done=snap["moves_done"], moves_total=job.moves_total,
-                          paused=snap["paused"], following_error=snap["following_error"])
+                  "override": self.override, "position": snap.position, "inputs": snap.inputs,
+                  "outputs": snap.outputs, "t": snap.t,
+                  "tool": snap.tool, "base": snap.base, "tcp": snap.tcp, "tcp_base": snap.tcp_base}
+        progress = snap.progress
+        if running and progress is not None:
+            sample.update(line=progress.line, moves_done=progress.moves_done, moves_total=job.moves_total,
+                          paused=progress.paused, following_error=progress.following_error)
         self._publish(sample)
 
     # ---- sockets and the server's own loop ------------------------------------------------
@@ -630,7 +638,7 @@ class Server:
             if not self._stopping:
                 self._stopping = True
                 try:
-                    self._ask(LoopCommand("exit", reason=self.stop_reason or "the server is closing"), timeout=5.0)
+                    self._ask(LoopCommand(messages.Exit(self.stop_reason or "the server is closing")), timeout=5.0)
                 except (LoopGone, ProtocolError):
                     pass  # it ended meanwhile, or it refused: the join below says
             process.join(EXIT_TIMEOUT + 5.0)
@@ -865,8 +873,9 @@ class Server:
         """A running job as status shows it (from the loop's latest snapshot)."""
         snap = self.snapshot
         d = job.as_dict()
-        if snap.get("job") == job.id and "line" in snap:
-            d.update(line=snap["line"], moves_done=snap["moves_done"], paused=snap["paused"], fsm=snap["state"])
+        if snap.job == job.id and snap.progress is not None:
+            progress = snap.progress
+            d.update(line=progress.line, moves_done=progress.moves_done, paused=progress.paused, fsm=snap.state)
         else:  # started, the loop's first snapshot of it not yet here
             d.update(line=None, moves_done=0, paused=False, fsm="Start Robot")
         return d
@@ -887,9 +896,9 @@ class Server:
                 "programs": [job.as_dict(summary=False) for job in list(self.jobs.values())[-21:]
                              if job.state != JobState.RUNNING][-20:],
                 "override": self.override, "configuration": self.configuration,
-                "calibrated": snap.get("calibrated"), "initialized": snap.get("initialized"),
-                "calibration": snap.get("calibration"), "initialization": snap.get("initialization"),
-                "position": snap.get("position"), "inputs": snap.get("inputs"), "outputs": snap.get("outputs"),
+                "calibrated": snap.calibrated, "initialized": snap.initialized,
+                "calibration": snap.calibration, "initialization": snap.initialization,
+                "position": snap.position, "inputs": snap.inputs, "outputs": snap.outputs,
                 "shutting_down": self.stop_reason is not None,
                 "control": holder.name if (holder := self._holder()) is not None else None,
                 "loop_gone": self.loop_gone}
@@ -935,10 +944,10 @@ class Server:
         return {"program": job.id, "queued": len(self.queue)}
 
     def op_pause(self, args: dict) -> LoopCommand:
-        return LoopCommand("pause", program=args.get("program"))
+        return LoopCommand(messages.Pause(args.get("program")))
 
     def op_resume(self, args: dict) -> LoopCommand:
-        return LoopCommand("resume", program=args.get("program"))
+        return LoopCommand(messages.Resume(args.get("program")))
 
     def op_wait(self, args: dict) -> Wait:
         timeout = float(args.get("timeout", 60.0))
@@ -985,11 +994,11 @@ class Server:
             raise ProtocolError("not_found", f"program {wanted} is neither running nor queued (no such program)")
         if self.current is None:
             raise ProtocolError("refused", "no program is running")
-        return LoopCommand("abort", program=self.current.id, reason="aborted by the operator")
+        return LoopCommand(messages.Abort(self.current.id, "aborted by the operator"))
 
     def op_estop(self, args: dict) -> LoopCommand:
         cancelled = self._cancel_queue("cancelled by an emergency stop")
-        return LoopCommand("estop", finish=lambda result: {**result, "cancelled": cancelled})
+        return LoopCommand(messages.Estop(), finish=lambda result: {**result, "cancelled": cancelled})
 
     def _cancel_queue(self, reason: str) -> list[int]:
         cancelled = []
@@ -1007,7 +1016,7 @@ class Server:
         def applied(result: dict) -> dict:
             self.override = result["override"]
             return result
-        return LoopCommand("override", finish=applied, percent=percent)
+        return LoopCommand(messages.Override(percent), finish=applied)
 
     def op_call(self, args: dict):
         from runtime.server.scripting_service import call_in_server, runs_in_server
@@ -1019,7 +1028,7 @@ class Server:
         command = parse_call(text)
         if runs_in_server(command):
             return call_in_server(command, front, lambda name: self.op_reconfigure({"name": name}))
-        return LoopCommand("call", text=text, front=front)
+        return LoopCommand(messages.Call(text, front))
 
     def op_reconfigure(self, args: dict) -> dict:
         """Re-read the configuration file and queue a Robot Reconfiguration cycle with the
@@ -1106,6 +1115,9 @@ def serve(spec, options: ServeOptions, configurations=None, stderr=None) -> int:
                     "network can control the robot", INSECURE_FLAG)
     try:
         server = Server(spec, options, configurations)
+    except LoopRefused:
+        log.removeHandler(handler)
+        raise
     except (ConfigError, LoopGone) as exc:
         log.error("%s", exc)
         log.removeHandler(handler)

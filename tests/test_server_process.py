@@ -107,3 +107,12 @@ def test_the_server_process_imports_nothing_of_the_loop_the_motion_or_the_hardwa
     loaded = modules.split()
     assert "runtime.server.server" in loaded and "runtime.wire.messages" in loaded
     assert [m for m in loaded if m.startswith(("runtime.loop", "runtime.motion", "runtime.hardware"))] == []
+
+
+def test_every_command_to_the_loop_has_its_handler_there_and_round_trips():
+    from runtime.loop.robotloop import COMMANDS as HANDLERS
+    from runtime.wire import messages
+
+    assert set(HANDLERS) == set(messages.COMMANDS)
+    start = messages.Start(3, b"\x01", "r.csv", None, 50.0)
+    assert messages.command_of(start.to_wire(7)) == (7, start)

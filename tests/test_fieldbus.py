@@ -14,7 +14,8 @@ from pathlib import Path
 
 import pytest
 
-from runtime.hardware.fieldbus import FieldbusError, ModbusIo, load_fieldbus, parse_fieldbus
+from runtime.hardware.backends import FieldbusError, load_fieldbus, parse_fieldbus
+from runtime.hardware.fieldbus import ModbusIo, parse_modbus
 
 from conftest import ROOT, SPEC_PATH, SPEC
 COILS, DISCRETE = 1, 2  # Modbus function codes: read coils, read discrete inputs
@@ -109,8 +110,8 @@ def plc_and_exchange(timeout: float):
 
     port = free_port()
     plc = Plc(port)
-    io = ModbusIo(parse_fieldbus({"modbus": {"host": "127.0.0.1", "port": port, "poll": 0.005,
-                                             "timeout": timeout}}, SPEC), SPEC.inputs, SPEC.outputs)
+    io = ModbusIo(parse_modbus({"host": "127.0.0.1", "port": port, "poll": 0.005, "timeout": timeout}, SPEC),
+                  SPEC.inputs, SPEC.outputs)
     io.start()
     try:
         assert io.wait_connected(5.0), io.lost()

@@ -192,7 +192,8 @@ def test_a_plc_that_cannot_be_reached_refuses_the_program_at_begin(tmp_path):
     a program refused at ``begin`` while it cannot be reached, with the reason."""
     from conftest import free_port
 
-    from runtime.hardware.fieldbus import ModbusIo, parse_fieldbus
+    from runtime.hardware.backends import parse_fieldbus
+    from runtime.hardware.fieldbus import ModbusIo
 
     port = free_port()  # nothing listens there
     config = parse_fieldbus({"modbus": {"host": "127.0.0.1", "port": port, "poll": 0.005, "timeout": 0.05}}, SPEC)

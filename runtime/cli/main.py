@@ -207,16 +207,17 @@ def cmd_run(args, env: Environment) -> int:
     if loaded is None:
         return EXIT_INVALID
     program, spec = loaded
-    from runtime.hardware.faults import FAULTS
+    from runtime.hardware.backends import DEFAULT_ROBOT, ROBOTS
     from runtime.loop.system import RobotSystem, RunOptions
     from runtime.wire.messages import io_sources_problem
 
     faults = []
+    injectable = ROBOTS[DEFAULT_ROBOT].faults
     for item in args.inject or []:
         fault, _, axis = item.partition(":")
         names = [a.name.lower() for a in spec.axes]
-        if fault not in FAULTS or axis.lower() not in names:
-            raise UsageError(f"--inject {item}: expected FAULT:AXIS with FAULT one of {', '.join(FAULTS)} "
+        if fault not in injectable or axis.lower() not in names:
+            raise UsageError(f"--inject {item}: expected FAULT:AXIS with FAULT one of {', '.join(injectable)} "
                              f"and AXIS one of {', '.join(a.name for a in spec.axes)}")
         faults.append((fault, names.index(axis.lower())))
     if not 1.0 <= args.override <= 100.0:
@@ -244,7 +245,7 @@ def cmd_run(args, env: Environment) -> int:
             raise UsageError(f"--cell-scenario: {exc}") from None
     fieldbus = None
     if args.fieldbus:
-        from runtime.hardware.fieldbus import FieldbusError, load_fieldbus
+        from runtime.hardware.backends import FieldbusError, load_fieldbus
 
         try:
             fieldbus = load_fieldbus(args.fieldbus, spec)
@@ -522,7 +523,7 @@ def _dis_arguments(p) -> None:
 
 
 def _run_arguments(p) -> None:
-    from runtime.hardware.faults import FAULTS
+    from runtime.hardware.backends import DEFAULT_ROBOT, ROBOTS
     from runtime.loop.realtime import add_arguments
 
     p.add_argument("file", metavar="FILE.irl|FILE.irlo", help="the program, or its object code (then --spec)")
@@ -554,7 +555,7 @@ def _run_arguments(p) -> None:
     p.add_argument("--override", type=float, default=100.0, metavar="PCT",
                    help="speed override, percent (1-100): velocities x p, accelerations x p^2")
     p.add_argument("--inject", action="append", metavar="FAULT:AXIS",
-                   help=f"break the simulated robot: {', '.join(FAULTS)} on an axis (e.g. sensor_dead:A3)")
+                   help=f"break the simulated robot: {', '.join(ROBOTS[DEFAULT_ROBOT].faults)} on an axis (e.g. sensor_dead:A3)")
     p.add_argument("--json", action="store_true", help="the summary as one JSON object")
     add_deadline_policy(p)
     add_arguments(p)

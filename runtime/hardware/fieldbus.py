@@ -33,16 +33,11 @@ import math
 import threading
 import time
 from dataclasses import dataclass
-from pathlib import Path
 
-from runtime.hardware.interface import IoBackend
+from runtime.hardware.interface import FieldbusError, IoBackend
 from runtime.timing import FIELDBUS_POLL, TICK
 
-__all__ = ["FIELDS", "FieldbusError", "ModbusConfig", "ModbusIo", "load_fieldbus"]
-
-
-class FieldbusError(ValueError):
-    """A fieldbus file that cannot be used: where, what, and what is allowed."""
+__all__ = ["FIELDS", "FieldbusError", "ModbusConfig", "ModbusIo", "parse_modbus"]
 
 
 @dataclass(frozen=True)
@@ -83,16 +78,11 @@ class ModbusConfig:
     timeout: float
 
 
-def parse_fieldbus(data: dict, spec, name: str = "fieldbus") -> ModbusConfig:
+def parse_modbus(table: dict, spec, name: str = "fieldbus") -> ModbusConfig:
+    """The ``[modbus]`` table of the fieldbus file ``name``, checked against ``spec`` (the
+    file itself: :func:`runtime.hardware.backends.load_fieldbus`)."""
     import difflib
 
-    for key in data:
-        if key != "modbus":
-            raise FieldbusError(f"{name}: unknown table [{key}]; known: [modbus]")
-    table = data.get("modbus")
-    if not isinstance(table, dict):
-        raise FieldbusError(f"{name}: a [modbus] table is needed (host, port, device, inputs, outputs, poll, "
-                            "timeout)")
     for key in table:
         if key not in FIELDS:
             close = difflib.get_close_matches(key, list(FIELDS), n=1)
@@ -121,16 +111,6 @@ def parse_fieldbus(data: dict, spec, name: str = "fieldbus") -> ModbusConfig:
         raise FieldbusError(f"{name}: [modbus] the {spec.inputs} inputs and {spec.outputs} outputs must fit below "
                             "address 65536")
     return ModbusConfig(**values)
-
-
-def load_fieldbus(path: str | Path, spec) -> ModbusConfig:
-    try:
-        import pymodbus  # noqa: F401
-    except ImportError:
-        raise FieldbusError("pymodbus is not installed: pip install 'irl[fieldbus]'") from None
-    from runtime.config import read_toml
-
-    return parse_fieldbus(read_toml(path, FieldbusError), spec, str(path))
 
 
 def markdown() -> str:

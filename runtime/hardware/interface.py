@@ -7,6 +7,10 @@ from __future__ import annotations
 from typing import Sequence
 
 
+class FieldbusError(ValueError):
+    """A fieldbus file that cannot be used: where, what, and what is allowed."""
+
+
 class IoBackend:
     """What the I/O component needs of a backend; a backend derives from it. Real-time:
     ``inputs``, ``outputs``, ``input``, ``set_output`` and ``lost`` (plain reads and
@@ -61,3 +65,70 @@ class NoIo(IoBackend):
 
     def set_output(self, n: int, value: bool) -> None:
         raise IndexError(f"digital output {n} does not exist: this robot has no digital I/O")
+
+
+class RobotBackend:
+    """What the loop needs of a robot (the arm's drives, encoders, brakes and homing sensors;
+    the hardware interface of ros2_control): the Robot Interface component
+    (runtime.loop.components.robot_interface) and the robot system
+    (runtime.loop.system) call these and nothing else. A backend derives from it (the
+    simulated arm, :class:`runtime.hardware.sim.robot.SimRobot`); one with digital I/O of its
+    own derives from :class:`IoBackend` too. Axes are numbered from 0, in the order of
+    ``spec.axes``.
+
+    Real-time (every 1 ms tick, or a fault's reaction within one): ``read``,
+    ``read_counts``, ``step``, the brake and drive operations and their states: plain
+    reads and assignments, never a wait. Not real-time: ``inject`` (set-up)."""
+
+    #: the faults ``inject`` can give this backend (:data:`runtime.hardware.faults.FAULTS` on
+    #: the simulated arm; none on hardware)
+    FAULTS: tuple[str, ...] = ()
+
+    def read(self) -> tuple[tuple[int, ...], tuple[int, ...], tuple[int, ...], tuple[bool, ...]]:
+        """The encoder side, one element per axis in each tuple: ``(counts,
+        index_event_counters, latched_index_counts, sensor_active)``: the incremental
+        counts; how many index (Z) pulses since power-up (it only grows); the count latched
+        at the last one; whether the homing sensor is active."""
+        raise NotImplementedError
+
+    def read_counts(self) -> tuple[int, ...]:
+        """Only the encoder counts (the per-tick read once homing is done)."""
+        raise NotImplementedError
+
+    def step(self, dt: float, velocity_commands: tuple[float, ...]) -> None:
+        """Command the drives to ``velocity_commands`` (unit/s, one per axis) for the next
+        ``dt`` seconds (a simulation advances its physics by ``dt``)."""
+        raise NotImplementedError
+
+    def release_brakes(self) -> None:
+        """Start releasing the brakes (:meth:`brakes_released` says when they are)."""
+        raise NotImplementedError
+
+    def apply_brakes(self) -> None:
+        """Start applying the brakes (:meth:`brakes_applied` says when they hold)."""
+        raise NotImplementedError
+
+    def brakes_released(self) -> bool:
+        """True once the brakes are released and the axes can move."""
+        raise NotImplementedError
+
+    def brakes_applied(self) -> bool:
+        """True once the brakes hold the axes (and no release is under way)."""
+        raise NotImplementedError
+
+    def disable_drives(self) -> None:
+        """Safe torque off, at once: the drives ignore their commands until
+        :meth:`enable_drives`."""
+        raise NotImplementedError
+
+    def enable_drives(self) -> None:
+        """Torque on: the drives follow their commands again."""
+        raise NotImplementedError
+
+    def drives_enabled(self) -> bool:
+        raise NotImplementedError
+
+    def inject(self, fault: str, axis: int) -> None:
+        """Set-up: give axis ``axis`` the fault ``fault`` (one of :attr:`FAULTS`)."""
+        raise ValueError(f"the fault {fault!r} cannot be injected: this robot backend has "
+                         + (f"the faults {', '.join(self.FAULTS)}" if self.FAULTS else "no injectable faults"))

@@ -323,7 +323,7 @@ def run_options(spec, options: LoopOptions) -> RunOptions:
         except ScenarioError as exc:
             raise ValueError(f"--cell-scenario: {exc}") from None
     if options.fieldbus is not None:
-        from runtime.hardware.fieldbus import FieldbusError, load_fieldbus
+        from runtime.hardware.backends import FieldbusError, load_fieldbus
 
         try:
             fieldbus = load_fieldbus(options.fieldbus, spec)

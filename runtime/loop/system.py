@@ -24,8 +24,9 @@ from runtime.loop.components.servo import ServoController
 from runtime.loop.components.trajectory import TrajectoryGenerator
 from runtime.loop.executive import Executive, MissPolicy, SimClock, WallClock
 from runtime.motion.interpolator import Interpolator
+from runtime.hardware.backends import DEFAULT_ROBOT, ROBOTS, make_io, make_robot
+from runtime.hardware.interface import RobotBackend
 from runtime.hardware.sim.estimator import AlphaBeta
-from runtime.hardware.sim.robot import SimRobot
 from runtime.loop.supervisor import RobotMemory, StateFile, Supervisor
 from runtime.timing import REPORT_PERIOD, SETPOINT_PERIOD, TICK
 from runtime.wire.messages import io_sources_problem
@@ -38,15 +39,17 @@ class RunOptions:
     report: str | Path | None = None
     state_dir: str | Path | None = None
     max_time: float = 3600.0  # simulated (or wall) seconds before the run is stopped
-    faults: list = field(default_factory=list)  # [(fault, axis)] injected into the simulated robot
+    robot: str = DEFAULT_ROBOT  # the robot backend (a key of runtime.hardware.backends.ROBOTS)
+    faults: list = field(default_factory=list)  # [(fault, axis)] injected into the robot backend (its kind's faults)
     override: float = 100.0  # speed override (percent, 1-100) of every move
     deadline_policy: str | None = None  # the servo's miss policy ("hard", "firm", "soft"); None: the spec's
     cell: object = None  # a runtime.hardware.sim.cell.Scenario: what the simulated cell does with the I/O
-    fieldbus: object = None  # a runtime.hardware.fieldbus.ModbusConfig: the I/O on a PLC (wall clock only)
+    fieldbus: object = None  # a runtime.hardware.backends.FieldbusConfig: the I/O on a PLC (wall clock only)
 
 
 class RobotSystem:
-    def __init__(self, spec, options: RunOptions, backend=None, memory: RobotMemory | None = None, clock=None):
+    def __init__(self, spec, options: RunOptions, backend: RobotBackend | None = None,
+                 memory: RobotMemory | None = None, clock=None):
         self.spec = spec
         self.options = options
         # ``clock``: another clock with the same interface (``now``, ``tick_time``,
@@ -55,7 +58,8 @@ class RobotSystem:
         n = len(spec.axes)
         self.ports = {name: DataPort(name) for name in ("sens_pos", "desi_pos", "init_pos", "out_vel", "drive_cmd")}
         p = self.ports
-        self.backend = backend if backend is not None else SimRobot(spec, options.seed)
+        # the robot backend: one given (hardware, a test's), else the kind options.robot names
+        self.backend = backend if backend is not None else make_robot(options.robot, spec, options.seed)
         for fault, axis in options.faults:
             self.backend.inject(fault, axis)
         self.robot = RobotInterface(spec, self.backend, p["sens_pos"], p["drive_cmd"], AlphaBeta(n, TICK), TICK)
@@ -72,12 +76,10 @@ class RobotSystem:
         if problem is not None:
             raise ValueError(problem)
         if options.fieldbus is not None:
-            from runtime.hardware.fieldbus import ModbusIo
-
-            io_backend = ModbusIo(options.fieldbus, spec.inputs, spec.outputs)
+            io_backend = make_io(options.fieldbus, spec)
         self.cell = None
         if options.cell is not None:
-            if backend is not None:
+            if backend is not None or not ROBOTS[options.robot].simulated:
                 raise ValueError("a cell scenario drives the simulated robot's inputs: it cannot be used with "
                                  "hardware (its inputs come from the cell itself)")
             from runtime.hardware.sim.cell import Cell
@@ -95,7 +97,8 @@ class RobotSystem:
             self.report.columns.append("io")  # the cell's I/O in every row
         self.executive = Executive(self.clock, TICK)
         identity = {"robot": spec.name, "spec_hash": spec.hash,
-                    "backend": f"sim-seed-{options.seed}" if backend is None else "hardware"}
+                    "backend": ROBOTS[options.robot].identity(options.robot, options.seed) if backend is None
+                    else "hardware"}
         drift = spec.safety.max_drive_drift
         self.memory = memory or RobotMemory()
         self.state_file = StateFile(options.state_dir, identity, tuple(drift for _ in spec.axes))

@@ -67,7 +67,7 @@ import math
 import random
 
 from runtime.accel import kernels
-from runtime.hardware.interface import IoBackend
+from runtime.hardware.interface import IoBackend, RobotBackend
 from runtime.hardware.faults import FAULTS
 
 drive_step = kernels.drive_step
@@ -76,13 +76,14 @@ drive_step = kernels.drive_step
 _floor = math.floor
 
 
-class SimRobot(IoBackend):
+class SimRobot(RobotBackend, IoBackend):
     """A simulated robot for ``spec``; ``seed`` fixes its drive offsets and park positions.
 
     Not real-time (set-up): builds the per-axis state from the specification.
     """
 
     forcible = True  # its inputs are the world's side: tests and scenarios set them
+    FAULTS = FAULTS
 
     def __init__(self, spec, seed: int = 0):
         self.spec = spec

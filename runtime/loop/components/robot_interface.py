@@ -16,6 +16,7 @@ from __future__ import annotations
 from compiler.params import component_params
 
 from runtime.accel import kernels
+from runtime.hardware.interface import RobotBackend
 from runtime.loop.component import Component, DataPort
 from runtime.timing import TICK
 
@@ -26,7 +27,7 @@ class RobotInterface(Component):
     PROPERTIES = component_params("robot")
     OPERATIONS = Component.OPERATIONS + ("release_brakes", "apply_brakes")
 
-    def __init__(self, spec, backend, sens_pos: DataPort, drive_cmd: DataPort, estimator, tick: float = TICK):
+    def __init__(self, spec, backend: RobotBackend, sens_pos: DataPort, drive_cmd: DataPort, estimator, tick: float = TICK):
         super().__init__("robot", tick)
         self.spec = spec
         self.backend = backend

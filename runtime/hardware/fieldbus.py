@@ -34,7 +34,7 @@ import threading
 import time
 from dataclasses import dataclass
 
-from runtime.hardware.interface import FieldbusError, IoBackend
+from runtime.hardware.interface import DigitalIo, FieldbusError
 from runtime.timing import FIELDBUS_POLL, TICK
 
 __all__ = ["FIELDS", "FieldbusError", "ModbusConfig", "ModbusIo", "parse_modbus"]
@@ -122,16 +122,17 @@ def markdown() -> str:
     return "\n".join(lines) + "\n"
 
 
-class ModbusIo(IoBackend):
+class ModbusIo(DigitalIo):
     """The robot's I/O on the PLC, as the loop sees it: a backend of the io component
-    (runtime.loop.components.io.IoBackend, as the simulated robot's own I/O is: ``inputs``,
-    ``outputs``, ``input``, ``set_output``, ``lost``; and ``start``, ``close``,
-    ``wait_connected`` for its exchange thread)."""
+    (its digital I/O as the last exchange saw it: ``inputs``, ``outputs``, ``input``,
+    ``set_output``, ``output``, and ``lost``; ``start``, ``close``, ``wait_connected`` for
+    its exchange thread). The thread replaces the inputs as a whole (one tuple: the loop
+    never sees half an exchange)."""
 
     def __init__(self, config: ModbusConfig, n_inputs: int, n_outputs: int):
+        super().__init__(n_inputs, n_outputs, f"the robot on the PLC at {config.host}:{config.port}")
         self.config = config
-        self._inputs: tuple[bool, ...] = (False,) * n_inputs
-        self._wanted = [False] * n_outputs
+        self._inputs = tuple(self._inputs)
         self._written: tuple | None = None  # what the PLC has (None: not known: write all)
         self.last_ok: float | None = None  # monotonic time of the last good exchange
         self.error: str | None = None  # why the last exchange failed
@@ -141,24 +142,7 @@ class ModbusIo(IoBackend):
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
 
-    # ---- the loop's side (real-time: plain reads and writes) ----
-    @property
-    def inputs(self) -> tuple[bool, ...]:
-        return self._inputs
-
-    @property
-    def outputs(self) -> tuple[bool, ...]:
-        return tuple(self._wanted)
-
-    def input(self, n: int) -> bool:
-        return self._inputs[n - 1]
-
-    def set_output(self, n: int, value: bool) -> None:
-        self._wanted[n - 1] = bool(value)
-
-    def output(self, n: int) -> bool:
-        return self._wanted[n - 1]
-
+    # ---- the loop's side: DigitalIo's (real-time: plain reads and writes) ----
     def lost(self, now: float | None = None) -> str | None:
         """Why the PLC counts as lost (no good exchange for ``timeout`` s), or None."""
         now = time.monotonic() if now is None else now
@@ -246,7 +230,7 @@ class ModbusIo(IoBackend):
                               if len(bits) < n else
                               f"the PLC's reply to reading {asked} held {len(bits)} bits for the {n} inputs asked for")
         self._inputs = tuple(bool(b) for b in bits[:n])
-        wanted = tuple(self._wanted)
+        wanted = tuple(self._outputs)
         if wanted != self._written:
             coils = f"the coils {c.outputs}..{c.outputs + len(wanted) - 1}"
             reply = client.write_coils(c.outputs, list(wanted), device_id=c.device)

@@ -54,6 +54,49 @@ class IoBackend:
         raise PermissionError("an input is forced on the simulated robot only")
 
 
+class DigitalIo(IoBackend):
+    """Digital I/O held by the backend itself, numbered from 1 (input n is element n - 1
+    of ``_inputs``, output n of ``_outputs``; ``owner`` names who has them in the
+    messages): the simulated arm's own, or a PLC's as its exchange last saw them. Every
+    method is real-time (plain reads and assignments); a number out of range is an
+    ``IndexError`` that says which exist."""
+
+    def __init__(self, n_inputs: int, n_outputs: int, owner: str):
+        self._inputs: list[bool] | tuple[bool, ...] = [False] * n_inputs
+        self._outputs = [False] * n_outputs
+        self._owner = owner
+
+    @property
+    def inputs(self) -> tuple[bool, ...]:
+        """All digital inputs; input n is element n - 1."""
+        return tuple(self._inputs)
+
+    @property
+    def outputs(self) -> tuple[bool, ...]:
+        """All digital outputs; output n is element n - 1."""
+        return tuple(self._outputs)
+
+    def input(self, n: int) -> bool:
+        return self._inputs[self._index(n, len(self._inputs), "input")]
+
+    def output(self, n: int) -> bool:
+        return self._outputs[self._index(n, len(self._outputs), "output")]
+
+    def set_output(self, n: int, value: bool) -> None:
+        self._outputs[self._index(n, len(self._outputs), "output")] = bool(value)
+
+    def set_input(self, n: int, value: bool) -> None:
+        """Between ticks, on a forcible backend (the world's side: tests and scenarios)."""
+        if not self.forcible:
+            super().set_input(n, value)
+        self._inputs[self._index(n, len(self._inputs), "input")] = bool(value)
+
+    def _index(self, n: int, count: int, what: str) -> int:
+        if not 1 <= n <= count:
+            raise IndexError(f"digital {what} {n} does not exist: {self._owner} has {what}s 1..{count}")
+        return n - 1
+
+
 class NoIo(IoBackend):
     """A robot without digital I/O (a hardware backend that does not derive from
     IoBackend): no inputs, no outputs."""

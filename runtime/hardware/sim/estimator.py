@@ -51,7 +51,25 @@ def critically_damped_gains(dt: float, time_constant: float = DEFAULT_TIME_CONST
     return 1.0 - theta * theta, (1.0 - theta) ** 2
 
 
-class AlphaBeta:
+class AxisStates:
+    """A position and a velocity per axis (``x``, ``v``: lists, changed in place), read as
+    tuples (:attr:`positions`, :attr:`velocities`): an estimate's, or a simulated joint's.
+    Real-time reads."""
+
+    def __init__(self, positions):
+        self.x = list(positions)
+        self.v = [0.0] * len(self.x)  # at rest
+
+    @property
+    def positions(self) -> tuple[float, ...]:
+        return tuple(self.x)
+
+    @property
+    def velocities(self) -> tuple[float, ...]:
+        return tuple(self.v)
+
+
+class AlphaBeta(AxisStates):
     """One alpha-beta filter per axis, sampled every ``dt`` seconds.
 
     ``alpha`` and ``beta`` default to :func:`critically_damped_gains` of ``dt``. Until
@@ -70,23 +88,22 @@ class AlphaBeta:
                              "expected 0 < alpha < 2 and 0 < beta < 4 - 2 alpha")
         self.n_axes, self.dt, self.alpha, self.beta = n_axes, float(dt), alpha, beta
         self._beta_dt = beta / dt
-        self._x = [0.0] * n_axes
-        self._v = [0.0] * n_axes
+        super().__init__([0.0] * n_axes)
         self._ones, self._nulls = (1.0,) * n_axes, [0.0] * n_axes  # update(): z = x * 1 + 0
         self._started = False
 
     def reset(self, positions, velocities=None) -> None:
         """Start again from ``positions`` (and ``velocities``, default 0). Real-time."""
         for i in range(self.n_axes):
-            self._x[i] = float(positions[i])
-            self._v[i] = 0.0 if velocities is None else float(velocities[i])
+            self.x[i] = float(positions[i])
+            self.v[i] = 0.0 if velocities is None else float(velocities[i])
         self._started = True
 
     def update(self, measured_positions):
         """Take one sample per axis; returns ``(positions, velocities)``, two tuples.
         Real-time."""
         self.update_counts(tuple([float(z) for z in measured_positions]), self._ones, self._nulls)
-        return tuple(self._x), tuple(self._v)
+        return tuple(self.x), tuple(self.v)
 
     def update_counts(self, counts, scale, offset) -> tuple[float, ...]:
         """:meth:`update` with the measurement made from encoder counts in the same loop:
@@ -94,18 +111,10 @@ class AlphaBeta:
         (the estimates are in :attr:`positions` and :attr:`velocities`). ``counts`` and
         ``scale`` are tuples, ``offset`` a list (see :func:`runtime.kernels.alpha_beta`).
         Real-time."""
-        xs, vs = self._x, self._v
+        xs, vs = self.x, self.v
         if not self._started:
             self.reset([c * k + o for c, k, o in zip(counts, scale, offset)])
             return tuple(xs)
         measured = [0.0] * self.n_axes
         alpha_beta(counts, scale, offset, xs, vs, self.dt, self.alpha, self._beta_dt, measured)
         return tuple(measured)
-
-    @property
-    def positions(self) -> tuple[float, ...]:
-        return tuple(self._x)
-
-    @property
-    def velocities(self) -> tuple[float, ...]:
-        return tuple(self._v)

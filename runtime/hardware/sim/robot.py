@@ -52,6 +52,12 @@ made from). The model, per axis:
   :meth:`SimRobot.set_drift` (the drive runs at a velocity of its own whatever it is
   commanded: a drift the servo cannot hold) and :meth:`SimRobot.set_drive_offset`.
 
+Each concern is a class with its data: :class:`Drives` (the drives and the joints they
+move, the hard stops, safe torque off, the drives' faults), :class:`Encoders` (counts,
+index pulses, the frozen encoder), :class:`Brakes`, :class:`HomingSensors` and the digital
+I/O (:class:`runtime.hardware.interface.DigitalIo`); :class:`SimRobot` steps them
+together behind :class:`runtime.hardware.interface.RobotBackend`.
+
 Axes are numbered from 0 in this Python interface (the order of ``spec.axes``); digital
 inputs and outputs are numbered from 1, as in L-IRL (``IN[1]``..).
 
@@ -67,8 +73,9 @@ import math
 import random
 
 from runtime.accel import kernels
-from runtime.hardware.interface import IoBackend, RobotBackend
 from runtime.hardware.faults import FAULTS
+from runtime.hardware.interface import DigitalIo, RobotBackend
+from runtime.hardware.sim.estimator import AxisStates
 
 drive_step = kernels.drive_step
 
@@ -76,8 +83,216 @@ drive_step = kernels.drive_step
 _floor = math.floor
 
 
-class SimRobot(RobotBackend, IoBackend):
+class Drives(AxisStates):
+    """The drives and the joints they move, per axis: the velocity-commanded first-order
+    lag with its offset and saturation, the hard stops, safe torque off and the drives'
+    faults (dead, drifting). The joints' positions and velocities are :attr:`positions`
+    and :attr:`velocities` (the truth: the controller sees encoders). Not real-time
+    (set-up); the methods say which run in the tick."""
+
+    def __init__(self, axes, sim, offsets: list[float], parks: list[float]):
+        super().__init__(parks)
+        n = self.n_axes = len(axes)
+        self.tau = sim.drive_time_constant
+        self.offset = offsets
+        self.vmax = [sim.drive_saturation * a.max_velocity for a in axes]
+        margin = sim.end_stop_margin
+        self.lo = [a.min - margin for a in axes]  # the mechanical end stops
+        self.hi = [a.max + margin for a in axes]
+        # the step's discretisation, cached for the last dt
+        self.dt = -1.0
+        self.decay = 0.0
+        self.lag_gain = 0.0
+        self.enabled = True  # safe torque off when False
+        self.dead = [False] * n
+        self.drift: list[float | None] = [None] * n  # a drive's own velocity, whatever it is commanded
+
+    def discretise(self, dt: float) -> None:
+        """Real-time: the exact lag's factors for a step of ``dt`` (cached until it changes)."""
+        self.dt = dt
+        self.decay = math.exp(-dt / self.tau)
+        self.lag_gain = self.tau * (1.0 - self.decay)
+
+    def hold(self) -> None:
+        """Real-time: the brakes hold every joint: it stops dead."""
+        vs = self.v
+        for i in range(self.n_axes):
+            vs[i] = 0.0
+
+    def hard_stop(self, i: int, x: float, v: float) -> tuple[float, float]:
+        """Real-time: joint ``i`` at ``x`` moving at ``v`` against its end stops (it stops
+        there: its velocity towards the stop becomes 0)."""
+        if x > self.hi[i]:
+            x = self.hi[i]
+            if v > 0.0:
+                v = 0.0
+        elif x < self.lo[i]:
+            x = self.lo[i]
+            if v < 0.0:
+                v = 0.0
+        return x, v
+
+    def faulty(self) -> bool:
+        """A drive dead or drifting, or the torque off: the step's slower path."""
+        return any(self.dead) or any(d is not None for d in self.drift) or not self.enabled
+
+    def fault_commands(self, velocity_commands) -> list[float]:
+        """Real-time (the rare path): the commands the drives act on. A dead drive gets
+        the command that cancels its offset (it then produces nothing: u = -b + b = 0
+        exactly), as every drive does with the torque off (it coasts); a drifting one the
+        command that makes its drift."""
+        offset = self.offset
+        if not self.enabled:
+            return [-b for b in offset]
+        dead, drift = self.dead, self.drift
+        return [-offset[i] if dead[i] else c if drift[i] is None else drift[i] - offset[i]
+                for i, c in enumerate(velocity_commands)]
+
+    def clear_faults(self) -> None:
+        for i in range(self.n_axes):
+            self.dead[i] = False
+            self.drift[i] = None
+
+
+class Encoders:
+    """The incremental encoders and their index (Z) pulses, per axis: counts from the
+    power-up position, index pulses at ``k * index_spacing`` counted and latched, and the
+    frozen encoder's fault. Not real-time (set-up); the methods say which run in the tick."""
+
+    def __init__(self, axes, parks: list[float]):
+        n = self.n_axes = len(axes)
+        self.cpu = [a.counts_per_unit for a in axes]
+        self.spacing = [a.index_spacing for a in axes]
+        self.power_up = tuple(parks)
+        self.rev = [_floor(x / s) for x, s in zip(parks, self.spacing)]  # index interval
+        # counts = base + floor((x - origin) * cpu)
+        self.origin = list(parks)
+        self.base = [0] * n
+        self.counts = [0] * n
+        self.index_events = [0] * n
+        self.latched = [0] * n
+        self.index_active = [False] * n
+        self.any_index_active = False  # some element of index_active is set (cleared at the next step)
+        self.frozen = [False] * n
+
+    def end_pulses(self) -> None:
+        """Real-time: the pulses of the last step are over."""
+        self.any_index_active = False
+        index_active = self.index_active
+        for i in range(self.n_axes):
+            index_active[i] = False
+
+    def index_check(self, i: int, x: float) -> bool:
+        """Real-time: index pulses of axis ``i`` now at ``x``: detect a crossing of ``k *
+        spacing``, count it and latch the encoder there. True when the axis changed index
+        interval."""
+        spacing = self.spacing[i]
+        r = _floor(x / spacing)
+        r_old = self.rev[i]
+        if r == r_old:
+            return False
+        self.rev[i] = r
+        self.index_active[i] = True
+        self.any_index_active = True
+        if r > r_old:  # moving up: the last crossed is r * spacing
+            self.index_events[i] += r - r_old
+            z = r * spacing
+        else:  # moving down: the last crossed is (r + 1) * spacing
+            self.index_events[i] += r_old - r
+            z = (r + 1) * spacing
+        self.latched[i] = self.base[i] + _floor((z - self.origin[i]) * self.cpu[i])
+        return True
+
+    def frozen_readings(self) -> list[tuple[int, int, int, int]]:
+        """Real-time (the rare path): before a step, what each frozen encoder shows, to be
+        put back after it (:meth:`restore`)."""
+        return [(i, self.counts[i], self.index_events[i], self.latched[i])
+                for i, frozen in enumerate(self.frozen) if frozen]
+
+    def restore(self, saved: list[tuple[int, int, int, int]]) -> None:
+        for i, counts, events, latched in saved:
+            self.counts[i], self.index_events[i], self.latched[i] = counts, events, latched
+            self.index_active[i] = False
+
+    def thaw(self, positions: list[float]) -> None:
+        """Not real-time: every frozen encoder counts on from the value it froze at, the
+        axis now at ``positions`` (the counts it missed stay missed)."""
+        for i in range(self.n_axes):
+            if self.frozen[i]:
+                self.base[i] = self.counts[i]
+                self.origin[i] = positions[i]
+                self.frozen[i] = False
+
+
+class Brakes:
+    """The brakes, all axes together: engaged at power-up; a release or an application
+    takes ``brake_time`` of simulated time before it is effective. Real-time."""
+
+    def __init__(self, brake_time: float):
+        self.brake_time = brake_time
+        self.engaged = True
+        self.target = True
+        self.timer = 0.0
+
+    def command(self, engage: bool) -> bool:
+        """Start engaging (or releasing) them; True when they engaged at once (no
+        ``brake_time``): the axes stop dead."""
+        if engage == self.engaged:  # already so: cancel a change under way
+            self.target = engage
+            self.timer = 0.0
+        elif engage != self.target or self.timer == 0.0:
+            self.target = engage
+            if self.brake_time > 0.0:
+                self.timer = self.brake_time
+            else:
+                self.engaged = engage
+                return engage
+        return False
+
+    def run(self, dt: float) -> bool:
+        """``dt`` seconds of a change under way; True when they just engaged (the axes stop
+        dead)."""
+        self.timer -= dt
+        if self.timer <= 1e-9:
+            self.timer = 0.0
+            self.engaged = self.target
+            return self.engaged
+        return False
+
+    def released(self) -> bool:
+        return not self.engaged
+
+    def applied(self) -> bool:
+        return self.engaged and self.timer == 0.0
+
+
+class HomingSensors:
+    """The inductive homing sensors, per axis: active while ``|x - sensor_position| <=
+    sensor_window``, unless dead (a fault). Real-time."""
+
+    def __init__(self, axes):
+        self.at = [a.sensor_position for a in axes]
+        self.window = [a.sensor_window for a in axes]
+        self.dead = [False] * len(axes)
+
+    def active(self, positions: list[float]) -> tuple[bool, ...]:
+        sensors = []
+        for x, at, window, dead in zip(positions, self.at, self.window, self.dead):
+            sensors.append(not dead and -window <= x - at <= window)
+        return tuple(sensors)
+
+    def clear_faults(self) -> None:
+        for i in range(len(self.dead)):
+            self.dead[i] = False
+
+
+class SimRobot(RobotBackend, DigitalIo):
     """A simulated robot for ``spec``; ``seed`` fixes its drive offsets and park positions.
+    Its parts: :attr:`drives` (and the joints they move), :attr:`encoders` (and index
+    pulses), :attr:`brakes`, :attr:`sensors` (homing); its digital I/O is its own
+    (:class:`~runtime.hardware.interface.DigitalIo`, forcible). It steps them together and
+    keeps, per axis, what the step needs of two parts at once: the safe interval and the
+    step's constants.
 
     Not real-time (set-up): builds the per-axis state from the specification.
     """
@@ -86,49 +301,25 @@ class SimRobot(RobotBackend, IoBackend):
     FAULTS = FAULTS
 
     def __init__(self, spec, seed: int = 0):
+        DigitalIo.__init__(self, spec.inputs, spec.outputs, spec.name)
         self.spec = spec
         self.seed = seed
         axes = spec.axes
         n = self.n_axes = len(axes)
         sim = spec.simulation  # validated (compiler.params), every key present
-        self.tau = sim.drive_time_constant
         max_offset = sim.max_drive_offset
         spread = sim.park_spread
-        self.brake_time = sim.brake_time
-        saturation = sim.drive_saturation
-        margin = sim.end_stop_margin
-
         rng = random.Random(seed)
         offsets, parks = [], []
         for axis in axes:  # the order of draws is part of the determinism contract
             offsets.append(rng.uniform(-max_offset, max_offset))
             parks.append(min(max(axis.home + rng.uniform(-spread, spread), axis.min), axis.max))
-
-        # constants per axis
-        self._offset = offsets
-        self._lo = [a.min - margin for a in axes]  # the mechanical end stops
-        self._hi = [a.max + margin for a in axes]
-        self._vmax = [saturation * a.max_velocity for a in axes]
-        self._cpu = [a.counts_per_unit for a in axes]
-        self._spacing = [a.index_spacing for a in axes]
-        self._sensor_at = [a.sensor_position for a in axes]
-        self._sensor_window = [a.sensor_window for a in axes]
-        self._power_up = tuple(parks)
-
-        # physical state
-        self._x = list(parks)
-        self._v = [0.0] * n
-        self._rev = [_floor(x / s) for x, s in zip(parks, self._spacing)]  # index interval
-        # encoder state: counts = base + floor((x - origin) * cpu)
-        self._origin = list(parks)
-        self._base = [0] * n
-        self._counts = [0] * n
-        self._index_events = [0] * n
-        self._latched = [0] * n
-        self._index_active = [False] * n
-        self._any_index_active = False  # some element of _index_active is set (cleared at the next step)
+        self.drives = Drives(axes, sim, offsets, parks)
+        self.encoders = Encoders(axes, parks)
+        self.brakes = Brakes(sim.brake_time)
+        self.sensors = HomingSensors(axes)
         # Per axis, the open interval in which a step needs no hard-stop or index check:
-        # strictly inside the current index interval and within min..max (see _set_safe).
+        # strictly inside the current index interval and within the end stops (see _set_safe).
         self._safe_lo = [0.0] * n
         self._safe_hi = [0.0] * n
         for i in range(n):
@@ -136,32 +327,24 @@ class SimRobot(RobotBackend, IoBackend):
         # the step loop's per-axis constants, one tuple per axis (see _set_constants)
         self._constants: tuple = ()
         self._set_constants()
-        # faults
-        self._sensor_dead = [False] * n
-        self._encoder_frozen = [False] * n
-        self._drive_dead = [False] * n
-        self._drift: list[float | None] = [None] * n  # a drive's own velocity, whatever it is commanded
-        self._drives_enabled = True  # safe torque off when False
-        self._drive_or_encoder_fault = False  # a fault above, or drives disabled: step's slower path
-        # brakes: engaged at power-up
-        self._brakes_engaged = True
-        self._brake_target = True
-        self._brake_timer = 0.0
-        # digital I/O, numbered from 1 (element n - 1)
-        self._inputs = [False] * spec.inputs
-        self._outputs = [False] * spec.outputs
-        # the step's discretisation, cached for the last dt
-        self._dt = -1.0
-        self._decay = 0.0
-        self._lag_gain = 0.0
+        self._fault_path = False  # a drive or encoder fault, or the torque off: step's slower path
         self.time = 0.0  # simulated seconds since power-up
 
     def _set_constants(self) -> None:
         """Not real-time: the per-axis values the step reads, as one tuple per axis
-        (unpacked in the loop: cheaper than indexing six lists); again whenever the
-        encoder's base or origin change."""
-        self._constants = tuple(zip(self._vmax, [-v for v in self._vmax], self._offset,
-                                    self._origin, self._cpu, self._base))
+        (unpacked in the loop: cheaper than indexing six lists); again whenever a drive's
+        offset or the encoder's base or origin change."""
+        d, e = self.drives, self.encoders
+        self._constants = tuple(zip(d.vmax, [-v for v in d.vmax], d.offset, e.origin, e.cpu, e.base))
+
+    def _set_safe(self, i: int) -> None:
+        """Axis ``i``'s safe interval: strictly inside its current index interval (a
+        margin keeps the crossing test exact at the interval's ends) and within its end
+        stops. Inside it a step needs neither the hard-stop nor the index check."""
+        spacing, r = self.encoders.spacing[i], self.encoders.rev[i]
+        margin = 1e-9 * spacing * (1 + abs(r))
+        self._safe_lo[i] = max(r * spacing + margin, self.drives.lo[i])
+        self._safe_hi[i] = min((r + 1) * spacing - margin, self.drives.hi[i])
 
     # ---- the real-time interface -----------------------------------------------------
 
@@ -173,39 +356,26 @@ class SimRobot(RobotBackend, IoBackend):
 
         Real-time: plain float arithmetic, no allocation beyond a few floats.
         """
-        if dt != self._dt:
-            self._dt = dt
-            self._decay = math.exp(-dt / self.tau)
-            self._lag_gain = self.tau * (1.0 - self._decay)
-        a = self._decay
-        k = self._lag_gain
-        xs, vs = self._x, self._v
-        if self._any_index_active:  # pulses last one step
-            self._any_index_active = False
-            index_active = self._index_active
-            for i in range(self.n_axes):
-                index_active[i] = False
-        if self._brakes_engaged:
-            for i in range(self.n_axes):
-                vs[i] = 0.0
+        drives, encoders, brakes = self.drives, self.encoders, self.brakes
+        if dt != drives.dt:
+            drives.discretise(dt)
+        if encoders.any_index_active:  # pulses last one step
+            encoders.end_pulses()
+        if brakes.engaged:
+            drives.hold()
         else:
             saved = None
-            if self._drive_or_encoder_fault:  # rare: the loop below stays free of fault checks
-                velocity_commands, saved = self._fault_commands(velocity_commands)
+            if self._fault_path:  # rare: the loop below stays free of fault checks
+                velocity_commands = drives.fault_commands(velocity_commands)
+                saved = encoders.frozen_readings()
             if type(velocity_commands) is not tuple or len(velocity_commands) != self.n_axes:
                 velocity_commands = self._command_tuple(velocity_commands)
-            drive_step(dt, a, k, velocity_commands, xs, vs, self._safe_lo, self._safe_hi, self._constants,
-                       self._counts, self._edges)
+            drive_step(dt, drives.decay, drives.lag_gain, velocity_commands, drives.x, drives.v, self._safe_lo,
+                       self._safe_hi, self._constants, encoders.counts, self._edges)
             if saved is not None:
-                self._restore_frozen(saved)
-        if self._brake_timer > 0.0:
-            self._brake_timer -= dt
-            if self._brake_timer <= 1e-9:
-                self._brake_timer = 0.0
-                self._brakes_engaged = self._brake_target
-                if self._brakes_engaged:  # the brake holds the axis: it stops dead
-                    for i in range(self.n_axes):
-                        vs[i] = 0.0
+                encoders.restore(saved)
+        if brakes.timer > 0.0 and brakes.run(dt):  # the brake holds the axis: it stops dead
+            drives.hold()
         self.time += dt
 
     def _command_tuple(self, velocity_commands) -> tuple[float, ...]:
@@ -218,65 +388,10 @@ class SimRobot(RobotBackend, IoBackend):
     def _edges(self, i: int, x: float, v: float) -> tuple[float, float]:
         """The step's slow path for axis ``i`` at ``x`` moving at ``v``, outside its safe
         interval: the hard stops (the axis stops there), then the index pulses."""
-        if x > self._hi[i]:
-            x = self._hi[i]
-            if v > 0.0:
-                v = 0.0
-        elif x < self._lo[i]:
-            x = self._lo[i]
-            if v < 0.0:
-                v = 0.0
-        self._index_check(i, x)
+        x, v = self.drives.hard_stop(i, x, v)
+        if self.encoders.index_check(i, x):
+            self._set_safe(i)
         return x, v
-
-    def _fault_commands(self, velocity_commands) -> tuple[list, list]:
-        """Before a step with drive or encoder faults: a dead drive gets the command that
-        cancels its offset (it then produces nothing: u = -b + b = 0 exactly), and what a
-        frozen encoder shows is saved, to be put back after the step."""
-        dead, offset = self._drive_dead, self._offset
-        if not self._drives_enabled:  # no torque: every axis coasts (as a dead drive does)
-            commands = [-b for b in offset]
-        else:
-            drift = self._drift
-            commands = [-offset[i] if dead[i] else c if drift[i] is None else drift[i] - offset[i]
-                        for i, c in enumerate(velocity_commands)]
-        saved = [(i, self._counts[i], self._index_events[i], self._latched[i])
-                 for i, frozen in enumerate(self._encoder_frozen) if frozen]
-        return commands, saved
-
-    def _restore_frozen(self, saved: list) -> None:
-        for i, counts, events, latched in saved:
-            self._counts[i], self._index_events[i], self._latched[i] = counts, events, latched
-            self._index_active[i] = False
-
-    def _index_check(self, i: int, x: float) -> None:
-        """Index pulses of axis ``i`` now at ``x``: detect a crossing of ``k * spacing``,
-        count it and latch the encoder there."""
-        spacing = self._spacing[i]
-        r = _floor(x / spacing)
-        r_old = self._rev[i]
-        if r == r_old:
-            return
-        self._rev[i] = r
-        self._set_safe(i)
-        self._index_active[i] = True
-        self._any_index_active = True
-        if r > r_old:  # moving up: the last crossed is r * spacing
-            self._index_events[i] += r - r_old
-            z = r * spacing
-        else:  # moving down: the last crossed is (r + 1) * spacing
-            self._index_events[i] += r_old - r
-            z = (r + 1) * spacing
-        self._latched[i] = self._base[i] + _floor((z - self._origin[i]) * self._cpu[i])
-
-    def _set_safe(self, i: int) -> None:
-        """Axis ``i``'s safe interval: strictly inside its current index interval (a
-        margin keeps the crossing test exact at the interval's ends) and within its
-        min..max. Inside it a step needs neither the hard-stop nor the index check."""
-        spacing, r = self._spacing[i], self._rev[i]
-        margin = 1e-9 * spacing * (1 + abs(r))
-        self._safe_lo[i] = max(r * spacing + margin, self._lo[i])
-        self._safe_hi[i] = min((r + 1) * spacing - margin, self._hi[i])
 
     def read(self):
         """The encoder side: ``(counts, index_event_counters, latched_index_counts,
@@ -285,137 +400,87 @@ class SimRobot(RobotBackend, IoBackend):
         ``index_event_counters`` only grows: it counts every index pulse since power-up;
         ``latched_index_counts`` is the encoder count at the last one. Real-time.
         """
-        sensors = []
-        for x, at, window, dead in zip(self._x, self._sensor_at, self._sensor_window, self._sensor_dead):
-            sensors.append(not dead and -window <= x - at <= window)
-        return tuple(self._counts), tuple(self._index_events), tuple(self._latched), tuple(sensors)
+        e = self.encoders
+        return tuple(e.counts), tuple(e.index_events), tuple(e.latched), self.sensors.active(self.drives.x)
 
     def read_counts(self) -> tuple[int, ...]:
         """Only the encoder counts (the per-tick read once homing is done). Real-time."""
-        return tuple(self._counts)
+        return tuple(self.encoders.counts)
 
     def release_brakes(self) -> None:
         """Start releasing the brakes; effective after ``brake_time``. Real-time."""
-        self._command_brakes(False)
+        self.brakes.command(False)
 
     def apply_brakes(self) -> None:
         """Start applying the brakes; effective after ``brake_time``. Real-time."""
-        self._command_brakes(True)
-
-    def _command_brakes(self, engage: bool) -> None:
-        if engage == self._brakes_engaged:  # already so: cancel a change under way
-            self._brake_target = engage
-            self._brake_timer = 0.0
-        elif engage != self._brake_target or self._brake_timer == 0.0:
-            self._brake_target = engage
-            if self.brake_time > 0.0:
-                self._brake_timer = self.brake_time
-            else:
-                self._brakes_engaged = engage
-                if engage:
-                    for i in range(self.n_axes):
-                        self._v[i] = 0.0
+        if self.brakes.command(True):
+            self.drives.hold()
 
     def disable_drives(self) -> None:
         """Safe torque off: the drives ignore their commands from the next step on (the
         axes coast to rest with the drives' lag). Real-time."""
-        self._drives_enabled = False
-        self._drive_or_encoder_fault = True
+        self.drives.enabled = False
+        self._fault_path = True
 
     def enable_drives(self) -> None:
         """Torque on again: the drives follow their commands. Real-time."""
-        self._drives_enabled = True
+        self.drives.enabled = True
         self._update_fault_path()
 
     def drives_enabled(self) -> bool:
-        return self._drives_enabled
+        return self.drives.enabled
 
     @property
     def end_stops(self) -> tuple[tuple[float, float], ...]:
         """Per axis, where the mechanical end stops are: (low, high)."""
-        return tuple(zip(self._lo, self._hi))
+        return tuple(zip(self.drives.lo, self.drives.hi))
 
     def brakes_released(self) -> bool:
         """True once the brakes are released and the axes can move. Real-time."""
-        return not self._brakes_engaged
+        return not self.brakes.engaged
 
     def brakes_applied(self) -> bool:
         """True once the brakes are engaged and hold the axes (and no release is under
         way). Real-time."""
-        return self._brakes_engaged and self._brake_timer == 0.0
+        return self.brakes.applied()
 
     @property
     def index_active(self) -> tuple[bool, ...]:
         """Per axis: an index pulse happened during the last step. Real-time."""
-        return tuple(self._index_active)
-
-    # ---- digital I/O (numbered from 1, as in L-IRL; a backend of runtime.loop.components.io) --
-
-    def set_input(self, n: int, value: bool) -> None:
-        """Set digital input ``n`` (1..spec.inputs): the world's side, for tests and
-        scenarios. Real-time."""
-        self._inputs[self._io_index(n, len(self._inputs), "input")] = bool(value)
-
-    def input(self, n: int) -> bool:
-        """Digital input ``n`` (1..spec.inputs). Real-time."""
-        return self._inputs[self._io_index(n, len(self._inputs), "input")]
-
-    def set_output(self, n: int, value: bool) -> None:
-        """Set digital output ``n`` (1..spec.outputs). Real-time."""
-        self._outputs[self._io_index(n, len(self._outputs), "output")] = bool(value)
-
-    def output(self, n: int) -> bool:
-        """Digital output ``n`` (1..spec.outputs). Real-time."""
-        return self._outputs[self._io_index(n, len(self._outputs), "output")]
-
-    @property
-    def inputs(self) -> tuple[bool, ...]:
-        """All digital inputs; input n is element n - 1."""
-        return tuple(self._inputs)
-
-    @property
-    def outputs(self) -> tuple[bool, ...]:
-        """All digital outputs; output n is element n - 1."""
-        return tuple(self._outputs)
-
-    def _io_index(self, n: int, count: int, what: str) -> int:
-        if not 1 <= n <= count:
-            raise IndexError(f"digital {what} {n} does not exist: {self.spec.name} has {what}s 1..{count}")
-        return n - 1
+        return tuple(self.encoders.index_active)
 
     # ---- faults (set-up and tests) -------------------------------------------------------
 
     def inject(self, fault: str, axis: int) -> None:
         """Inject ``fault`` (one of :data:`FAULTS`) on axis ``axis`` (0-based)."""
-        table = self._fault_table(fault)
-        if not 0 <= axis < self.n_axes:
-            raise IndexError(f"axis {axis} does not exist: {self.spec.name} has axes 0..{self.n_axes - 1}")
-        table[axis] = True
+        flags = self._fault_flags(fault)
+        self._check_axis(axis)
+        flags[axis] = True
         self._update_fault_path()
 
+    def _check_axis(self, axis: int) -> None:
+        if not 0 <= axis < self.n_axes:
+            raise IndexError(f"axis {axis} does not exist: {self.spec.name} has axes 0..{self.n_axes - 1}")
+
     def _update_fault_path(self) -> None:
-        """Whether a step takes the slower path of :meth:`_fault_commands`."""
-        self._drive_or_encoder_fault = (any(self._encoder_frozen) or any(self._drive_dead)
-                                        or any(d is not None for d in self._drift) or not self._drives_enabled)
+        """Whether a step takes the slower path (the drives' fault commands, the frozen
+        encoders' readings put back)."""
+        self._fault_path = any(self.encoders.frozen) or self.drives.faulty()
 
     def clear_faults(self) -> None:
         """Remove every injected fault. The encoder of a frozen axis counts on from the
         value it froze at (the counts it missed stay missed)."""
-        for i in range(self.n_axes):
-            if self._encoder_frozen[i]:
-                self._base[i] = self._counts[i]
-                self._origin[i] = self._x[i]
-            self._sensor_dead[i] = self._encoder_frozen[i] = self._drive_dead[i] = False
-            self._drift[i] = None
-        self._drive_or_encoder_fault = not self._drives_enabled
+        self.encoders.thaw(self.drives.x)
+        self.drives.clear_faults()
+        self.sensors.clear_faults()
+        self._fault_path = not self.drives.enabled
         self._set_constants()
 
     def set_drive_offset(self, axis: int, offset: float) -> None:
         """Make the drive of ``axis`` drift at ``offset`` unit/s under a zero command (a
         drive whose offset changed since calibration; tests and scenarios)."""
-        if not 0 <= axis < self.n_axes:
-            raise IndexError(f"axis {axis} does not exist: {self.spec.name} has axes 0..{self.n_axes - 1}")
-        self._offset[axis] = float(offset)
+        self._check_axis(axis)
+        self.drives.offset[axis] = float(offset)
         self._set_constants()
 
     def set_drift(self, axis: int, velocity: float | None) -> None:
@@ -423,22 +488,22 @@ class SimRobot(RobotBackend, IoBackend):
         (a drive that lost its command value or its current loop: a drift the servo cannot
         hold, unlike :meth:`set_drive_offset`'s), until ``None`` or :meth:`clear_faults`.
         The brakes and safe torque off still stop it. Tests and scenarios."""
-        if not 0 <= axis < self.n_axes:
-            raise IndexError(f"axis {axis} does not exist: {self.spec.name} has axes 0..{self.n_axes - 1}")
-        self._drift[axis] = None if velocity is None else float(velocity)
+        self._check_axis(axis)
+        self.drives.drift[axis] = None if velocity is None else float(velocity)
         self._update_fault_path()
 
     def faults(self) -> tuple[tuple[str, int], ...]:
         """The faults in effect, as (fault, axis) pairs."""
-        return tuple((f, i) for f in FAULTS for i in range(self.n_axes) if self._fault_table(f)[i])
+        return tuple((f, i) for f in FAULTS for i in range(self.n_axes) if self._fault_flags(f)[i])
 
-    def _fault_table(self, fault: str) -> list[bool]:
+    def _fault_flags(self, fault: str) -> list[bool]:
+        """The per-axis flags of ``fault``, held by the part it breaks."""
         if fault == "sensor_dead":
-            return self._sensor_dead
+            return self.sensors.dead
         if fault == "encoder_frozen":
-            return self._encoder_frozen
+            return self.encoders.frozen
         if fault == "drive_dead":
-            return self._drive_dead
+            return self.drives.dead
         raise ValueError(f"unknown fault {fault!r}: expected one of {', '.join(FAULTS)}")
 
     # ---- the truth (tests and the report's truth column only) ----------------------------
@@ -446,19 +511,19 @@ class SimRobot(RobotBackend, IoBackend):
     @property
     def true_positions(self) -> tuple[float, ...]:
         """The axes' actual positions (unit). Not for the controller: it sees encoders."""
-        return tuple(self._x)
+        return self.drives.positions
 
     @property
     def true_velocities(self) -> tuple[float, ...]:
         """The axes' actual velocities (unit/s)."""
-        return tuple(self._v)
+        return self.drives.velocities
 
     @property
     def power_up_positions(self) -> tuple[float, ...]:
         """Where each axis parked at power-up (its encoder's zero)."""
-        return self._power_up
+        return self.encoders.power_up
 
     @property
     def drive_offsets(self) -> tuple[float, ...]:
         """Each drive's constant velocity offset (unit/s)."""
-        return tuple(self._offset)
+        return tuple(self.drives.offset)

@@ -357,3 +357,19 @@ def test_a_plc_that_answers_without_the_inputs_stops_the_robot_with_complete_fil
     assert all(float(rows[-1][i]) == 0.0 for i in velocities), rows[-1]
     transitions = report.with_suffix(".states.csv").read_text(encoding="utf-8").splitlines()
     assert transitions[-1].endswith(",Move Robot,Stop Robot"), transitions
+
+
+def test_the_plc_io_numbers_its_inputs_and_outputs_from_1_and_says_which_exist():
+    """ModbusIo's I/O is the DigitalIo the simulated arm's is: in[0] is no input (it read
+    the last one, as a Python index, before they shared it)."""
+    io = ModbusIo(parse_modbus({"host": "plc"}, SPEC), SPEC.inputs, SPEC.outputs)
+    for bad in (0, SPEC.inputs + 1):
+        with pytest.raises(IndexError, match=rf"^digital input {bad} does not exist: the robot on the PLC at "
+                                             rf"plc:502 has inputs 1\.\.{SPEC.inputs}$"):
+            io.input(bad)
+    with pytest.raises(IndexError, match=r"^digital output 0 does not exist"):
+        io.set_output(0, True)
+    io.set_output(SPEC.outputs, True)
+    assert io.outputs[-1] and io.output(SPEC.outputs) and not io.input(1)
+    with pytest.raises(PermissionError):
+        io.set_input(1, True)

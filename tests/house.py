@@ -6,6 +6,7 @@ length of every function. ``tests/test_architecture.py`` holds the limits;
 from __future__ import annotations
 
 import ast
+import functools
 import sys
 from dataclasses import dataclass
 from pathlib import Path
@@ -28,6 +29,22 @@ LAYERS: tuple[tuple[str, ...], ...] = (
     ("runtime.cli",),
 )
 
+#: Packages of one layer or of layers apart that must not import each other: the processes
+#: talk over runtime.wire only. (importer, what it must not import)
+APART: tuple[tuple[str, str], ...] = (
+    ("runtime.server", "runtime.loop"),
+    ("runtime.server", "runtime.motion"),
+    ("runtime.server", "runtime.hardware"),
+    ("runtime.client", "runtime.server"),
+    ("runtime.client", "runtime.loop"),
+    ("runtime.client", "runtime.motion"),
+    ("runtime.client", "runtime.hardware"),
+)
+
+#: compiled modules that stand for a source module (setup.py builds runtime/_kernels_c from
+#: runtime/kernels.py)
+COMPILED = ("runtime._kernels_c",)
+
 MAX_FIELDS = 30
 MAX_FUNCTION_LINES = 150
 
@@ -42,6 +59,11 @@ def modules() -> dict[str, Path]:
                 parts.pop()
             found[".".join(parts)] = path
     return found
+
+
+@functools.lru_cache(maxsize=None)
+def tree(path: Path) -> ast.Module:
+    return ast.parse(path.read_text(encoding="utf-8"))
 
 
 @dataclass(frozen=True)
@@ -74,9 +96,9 @@ def imports(known: dict[str, Path] | None = None) -> list[Import]:
         return name or None
 
     for module, path in known.items():
-        tree = ast.parse(path.read_text(encoding="utf-8"))
+        module_tree = tree(path)
         is_package = path.name == "__init__.py"
-        for node in ast.walk(tree):
+        for node in ast.walk(module_tree):
             if isinstance(node, ast.Import):
                 for alias in node.names:
                     target = owner(alias.name)
@@ -86,6 +108,8 @@ def imports(known: dict[str, Path] | None = None) -> list[Import]:
                 base = _resolve(module, is_package, node)
                 for alias in node.names:
                     full = f"{base}.{alias.name}" if base else alias.name
+                    if full in COMPILED:
+                        continue
                     if full in known:  # a submodule: `from . import protocol`
                         if full != module:
                             found.append(Import(module, full, (), node.lineno))
@@ -152,6 +176,15 @@ def upward(edges: list[Import]) -> list[Import]:
     return [e for e in edges if layer(e.target) > layer(e.source)]
 
 
+def _inside(module: str, package: str) -> bool:
+    return module == package or module.startswith(package + ".")
+
+
+def apart(edges: list[Import]) -> list[Import]:
+    """Imports between packages that must stay apart (:data:`APART`)."""
+    return [e for e in edges if any(_inside(e.source, a) and _inside(e.target, b) for a, b in APART)]
+
+
 def private_imports(edges: list[Import]) -> list[Import]:
     """Private names (``_name``) one module takes from another."""
     return [e for e in edges if any(n.startswith("_") and not n.startswith("__") for n in e.names)]
@@ -166,7 +199,8 @@ class Measure:
 def _self_fields(cls: ast.ClassDef) -> set[str]:
     fields: set[str] = set()
     for node in cls.body:  # class-level annotations: dataclass fields
-        if isinstance(node, ast.AnnAssign) and isinstance(node.target, ast.Name):
+        if isinstance(node, ast.AnnAssign) and isinstance(node.target, ast.Name) \
+                and not node.target.id.isupper():  # (a constant of the class is no field)
             fields.add(node.target.id)
         if isinstance(node, ast.Assign):
             for target in node.targets:
@@ -191,7 +225,7 @@ def classes() -> list[Measure]:
     """Every class with its number of fields (instance attributes and dataclass fields)."""
     found = []
     for module, path in modules().items():
-        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+        for node in ast.walk(tree(path)):
             if isinstance(node, ast.ClassDef):
                 found.append(Measure(f"{path.relative_to(ROOT)}:{node.lineno} {node.name}",
                                      len(_self_fields(node))))
@@ -202,7 +236,7 @@ def functions() -> list[Measure]:
     """Every function with its number of lines."""
     found = []
     for module, path in modules().items():
-        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+        for node in ast.walk(tree(path)):
             if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)):
                 found.append(Measure(f"{path.relative_to(ROOT)}:{node.lineno} {node.name}",
                                      node.end_lineno - node.lineno + 1))
@@ -223,6 +257,10 @@ def main() -> int:
         ups = []
     print(f"imports up a layer: {len(ups)}")
     for e in ups:
+        print(f"    {e.source} -> {e.target} (line {e.line})")
+    crossing = apart(edges)
+    print(f"imports between processes kept apart: {len(crossing)}")
+    for e in crossing:
         print(f"    {e.source} -> {e.target} (line {e.line})")
     privates = private_imports(edges)
     print(f"private names imported across modules: {len(privates)}")

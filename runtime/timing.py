@@ -12,7 +12,8 @@ from compiler.params import TICK, component_params
 
 #: TICK (s): the executive's tick: the robot interface, the supervisor, the servo and the
 #: safety run every tick (declared in compiler.params, which checks periods against it).
-__all__ = ["TICK", "SETPOINT_PERIOD", "REPORT_PERIOD", "FIELDBUS_POLL"]
+__all__ = ["TICK", "SETPOINT_PERIOD", "REPORT_PERIOD", "FIELDBUS_POLL", "BRAKE_TIMEOUT", "STOP_SETTLE_TIMEOUT",
+           "START_SETTLE_TIMEOUT"]
 
 #: s: the trajectory generator's and the initialization's (homing) period: the servo
 #: interpolates their setpoints (the two must be equal).
@@ -23,3 +24,12 @@ REPORT_PERIOD: float = component_params("report")["period"].default  # type: ign
 #: s: the default time between two exchanges with a PLC (runtime.hardware.fieldbus; off the loop,
 #: on the exchange's own thread; a fieldbus file may choose from TICK to 1 s).
 FIELDBUS_POLL = 0.01
+#: s the brakes may take to release (Start Robot) or engage (Stop Robot, the safety's stops)
+#: before it is a fault (the stop then goes on to torque off anyway).
+BRAKE_TIMEOUT = 1.0
+#: s at most Stop Robot waits for the servo to settle the axes on the last reference before
+#: the brakes close.
+STOP_SETTLE_TIMEOUT = 1.0
+#: s after homing's move to the start position for every axis to settle there (the
+#: initialization's "Go To Start").
+START_SETTLE_TIMEOUT = 2.0

@@ -725,3 +725,31 @@ def test_a_pause_inside_a_full_speed_blend_and_a_quick_resume_keep_the_limits(wh
     assert summary["fault"] is None, summary["fault"]
     assert watch.acceleration_ratio <= 1.25, watch.worst
     safe_end(system, watch)
+
+
+def test_every_stop_names_its_cause_in_categories():
+    """A stop's category comes from CATEGORIES alone: every call of ``stop_robot`` (and of
+    the safety's own ``_violation``, which passes its cause on) in the runtime names a cause
+    of the table (a string), never a category number (issue 28)."""
+    import ast
+    from pathlib import Path
+
+    from runtime.loop.components import safety
+
+    root = Path(__file__).resolve().parents[1] / "runtime"
+    calls = []
+    for path in sorted(root.rglob("*.py")):
+        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+            if isinstance(node, ast.Call) and getattr(node.func, "attr", None) in ("stop_robot", "_violation"):
+                where = f"{path.relative_to(root.parent)}:{node.lineno}"
+                cause = node.args[0] if node.args else None
+                if isinstance(cause, ast.Name) and cause.id == "cause" and node.func.attr == "stop_robot":
+                    continue  # _violation(cause, ...) passing its own argument on
+                if isinstance(cause, ast.Subscript) and getattr(cause.value, "id", None) == "_KINDS":
+                    continue  # a kernel's verdict: _KINDS' causes are checked below
+                assert isinstance(cause, ast.Constant) and isinstance(cause.value, str), \
+                    f"{where}: the first argument must be a cause of CATEGORIES, by name"
+                assert cause.value in CATEGORIES, f"{where}: {cause.value!r} is not a cause of CATEGORIES"
+                calls.append(cause.value)
+    assert set(safety._KINDS.values()) <= set(CATEGORIES)
+    assert {"emergency stop", "fault", "brakes", "watchdog"} <= set(calls)

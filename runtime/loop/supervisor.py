@@ -23,16 +23,15 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from runtime.loop.fsm import FSM, State, Transition
+from runtime.timing import BRAKE_TIMEOUT, STOP_SETTLE_TIMEOUT
 
 START, CALIBRATE, INITIALIZE, MOVE, STOP = (
     "Start Robot", "Calibrate Offsets", "Initialization Sequence", "Move Robot", "Stop Robot")
 RECONFIGURE = "Robot Reconfiguration"
 
-BRAKE_TIMEOUT = 1.0  # s for the brakes to release or engage
 CALIBRATION_SETTLE = 0.05  # s before measuring (the drives' lag)
 CALIBRATION_TIME = 0.25  # s of measurement
 SETTLE_TOLERANCE_COUNTS = 1.0  # encoder counts: "at rest" before the brakes go on
-SETTLE_TIMEOUT = 1.0  # s at most spent settling in Stop Robot
 
 
 @dataclass
@@ -410,7 +409,7 @@ class Supervisor:
         self.settled_since = None
         self.braking = False
         if self.fault is not None:
-            self.safety.stop_robot(1, self.fault)
+            self.safety.stop_robot("fault", self.fault)
             return
         self._confirm_calibration()
         if self.servo.running:
@@ -442,15 +441,15 @@ class Supervisor:
                 self.settled_since = self.settled_since if self.settled_since is not None else now
             else:
                 self.settled_since = None
-            if (self.settled_since is not None and now - self.settled_since >= 0.02) or self._elapsed() > SETTLE_TIMEOUT:
+            if (self.settled_since is not None and now - self.settled_since >= 0.02) or self._elapsed() > STOP_SETTLE_TIMEOUT:
                 safety.expect_standstill(True)  # from here on nothing may move
                 robot.apply_brakes()
                 self.braking = True
             return
         elif not robot.brakes_applied():
-            if self._elapsed() > SETTLE_TIMEOUT + BRAKE_TIMEOUT:
+            if self._elapsed() > STOP_SETTLE_TIMEOUT + BRAKE_TIMEOUT:
                 self._fault(f"Stop Robot: the brakes did not engage within {BRAKE_TIMEOUT:g} s")
-                safety.stop_robot(0, self.fault)
+                safety.stop_robot("brakes", self.fault)
             return
         else:
             robot.disable_drives()

@@ -221,7 +221,7 @@ class RobotSystem:
         ramp to zero at each axis's max_acceleration, then brakes, then torque off; see
         docs/safety.md), and the supervisor to Stop Robot."""
         if self.safety.running and self.robot.brakes_released():
-            self.safety.stop_robot(1, reason)
+            self.safety.stop_robot("emergency stop", reason)
         self.supervisor.request_stop(reason, emergency=True)
 
     def finish(self) -> dict:

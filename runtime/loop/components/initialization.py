@@ -17,17 +17,16 @@ from compiler.params import component_params
 from runtime.loop.component import Component, DataPort
 from runtime.loop.fsm import FSM, State, Transition
 from runtime.motion.planner import PtpInput, plan_ptp
-from runtime.timing import SETPOINT_PERIOD
+from runtime.timing import SETPOINT_PERIOD, START_SETTLE_TIMEOUT
 
 HOME_SPEED = 0.2  # fraction of each axis's maximum velocity and acceleration for "Go To Start"
 #: How much farther (deg or mm) than expected a sensor search goes before it gives up: the
 #: uncertainty of where an axis rests before homing (parked at home at power-up).
 SEARCH_MARGIN = 10.0
-SETTLE_TIMEOUT = 2.0  # s after the move to the start position for every axis to settle there
 #: How close (deg or mm) every axis must come to its start position, or within one encoder
 #: count where a count is coarser: the program plans from the servo's reference, not from
 #: the measured position, so a finer window only waits on the servo's integral (with the
-#: least kp and the finest encoder, one count, 0.00005 deg, took longer than SETTLE_TIMEOUT).
+#: least kp and the finest encoder, one count, 0.00005 deg, took longer than START_SETTLE_TIMEOUT).
 SETTLE_WINDOW = 0.001
 FROZEN_AFTER = 0.2  # s of commanded motion without a single encoder count -> frozen encoder
 
@@ -363,10 +362,10 @@ class _Sequence:
 
     def run_start(self) -> None:
         trajectory = self.init.trajectory
-        if trajectory is not None and self.init.t_trajectory > trajectory.duration + SETTLE_TIMEOUT:
+        if trajectory is not None and self.init.t_trajectory > trajectory.duration + START_SETTLE_TIMEOUT:
             far = [f"{a.name} ({m - a.home:+.4f} {a.unit})" for m, a in zip(self.robot.positions, self.init.axes)
                    if abs(m - a.home) > settle_window(a)]
-            self._fail(f"the axes did not settle at the start position within {SETTLE_TIMEOUT:g} s: "
+            self._fail(f"the axes did not settle at the start position within {START_SETTLE_TIMEOUT:g} s: "
                        + ", ".join(far))
 
     def complete(self) -> None:

@@ -45,7 +45,7 @@ from compiler.params import settle_time
 
 from runtime.accel import kernels
 from runtime.loop.component import Component, DataPort
-from runtime.timing import TICK
+from runtime.timing import BRAKE_TIMEOUT, TICK
 
 safety_check = kernels.safety_check
 direction_check = kernels.direction_check
@@ -55,8 +55,6 @@ standstill_check = kernels.standstill_check
 WATCHDOG_TICKS = 2
 #: Ticks of the encoder-direction window.
 DIRECTION_WINDOW = 50
-#: Seconds the brakes may take to engage before the stop goes on to torque off anyway.
-BRAKE_TIMEOUT = 1.0
 
 #: Stop categories (IEC 60204-1): what stops the robot how. One declaration; docs/safety.md
 #: renders it (:func:`categories_markdown`).
@@ -72,6 +70,7 @@ CATEGORIES: dict[str, tuple[int, str]] = {
     "following error": (1, "the servo's following error beyond its limit"),
     "stop overdue": (1, "a stop on the path (pause, abort) that does not reach rest in time"),
     "drift": (0, "a drive that drifts beyond [safety] max_drive_drift under a zero command (calibration)"),
+    "brakes": (0, "brakes that do not engage within runtime.timing.BRAKE_TIMEOUT of Stop Robot closing them"),
     "emergency stop": (1, "the operator's emergency stop (irl estop)"),
     "abort": (1, "the operator's abort: a stop on the path, then brakes"),
     "fault": (1, "any other fault: a component's (homing, deadline, report, program error), a time limit, "
@@ -342,15 +341,16 @@ class SafetySupervisor(Component):
         self._violation(_KINDS[kind], text, now)
 
     def _violation(self, cause: str, text: str, now: float) -> None:
-        category = CATEGORIES[cause][0]
-        self.fault = f"safety: {text} (stop category {category})"
-        self.stop_robot(category, self.fault, now)
+        self.fault = f"safety: {text} (stop category {CATEGORIES[cause][0]})"
+        self.stop_robot(cause, self.fault, now)
 
-    def stop_robot(self, category: int, reason: str, now: float | None = None) -> None:
-        """Real-time safe: stop the robot now, by ``category`` (0 or 1; a stop already
-        under way only ever gets stricter). Category 1 ramps every axis's command from
-        the last one passed to the drives to zero at the axis's max_acceleration, then
-        applies the brakes, then takes the torque off; category 0 does both at once."""
+    def stop_robot(self, cause: str, reason: str, now: float | None = None) -> None:
+        """Real-time safe: stop the robot now for ``cause`` (a key of :data:`CATEGORIES`),
+        by its category (0 or 1; a stop already under way only ever gets stricter).
+        Category 1 ramps every axis's command from the last one passed to the drives to
+        zero at the axis's max_acceleration, then applies the brakes, then takes the
+        torque off; category 0 does both at once."""
+        category = CATEGORIES[cause][0]
         now = self.clock.tick_time if now is None else now
         if self.category is not None and self.category <= category:
             return

@@ -68,7 +68,7 @@ class LimitWatch:
         command = port.value
         if command is not None and port.stamp == now and backend.drives_enabled() \
                 and backend.brakes_released():
-            scale = system.robot.velocity_limit_scale
+            scale = system.robot_settings.robot.velocity_limit_scale
             if scale != self._scale:
                 self._scale, self._limits = scale, [v * scale for v in self.vmax]
             if not max(map(truediv, map(abs, command), self._limits)) <= self.velocity_ratio:
@@ -105,7 +105,7 @@ class LimitWatch:
             self._previous_setpoints[k] = None
             return
         t, _positions, velocities = value[:3]  # (accelerations may follow)
-        scale = self.system.robot.velocity_limit_scale
+        scale = self.system.robot_settings.robot.velocity_limit_scale
         if scale != self._scale:
             self._scale, self._limits = scale, [v * scale for v in self.vmax]
         # (as in tick: the largest over the axes first, axis by axis only when it may be a new worst)

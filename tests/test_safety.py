@@ -206,7 +206,7 @@ def test_scripting_writes_are_validated_and_safety_parameters_refused(tmp_path, 
 def test_a_live_parameter_is_written_and_lifecycle_operations_run_only_while_idle(tmp_path):
     server = Server(SPEC, ServeOptions(sim_clock=True, state_dir=tmp_path / "state", loop_process=False))
     assert server.request("call", {"text": "trajectory.budget = 500"})["value"] == 500
-    assert server.system.trajectory.budget == 500
+    assert server.system.robot_settings.trajectory.budget == 500
     assert server.request("call", {"text": "report.stop()"})["value"] is False  # idle: allowed (nothing to stop)
     with pytest.raises(ProtocolError, match="released only by Start Robot"):
         server.request("call", {"text": "robot.release_brakes()"})
@@ -324,7 +324,7 @@ def test_a_runaway_servo_gain_is_an_acceleration_fault_not_a_runaway():
     run_to_end(system, SHORT)
     system.begin(LONG, None)
     run_until(system, lambda: system.supervisor.fsm.state == MOVE)
-    system.servo.kp = 1e9  # past every check the configuration has (a servo bug)
+    system.robot_settings.servo.kp = 1e9  # past every check the configuration has (a servo bug)
     run_until(system, lambda: system.supervisor.done)
     summary = system.finish()
     assert "safety:" in summary["fault"] and "command changes at" in summary["fault"]
@@ -337,9 +337,8 @@ def test_positive_feedback_with_the_following_error_switched_off_stops_before_th
     run_to_end(system, SHORT)
     system.begin(LONG, None)
     run_until(system, lambda: system.supervisor.fsm.state == MOVE)
-    system.servo.kp = -40.0
-    system.servo.following_error_limit = 1e308
-    system.safety.following_error_limit = 1e308
+    system.robot_settings.servo.kp = -40.0  # past every check (written to the settings' section directly)
+    system.robot_settings.servo.following_error_limit = 1e308  # the servo's and the safety's: one value
     run_until(system, lambda: system.supervisor.done)
     summary = system.finish()
     assert "safety:" in summary["fault"], summary["fault"]

@@ -580,7 +580,7 @@ class SafetyMachine(RuleBasedStateMachine):
         elif text == 'fsm.set_mode("reactive")':
             self._expect(not reply["ok"], "the supervisor's mode changed", reply)
         elif _valid_budget(text) is not None:
-            self._expect(reply["ok"] and server.system.trajectory.budget == _valid_budget(text),
+            self._expect(reply["ok"] and server.system.robot_settings.trajectory.budget == _valid_budget(text),
                          "a valid write refused", (text, reply))
         self._expect(server.system.supervisor.fsm.mode == "automatic", "the supervisor's mode changed", text)
 

@@ -45,16 +45,19 @@ class Component:
     """Base class. Subclasses override the ``on_*`` hooks and ``update``.
 
     ``PROPERTIES`` maps a property name to its declaration (:class:`compiler.params.Param`:
-    type, unit, range, safety relevance, when it may change); the value is the attribute
-    of the same name. ``OPERATIONS`` names the methods the scripting interface may call.
+    type, unit, range, safety relevance, when it may change); the value is the setting of
+    the same name in the component's section of the robot's settings
+    (:class:`runtime.settings.Settings`, ``settings``: one object for all components).
+    ``OPERATIONS`` names the methods the scripting interface may call.
     """
 
     PROPERTIES: dict = {}  # name -> compiler.params.Param
     OPERATIONS: tuple[str, ...] = ("configure", "start", "stop", "cleanup")
 
-    def __init__(self, name: str, period: float):
+    def __init__(self, name: str, period: float, settings=None):
         self.name = name
         self.period = period  # seconds between updates
+        self.settings = settings  # the robot's settings (runtime.settings.Settings): its section is self.name
         self.lifecycle = Lifecycle.UNCONFIGURED
         self.error_message: str | None = None
         self._watchers: list = []  # called after every change of lifecycle (see watch)
@@ -143,11 +146,11 @@ class Component:
     def get_property(self, name: str):
         if name not in self.PROPERTIES:
             raise KeyError(f"{self.name} has no property {name!r}")
-        return getattr(self, name)
+        return self.settings.get(self.name, name)
 
     def set_property(self, name: str, value) -> None:
         """Not real-time: set a property to a value its declaration accepts (a
         ``compiler.params.ParamError``, a ValueError, otherwise; nothing changes)."""
         if name not in self.PROPERTIES:
             raise KeyError(f"{self.name} has no property {name!r}")
-        setattr(self, name, self.PROPERTIES[name].check(value))
+        self.settings.set(self.name, name, value)

@@ -2,7 +2,8 @@
 carried out against the robot's components, as the paper's task browser does.
 
 Only what a target declares is reachable: its ``PROPERTIES`` (declared in
-:mod:`compiler.params`), ``READ_ONLY`` properties, and whitelisted ``OPERATIONS``. The
+:mod:`compiler.params`; their values are the robot's one settings object,
+:mod:`runtime.settings`, read and written through the component), ``READ_ONLY`` properties, and whitelisted ``OPERATIONS``. The
 server parses a command; an operation of the server itself (``server.reconfigure``) runs
 there (runtime/server/scripting_service.py), everything else here, in the real-time loop
 between ticks (runtime/loop/robotloop.py), against the loop's components. What the network
@@ -111,7 +112,7 @@ def call(table: dict, job: int | None, text: str):
         if command.name not in _properties(target):
             raise ProtocolError("script_error", f"{command.component} has no property {command.name!r} "
                                                 f"({_names(target)})")
-        value = _plain(getattr(target, command.name))
+        value = _plain(_value(target, command.name))
         return {"output": f"{where} = {format_value(value)}", "value": value}
     if isinstance(command, SetProperty):
         if command.name not in target.PROPERTIES:
@@ -131,7 +132,7 @@ def call(table: dict, job: int | None, text: str):
 
         def set_property():
             target.set_property(command.name, value)
-            shown = _plain(getattr(target, command.name))
+            shown = _plain(target.get_property(command.name))
             return {"output": f"{where} = {format_value(shown)}", "value": shown}
         return set_property
     assert isinstance(command, CallOperation)
@@ -177,6 +178,12 @@ def _target(table: dict, name: str):
     return table[name]
 
 
+def _value(target, name: str):
+    """A property's value: a setting from the robot's settings (runtime.settings, the
+    component's section), a read-only one from the target itself."""
+    return target.get_property(name) if name in target.PROPERTIES else getattr(target, name)
+
+
 def _properties(target) -> dict:
     return {**target.PROPERTIES, **getattr(target, "READ_ONLY", {})}
 
@@ -196,7 +203,7 @@ def _describe(name: str, target) -> str:
     for prop, param in target.PROPERTIES.items():
         how = "writable" if param.change == "live" else ("safety-relevant, by configuration" if param.safety
                                                          else "by configuration")
-        lines.append(f"    {prop} = {format_value(_plain(getattr(target, prop)))}  ({param.allowed()}; {how}) "
+        lines.append(f"    {prop} = {format_value(_plain(target.get_property(prop)))}  ({param.allowed()}; {how}) "
                      f"{param.doc}")
     for prop, doc in getattr(target, "READ_ONLY", {}).items():
         lines.append(f"    {prop} = {format_value(_plain(getattr(target, prop)))}  (read-only) {doc}")

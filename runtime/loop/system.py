@@ -28,7 +28,8 @@ from runtime.hardware.backends import DEFAULT_ROBOT, ROBOTS, make_io, make_robot
 from runtime.hardware.interface import RobotBackend
 from runtime.hardware.sim.estimator import AlphaBeta
 from runtime.loop.supervisor import RobotMemory, StateFile, Supervisor
-from runtime.timing import REPORT_PERIOD, SETPOINT_PERIOD, TICK
+from runtime.settings import Settings
+from runtime.timing import TICK
 from runtime.wire.messages import io_sources_problem
 
 
@@ -62,14 +63,20 @@ class RobotSystem:
         self.backend = backend if backend is not None else make_robot(options.robot, spec, options.seed)
         for fault, axis in options.faults:
             self.backend.inject(fault, axis)
-        self.robot = RobotInterface(spec, self.backend, p["sens_pos"], p["drive_cmd"], AlphaBeta(n, TICK), TICK)
+        # every component's settings, one object: each component reads its own section there
+        self.robot_settings = settings = Settings(spec)
+        self.robot = RobotInterface(spec, self.backend, p["sens_pos"], p["drive_cmd"], AlphaBeta(n, TICK), TICK,
+                                    settings)
         self.servo = ServoController(spec, p["sens_pos"], p["desi_pos"], p["init_pos"], p["out_vel"],
-                                     Interpolator, TICK)
-        self.safety = SafetySupervisor(spec, self.robot, self.servo, p["out_vel"], p["drive_cmd"], self.clock, TICK)
-        self.init = Initialization(spec, self.robot, p["init_pos"], p["sens_pos"], self.clock)
+                                     Interpolator, TICK, settings)
+        self.safety = SafetySupervisor(spec, self.robot, self.servo, p["out_vel"], p["drive_cmd"], self.clock, TICK,
+                                       settings)
+        self.init = Initialization(spec, self.robot, p["init_pos"], p["sens_pos"], self.clock,
+                                   settings.initialization.period, settings)
         self.init.on_encoder_reset = self._encoder_reset
         self.servo.measured_velocity = lambda: self.robot.velocities
-        self.trajectory = TrajectoryGenerator(spec, self.robot, p["desi_pos"], p["sens_pos"], self.clock)
+        self.trajectory = TrajectoryGenerator(spec, self.robot, p["desi_pos"], p["sens_pos"], self.clock,
+                                              settings.trajectory.period, settings)
         self.trajectory.safety = self.safety
         io_backend = backend_of(self.backend)  # the digital I/O: the robot's own, or a PLC's over a fieldbus
         problem = io_sources_problem(options.fieldbus is not None, options.cell is not None, options.realtime)
@@ -90,11 +97,12 @@ class RobotSystem:
         self.io.configure()  # the backend opened (a PLC's exchange starts), its I/O in the ports
         self.trajectory.io = self.io
         self.report = Report(spec, p["sens_pos"], p["drive_cmd"], self.servo, lambda: self.supervisor.fsm.path(),
-                             history=lambda: self.supervisor.fsm.history, io=(self.io.inputs, self.io.outputs))
+                             settings.report.period, history=lambda: self.supervisor.fsm.history,
+                             io=(self.io.inputs, self.io.outputs), settings=settings)
         self.report.motion = self.trajectory.motion  # the move columns: the program's moves as they run
         self.report.frames_now = self.trajectory.frames_now  # the TCP of the move's tool, in its base
         if (options.cell is not None or options.fieldbus is not None) and "io" not in self.report.columns:
-            self.report.columns.append("io")  # the cell's I/O in every row
+            self.report.columns = [*self.report.columns, "io"]  # the cell's I/O in every row
         self.executive = Executive(self.clock, TICK)
         identity = {"robot": spec.name, "spec_hash": spec.hash,
                     "backend": ROBOTS[options.robot].identity(options.robot, options.seed) if backend is None
@@ -120,13 +128,20 @@ class RobotSystem:
         ex.add("io", self.io.update, TICK, "sense", component=self.io)
         ex.add("robot.read", robot.read, TICK, "sense", component=robot)
         ex.add("supervisor", self.supervisor.step, TICK, "decide")
-        ex.add("initialization", self.init.update, SETPOINT_PERIOD, "plan", component=self.init)
-        ex.add("trajectory", self.trajectory.update, SETPOINT_PERIOD, "plan", component=self.trajectory)
+        ex.add("initialization", self.init.update, self.init.period, "plan", component=self.init)
+        ex.add("trajectory", self.trajectory.update, self.trajectory.period, "plan", component=self.trajectory)
         ex.add("triggers", self.trajectory.fire_triggers, TICK, "plan", component=self.trajectory)
         ex.add("servo", self.servo.update, TICK, "control", policy=servo_policy, component=self.servo)
         ex.add("safety", self.safety.update, TICK, "guard", component=self.safety)
         ex.add("robot.write", robot.write, TICK, "act", component=robot)
-        ex.add("report", self.report.update, REPORT_PERIOD, "record", component=self.report)
+        ex.add("report", self.report.update, self.report.period, "record", component=self.report)
+        for component in (self.trajectory, self.init, self.report):  # a period is the executive's schedule
+            settings.watch(component.name, "period", lambda period, c=component: self._set_period(c, period))
+
+    def _set_period(self, component, period: float) -> None:
+        """Not real-time (told by the settings): ``component``'s period changed."""
+        self.executive.set_period(component.name, period)
+        component.period = period
 
     def begin(self, program: Program | None, report: str | Path | None = None, settings: dict | None = None) -> None:
         """Not real-time: start one cycle of the supervisor (power-up to Stop Robot) with
@@ -176,45 +191,13 @@ class RobotSystem:
     # ---- configuration (not real-time: between programs) ----
     def settings(self) -> dict:
         """The current value of every configurable setting (runtime.config.SCHEMA)."""
-        ex = {t.name: t.period * TICK for t in self.executive.tasks}
-        return {"servo": {"kp": self.servo.kp, "ki": self.servo.ki,
-                          "following_error_limit": self.servo.following_error_limit},
-                "robot": {"velocity_limit_scale": self.robot.velocity_limit_scale},
-                "trajectory": {"budget": self.trajectory.budget, "period": ex["trajectory"]},
-                "initialization": {"period": ex["initialization"], "home_speed": self.init.home_speed},
-                "report": {"period": ex["report"], "columns": list(self.report.columns)}}
+        return self.robot_settings.values()
 
     def apply_settings(self, settings: dict) -> None:
         """Set every setting given (validated ones: runtime.config.validate_settings),
-        with the components stopped. Periods go to the executive's schedule."""
-        servo, robot, trajectory, report = self.servo, self.robot, self.trajectory, self.report
-        for key, value in settings.get("servo", {}).items():
-            setattr(servo, key, value)
-        self.safety.following_error_limit = servo.following_error_limit
-        if "velocity_limit_scale" in settings.get("robot", {}):
-            scale = settings["robot"]["velocity_limit_scale"]
-            robot.velocity_limit_scale = scale
-            servo.set_velocity_limit_scale(scale)
-            self.safety.set_velocity_limit_scale(scale)
-            self.init.velocity_limit_scale = scale
-            trajectory.velocity_limit_scale = scale
-        if "home_speed" in settings.get("initialization", {}):
-            self.init.home_speed = settings["initialization"]["home_speed"]
-        t = settings.get("trajectory", {})
-        if "budget" in t:
-            trajectory.budget = t["budget"]
-        for name, component in (("trajectory", trajectory), ("initialization", self.init)):
-            period = settings.get(name, {}).get("period")
-            if period is not None:
-                self.executive.set_period(name, period)
-                component.period = period
-        servo.setpoint_period = trajectory.period
-        r = settings.get("report", {})
-        if "period" in r:
-            self.executive.set_period("report", r["period"])
-            report.period = r["period"]
-        if "columns" in r:
-            report.columns = list(r["columns"])
+        with the components stopped; whoever derives something from a setting (the
+        servo's and the safety's limits, the executive's schedule) is told at once."""
+        self.robot_settings.apply(settings)
 
     def emergency_stop(self, reason: str = "emergency stop by the operator") -> None:
         """Real-time safe: a stop of category 1 by the safety supervisor at once (its own

@@ -17,9 +17,9 @@ from compiler.params import component_params
 from runtime.loop.component import Component, DataPort
 from runtime.loop.fsm import FSM, State, Transition
 from runtime.motion.planner import PtpInput, plan_ptp
+from runtime.settings import Settings
 from runtime.timing import SETPOINT_PERIOD, START_SETTLE_TIMEOUT
 
-HOME_SPEED = 0.2  # fraction of each axis's maximum velocity and acceleration for "Go To Start"
 #: How much farther (deg or mm) than expected a sensor search goes before it gives up: the
 #: uncertainty of where an axis rests before homing (parked at home at power-up).
 SEARCH_MARGIN = 10.0
@@ -40,8 +40,12 @@ def settle_window(axis) -> float:
 class Initialization(Component):
     PROPERTIES = component_params("initialization")
 
-    def __init__(self, spec, robot, init_pos: DataPort, sens_pos: DataPort, clock, period: float = SETPOINT_PERIOD):
-        super().__init__("initialization", period)
+    def __init__(self, spec, robot, init_pos: DataPort, sens_pos: DataPort, clock, period: float = SETPOINT_PERIOD,
+                 settings: Settings | None = None):
+        settings = settings if settings is not None else Settings(spec)
+        super().__init__("initialization", period, settings)
+        self.own = settings.initialization  # home_speed
+        self.robot_section = settings.robot  # velocity_limit_scale
         # the encoder watch counts in tick time: after a stall of the host the catch-up
         # ticks are 1 ms apart, as the robot's samples are (the deadline policy reports
         # the stall itself; wall time would blame the encoder)
@@ -49,8 +53,6 @@ class Initialization(Component):
         self.spec, self.robot, self.init_pos, self.sens_pos = spec, robot, init_pos, sens_pos
         self.axes = spec.axes
         self.n = len(spec.axes)
-        self.home_speed = HOME_SPEED
-        self.velocity_limit_scale = 1.0  # robot.velocity_limit_scale (set by the system)
         self.positions = [0.0] * self.n
         self.velocities = [0.0] * self.n
         self.targets = [0.0] * self.n  # the velocity each axis ramps to
@@ -87,10 +89,11 @@ class Initialization(Component):
             self.positions, self.velocities = list(pos), list(vel)
         else:
             velocities, positions, targets = self.velocities, self.positions, self.targets
+            home_speed = self.own.home_speed
             for i, v in enumerate(velocities):
                 target = targets[i]
                 if v != target:  # ramp at home_speed x max_acceleration
-                    step = self.home_speed * self.axes[i].max_acceleration * dt
+                    step = home_speed * self.axes[i].max_acceleration * dt
                     new = target if abs(target - v) <= step else v + step if target > v else v - step
                     positions[i] += 0.5 * (v + new) * dt
                     velocities[i] = new
@@ -102,7 +105,7 @@ class Initialization(Component):
     def search_velocity(self, axis: int) -> float:
         """How fast ``axis`` searches: its search_velocity, within half the reduced speed."""
         a = self.axes[axis]
-        return min(a.search_velocity, 0.5 * self.velocity_limit_scale * a.max_velocity)
+        return min(a.search_velocity, 0.5 * self.robot_section.velocity_limit_scale * a.max_velocity)
 
     def ramp(self, axis: int, velocity: float) -> None:
         """Ramp ``axis`` to ``velocity`` (not a step: see :meth:`update`)."""
@@ -126,7 +129,7 @@ class Initialization(Component):
     def go_to_start(self) -> str | None:
         start = tuple(self.positions)
         target = tuple(a.home for a in self.axes)
-        f = min(self.home_speed, self.velocity_limit_scale)
+        f = min(self.own.home_speed, self.robot_section.velocity_limit_scale)
         result, trajectory, message = plan_ptp(PtpInput(
             start, target, tuple(a.max_velocity * f for a in self.axes),
             tuple(a.max_acceleration * f for a in self.axes)))

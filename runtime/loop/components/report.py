@@ -27,6 +27,7 @@ from compiler.semantics import compose, inverse
 
 from runtime.loop.component import Component, DataPort
 from runtime.motion.moves import Frames
+from runtime.settings import Settings
 from runtime.timing import REPORT_PERIOD
 
 FLUSH_PERIOD = 0.1  # s of rows per batch handed to the writer (10 rows at the default 10 ms)
@@ -176,8 +177,8 @@ class Report(Component):
     PROPERTIES = component_params("report")
 
     def __init__(self, spec, sens_pos: DataPort, out_vel: DataPort, servo, state_of, period: float = REPORT_PERIOD,
-                 history=lambda: (), io: tuple = ()):
-        super().__init__("report", period)
+                 history=lambda: (), io: tuple = (), settings: Settings | None = None):
+        super().__init__("report", period, settings if settings is not None else Settings(spec))
         self.spec = spec
         self.sens_pos, self.out_vel, self.servo = sens_pos, out_vel, servo
         self.state_of = state_of  # callable -> the FSM's current state path
@@ -196,8 +197,18 @@ class Report(Component):
         # the base and tool of the move under way (the trajectory generator's; set by the system)
         default_frames = Frames.default(spec)
         self.frames_now = lambda: default_frames
-        # which quantities the rows hold, in this order (the TCP when the kinematics allow)
-        self.columns = list(COLUMNS) + ([TCP] if self.tcp is not None else [])
+        # which quantities the rows hold, in this order (report.columns; the TCP when the kinematics allow)
+        if self.tcp is None and TCP in self.columns:
+            self.columns = [c for c in self.columns if c != TCP]
+
+    @property
+    def columns(self) -> list[str]:
+        """report.columns, the setting (runtime.settings): which quantities the rows hold."""
+        return self.settings.report.columns
+
+    @columns.setter
+    def columns(self, names) -> None:
+        self.settings.set("report", "columns", names)
 
     def _names_of(self, kind: str) -> list[str]:
         if kind == TCP:

@@ -18,6 +18,7 @@ from compiler.params import component_params
 from runtime.accel import kernels
 from runtime.hardware.interface import RobotBackend
 from runtime.loop.component import Component, DataPort
+from runtime.settings import Settings
 from runtime.timing import TICK
 
 clamp_commands = kernels.clamp_commands
@@ -27,8 +28,11 @@ class RobotInterface(Component):
     PROPERTIES = component_params("robot")
     OPERATIONS = Component.OPERATIONS + ("release_brakes", "apply_brakes")
 
-    def __init__(self, spec, backend: RobotBackend, sens_pos: DataPort, drive_cmd: DataPort, estimator, tick: float = TICK):
-        super().__init__("robot", tick)
+    def __init__(self, spec, backend: RobotBackend, sens_pos: DataPort, drive_cmd: DataPort, estimator,
+                 tick: float = TICK, settings: Settings | None = None):
+        # robot.velocity_limit_scale (reduced speed) is the robot's setting; the planners, the
+        # servo and the safety supervisor read it there
+        super().__init__("robot", tick, settings if settings is not None else Settings(spec))
         self.spec = spec
         self.backend = backend
         self.sens_pos = sens_pos
@@ -42,7 +46,6 @@ class RobotInterface(Component):
         self.zeroed = [False] * self.n  # per axis: its encoder was reset by a homing (positions absolute)
         self.compensation = [0.0] * self.n  # added to every velocity command (calibration)
         self.max_velocity = tuple(a.max_velocity for a in spec.axes)
-        self.velocity_limit_scale = 1.0  # reduced speed (the planners and the safety supervisor apply it)
         self.unguarded: str | None = None  # why the interface stopped the drives itself
         self.counts = (0,) * self.n
         self.index_events = (0,) * self.n

@@ -45,6 +45,7 @@ from compiler.params import settle_time
 
 from runtime.accel import kernels
 from runtime.loop.component import Component, DataPort
+from runtime.settings import Settings
 from runtime.timing import BRAKE_TIMEOUT, TICK
 
 safety_check = kernels.safety_check
@@ -95,8 +96,10 @@ class SafetySupervisor(Component):
     PROPERTIES: dict = {}
     OPERATIONS: tuple[str, ...] = ()
 
-    def __init__(self, spec, robot, servo, out_vel: DataPort, drive_cmd: DataPort, clock, tick: float = TICK):
-        super().__init__("safety", tick)
+    def __init__(self, spec, robot, servo, out_vel: DataPort, drive_cmd: DataPort, clock, tick: float = TICK,
+                 settings: Settings | None = None):
+        settings = settings if settings is not None else Settings(spec)
+        super().__init__("safety", tick, settings)
         self.spec, self.robot, self.servo = spec, robot, servo
         self.out_vel, self.drive_cmd = out_vel, drive_cmd
         self.clock = clock
@@ -126,18 +129,17 @@ class SafetySupervisor(Component):
         self.counts_per_unit = tuple(a.counts_per_unit for a in axes)
         self.homing_limits = tuple(safety.homing_velocity_factor * a.search_velocity for a in axes)
         self._zeros = (0.0,) * n
-        self.velocity_limit_scale = 1.0
-        self.velocity_limits = tuple(a.max_velocity for a in axes)
         self.referenced = [False] * n  # per axis: its encoder's zero is known (limits apply)
-        self.following_error_limit = spec.controller.following_error_limit
-        self._refresh_limits()
+        self.servo_settings = settings.servo  # following_error_limit: the servo's, read here every tick
+        self.set_velocity_limit_scale(settings.robot.velocity_limit_scale)
+        settings.watch("robot", "velocity_limit_scale", self.set_velocity_limit_scale)
         self.fault: str | None = None
         self.largest_ratio = 0.0  # diagnostics: nothing; see the tests' own measurements
         self.reset()
 
     # -- set-up (not real-time) --
     def set_velocity_limit_scale(self, scale: float) -> None:
-        self.velocity_limit_scale = scale
+        """Not real-time (told by the settings): robot.velocity_limit_scale changed."""
         self.velocity_limits = tuple(a.max_velocity * scale for a in self.axes)
         self._refresh_limits()
 
@@ -242,9 +244,10 @@ class SafetySupervisor(Component):
             if code:
                 self._axis_violation(code, command, now)
                 return
-        if self.servo.worst_error > self.following_error_limit:
+        limit = self.servo_settings.following_error_limit
+        if self.servo.worst_error > limit:
             self._violation("following error", f"following error {self.servo.worst_error:.3f} beyond the limit "
-                                                f"{self.following_error_limit:g} (the servo did not stop)", now)
+                                                f"{limit:g} (the servo did not stop)", now)
             return
         if self.standstill_expected:
             if self._position_deadline != self._position_deadline:  # rest has just begun: the servo's

@@ -14,7 +14,8 @@ from compiler.params import component_params
 
 from runtime.accel import kernels
 from runtime.loop.component import Component, DataPort
-from runtime.timing import SETPOINT_PERIOD, TICK
+from runtime.settings import Settings
+from runtime.timing import TICK
 
 servo_law = kernels.servo_law
 segment_position = kernels.segment_position
@@ -26,19 +27,19 @@ class ServoController(Component):
     OPERATIONS = Component.OPERATIONS + ("hold",)
 
     def __init__(self, spec, sens_pos: DataPort, desi_pos: DataPort, init_pos: DataPort, out_vel: DataPort,
-                 interpolator_factory, tick: float = TICK):
-        super().__init__("servo", tick)
-        controller = spec.controller  # validated (compiler.params), every key present
-        self.kp = controller.kp
-        self.ki = controller.ki
-        self.following_error_limit = controller.following_error_limit
+                 interpolator_factory, tick: float = TICK, settings: Settings | None = None):
+        settings = settings if settings is not None else Settings(spec)
+        super().__init__("servo", tick, settings)
+        self.own = settings.servo  # kp, ki, following_error_limit (read every tick)
         self.spec = spec
         self.n = len(spec.axes)
         self.names = tuple(a.name for a in spec.axes)
-        self.set_velocity_limit_scale(1.0)
+        self.set_velocity_limit_scale(settings.robot.velocity_limit_scale)
+        settings.watch("robot", "velocity_limit_scale", self.set_velocity_limit_scale)
         self.sens_pos, self.desi_pos, self.init_pos, self.out_vel = sens_pos, desi_pos, init_pos, out_vel
         self.tick = tick
-        self.setpoint_period = SETPOINT_PERIOD  # the Trajectory Generator's and Initialization's period
+        self._set_setpoint_period(settings.trajectory.period)
+        settings.watch("trajectory", "period", self._set_setpoint_period)
         # called with the start positions and the axes' limits, which the references keep
         self.interpolator_factory = interpolator_factory
         self.limits = (tuple(a.max_velocity for a in spec.axes), tuple(a.max_acceleration for a in spec.axes),
@@ -55,9 +56,15 @@ class ServoController(Component):
         self.worst_error = 0.0  # the largest |following error| of the last update
         self._zeros = (0.0,) * self.n
 
+    def _set_setpoint_period(self, period: float) -> None:
+        """Not real-time: the Trajectory Generator's and Initialization's period
+        (trajectory.period, which initialization.period equals)."""
+        self.setpoint_period = period
+
     def set_velocity_limit_scale(self, scale: float) -> None:
-        """Not real-time: the commands saturate at ``scale`` x each axis's max_velocity
-        (robot.velocity_limit_scale; the safety supervisor enforces the same limit)."""
+        """Not real-time (told by the settings): the commands saturate at ``scale`` x each
+        axis's max_velocity (robot.velocity_limit_scale; the safety supervisor enforces the
+        same limit)."""
         self.max_velocity = tuple(a.max_velocity * scale for a in self.spec.axes)
         self._min_velocity = tuple(-v for v in self.max_velocity)
 
@@ -152,13 +159,14 @@ class ServoController(Component):
         self.position = position
         segments, s, inv_h = reference
         out = [0.0] * self.n
+        own = self.own
         worst = servo_law(segments, s, inv_h, position, self.integral, self.max_velocity, self._min_velocity,
-                          self.kp, self.ki, self.tick, out)
+                          own.kp, own.ki, self.tick, out)
         self.worst_error = worst
         if worst > self.max_following_error:
             self.max_following_error = worst
         self.out_vel.write(tuple(out), now)
-        if worst > self.following_error_limit:
+        if worst > own.following_error_limit:
             self._following_error_fault(out)
 
     def _following_error_fault(self, out) -> None:
@@ -171,4 +179,4 @@ class ServoController(Component):
             why = (f"; {self.names[i]} does not move although commanded at {out[i]:.2f} deg/s "
                    "(drive not responding, encoder frozen, or the axis is at an end stop)")
         self.error(f"following error on {self.names[i]}: {worst:.3f} deg exceeds the limit "
-                   f"{self.following_error_limit:g} deg{why}")
+                   f"{self.own.following_error_limit:g} deg{why}")

@@ -39,6 +39,7 @@ from runtime.loop.component import Component, DataPort
 from runtime.motion.kinematics import Kinematics
 from runtime.motion.motionqueue import MotionQueue, PlanningWorker
 from runtime.motion.moves import Frames, MoveRecord, MovePlanner, MoveRequest
+from runtime.settings import Settings
 from runtime.timing import SETPOINT_PERIOD
 from runtime.loop.vm import DONE, ERROR, VM
 
@@ -83,13 +84,15 @@ class TrajectoryGenerator(Component):
 
     PROPERTIES = component_params("trajectory")
 
-    def __init__(self, spec, robot, desi_pos: DataPort, sens_pos: DataPort, clock, period: float = SETPOINT_PERIOD):
-        super().__init__("trajectory", period)
+    def __init__(self, spec, robot, desi_pos: DataPort, sens_pos: DataPort, clock, period: float = SETPOINT_PERIOD,
+                 settings: Settings | None = None):
+        settings = settings if settings is not None else Settings(spec)
+        super().__init__("trajectory", period, settings)
+        self.own = settings.trajectory  # budget
         self.spec, self.robot, self.desi_pos, self.sens_pos = spec, robot, desi_pos, sens_pos
         self.clock = clock
         self.n = len(spec.axes)
         self.axes = spec.axes
-        self.budget = 200
         self.lookahead = lookahead_depth(spec)
         self.program: Program | None = None
         self.vm: VM | None = None
@@ -102,6 +105,9 @@ class TrajectoryGenerator(Component):
         kinematics, problem = _build_kinematics(spec)
         self.planner = MovePlanner(spec.axes, spec.main_axes, motion_profile(spec), kinematics, problem)
         self.motion = MotionQueue(self.planner, spec.axes, holds=self._holds, program_line=self._program_line)
+        # the motion queue plans at most at robot.velocity_limit_scale (told of every change)
+        self._set_velocity_limit_scale(settings.robot.velocity_limit_scale)
+        settings.watch("robot", "velocity_limit_scale", self._set_velocity_limit_scale)
         self.default_frames = Frames.default(spec)
         self._forget()
 
@@ -130,7 +136,7 @@ class TrajectoryGenerator(Component):
         self._forget()
         position = self.start_position or self.sens_pos.read() or (0.0,) * self.n
         self.motion.start(position, self.period)
-        self.vm = VM(self.program, self, self.budget)
+        self.vm = VM(self.program, self, self.own.budget)
         # the first setpoint at this tick's time, as every later one (never the wall clock's
         # now: after a stall of the host that lies ahead of the ticks, and the servo would
         # interpolate from it to where the move is by then)
@@ -173,13 +179,9 @@ class TrajectoryGenerator(Component):
     def override(self, percent: float) -> None:
         self.motion.override = percent
 
-    @property
-    def velocity_limit_scale(self) -> float:
-        return self.motion.velocity_limit_scale
-
-    @velocity_limit_scale.setter
-    def velocity_limit_scale(self, scale: float) -> None:
-        """robot.velocity_limit_scale: the override's rate never exceeds it."""
+    def _set_velocity_limit_scale(self, scale: float) -> None:
+        """Not real-time (told by the settings): robot.velocity_limit_scale, which the
+        override's rate never exceeds."""
         self.motion.velocity_limit_scale = scale
 
     @property

@@ -70,15 +70,15 @@ def test_every_setting_changes_once_and_every_reader_sees_it(system, key):
     axes = SPEC.axes
     if key == "robot.velocity_limit_scale":
         assert system.servo.max_velocity == tuple(a.max_velocity * value for a in axes)
-        assert system.safety.velocity_limits == tuple(a.max_velocity * value for a in axes)
+        assert system.safety.limits.velocity_limits == tuple(a.max_velocity * value for a in axes)
         system.safety.set_referenced(None)
-        assert system.safety.speed_limits == tuple(a.max_velocity * value for a in axes)
+        assert system.safety.limits.speed_limits == tuple(a.max_velocity * value for a in axes)
         assert system.trajectory.motion.velocity_limit_scale == value
         assert [system.init.search_velocity(i) for i in range(len(axes))] == [
             min(a.search_velocity, 0.5 * value * a.max_velocity) for a in axes]
     elif key == "servo.following_error_limit":
         # the servo's fault and the safety's check: one value, the servo's section of the settings
-        assert system.safety.servo_settings.following_error_limit == value
+        assert system.safety.limits.servo_settings.following_error_limit == value
         servo = system.servo
         servo.start()
         system.ports["sens_pos"].write((0.0,) * len(axes), 0.0)

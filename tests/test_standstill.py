@@ -180,7 +180,7 @@ def test_a_healthy_arm_comes_into_position_and_a_drifting_one_is_stopped(arm, tm
     deadline = clock.now() + system.servo.setpoint_period + spec.safety.in_position_timeout
     until(lambda: all(safety.in_position), deadline - clock.now() + 0.0015)
     assert system.supervisor.fault is None, system.supervisor.fault  # a healthy arm: never stopped
-    assert all(safety.in_position), ("not in position by the timeout", safety.in_position, safety._away)
+    assert all(safety.in_position), ("not in position by the timeout", safety.in_position, safety.standstill.away)
     until(lambda: False, arm["drift_after"])
     assert system.supervisor.fault is None, system.supervisor.fault  # strict, and still not stopped
 
@@ -194,7 +194,7 @@ def test_a_healthy_arm_comes_into_position_and_a_drifting_one_is_stopped(arm, tm
     start = clock.now()
     until(lambda: safety.stopping, bound + 0.01)
     assert safety.stopping, (f"{a.name} drifting at {velocity:g} deg/s not stopped within {bound:.3f} s",
-                             safety._away)
+                             safety.standstill.away)
     assert clock.now() - start <= bound + 1e-9, (clock.now() - start, bound, safety.stop_reason)
     reason = safety.stop_reason
     assert a.name in reason, ("another axis than the drifting one stopped the robot", reason)

@@ -92,65 +92,42 @@ def categories_markdown() -> str:
     return "\n".join(lines) + "\n"
 
 
-class SafetySupervisor(Component):
-    PROPERTIES: dict = {}
-    OPERATIONS: tuple[str, ...] = ()
+class SafetyLimits:
+    """The limits the safety derives from the specification and the robot's settings:
+    each axis's speed (``max_velocity x robot.velocity_limit_scale``, or homing's before
+    the axis is referenced), its change per tick, its software limits and stopping
+    distance; and the servo's ``following_error_limit``, read from the settings every tick
+    (the servo's own fault reads the same value)."""
 
-    def __init__(self, spec, robot, servo, out_vel: DataPort, drive_cmd: DataPort, clock, tick: float = TICK,
-                 settings: Settings | None = None):
-        settings = settings if settings is not None else Settings(spec)
-        super().__init__("safety", tick, settings)
-        self.spec, self.robot, self.servo = spec, robot, servo
-        self.out_vel, self.drive_cmd = out_vel, drive_cmd
-        self.clock = clock
-        self.tick = tick
+    def __init__(self, spec, settings: Settings, tick: float):
         axes = spec.axes
         self.axes = axes
-        self.n = n = len(axes)
+        self.tick = tick
         safety = spec.safety  # validated (compiler.params), every key present
         self.reaction = safety.stop_reaction_time
         self.tolerance = safety.limit_tolerance
-        self.standstill_tolerance = safety.standstill_tolerance
-        self.in_position_window = safety.in_position_window
-        self.in_position_time = safety.in_position_time
-        self.in_position_timeout = safety.in_position_timeout
-        self._in_window, self._tolerance = float(self.in_position_window), float(self.standstill_tolerance)
-        # per axis: how long after its reference comes to rest the servo may still swing it through the
-        # window (compiler.params.settle_time): an axis is not in position before
-        controller, lag = spec.controller, spec.simulation.drive_time_constant
-        self.settle_times = tuple(settle_time(a, lag, controller.kp, controller.ki, self.in_position_window)
-                                  for a in axes)
-        self.stop_time_margin = safety.stop_time_margin
         self.deceleration = tuple(a.max_acceleration for a in axes)
         self.braking = tuple(1.0 / (2.0 * a.max_acceleration) for a in axes)
         self.step_limits = tuple(safety.acceleration_factor * a.max_acceleration * tick for a in axes)
-        self.plausible = tuple(safety.plausibility_distance for _ in axes)
-        self.leak = 1.0 - tick / safety.plausibility_time
-        self.counts_per_unit = tuple(a.counts_per_unit for a in axes)
         self.homing_limits = tuple(safety.homing_velocity_factor * a.search_velocity for a in axes)
-        self._zeros = (0.0,) * n
-        self.referenced = [False] * n  # per axis: its encoder's zero is known (limits apply)
-        self.servo_settings = settings.servo  # following_error_limit: the servo's, read here every tick
+        self.referenced = [False] * len(axes)  # per axis: its encoder's zero is known (limits apply)
+        self.servo_settings = settings.servo  # following_error_limit (the servo's; read every tick)
         self.set_velocity_limit_scale(settings.robot.velocity_limit_scale)
         settings.watch("robot", "velocity_limit_scale", self.set_velocity_limit_scale)
-        self.fault: str | None = None
-        self.largest_ratio = 0.0  # diagnostics: nothing; see the tests' own measurements
-        self.reset()
 
-    # -- set-up (not real-time) --
     def set_velocity_limit_scale(self, scale: float) -> None:
         """Not real-time (told by the settings): robot.velocity_limit_scale changed."""
         self.velocity_limits = tuple(a.max_velocity * scale for a in self.axes)
-        self._refresh_limits()
+        self.refresh()
 
     def set_referenced(self, axis: int | None, referenced: bool = True) -> None:
         """Real-time safe: ``axis`` (None: every axis) is referenced (its limits apply and
         it may move at full speed) or not."""
-        for i in range(self.n) if axis is None else (axis,):
+        for i in range(len(self.axes)) if axis is None else (axis,):
             self.referenced[i] = referenced
-        self._refresh_limits()
+        self.refresh()
 
-    def _refresh_limits(self) -> None:
+    def refresh(self) -> None:
         inf = math.inf
         lows, highs, speeds = [], [], []
         for i, a in enumerate(self.axes):
@@ -164,45 +141,301 @@ class SafetySupervisor(Component):
                 speeds.append(min(self.velocity_limits[i], self.homing_limits[i]))
         self.low, self.high, self.speed_limits = tuple(lows), tuple(highs), tuple(speeds)
 
+    def describe(self, kind: int, i: int, command, previous, x: float) -> str:
+        """Real-time safe: what the violation ``kind`` of axis ``i`` is (a velocity, an
+        acceleration or a position limit), ``x`` its position."""
+        a = self.axes[i]
+        unit = a.unit
+        if kind == kernels.OVER_VELOCITY:
+            why = "velocity_limit_scale" if self.referenced[i] else "not referenced yet: homing speed"
+            return (f"{a.name} commanded at {command[i]:.3f} {unit}/s, beyond its limit {self.speed_limits[i]:g} "
+                    f"{unit}/s ({why})")
+        if kind == kernels.OVER_ACCELERATION:
+            change = (command[i] - previous[i]) / self.tick
+            return (f"{a.name} command changes at {change:.0f} {unit}/s^2, beyond "
+                    f"{self.step_limits[i] / self.tick:g} {unit}/s^2 ([safety] acceleration_factor x "
+                    "max_acceleration)")
+        rest = x + command[i] * self.reaction + command[i] * abs(command[i]) * self.braking[i]
+        return (f"{a.name} at {x:.3f} {unit}, commanded at {command[i]:.3f} {unit}/s, would come to rest at "
+                f"{rest:.3f} {unit}, beyond its software limits {a.min:g}..{a.max:g} {unit}")
+
+
+class EncoderPlausibility:
+    """The encoders watched against the commands: commanded travel without a single count
+    (remembered for about ``plausibility_time``: it leaks away), and encoders that count
+    against the commanded direction over a window of :data:`DIRECTION_WINDOW` ticks."""
+
+    def __init__(self, spec, tick: float):
+        self.axes = spec.axes
+        self.plausible = tuple(spec.safety.plausibility_distance for _ in spec.axes)
+        self.leak = 1.0 - tick / spec.safety.plausibility_time
+        self.counts_per_unit = tuple(a.counts_per_unit for a in spec.axes)
+        self.reset()
+
+    def reset(self) -> None:
+        """Not real-time: a new cycle."""
+        n = len(self.axes)
+        self.last_counts = [0] * n  # the counts of the last tick
+        self.travel = [0.0] * n  # per axis: commanded travel since its last count (leaking)
+        self.window = [0.0] * n  # per axis: commanded travel over the direction window
+        self.window_counts = [0] * n  # the counts as the window began
+        self.window_ticks = 0
+
+    def arm(self, counts) -> None:
+        """Real-time: the brakes have just released: watch from these counts on (the
+        direction window runs on)."""
+        self.last_counts[:] = counts
+        self.window_counts[:] = counts
+        for i in range(len(self.travel)):
+            self.travel[i] = 0.0
+            self.window[i] = 0.0
+
+    def window_end(self, counts) -> int:
+        """Real-time: the direction window (``window_ticks``, counted up by the guard every
+        tick: no call per tick) is full: the check's code (0: every encoder counted the
+        commanded way), and a new window."""
+        self.window_ticks = 0
+        return direction_check(self.window, counts, self.window_counts, self.counts_per_unit, self.plausible)
+
+    def describe(self, kind: int, i: int) -> str:
+        a = self.axes[i]
+        if kind == kernels.NO_COUNTS:
+            return (f"{a.name} commanded {self.travel[i]:+.3f} {a.unit} of travel without a single encoder count "
+                    "(encoder frozen, drive not responding, or the axis blocked)")
+        return f"the encoder of {a.name} counts against the commanded direction (encoder or drive wired wrong)"
+
+
+class StandstillMonitor:
+    """While the robot must be at rest (held by a program, paused, brakes closing): each
+    axis must come into position (within ``in_position_window`` counts of the servo's
+    reference for ``in_position_time``, not before its :attr:`settle_times`) within
+    ``in_position_timeout`` of the reference coming to rest, and from then on stay within
+    ``standstill_tolerance`` counts of that reference. And a stop on the path must reach
+    rest within its planned time plus ``stop_time_margin``."""
+
+    def __init__(self, spec, clock):
+        safety = spec.safety
+        self.axes = spec.axes
+        self.clock = clock
+        self.standstill_tolerance = safety.standstill_tolerance
+        self.in_position_window = safety.in_position_window
+        self.in_position_time = safety.in_position_time
+        self.in_position_timeout = safety.in_position_timeout
+        self.stop_time_margin = safety.stop_time_margin
+        self.window, self.tolerance = float(self.in_position_window), float(self.standstill_tolerance)
+        self.counts_per_unit = tuple(a.counts_per_unit for a in spec.axes)
+        # per axis: how long after its reference comes to rest the servo may still swing it through the
+        # window (compiler.params.settle_time): an axis is not in position before
+        controller, lag = spec.controller, spec.simulation.drive_time_constant
+        self.settle_times = tuple(settle_time(a, lag, controller.kp, controller.ki, self.in_position_window)
+                                  for a in spec.axes)
+        self.reset()
+
+    def reset(self) -> None:
+        n, nan = len(self.axes), math.nan
+        self.expected = False  # someone who knows says the robot must be at rest
+        self.position_deadline = nan  # the time every axis must be in position by (NaN: not at rest)
+        self.reference_rest = nan  # the time the servo's reference came to rest
+        self.since = [nan] * n  # per axis: within the window since (NaN: not within)
+        self.fixed = [nan] * n  # per axis: its standstill reference (NaN: not in position yet)
+        self.away = [0.0] * n  # per axis: counts from that reference (or the servo's), last tick
+        self.rest_deadline: float | None = None  # a stop on the path must reach rest by then
+
+    def check(self, now: float, positions, servo) -> int:
+        """Real-time: the robot must be at rest: the check's code (0: every axis in
+        position or on its way within the time)."""
+        if self.position_deadline != self.position_deadline:  # rest has just begun: the servo's
+            self.reference_rest = now + servo.setpoint_period  # reference stops a setpoint period later
+            self.position_deadline = self.reference_rest + self.in_position_timeout
+        segments, s, _ = servo.reference_segments
+        return standstill_check(positions, segments, s, self.counts_per_unit, self.window, self.tolerance,
+                                self.in_position_time, self.settle_times, self.reference_rest, now,
+                                self.position_deadline, self.since, self.fixed, self.away)
+
+    def not_at_rest(self) -> None:
+        """Real-time: the robot may move again: every axis's in-position state is forgotten."""
+        nan = math.nan
+        self.position_deadline = nan
+        for i in range(len(self.axes)):
+            self.since[i] = nan
+            self.fixed[i] = nan
+
+    @property
+    def in_position(self) -> tuple[bool, ...]:
+        return tuple([f == f for f in self.fixed])
+
+    def expect_standstill(self, expected: bool) -> None:
+        if expected:
+            self.rest_deadline = None
+        self.expected = expected
+
+    def expect_rest_within(self, seconds: float) -> None:
+        deadline = self.clock.tick_time + seconds + self.stop_time_margin
+        if self.rest_deadline is None or deadline < self.rest_deadline:
+            self.rest_deadline = deadline
+
+    def describe(self, kind: int, i: int) -> str:
+        a = self.axes[i]
+        away = self.away[i]
+        if kind == kernels.NOT_STILL:
+            return (f"{a.name} moved {abs(away):.0f} encoder counts from the reference it came into position "
+                    f"at, while the robot must be at rest (allowed: {self.standstill_tolerance})")
+        within = abs(away) <= self.in_position_window
+        return (f"{a.name} not in position {self.in_position_timeout:g} s after its reference came to rest: "
+                f"{away:+.0f} encoder counts ({away / a.counts_per_unit:+.4f} {a.unit}) from the servo's reference"
+                f"{', within the window for less than in_position_time' if within else ''} (in position: within "
+                f"{self.in_position_window} counts for {self.in_position_time:g} s; [safety] in_position_window, "
+                f"in_position_time, in_position_timeout)")
+
+
+class StopRamp:
+    """The safety's own stop (IEC 60204-1): category 1 ramps every axis's command from the
+    last one passed to the drives to zero at the axis's max_acceleration, then applies the
+    brakes, then takes the torque off (after :data:`runtime.timing.BRAKE_TIMEOUT` at most);
+    category 0 does both at once. Needs neither the planner nor the servo nor the encoders."""
+
+    def __init__(self, spec, robot, drive_cmd: DataPort, tick: float):
+        self.robot, self.drive_cmd, self.tick = robot, drive_cmd, tick
+        self.deceleration = tuple(a.max_acceleration for a in spec.axes)
+        self.zeros = (0.0,) * len(spec.axes)
+        self.reset()
+
+    def reset(self) -> None:
+        self.category: int | None = None  # the stop under way (None: none)
+        self.reason: str | None = None
+        self.at_rest = False  # the stop has ended: brakes applied, torque off
+        self.ramp_from = self.zeros
+        self.ramp_t = 0.0
+        self.ramp_end = 0.0
+        self.phase = ""
+        self.since = 0.0  # when the phase began
+
+    def start(self, category: int, reason: str, now: float, previous) -> bool:
+        """Real-time safe: begin (or make stricter) a stop from the command ``previous``;
+        False if a stop at least as strict is under way."""
+        if self.category is not None and self.category <= category:
+            return False
+        if self.category is None:
+            self.reason = reason
+        self.category = category
+        self.at_rest = False
+        self.since = now
+        if category == 0:
+            self.robot.disable_drives()
+            self.robot.apply_brakes()
+            self.phase = "brakes"
+            self.drive_cmd.write(self.zeros, now)
+            return True
+        self.ramp_from = previous
+        self.ramp_t = 0.0
+        self.ramp_end = max((abs(v) / a for v, a in zip(previous, self.deceleration)), default=0.0)
+        self.phase = "ramp"
+        return True
+
+    def step(self, now: float) -> None:
+        """Real-time: one tick of the stop under way."""
+        phase = self.phase
+        robot = self.robot
+        if phase == "ramp":
+            self.ramp_t += self.tick
+            t = self.ramp_t
+            command = tuple([v - a * t if v > a * t else v + a * t if v < -a * t else 0.0
+                             for v, a in zip(self.ramp_from, self.deceleration)])
+            self.drive_cmd.write(command, now)
+            if t >= self.ramp_end:
+                robot.apply_brakes()
+                self.phase = "brakes"
+                self.since = now
+            return
+        self.drive_cmd.write(self.zeros, now)
+        if phase == "brakes":
+            if robot.brakes_applied() or now - self.since > BRAKE_TIMEOUT:
+                robot.disable_drives()
+                self.phase = "done"
+                self.at_rest = True
+
+
+class SafetySupervisor(Component):
+    """The guard every tick: the command watchdog, and the checks of :class:`SafetyLimits`,
+    :class:`EncoderPlausibility` and :class:`StandstillMonitor` on the servo's command
+    before it goes to the drives; a violation is a stop by :class:`StopRamp`."""
+
+    PROPERTIES: dict = {}
+    OPERATIONS: tuple[str, ...] = ()
+
+    def __init__(self, spec, robot, servo, out_vel: DataPort, drive_cmd: DataPort, clock, tick: float = TICK,
+                 settings: Settings | None = None):
+        settings = settings if settings is not None else Settings(spec)
+        super().__init__("safety", tick, settings)
+        self.spec, self.robot, self.servo = spec, robot, servo
+        self.out_vel, self.drive_cmd = out_vel, drive_cmd
+        self.clock = clock
+        self.tick = tick
+        self.axes = spec.axes
+        self.limits = SafetyLimits(spec, settings, tick)
+        self.encoders = EncoderPlausibility(spec, tick)
+        self.standstill = StandstillMonitor(spec, clock)
+        self.ramp = StopRamp(spec, robot, drive_cmd, tick)
+        self._zeros = (0.0,) * len(spec.axes)
+        self.fault: str | None = None
+        self.reset()
+
+    # -- set-up (not real-time) --
+    def set_referenced(self, axis: int | None, referenced: bool = True) -> None:
+        """Real-time safe: ``axis`` (None: every axis) is referenced (its limits apply and
+        it may move at full speed) or not."""
+        self.limits.set_referenced(axis, referenced)
+
     def reset(self) -> None:
         """Not real-time: a new cycle (the drives are enabled again by Start Robot)."""
         self.fault = None
-        self.category: int | None = None  # the stop under way (None: none)
-        self.stop_reason: str | None = None
-        self.at_rest = False  # the stop has ended: brakes applied, torque off
-        self._ramp_from = self._zeros
-        self._ramp_t = 0.0
-        self._ramp_end = 0.0
-        self._stop_phase = ""
-        self._stop_t = 0.0
+        self.ramp.reset()
+        self.encoders.reset()
+        self.standstill.reset()
         self.previous = self._zeros  # the last command passed to the drives
         self._writes = -1
         self._stale = 0
-        self._last_counts = [0] * self.n
-        self._travel = [0.0] * self.n
-        self._window = [0.0] * self.n
-        self._window_counts = [0] * self.n
-        self._window_ticks = 0
         self._armed = False  # the drives may move (brakes released or releasing); checks run
-        self.standstill_expected = False  # someone who knows says the robot must be at rest
-        self._position_deadline = math.nan  # the time every axis must be in position by (NaN: not at rest)
-        self._reference_rest = math.nan  # the time the servo's reference came to rest
-        nan = math.nan
-        self._since = [nan] * self.n  # per axis: within the window since (NaN: not within)
-        self._fixed = [nan] * self.n  # per axis: its standstill reference (NaN: not in position yet)
-        self._away = [0.0] * self.n  # per axis: counts from that reference (or the servo's), last tick
-        self.rest_deadline: float | None = None  # a stop on the path must reach rest by then
 
     def on_start(self) -> bool:
         self.reset()
         return True
 
+    # -- what the supervisor and the tests read --
+    @property
+    def category(self) -> int | None:
+        """The stop under way (None: none)."""
+        return self.ramp.category
+
+    @property
+    def stop_reason(self) -> str | None:
+        return self.ramp.reason
+
+    @property
+    def at_rest(self) -> bool:
+        """The stop has ended: brakes applied, torque off."""
+        return self.ramp.at_rest
+
+    @property
+    def stopping(self) -> bool:
+        return self.ramp.category is not None
+
+    @property
+    def standstill_expected(self) -> bool:
+        return self.standstill.expected
+
+    @property
+    def in_position(self) -> tuple[bool, ...]:
+        """Per axis: in position, its standstill monitored against a fixed reference."""
+        return self.standstill.in_position
+
     # -- the 1 ms guard (real-time) --
     def update(self, now: float) -> None:
         """Real-time (guard): check the servo's command and pass it to the drives, or
         carry out a stop."""
-        if self.category is not None:
-            self._stopping(now)
+        ramp = self.ramp
+        if ramp.category is not None:
+            ramp.step(now)
             return
         robot = self.robot
         if not robot.brakes_released():  # the brakes hold: nothing can move
@@ -212,14 +445,12 @@ class SafetySupervisor(Component):
             return
         port = self.out_vel
         counts = robot.counts
+        encoders = self.encoders
         if not self._armed:  # the brakes have just released: start watching from here
             self._armed = True
             self._writes = port.writes
-            self._last_counts[:] = counts
-            self._window_counts[:] = counts
-            for i in range(self.n):
-                self._travel[i] = 0.0
-                self._window[i] = 0.0
+            encoders.arm(counts)
+        limits = self.limits
         if port.writes == self._writes:
             self._stale += 1
             if self._stale >= WATCHDOG_TICKS:
@@ -231,116 +462,63 @@ class SafetySupervisor(Component):
             self._stale = 0
             self._writes = port.writes
             command = port.value
-            code = safety_check(command, self.previous, self.speed_limits, self.step_limits, robot.positions,
-                                self.low, self.high, self.reaction, self.braking, counts, self._last_counts,
-                                self._travel, self._window, self.plausible, self.tick, self.leak)
+            code = safety_check(command, self.previous, limits.speed_limits, limits.step_limits, robot.positions,
+                                limits.low, limits.high, limits.reaction, limits.braking, counts,
+                                encoders.last_counts, encoders.travel, encoders.window, encoders.plausible,
+                                self.tick, encoders.leak)
             if code:
                 self._axis_violation(code, command, now)
                 return
-        self._window_ticks += 1
-        if self._window_ticks >= DIRECTION_WINDOW:
-            self._window_ticks = 0
-            code = direction_check(self._window, counts, self._window_counts, self.counts_per_unit, self.plausible)
+        encoders.window_ticks += 1
+        if encoders.window_ticks >= DIRECTION_WINDOW:
+            code = encoders.window_end(counts)
             if code:
                 self._axis_violation(code, command, now)
                 return
-        limit = self.servo_settings.following_error_limit
+        limit = limits.servo_settings.following_error_limit
         if self.servo.worst_error > limit:
             self._violation("following error", f"following error {self.servo.worst_error:.3f} beyond the limit "
                                                 f"{limit:g} (the servo did not stop)", now)
             return
-        if self.standstill_expected:
-            if self._position_deadline != self._position_deadline:  # rest has just begun: the servo's
-                self._reference_rest = now + self.servo.setpoint_period  # reference stops a setpoint period later
-                self._position_deadline = self._reference_rest + self.in_position_timeout
-            segments, s, _ = self.servo.reference_segments
-            code = standstill_check(robot.positions, segments, s, self.counts_per_unit, self._in_window,
-                                    self._tolerance, self.in_position_time, self.settle_times, self._reference_rest,
-                                    now, self._position_deadline, self._since, self._fixed, self._away)
+        standstill = self.standstill
+        if standstill.expected:
+            code = standstill.check(now, robot.positions, self.servo)
             if code:
                 self._axis_violation(code, command, now)
                 return
-        elif self._position_deadline == self._position_deadline:
-            self._not_at_rest()
-        if self.rest_deadline is not None and now > self.rest_deadline:
+        elif standstill.position_deadline == standstill.position_deadline:
+            standstill.not_at_rest()
+        if standstill.rest_deadline is not None and now > standstill.rest_deadline:
             self._violation("stop overdue", "the stop on the path did not reach rest within its planned time "
-                                            f"and {self.stop_time_margin:g} s", now)
+                                            f"and {standstill.stop_time_margin:g} s", now)
             return
         self.previous = command
         self.drive_cmd.write(command, now)
 
-    def _not_at_rest(self) -> None:
-        """Real-time: the robot may move again: every axis's in-position state is forgotten."""
-        nan = math.nan
-        self._position_deadline = nan
-        for i in range(self.n):
-            self._since[i] = nan
-            self._fixed[i] = nan
-
-    @property
-    def in_position(self) -> tuple[bool, ...]:
-        """Per axis: in position, its standstill monitored against a fixed reference."""
-        return tuple([f == f for f in self._fixed])
-
     def expect_standstill(self, expected: bool) -> None:
-        """Real-time safe: the robot must (or may no longer) be at rest: each axis must come
-        into position (within ``in_position_window`` counts of the servo's reference for
-        ``in_position_time``, not before its :attr:`settle_times`) within
-        ``in_position_timeout`` of the reference coming to rest, and from then on stay within
-        ``standstill_tolerance`` counts of that reference.
-        Reaching rest also ends a :meth:`expect_rest_within`."""
-        if expected:
-            self.rest_deadline = None
-        self.standstill_expected = expected
+        """Real-time safe: the robot must (or may no longer) be at rest (see
+        :class:`StandstillMonitor`). Reaching rest also ends a :meth:`expect_rest_within`."""
+        self.standstill.expect_standstill(expected)
 
     def expect_rest_within(self, seconds: float) -> None:
         """Real-time safe: a stop on the path began; it must reach rest (see
         :meth:`expect_standstill`) within ``seconds`` plus ``stop_time_margin``."""
-        deadline = self.clock.tick_time + seconds + self.stop_time_margin
-        if self.rest_deadline is None or deadline < self.rest_deadline:
-            self.rest_deadline = deadline
+        self.standstill.expect_rest_within(seconds)
 
     def rest_not_expected(self) -> None:
         """Real-time safe: the stop on the path was called off before it reached rest (a
         resume): its deadline no longer applies."""
-        self.rest_deadline = None
+        self.standstill.rest_deadline = None
 
     # -- violations and stops (real-time) --
     def _axis_violation(self, code: int, command, now: float) -> None:
         kind, i = divmod(code, 256)
-        a = self.axes[i]
-        unit = a.unit
-        if kind == kernels.OVER_VELOCITY:
-            limit = self.speed_limits[i]
-            why = "velocity_limit_scale" if self.referenced[i] else "not referenced yet: homing speed"
-            text = (f"{a.name} commanded at {command[i]:.3f} {unit}/s, beyond its limit {limit:g} {unit}/s "
-                    f"({why})")
-        elif kind == kernels.OVER_ACCELERATION:
-            change = (command[i] - self.previous[i]) / self.tick
-            text = (f"{a.name} command changes at {change:.0f} {unit}/s^2, beyond "
-                    f"{self.step_limits[i] / self.tick:g} {unit}/s^2 ([safety] acceleration_factor x "
-                    "max_acceleration)")
-        elif kind == kernels.OVER_LIMIT:
-            x = self.robot.positions[i]
-            rest = x + command[i] * self.reaction + command[i] * abs(command[i]) * self.braking[i]
-            text = (f"{a.name} at {x:.3f} {unit}, commanded at {command[i]:.3f} {unit}/s, would come to rest at "
-                    f"{rest:.3f} {unit}, beyond its software limits {a.min:g}..{a.max:g} {unit}")
-        elif kind == kernels.NO_COUNTS:
-            text = (f"{a.name} commanded {self._travel[i]:+.3f} {unit} of travel without a single encoder count "
-                    "(encoder frozen, drive not responding, or the axis blocked)")
-        elif kind == kernels.WRONG_WAY:
-            text = f"the encoder of {a.name} counts against the commanded direction (encoder or drive wired wrong)"
-        elif kind == kernels.NOT_STILL:
-            text = (f"{a.name} moved {abs(self._away[i]):.0f} encoder counts from the reference it came into position "
-                    f"at, while the robot must be at rest (allowed: {self.standstill_tolerance})")
+        if kind in (kernels.OVER_VELOCITY, kernels.OVER_ACCELERATION, kernels.OVER_LIMIT):
+            text = self.limits.describe(kind, i, command, self.previous, self.robot.positions[i])
+        elif kind in (kernels.NO_COUNTS, kernels.WRONG_WAY):
+            text = self.encoders.describe(kind, i)
         else:
-            away = self._away[i]
-            within = abs(away) <= self.in_position_window
-            text = (f"{a.name} not in position {self.in_position_timeout:g} s after its reference came to rest: "
-                    f"{away:+.0f} encoder counts ({away / a.counts_per_unit:+.4f} {unit}) from the servo's reference"
-                    f"{', within the window for less than in_position_time' if within else ''} (in position: within "
-                    f"{self.in_position_window} counts for {self.in_position_time:g} s; [safety] in_position_window, "
-                    f"in_position_time, in_position_timeout)")
+            text = self.standstill.describe(kind, i)
         self._violation(_KINDS[kind], text, now)
 
     def _violation(self, cause: str, text: str, now: float) -> None:
@@ -349,54 +527,9 @@ class SafetySupervisor(Component):
 
     def stop_robot(self, cause: str, reason: str, now: float | None = None) -> None:
         """Real-time safe: stop the robot now for ``cause`` (a key of :data:`CATEGORIES`),
-        by its category (0 or 1; a stop already under way only ever gets stricter).
-        Category 1 ramps every axis's command from the last one passed to the drives to
-        zero at the axis's max_acceleration, then applies the brakes, then takes the
-        torque off; category 0 does both at once."""
-        category = CATEGORIES[cause][0]
+        by its category (0 or 1; a stop already under way only ever gets stricter): see
+        :class:`StopRamp`."""
         now = self.clock.tick_time if now is None else now
-        if self.category is not None and self.category <= category:
-            return
-        if self.category is None:
-            self.stop_reason = reason
-        self.category = category
-        self.at_rest = False
-        self._stop_t = now
-        if category == 0:
-            self.robot.disable_drives()
-            self.robot.apply_brakes()
-            self._stop_phase = "brakes"
-            self.drive_cmd.write(self._zeros, now)
+        category = CATEGORIES[cause][0]
+        if self.ramp.start(category, reason, now, self.previous) and category == 0:
             self.previous = self._zeros
-            return
-        self._ramp_from = self.previous
-        self._ramp_t = 0.0
-        self._ramp_end = max((abs(v) / a for v, a in zip(self.previous, self.deceleration)), default=0.0)
-        self._stop_phase = "ramp"
-
-    @property
-    def stopping(self) -> bool:
-        return self.category is not None
-
-    def _stopping(self, now: float) -> None:
-        phase = self._stop_phase
-        robot = self.robot
-        if phase == "ramp":
-            self._ramp_t += self.tick
-            t = self._ramp_t
-            command = tuple([v - a * t if v > a * t else v + a * t if v < -a * t else 0.0
-                             for v, a in zip(self._ramp_from, self.deceleration)])
-            self.previous = command
-            self.drive_cmd.write(command, now)
-            if t >= self._ramp_end:
-                robot.apply_brakes()
-                self._stop_phase = "brakes"
-                self._stop_t = now
-            return
-        self.drive_cmd.write(self._zeros, now)
-        self.previous = self._zeros
-        if phase == "brakes":
-            if robot.brakes_applied() or now - self._stop_t > BRAKE_TIMEOUT:
-                robot.disable_drives()
-                self._stop_phase = "done"
-                self.at_rest = True

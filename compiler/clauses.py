@@ -22,7 +22,7 @@ import math
 from dataclasses import dataclass
 
 from .diagnostics import did_you_mean
-from .params import describe
+from .params import MIN_TOOL_ACCELERATION, MIN_TOOL_SPEED, describe
 
 __all__ = ["CLAUSES", "BY_NAME", "NAMES", "MOTIONS", "Clause", "MoveClauses", "Problem", "Range",
            "defaults_markdown", "markdown", "validate_move_clauses"]
@@ -240,12 +240,12 @@ CLAUSES: tuple[Clause, ...] = (
            default="acc_ptp", builtin=0.5, instead="acc",
            doc="acceleration of every axis, as a fraction of its max_acceleration (its max_jerk scales with it)"),
     Clause("speed", ("lin", "circ"), "real", "speed",
-           (Range(("lin", "circ"), 0.1, "max_speed", unit="mm/s", meaning="the tool's speed"),),
+           (Range(("lin", "circ"), MIN_TOOL_SPEED, "max_speed", unit="mm/s", meaning="the tool's speed"),),
            default="speed", builtin=250.0, instead="speed_ptp",
            doc="speed of the tool centre point along the path (an upper bound: the move runs slower where "
                "an axis's limits ask for it)"),
     Clause("acc", ("lin", "circ"), "real", "acc",
-           (Range(("lin", "circ"), 1.0, "max_acceleration", unit="mm/s^2",
+           (Range(("lin", "circ"), MIN_TOOL_ACCELERATION, "max_acceleration", unit="mm/s^2",
                   meaning="the tool's acceleration"),),
            default="acc", builtin=1000.0, instead="acc_ptp",
            doc="acceleration of the tool centre point along the path (an upper bound, like speed)"),

@@ -65,6 +65,10 @@ SERVO_STEP_SHARE = 0.5
 #: (one motor revolution, 360 / gear_ratio deg), and must stop with room before the limit.
 INDEX_SEARCH_MARGIN = 10.0
 PERIOD_MIN, PERIOD_MAX = 0.001, 1.0
+#: The least [robot] max_speed (mm/s) and max_acceleration (mm/s^2): the lower bounds of the
+#: speed and acc clauses (compiler.clauses), which those keys bound from above.
+MIN_TOOL_SPEED = 0.1
+MIN_TOOL_ACCELERATION = 1.0
 #: How finely calibration tells a drive's drift (deg/s or mm/s): its 0.25 s of measurement
 #: see a few counts of the coarsest encoder. The least [safety] max_drive_drift, and the
 #: margin the simulated drives' offset keeps below it.
@@ -168,6 +172,8 @@ class Param:
         unit = f" ({self.unit})" if self.unit else ""
         if self.kind == "sign":
             return "1 or -1"
+        if self.kind == "text":
+            return "a non-empty string"
         if self.kind == "pose":
             return (f"a table {{x, y, z}} (mm, at most {_number(self.high)} mm from the origin) with the orientation "
                     "as roll, pitch, yaw (deg) or as a unit quaternion qw, qx, qy, qz (each key optional: 0; "
@@ -193,6 +199,10 @@ class Param:
     def check(self, value: object) -> object:
         """The value normalized (numbers as float, integers as int), or ParamError."""
         kind = self.kind
+        if kind == "text":
+            if not isinstance(value, str) or not value:
+                raise self._error(value)
+            return value
         if kind == "choice":
             if not isinstance(value, str) or value not in self.choices:
                 raise self._error(value)
@@ -380,6 +390,29 @@ PARAMS: tuple[Param, ...] = (
     _p("safety", "stop_time_margin", "number", 0.5, "s", 0.05, 5.0, safety=True,
        doc="a controlled stop (pause, abort, a stop on the path) that has not brought the robot to rest this "
            "long after its planned duration is taken over by the safety's own ramp"),
+    # ---- [robot]: the robot's name and its tool's limits (the specification's own keys:
+    # a configuration's robot.* keys are the component's, below) ----
+    _p("robot", "name", "text", None, doc="the robot's name (what a program's act_rob names)"),
+    _p("robot", "description", "text", "", doc="what the robot is (optional)"),
+    _p("robot", "max_speed", "number", 2000.0, "mm/s", MIN_TOOL_SPEED,
+       doc="the tool centre point's speed limit: the speed clause's upper bound (compiler.clauses)"),
+    _p("robot", "max_acceleration", "number", 10_000.0, "mm/s^2", MIN_TOOL_ACCELERATION,
+       doc="the tool centre point's acceleration limit: the acc clause's upper bound (compiler.clauses)"),
+    # ---- [[axis]]: what each axis is (the position keys are checked against each other in
+    # compiler/spec.py: min < max, home and sensor_position within them) ----
+    _p("axis", "name", "text", None, doc="the axis's name (unique; what reports and messages call it)"),
+    _p("axis", "kind", "choice", None, choices=("revolute", "prismatic"),
+       doc="revolute (its positions in deg) or prismatic (in mm)"),
+    _p("axis", "min", "number", None, "deg or mm", doc="the lower software limit"),
+    _p("axis", "max", "number", None, "deg or mm", doc="the upper software limit (greater than min)"),
+    _p("axis", "group", "choice", "main", choices=("main", "additional"),
+       doc="an axis of the arm (main) or an additional one (a track, a positioner); main axes come first"),
+    _p("axis", "home", "number", 0.0, "deg or mm",
+       doc="the start position the initialization sequence drives to, within min..max (the default 0 only "
+           "where it lies within them)"),
+    _p("axis", "sensor_position", "number", -5.0, "deg or mm",
+       doc="the centre of the homing sensor's window, within min..max; by default this far from home "
+           "(home - 5, where that lies within min..max)"),
     # ---- [[axis]]: each axis's data (the position keys min, max, home and sensor_position
     # are checked against each other in compiler/spec.py). The lower bounds are what the
     # runtime can use: a smaller limit plans moves no run ends (or nan positions), a coarser
@@ -479,13 +512,15 @@ def section_params(section: str) -> dict[str, Param]:
 
 
 def component_params(component: str) -> dict[str, Param]:
-    return section_params(component)
+    """A component's settings (``robot.velocity_limit_scale``; not the specification's
+    ``[robot]`` keys, which share the section's name)."""
+    return {name: p for name, p in _BY_SECTION.get(component, {}).items() if p.change != "specification"}
 
 
 def spec_section(section: str) -> dict[str, Param]:
     """What a specification table accepts: its own parameters, and the component
     parameters whose start value it gives (``[controller] kp`` -> ``servo.kp``)."""
-    result = section_params(section)
+    result = {name: p for name, p in _BY_SECTION.get(section, {}).items() if p.change == "specification"}
     for param in PARAMS:
         if param.spec_key is not None and param.spec_key.split(".", 1)[0] == section:
             result[param.spec_key.split(".", 1)[1]] = param
@@ -493,7 +528,7 @@ def spec_section(section: str) -> dict[str, Param]:
 
 
 #: The Python type of each kind of parameter (the settings' field types).
-_TYPES = {"number": float, "integer": int, "choice": str, "period": float, "columns": list, "sign": int,
+_TYPES = {"number": float, "integer": int, "choice": str, "text": str, "period": float, "columns": list, "sign": int,
           "pose": tuple, "coupling": tuple}
 
 
@@ -779,7 +814,8 @@ def markdown(sections=None) -> str:
 
     lines = ["| parameter | allowed | default | safety | changes by | meaning |", "|---|---|---|---|---|---|"]
     for p in PARAMS:
-        if sections is not None and p.section not in sections:
+        if sections is not None and (p.section not in sections
+                                     or (p.section in COMPONENTS and p.change == "specification")):
             continue
         where = f"`{p.key}`" + (f" (from `[{p.spec_key.split('.')[0]}] {p.spec_key.split('.')[1]}`)"
                                 if p.spec_key else "")

@@ -45,6 +45,9 @@ class DH:
 
 @dataclass(frozen=True)
 class Axis:
+    """One ``[[axis]]`` table, validated; each key and its default declared once in
+    :data:`compiler.params.PARAMS` (section ``axis``)."""
+
     name: str
     kind: str  # "revolute" (deg) or "prismatic" (mm)
     min: float
@@ -52,16 +55,16 @@ class Axis:
     max_velocity: float
     max_acceleration: float
     max_jerk: float
-    group: str = "main"  # "main" or "additional"
-    dh: DH | None = None
-    home: float = 0.0  # the start position the initialization sequence drives to
-    gear_ratio: float = 100.0
-    encoder_counts: int = 4096  # counts per motor revolution (after quadrature)
-    sensor_position: float = -5.0  # centre of the inductive homing sensor's window
-    sensor_window: float = 0.5  # half-width of that window
-    search_velocity: float = 5.0  # speed of the initialization's searches (unit/s)
-    direction: int = 1  # the DH angle is direction x the joint value (+ theta_offset)
-    coupling: tuple | None = None  # (index of an earlier main axis, factor): its value x factor is added
+    group: str  # "main" or "additional"
+    dh: DH | None
+    home: float  # the start position the initialization sequence drives to
+    gear_ratio: float
+    encoder_counts: int  # counts per motor revolution (after quadrature)
+    sensor_position: float  # centre of the inductive homing sensor's window
+    sensor_window: float  # half-width of that window
+    search_velocity: float  # speed of the initialization's searches (unit/s)
+    direction: int  # the DH angle is direction x the joint value (+ theta_offset)
+    coupling: tuple | None  # (index of an earlier main axis, factor): its value x factor is added
 
     @property
     def counts_per_unit(self) -> float:
@@ -209,14 +212,29 @@ class _Reader:
                 raise SpecError(self.file, self.key(name), f"unknown key{hint}")
 
 
-def _at_least(bound: float):
-    return lambda x: x >= bound
-
-
 #: The least [robot] max_speed and max_acceleration: the lower bounds of the speed and acc
-#: clauses (compiler.clauses), which they bound from above.
-MIN_TOOL_SPEED = clauses.BY_NAME["speed"].ranges[0].low
-MIN_TOOL_ACCELERATION = clauses.BY_NAME["acc"].ranges[0].low
+#: clauses (compiler.clauses), which they bound from above (declared in compiler.params).
+MIN_TOOL_SPEED = params.MIN_TOOL_SPEED
+MIN_TOOL_ACCELERATION = params.MIN_TOOL_ACCELERATION
+#: The [[axis]] and [robot] keys (compiler.params): their ranges and defaults.
+_AXIS = params.section_params("axis")
+_ROBOT = params.spec_section("robot")
+
+
+def _param(r: "_Reader", param: params.Param, default=...):
+    """The key ``param`` of the table ``r`` reads, checked by its declaration
+    (compiler.params); its default (``default`` where the default depends on other keys)
+    when the table leaves it out, or missing when it has none."""
+    r.used.add(param.name)
+    if param.name not in r.table:
+        default = param.default if default is ... else default
+        if default is ... or default is None:
+            raise SpecError(r.file, r.key(param.name), f"missing; expected {param.allowed()}")
+        return default
+    try:
+        return param.check(r.table[param.name])
+    except params.ParamError as exc:
+        raise SpecError(r.file, r.key(param.name), exc.reason) from None
 
 
 def _canonical_hash(data: dict) -> str:
@@ -254,9 +272,8 @@ def _axis(file: str, index: int, table) -> Axis:
     vel = limit("max_velocity")
     acc = limit("max_acceleration")
     jerk = limit("max_jerk")
-    group = r.get("group", "string", "main", check=lambda g: g in ("main", "additional"),
-                  expect='"main" or "additional"')
-    home_default = 0.0 if low <= 0.0 <= high else ...  # 0 is no default outside the limits
+    group = _param(r, _AXIS["group"])
+    home_default = _AXIS["home"].default if low <= _AXIS["home"].default <= high else ...  # none outside the limits
     home = r.get("home", "number", home_default, check=lambda v: low <= v <= high,
                  expect=f"a number ({unit}) within min..max ({low:g}..{high:g})")
     gear = limit("gear_ratio", axis_params["gear_ratio"].default)
@@ -267,7 +284,8 @@ def _axis(file: str, index: int, table) -> Axis:
                         f"encoder_counts x gear_ratio{' / 360' if kind == 'revolute' else ''} gives "
                         f"{resolution:.4g} counts per {unit}: expected {params.MIN_COUNTS_PER_UNIT:g} to "
                         f"{params.MAX_COUNTS_PER_UNIT:g} (the encoder's resolution the servo and homing can use)")
-    sensor_default = home - 5.0 if low <= home - 5.0 else ...
+    sensor_default = home + _AXIS["sensor_position"].default  # (relative to home)
+    sensor_default = sensor_default if low <= sensor_default else ...
     sensor = r.get("sensor_position", "number", sensor_default, check=lambda v: low <= v <= high,
                    expect=f"a number ({unit}) within min..max, where the homing sensor is")
     window = limit("sensor_window", axis_params["sensor_window"].default)
@@ -322,13 +340,11 @@ def parse_spec(text: str, file: str = "<spec>") -> Spec:
     top = _Reader(file, "", data)
     robot = _Reader(file, "robot", top.get("robot", "table", expect="a [robot] table"))
     name = robot.get("name", "string", expect="the robot's name (what act_rob names)")
-    description = robot.get("description", "string", "")
+    description = _param(robot, _ROBOT["description"])
     # the tool's limits (they bound the speed and acc clauses, compiler.clauses): at least
     # the clauses' own lower bounds
-    max_speed = robot.get("max_speed", "number", 2000.0, check=_at_least(MIN_TOOL_SPEED),
-                          expect=f"a number >= {MIN_TOOL_SPEED:g} (mm/s)")
-    max_acc = robot.get("max_acceleration", "number", 10000.0, check=_at_least(MIN_TOOL_ACCELERATION),
-                        expect=f"a number >= {MIN_TOOL_ACCELERATION:g} (mm/s^2)")
+    max_speed = _param(robot, _ROBOT["max_speed"])
+    max_acc = _param(robot, _ROBOT["max_acceleration"])
     robot.finish()
 
     top.used.add("axis")

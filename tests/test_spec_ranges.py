@@ -403,3 +403,32 @@ def test_the_rules_between_tables_are_named(changes, where, words):
     with pytest.raises(SpecError) as error:
         parse_spec(text, "pair.spc")
     assert f"pair.spc: {where}: {words}" in str(error.value), str(error.value)
+
+
+def test_every_axis_and_robot_key_is_declared_once_with_its_default():
+    """Issue 28: the [[axis]] and [robot] keys are compiler.params' (section axis, robot):
+    every field of an axis is declared there (the DH table aside), and a table that leaves
+    a key out gets the declared default (sensor_position's relative to home)."""
+    from compiler.spec import Axis, Spec
+
+    declared = params.section_params("axis")
+    for field in dataclasses.fields(Axis):
+        if field.name != "dh":
+            assert field.name in declared, f"axis.{field.name} is not declared in compiler.params"
+            assert field.default is dataclasses.MISSING, f"Axis.{field.name} writes a default of its own"
+    robot = params.spec_section("robot")
+    assert {"name", "description", "max_speed", "max_acceleration"} <= set(robot)
+    assert "velocity_limit_scale" not in robot  # the component's, a configuration key
+    text = ('[robot]\nname = "r"\n[[axis]]\nname = "a1"\nkind = "revolute"\nmin = -90.0\nmax = 90.0\n'
+            'max_velocity = 100.0\nmax_acceleration = 500.0\nmax_jerk = 5000.0\n')
+    spec = parse_spec(text, "min.spc")
+    axis = spec.axes[0]
+    for name, param in declared.items():
+        if param.default is not None and name != "sensor_position" and param.kind != "pose":
+            assert getattr(axis, name) == param.default, name
+    assert axis.sensor_position == axis.home + declared["sensor_position"].default
+    for name in ("description", "max_speed", "max_acceleration"):
+        assert getattr(spec, name) == robot[name].default, name
+    assert isinstance(spec, Spec)
+    with pytest.raises(SpecError, match=r"robot\.max_speed: expected a number >= 0\.1 \(mm/s\), got 0\.05"):
+        parse_spec(text.replace('name = "r"\n', 'name = "r"\nmax_speed = 0.05\n'), "min.spc")

@@ -463,7 +463,7 @@ def test_a_request_is_the_holders_exactly_when_it_comes_on_its_connection_or_car
     the holder's token; the routing id plays no part; no reply shows the token but take's."""
     server = _in_process_server()
     server.controller = None
-    server.commands.clear()
+    server.link.commands.clear()
     server.outbox.clear()
     holder = None  # the model: (connection, token)
     for i, (connection, routing_id, token_kind, op) in enumerate(steps):
@@ -473,8 +473,8 @@ def test_a_request_is_the_holders_exactly_when_it_comes_on_its_connection_or_car
                 "override": {"percent": 50}}.get(op, {})
         wire = "control" if op in ("take", "release") else op
         server._handle([routing_id, protocol.request(wire, args, i, token=token)], connection)
-        queued = bool(server.commands)
-        server.commands.clear()
+        queued = bool(server.link.commands)
+        server.link.commands.clear()
         reply = protocol.decode_reply(server.outbox.popleft()[1]) if server.outbox else None
         assert not server.outbox
         if op in ("override", "estop"):  # carried out by the loop (queued), or refused at once

@@ -593,7 +593,7 @@ def test_an_estop_during_homing_then_the_next_program_homes_again_over_the_proto
     first = server.op_submit({"object": encode(SHORT)})["program"]
     while not (server.current is not None and "Find Index" in server.system.supervisor.fsm.path()):
         server.turn(idle_wait=False)
-    server.commands.append((b"c", 1, server.op_estop({})))
+    server.link.commands.append((b"c", 1, server.op_estop({})))
     while server.current is not None:
         server.turn(idle_wait=False)
     assert server.jobs[first].state == "aborted"

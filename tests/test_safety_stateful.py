@@ -4,7 +4,7 @@ searches for counter-examples to the safety supervisor's guarantees.
 A hypothesis ``RuleBasedStateMachine`` builds a ``runtime.server.server.Server`` in-process
 (simulated clock, its own state directory, never bound: no sockets) and plays the I/O
 thread: it encodes each request with ``runtime.wire.protocol``, decodes it as the server does,
-calls the ``op_*`` handler, queues a loop command for the loop (``server.commands``,
+calls the ``op_*`` handler, queues a loop command for the loop (``server.link.commands``,
 carried out by the next ``server.turn(idle_wait=False)``) and reads the loop's replies
 from ``server.outbox``. Time advances only by turns of the loop (one 1 ms tick each).
 
@@ -103,7 +103,8 @@ from compiler.objcode import encode
 from limits_watch import LimitWatch, at_rest_and_safe
 from runtime.wire import protocol
 from runtime.wire.protocol import ProtocolError
-from runtime.server.server import LoopCommand, ServeOptions, Server
+from runtime.server.looplink import LoopCommand
+from runtime.server.server import ServeOptions, Server
 from runtime.hardware.sim.robot import FAULTS
 from runtime.loop.supervisor import INITIALIZE, MOVE
 
@@ -343,7 +344,7 @@ class SafetyMachine(RuleBasedStateMachine):
         if not isinstance(result, LoopCommand):
             return self._decode(protocol.ok(rid, result))
         FIGURES["commands where"][self._phase()] += 1
-        server.commands.append(([b"stateful"], rid, result))
+        server.link.commands.append(([b"stateful"], rid, result))
         self._turns(1, budgeted=False)
         return self.replies.pop(rid)
 

@@ -43,14 +43,14 @@ from compiler.objcode import OP, ObjectCodeError, Program, load, spec_mismatch
 from runtime.config import merge_settings
 from runtime.places import DEFAULT_ENDPOINT, DEFAULT_TELEMETRY, default_state_dir
 from runtime.server.feeds import Feeds
+from runtime.server.looplink import LoopCommand, LoopGone, LoopLink, LoopRefused
 from runtime.wire import messages, protocol
-from runtime.wire.messages import EXIT_TIMEOUT, LoopOptions, Snapshot
+from runtime.wire.messages import LoopOptions, Snapshot
 from runtime.wire.protocol import JobState, ProtocolError
 
 log = logging.getLogger("irl.serve")
 
 HISTORY = 200  # finished programs kept for status
-LOOP_START_TIMEOUT = 30.0  # s the server waits for the loop process to be ready
 CLOSE_LINGER_MS = 1000  # ms a closing server gives its last replies and telemetry to reach connected peers
 
 
@@ -180,20 +180,6 @@ def moves_total(program: Program) -> int | None:
     return moves
 
 
-class LoopCommand:
-    """What an ``op_*`` handler returns for a request the loop must carry out: the
-    command (runtime.wire.messages.COMMANDS); the loop's reply becomes the client's (through
-    ``finish``, when given, for what the server adds to it)."""
-
-    __slots__ = ("command", "finish", "failed", "version")
-
-    def __init__(self, command: messages.Command, finish=None, failed=None):
-        self.command = command
-        self.finish = finish  # result -> the client's result (may raise ProtocolError)
-        self.failed = failed  # called with the loop's refusal
-        self.version = protocol.VERSION  # the request's protocol version (its reply's)
-
-
 class Wait:
     """What ``op_wait`` returns: answer when ``program`` has ended, or at ``deadline``."""
 
@@ -226,38 +212,6 @@ class Control:
         return token is not None and hmac.compare_digest(token.encode(), self.token.encode())
 
 
-class LoopGone(Exception):
-    """The loop process ended, or never became ready."""
-
-
-class LoopRefused(LoopGone):
-    """The loop process could not start with the options given (a cell scenario's or a
-    PLC's file): the command line's error."""
-
-
-def _loop_process(spec, options: LoopOptions, channel, servers_end) -> None:
-    """The forked loop process: only here is the loop imported (the server's process has
-    none of runtime.loop, runtime.motion, runtime.hardware)."""
-    from runtime.loop.robotloop import child
-
-    child(spec, options, channel, servers_end)
-
-
-def start_process(spec, options: LoopOptions):
-    """Fork the loop process; returns (process, the server's end of the channel). Call
-    before the server starts any thread or ZeroMQ context (a fork copies only the caller)."""
-    import multiprocessing
-
-    from runtime.wire.channel import pair
-
-    ours, theirs = pair()
-    context = multiprocessing.get_context("fork")
-    process = context.Process(target=_loop_process, args=(spec, options, theirs, ours), name="irl-loop", daemon=True)
-    process.start()
-    theirs.close()
-    return process, ours
-
-
 class Server:
     def __init__(self, spec, options: ServeOptions, configurations=None):
         self.spec = spec
@@ -274,14 +228,8 @@ class Server:
         self.current: Job | None = None
         self.next_id = 1
         self.override = 100.0
-        self.commands: collections.deque = collections.deque()  # (identity, request id, LoopCommand) to forward
         self.outbox: collections.deque = collections.deque()  # (identity, reply bytes) when no socket is bound
-        self.inbox: collections.deque = collections.deque()  # messages of an in-process loop
-        self.pending: dict[int, tuple] = {}  # ref -> (identity, request id, LoopCommand) awaiting the loop
-        self._ref = 0
-        self.snapshot: Snapshot | None = None  # the loop's latest
         self.stop_reason: str | None = None
-        self._stopping = False  # the loop was told to stop the running program and end (shutdown)
         self.telemetry_seq = 0
         self.telemetry_sent = 0
         self.telemetry_history: collections.deque = collections.deque(maxlen=protocol.TELEMETRY_HISTORY)
@@ -290,25 +238,13 @@ class Server:
         self.waiters: list = []  # (Wait, identity, request id, version) of unanswered waits
         self.controller: Control | None = None  # control's holder (protocol 2)
         self.controls_taken = 0  # (an unnamed holder is shown as "client #N")
-        self.loop_scheduling: str | None = None
-        self.loop_gone: str | None = None  # why the loop process ended (then no program runs)
-        self.loop = self.process = self.channel = None
+        self.link = LoopLink(self._on_loop)
         self.router = self.pub = self.connections = None
         loop_options = LoopOptions(seed=options.seed, realtime=not options.sim_clock, state_dir=state_dir,
                                    deadline_policy=options.deadline_policy, cell=options.cell,
                                    fieldbus=options.fieldbus, scheduling=options.scheduling)
         # the loop first: the fork copies only this thread, before any ZeroMQ context exists
-        if options.loop_process:
-            self.process, self.channel = start_process(spec, loop_options)
-            ready = self._await("ready", LOOP_START_TIMEOUT)
-        else:  # (tests: the loop in this process)
-            from runtime.loop.robotloop import RobotLoop, run_options
-
-            self.loop = RobotLoop(spec, run_options(spec, loop_options), self._from_loop)
-            ready = self.loop.ready()
-        self.snapshot = Snapshot.from_wire(ready["snapshot"])
-        self.loop_scheduling = ready["scheduling"]
-        self.loop_pid = ready["pid"]
+        ready = self.link.start(spec, loop_options, in_process=not options.loop_process)
         self.baseline = ready["baseline"]  # what a configuration's missing keys fall back to
         self.configurations = configurations
         self.configuration = None
@@ -320,110 +256,28 @@ class Server:
                 settings = validate_settings(merge_settings(self.baseline,
                                                             configurations[configurations.default].settings),
                                              f"configuration {configurations.default!r} over the start-up settings")
-                self._ask(LoopCommand(messages.Settings(settings)))
+                self.link.ask(LoopCommand(messages.Settings(settings)))
             except BaseException:
-                self._stop_loop()
+                self.link.stop(self.stop_reason or "the server is closing")
                 raise
         self.ctx = zmq.Context()
 
     @property
     def system(self):
         """The robot, when the loop runs in this process (tests); else AttributeError."""
-        if self.loop is None:
-            raise AttributeError("the loop runs in its own process: its system is not here")
-        return self.loop.system
+        return self.link.system
 
     # ---- the loop -------------------------------------------------------------------------
-    def _from_loop(self, message: dict, droppable: bool = False) -> bool:
-        self.inbox.append(message)
-        return True
-
-    def _send_loop(self, command: LoopCommand, identity=None, request_id=None) -> None:
-        self._ref += 1
-        self.pending[self._ref] = (identity, request_id, command)
-        message = command.command.to_wire(self._ref)
-        if self.loop is not None:
-            self.loop.commands.append(message)
-        else:
-            self.channel.send(message)
-
-    def _forward(self) -> None:
-        while self.commands:
-            identity, request_id, command = self.commands.popleft()
-            self._send_loop(command, identity, request_id)
-
-    def _receive(self) -> list:
-        if self.loop is not None:
-            messages = list(self.inbox)
-            self.inbox.clear()
-            return messages
-        from runtime.wire.channel import ChannelClosed
-
-        try:
-            return self.channel.receive()
-        except ChannelClosed:
-            raise LoopGone(self._loop_gone()) from None
-
-    def _loop_gone(self) -> str:
-        process = self.process  # (kept until _stop_loop has joined it: a LoopGone may be raised meanwhile)
-        process.join(1.0)
-        code = process.exitcode
-        how = "still running" if code is None else (f"killed by signal {-code}" if code < 0 else f"exit status {code}")
-        return f"the real-time loop process ({process.pid}) ended unexpectedly ({how})"
-
-    def _await(self, kind: str, timeout: float) -> dict:
-        """Not real-time: wait for the loop's next message of ``kind`` (handling the others)."""
-        deadline = time.monotonic() + timeout
-        while True:
-            for message in self._receive():
-                if message["kind"] == "failed":
-                    if message.get("usage"):
-                        raise LoopRefused(message["error"])
-                    raise LoopGone(f"the real-time loop could not start: {message['error']}")
-                if message["kind"] == kind:
-                    return message
-                self._on_loop(message)
-            remaining = deadline - time.monotonic()
-            if remaining <= 0:
-                raise LoopGone(f"the real-time loop sent no {kind!r} within {timeout:g} s")
-            if self.loop is not None:
-                self.loop.turn()
-            else:
-                self.channel.wait(min(remaining, 0.1))
-
     def request(self, op: str, args: dict | None = None):
         """Not real-time (tests, tools): one request's result, a loop command carried out
         and waited for; raises ProtocolError when refused."""
         result = getattr(self, f"op_{op}")(args or {})
-        return self._ask(result) if isinstance(result, LoopCommand) else result
-
-    def _ask(self, command: LoopCommand, timeout: float = LOOP_START_TIMEOUT):
-        """Not real-time: one command and its result (ProtocolError when refused)."""
-        self._send_loop(command)
-        ref = self._ref
-        deadline = time.monotonic() + timeout
-        while ref in self.pending:
-            for message in self._receive():
-                if message["kind"] == "reply" and message["ref"] == ref:
-                    self.pending.pop(ref)
-                    if not message["ok"]:
-                        if command.failed is not None:
-                            command.failed(message)
-                        raise ProtocolError(message["code"], message["message"])
-                    result = message["result"]
-                    return command.finish(result) if command.finish is not None else result
-                self._on_loop(message)
-            if time.monotonic() > deadline:
-                raise LoopGone(f"the real-time loop did not answer {command.command.OP!r} within {timeout:g} s")
-            if self.loop is not None:
-                self.loop.turn()
-            else:
-                self.channel.wait(0.1)
+        return self.link.ask(result) if isinstance(result, LoopCommand) else result
 
     def _on_loop(self, message: dict) -> None:
         kind = message["kind"]
         if kind == Snapshot.KIND:
-            self.snapshot = Snapshot.from_wire(message)
+            self.link.snapshot = Snapshot.from_wire(message)
             self._publish_sample()
         elif kind == "reply":
             self._on_reply(message)
@@ -434,7 +288,7 @@ class Server:
             self._finish_current(message)
 
     def _on_reply(self, message: dict) -> None:
-        entry = self.pending.pop(message["ref"], None)
+        entry = self.link.answered(message["ref"])
         if entry is None:
             return
         identity, request_id, command = entry
@@ -461,13 +315,10 @@ class Server:
         if self.current is None:
             if self.stop_reason is not None:
                 return False
-            if self.queue and self.loop_gone is None:
+            if self.queue and self.link.gone is None:
                 self._start_next()
-        elif self.stop_reason is not None and not self._stopping:
-            # the loop stops the program on its path, and makes it an emergency stop if the
-            # robot is not at rest within robotloop.EXIT_TIMEOUT
-            self._stopping = True
-            self._send_loop(LoopCommand(messages.Exit(self.stop_reason)))
+        elif self.stop_reason is not None and not self.link.stopping:
+            self.link.exit(self.stop_reason)
         return True
 
     def turn(self, idle_wait: bool = True) -> bool:
@@ -477,9 +328,9 @@ class Server:
         sockets: they call the ``op_*`` handlers and read ``outbox``)."""
         if not self._dispatch():
             return False
-        self._forward()
-        self.loop.turn()
-        for message in self._receive():
+        self.link.forward()
+        self.link.turn()
+        for message in self.link.receive():
             self._on_loop(message)
         self._answer_waiters()
         return True
@@ -508,7 +359,7 @@ class Server:
         def refused(reply: dict) -> None:  # the program cannot run here
             self._end(job, JobState.FAULTED, reply["message"])
 
-        self._send_loop(LoopCommand(messages.Start(job.id, job.object, str(job.report) if job.report else None,
+        self.link.send(LoopCommand(messages.Start(job.id, job.object, str(job.report) if job.report else None,
                                                    job.settings, self.override), finish=started, failed=refused))
 
     def _finish_current(self, message: dict) -> None:
@@ -544,7 +395,7 @@ class Server:
         self.telemetry_seq += 1
         message["v"] = protocol.VERSION
         message["seq"] = self.telemetry_seq
-        message.setdefault("t", self.snapshot.t if self.snapshot is not None else 0.0)
+        message.setdefault("t", self.link.time())
         self.telemetry_history.append(message)  # (for replay: the telemetry request)
         if message["kind"] == "sample":
             self.last_sample = message
@@ -570,7 +421,7 @@ class Server:
                 return
 
     def _publish_sample(self) -> None:
-        snap = self.snapshot
+        snap = self.link.snapshot
         job = self.current
         running = job is not None and snap.job == job.id
         sample = {"kind": "sample", "state": snap.state if running else "Idle",
@@ -619,7 +470,7 @@ class Server:
         self.pub.bind(self.options.telemetry)
 
     def close(self) -> None:
-        self._stop_loop()
+        self.link.stop(self.stop_reason or "the server is closing")
         for sock in (self.router, self.pub):
             if sock is not None:  # the last replies and events (the queue cancelled, the shutdown) still go out
                 sock.close(linger=CLOSE_LINGER_MS)
@@ -627,59 +478,37 @@ class Server:
             self.connections.close()
         self.ctx.term()
 
-    def _stop_loop(self) -> None:
-        """End the loop process (it brings the robot to rest first). A loop already told
-        to exit by the shutdown (``_stopping``) is ending on its own: it is not asked
-        again (it may have closed its end of the channel already), only waited for."""
-        process = self.process
-        if process is None:
-            return
-        if process.is_alive():
-            if not self._stopping:
-                self._stopping = True
-                try:
-                    self._ask(LoopCommand(messages.Exit(self.stop_reason or "the server is closing")), timeout=5.0)
-                except (LoopGone, ProtocolError):
-                    pass  # it ended meanwhile, or it refused: the join below says
-            process.join(EXIT_TIMEOUT + 5.0)
-            if process.is_alive():
-                log.error("the loop process %d did not end: terminated", process.pid)
-                process.kill()
-                process.join(1.0)
-        self.process = None
-        self.channel.close()
-
     def serve(self) -> int:
         """Run until a shutdown is requested (``request_shutdown``) and the robot is at
         rest; returns the exit status."""
-        if self.loop is not None:  # the loop in this process (a debugging layout): one thread does all
+        if self.link.loop is not None:  # the loop in this process (a debugging layout): one thread does all
             while self.turn():
                 self._poll_requests(0)
             self._publish({"kind": "event", "event": "shutdown", "reason": self.stop_reason})
             return 0
-        log.info("loop: %s (process %d)", self.loop_scheduling or "simulated clock", self.loop_pid)
+        log.info("loop: %s (process %d)", self.link.scheduling or "simulated clock", self.link.pid)
         poller = zmq.Poller()
         poller.register(self.router, zmq.POLLIN)
-        poller.register(self.channel.fileno(), zmq.POLLIN)
+        poller.register(self.link.channel.fileno(), zmq.POLLIN)
         poller.register(self.pub, zmq.POLLIN)
         poller.register(self.connections.socket, zmq.POLLIN)
         while self._dispatch():
-            if self.loop_gone is not None:  # keep answering (status says why), refuse work
+            if self.link.gone is not None:  # keep answering (status says why), refuse work
                 self._poll_requests(200, poller)
                 continue
             try:
-                self._forward()
-                self._poll_requests(5 if self.channel.pending else (50 if self.waiters else 200), poller)
-                for message in self._receive():
+                self.link.forward()
+                self._poll_requests(5 if self.link.channel.pending else (50 if self.waiters else 200), poller)
+                for message in self.link.receive():
                     self._on_loop(message)
-                self.channel.flush()
+                self.link.channel.flush()
                 self._answer_waiters()
             except LoopGone as exc:
                 log.error("%s: the server answers requests but runs no program; restart it", exc)
-                poller.unregister(self.channel.fileno())
+                poller.unregister(self.link.channel.fileno())
                 self._fail_all(str(exc))
         self._publish({"kind": "event", "event": "shutdown", "reason": self.stop_reason})
-        return 1 if self.loop_gone is not None else 0
+        return 1 if self.link.gone is not None else 0
 
     def _poll_requests(self, timeout: int, poller=None) -> None:
         if poller is not None:
@@ -713,14 +542,13 @@ class Server:
 
     def _fail_all(self, reason: str) -> None:
         """The loop is gone: the running program faulted, the waiting ones cancelled."""
-        self.loop_gone = reason
+        unanswered = self.link.fail(reason)
         if self.current is not None:
             self._end(self.current, JobState.FAULTED, reason)
         self._cancel_queue(reason)
-        for identity, request_id, _command in self.pending.values():
+        for identity, request_id, _command in unanswered:
             if identity is not None:
                 self._reply(identity, protocol.error(request_id, "internal", reason))
-        self.pending.clear()
 
     def _reply(self, identity: list, reply: bytes) -> None:
         if self.router is None:  # not bound: the caller reads the outbox itself
@@ -751,10 +579,10 @@ class Server:
             handler = getattr(self, f"op_{op}")
             result = self.op_control(args, connection, holder) if op == "control" else handler(args)
             if isinstance(result, LoopCommand):  # to be carried out by the loop
-                if self.loop_gone is not None:
-                    raise ProtocolError("refused", f"{self.loop_gone}: restart irl serve")
+                if self.link.gone is not None:
+                    raise ProtocolError("refused", f"{self.link.gone}: restart irl serve")
                 result.version = version
-                self.commands.append((identity, request_id, result))
+                self.link.commands.append((identity, request_id, result))
                 return
             if isinstance(result, Wait):  # answered when the program ends (or at the deadline)
                 self.waiters.append((result, identity, request_id, version))
@@ -867,11 +695,11 @@ class Server:
                 "clock": "simulated" if self.options.sim_clock else "wall",
                 "configuration": self.configuration,
                 "configurations": list(self.configurations.names()) if self.configurations else [],
-                "pid": os.getpid(), "loop_pid": self.loop_pid, "loop_scheduling": self.loop_scheduling}
+                "pid": os.getpid(), "loop_pid": self.link.pid, "loop_scheduling": self.link.scheduling}
 
     def _running(self, job: Job) -> dict:
         """A running job as status shows it (from the loop's latest snapshot)."""
-        snap = self.snapshot
+        snap = self.link.snapshot
         d = job.as_dict()
         if snap.job == job.id and snap.progress is not None:
             progress = snap.progress
@@ -888,7 +716,7 @@ class Server:
                 raise ProtocolError("not_found", f"no program {args['program']} (ids start at 1; finished "
                                                  f"programs are kept for the last {HISTORY})")
             return self._running(job) if job is current else job.as_dict()
-        snap = self.snapshot
+        snap = self.link.snapshot
         running = self._running(current) if current else None
         return {"state": running["fsm"] if running else "Idle",
                 "running": running,
@@ -901,7 +729,7 @@ class Server:
                 "position": snap.position, "inputs": snap.inputs, "outputs": snap.outputs,
                 "shutting_down": self.stop_reason is not None,
                 "control": holder.name if (holder := self._holder()) is not None else None,
-                "loop_gone": self.loop_gone}
+                "loop_gone": self.link.gone}
 
     def _check_queue_room(self) -> None:
         """Refuse (``queue_full``) a program or reconfiguration beyond MAX_QUEUED waiting
@@ -914,8 +742,8 @@ class Server:
     def _check_accepting(self) -> None:
         if self.stop_reason is not None:
             raise ProtocolError("refused", "the server is shutting down")
-        if self.loop_gone is not None:
-            raise ProtocolError("refused", f"{self.loop_gone}: restart irl serve")
+        if self.link.gone is not None:
+            raise ProtocolError("refused", f"{self.link.gone}: restart irl serve")
 
     def op_submit(self, args: dict) -> dict:
         self._check_queue_room()  # before verifying: a full queue costs no verification

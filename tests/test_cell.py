@@ -227,14 +227,14 @@ def test_an_input_forced_by_hand_releases_a_waiting_program_and_outputs_cannot_b
     server = Server(SPEC, ServeOptions(sim_clock=True, state_dir=tmp_path / "state", loop_process=False))
     try:
         job = server.request("submit", {"object": encode(result.program)})["program"]
-        while not (server.current is not None and server.system.trajectory.line == 4):
+        while not (server.jobs.current is not None and server.system.trajectory.line == 4):
             server.turn(idle_wait=False)
         for _ in range(500):  # waiting: nothing sets in[5]
             server.turn(idle_wait=False)
-        assert server.current is not None
+        assert server.jobs.current is not None
         assert server.request("call", {"text": "io.in[5] = true"})["value"] is True
         assert server.request("call", {"text": "io.in[5]"})["value"] is True
-        while server.current is not None:
+        while server.jobs.current is not None:
             server.turn(idle_wait=False)
         summary = server.jobs[job].summary
         assert summary["fault"] is None and [e["text"] for e in summary["log"]] == ["released"]

@@ -59,7 +59,7 @@ def test_the_io_component_is_listed_with_its_lifecycle_and_keeps_its_scripting_i
         assert described.startswith("io (stopped)\n")
         assert described.rstrip().endswith("operations:")  # no operations: the system drives its lifecycle
         job = server.request("submit", {"object": encode(result.program)})["program"]
-        while not (server.current is not None and server.system.trajectory.line == 4):
+        while not (server.jobs.current is not None and server.system.trajectory.line == 4):
             server.turn(idle_wait=False)
         assert lifecycle() == "running"
         assert server.request("call", {"text": "io.inputs"})["value"] == [False] * SPEC.inputs
@@ -67,7 +67,7 @@ def test_the_io_component_is_listed_with_its_lifecycle_and_keeps_its_scripting_i
         assert server.request("call", {"text": "io.in[5]"})["value"] is True  # the port, at once
         assert server.system.io.inputs.value[4] is True
         assert server.request("status")["inputs"][4] is True
-        while server.current is not None:
+        while server.jobs.current is not None:
             server.turn(idle_wait=False)
         assert [e["text"] for e in server.jobs[job].summary["log"]] == ["released"]
         assert lifecycle() == "stopped"

@@ -154,7 +154,7 @@ def test_status_says_why_over_the_protocol(tmp_path):
 def test_servo_stop_while_moving_is_refused_over_the_network_and_caught_by_the_watchdog_in_process(tmp_path):
     server = Server(SPEC, ServeOptions(sim_clock=True, state_dir=tmp_path / "state", loop_process=False))
     server.op_submit({"object": encode(LONG)})
-    while not (server.current is not None and server.system.supervisor.fsm.state == MOVE):
+    while not (server.jobs.current is not None and server.system.supervisor.fsm.state == MOVE):
         server.turn(idle_wait=False)
     for text in ("servo.stop()", "report.stop()", "robot.release_brakes()", "trajectory.stop()", "servo.hold()"):
         with pytest.raises(ProtocolError) as refused:
@@ -168,7 +168,7 @@ def test_servo_stop_while_moving_is_refused_over_the_network_and_caught_by_the_w
     for _ in range(5):
         server.turn(idle_wait=False)
     assert system.safety.stopping and "no fresh command from the servo" in system.safety.fault
-    while server.current is not None:
+    while server.jobs.current is not None:
         server.turn(idle_wait=False)
     job = server.jobs[1]
     assert job.state == "faulted" and "watchdog" not in job.fault and "servo" in job.fault
@@ -591,10 +591,10 @@ def test_an_estop_during_homing_then_the_next_program_homes_again_over_the_proto
     server = Server(SPEC, ServeOptions(sim_clock=True, state_dir=tmp_path / "state", loop_process=False))
     watch = LimitWatch(server.system)
     first = server.op_submit({"object": encode(SHORT)})["program"]
-    while not (server.current is not None and "Find Index" in server.system.supervisor.fsm.path()):
+    while not (server.jobs.current is not None and "Find Index" in server.system.supervisor.fsm.path()):
         server.turn(idle_wait=False)
     server.link.commands.append((b"c", 1, server.op_estop({})))
-    while server.current is not None:
+    while server.jobs.current is not None:
         server.turn(idle_wait=False)
     assert server.jobs[first].state == "aborted"
     status = server.op_status({})

@@ -369,7 +369,7 @@ class SafetyMachine(RuleBasedStateMachine):
                     self.spent += 1
                     return
                 self.spent += 1
-            if self.busy and server.current is None and not server.queue and self.last_body is not None:
+            if self.busy and server.jobs.current is None and not server.jobs.queue and self.last_body is not None:
                 self._submit(self.last_body)
             server.turn(idle_wait=False)
             self._check_limits()
@@ -377,14 +377,14 @@ class SafetyMachine(RuleBasedStateMachine):
                 _identity, payload = server.outbox.popleft()
                 reply = self._decode(payload)
                 self.replies[reply["id"]] = reply
-            if server.current is not self.running:
+            if server.jobs.current is not self.running:
                 if self.running is not None:
                     self._ended(self.running)
-                self.running = server.current
+                self.running = server.jobs.current
                 if self.faulty and self.running is not None:
                     self.exposed.add(self.running.id)
             self._check_initialized()
-            if server.current is None and self.ran:
+            if server.jobs.current is None and self.ran:
                 self._check_at_rest()
             if until is not None and until():
                 return
@@ -395,7 +395,7 @@ class SafetyMachine(RuleBasedStateMachine):
         ticks; so that what a rule does next lands there."""
         phase, extra = when
         server = self.server
-        job = server.current or (server.queue[0] if server.queue else None)
+        job = server.jobs.current or (server.jobs.queue[0] if server.jobs.queue else None)
         if phase == "now" or job is None:
             return
         self._turns(MAX_TURNS_TO_END, until=lambda: self._phase() == phase or job.state not in ("queued", "running"))
@@ -404,7 +404,7 @@ class SafetyMachine(RuleBasedStateMachine):
     def _phase(self) -> str:
         """Where the robot is: Idle, a state of the supervisor (a homing step), or Paused."""
         server = self.server
-        if server.current is None:
+        if server.jobs.current is None:
             return "Idle"
         system = server.system
         path = system.supervisor.fsm.path()
@@ -437,7 +437,7 @@ class SafetyMachine(RuleBasedStateMachine):
         memory = self.server.system.memory
         if memory.initialized and not self.homed:
             server = self.server
-            history = server.system.supervisor.fsm.history if server.current is not None else []
+            history = server.system.supervisor.fsm.history if server.jobs.current is not None else []
             self._expect(any(source == INITIALIZE and target == MOVE for _t, source, target in history),
                          "initialized without a completed homing", memory.initialization_why)
 
@@ -494,7 +494,7 @@ class SafetyMachine(RuleBasedStateMachine):
     def advance(self, ticks):
         self._turns(ticks)
 
-    @precondition(lambda self: self.server.current is not None or self.server.queue)
+    @precondition(lambda self: self.server.jobs.current is not None or self.server.jobs.queue)
     @rule(when=PHASE_TIMES)
     @logged
     def advance_into(self, when):
@@ -506,7 +506,7 @@ class SafetyMachine(RuleBasedStateMachine):
         """Run the program under way (or the next queued one) to its end (bounded: a paused
         program holds)."""
         server = self.server
-        job = server.current or (server.queue[0] if server.queue else None)
+        job = server.jobs.current or (server.jobs.queue[0] if server.jobs.queue else None)
         if job is not None:
             self._turns(MAX_TURNS_TO_END, until=lambda: job.state not in ("queued", "running"))
 
@@ -531,9 +531,9 @@ class SafetyMachine(RuleBasedStateMachine):
         if which == "none":
             args = {}
         elif which == "running":
-            args = {"program": server.current.id} if server.current is not None else {}
+            args = {"program": server.jobs.current.id} if server.jobs.current is not None else {}
         elif which == "queued":
-            args = {"program": server.queue[-1].id} if server.queue else {}
+            args = {"program": server.jobs.queue[-1].id} if server.jobs.queue else {}
         else:
             args = {"program": 999_999}
         phase = self._phase()
@@ -569,7 +569,7 @@ class SafetyMachine(RuleBasedStateMachine):
         self._go(when)
         server = self.server
         before = server.system.settings()
-        running = server.current  # a command runs at the start of the next turn, before anything else
+        running = server.jobs.current  # a command runs at the start of the next turn, before anything else
         reply = self._request("call", {"text": text})
         after = server.system.settings()
         if text in SAFETY_WRITES or text in BAD_WRITES:
@@ -594,11 +594,11 @@ class SafetyMachine(RuleBasedStateMachine):
         self._note_figures()  # (what came before, on a healthy arm or not)
         server.system.backend.inject(fault, axis)
         self.faulty = True
-        self.exposed.update(job.id for job in [server.current, *server.queue] if job is not None)
+        self.exposed.update(job.id for job in [server.jobs.current, *server.jobs.queue] if job is not None)
         FIGURES["injected"][fault] += 1
         FIGURES["injected where"][self._phase()] += 1
 
-    @precondition(lambda self: self.server.current is None)
+    @precondition(lambda self: self.server.jobs.current is None)
     @rule()
     @logged
     def repair(self):
@@ -641,7 +641,7 @@ class SafetyMachine(RuleBasedStateMachine):
 
     @invariant()
     def at_rest_between_programs(self):
-        if self.server.current is None and self.ran:
+        if self.server.jobs.current is None and self.ran:
             self._check_at_rest()
 
     @invariant()

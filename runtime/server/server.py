@@ -38,19 +38,19 @@ from pathlib import Path
 
 import zmq
 
-from compiler.objcode import OP, ObjectCodeError, Program, load, spec_mismatch
+from compiler.objcode import ObjectCodeError, load, spec_mismatch
 
 from runtime.config import merge_settings
 from runtime.places import DEFAULT_ENDPOINT, DEFAULT_TELEMETRY, default_state_dir
 from runtime.server.feeds import Feeds
+from runtime.server.jobs import Jobs, Wait
 from runtime.server.looplink import LoopCommand, LoopGone, LoopLink, LoopRefused
 from runtime.wire import messages, protocol
 from runtime.wire.messages import LoopOptions, Snapshot
-from runtime.wire.protocol import JobState, ProtocolError
+from runtime.wire.protocol import ProtocolError
 
 log = logging.getLogger("irl.serve")
 
-HISTORY = 200  # finished programs kept for status
 CLOSE_LINGER_MS = 1000  # ms a closing server gives its last replies and telemetry to reach connected peers
 
 
@@ -135,61 +135,6 @@ def check_endpoints(options: ServeOptions) -> None:
                   f"clients, or, on a network you trust completely, {INSECURE_FLAG}")
 
 
-class Job:
-    """One submitted program and what became of it."""
-
-    def __init__(self, job_id: int, name: str, program: Program | None, report: Path | None,
-                 settings: dict | None = None, configuration: str | None = None):
-        self.id = job_id
-        self.name = name
-        self.program = program
-        self.report = report
-        self.settings = settings  # a reconfiguration (no program): the settings to apply
-        self.configuration = configuration
-        self.state = JobState.QUEUED
-        self.fault: str | None = None
-        self.submitted = time.time()
-        self.started: float | None = None
-        self.ended: float | None = None
-        self.summary: dict | None = None
-        self.moves_total = moves_total(program) if program is not None else 0
-        self.object: bytes | None = None  # the verified object code, for the loop
-
-    def as_dict(self, summary: bool = True) -> dict:
-        d = {"id": self.id, "name": self.name, "state": self.state, "fault": self.fault,
-             "submitted": self.submitted, "started": self.started, "ended": self.ended,
-             "report": str(self.report) if self.report else None, "moves_total": self.moves_total,
-             "kind": "program" if self.settings is None else "reconfiguration"}
-        if self.summary is not None:
-            d.update(line=None, moves_done=sum(1 for m in self.summary["moves"] if m["actual_duration"] is not None))
-            if summary:
-                d["summary"] = self.summary
-        return d
-
-
-def moves_total(program: Program) -> int | None:
-    """How many moves the program makes, when that is known without running it (no
-    loops, no procedure calls); else None."""
-    moves = 0
-    for offset, instr in enumerate(program.code):
-        op = instr[0]
-        if op in (OP.MOVE_PTP, OP.MOVE_LIN, OP.MOVE_CIRC):
-            moves += 1
-        elif op == OP.CALL or (op in (OP.JUMP, OP.JUMP_IF_FALSE) and instr[1] <= offset):
-            return None
-    return moves
-
-
-class Wait:
-    """What ``op_wait`` returns: answer when ``program`` has ended, or at ``deadline``."""
-
-    __slots__ = ("program", "deadline")
-
-    def __init__(self, program: int, deadline: float):
-        self.program = program
-        self.deadline = deadline
-
-
 class Control:
     """Control's holder (protocol 2, ``control``): the connection that took it (the
     identity the server gave it, runtime.server.connections), the token ``take`` returned, the
@@ -221,12 +166,6 @@ class Server:
         state_dir = Path(options.state_dir) if options.state_dir else default_state_dir()
         self.state_dir = state_dir
         session = time.strftime("%Y%m%d-%H%M%S") + f"-{os.getpid()}"
-        self.report_dir = state_dir / "reports" / session
-        self.jobs: dict[int, Job] = {}
-        self.queue: collections.deque[Job] = collections.deque()
-        self.finished: collections.deque[int] = collections.deque()
-        self.current: Job | None = None
-        self.next_id = 1
         self.override = 100.0
         self.outbox: collections.deque = collections.deque()  # (identity, reply bytes) when no socket is bound
         self.stop_reason: str | None = None
@@ -235,10 +174,10 @@ class Server:
         self.telemetry_history: collections.deque = collections.deque(maxlen=protocol.TELEMETRY_HISTORY)
         self.last_sample: dict | None = None
         self.feeds = Feeds()  # the subscribers' chosen fields and rates (the feed request)
-        self.waiters: list = []  # (Wait, identity, request id, version) of unanswered waits
         self.controller: Control | None = None  # control's holder (protocol 2)
         self.controls_taken = 0  # (an unnamed holder is shown as "client #N")
         self.link = LoopLink(self._on_loop)
+        self.jobs = Jobs(state_dir / "reports" / session, self.link, self._publish, self._reply)
         self.router = self.pub = self.connections = None
         loop_options = LoopOptions(seed=options.seed, realtime=not options.sim_clock, state_dir=state_dir,
                                    deadline_policy=options.deadline_policy, cell=options.cell,
@@ -285,7 +224,7 @@ class Server:
             del message["kind"]
             self._publish({"kind": "event", **message})
         elif kind == "finished":
-            self._finish_current(message)
+            self.jobs.finish(message, self._completed)
 
     def _on_reply(self, message: dict) -> None:
         entry = self.link.answered(message["ref"])
@@ -310,13 +249,13 @@ class Server:
     def _dispatch(self) -> bool:
         """Start the next program when the loop is free; bring the shutdown along. False
         once a shutdown is done (the robot at rest, no program running)."""
-        if self.stop_reason is not None and self.queue:  # a shutdown: what waits will never run
-            self._cancel_queue(f"cancelled: {self.stop_reason}")
-        if self.current is None:
+        if self.stop_reason is not None and self.jobs.queue:  # a shutdown: what waits will never run
+            self.jobs.cancel_queue(f"cancelled: {self.stop_reason}")
+        if self.jobs.current is None:
             if self.stop_reason is not None:
                 return False
-            if self.queue and self.link.gone is None:
-                self._start_next()
+            if self.jobs.queue and self.link.gone is None:
+                self.jobs.start_next(self.override)
         elif self.stop_reason is not None and not self.link.stopping:
             self.link.exit(self.stop_reason)
         return True
@@ -332,7 +271,7 @@ class Server:
         self.link.turn()
         for message in self.link.receive():
             self._on_loop(message)
-        self._answer_waiters()
+        self.jobs.answer_waiters()
         return True
 
     def request_shutdown(self, reason: str = "the server is shutting down") -> None:
@@ -340,55 +279,10 @@ class Server:
         if self.stop_reason is None:
             self.stop_reason = reason
 
-    def _start_next(self) -> None:
-        job = self.queue.popleft()
-        try:
-            self.report_dir.mkdir(parents=True, exist_ok=True)
-        except OSError as exc:
-            self._end(job, JobState.FAULTED, f"cannot make {self.report_dir}: {exc.strerror or exc}")
-            return
-        job.state, job.started = JobState.RUNNING, time.time()
-        self.current = job
-        log.info("program %d (%s) started", job.id, job.name)
-
-        def started(result: dict) -> dict:
-            self._publish({"kind": "event", "event": "program", "program": job.id, "state": JobState.RUNNING,
-                           "t": result["t"]})
-            return result
-
-        def refused(reply: dict) -> None:  # the program cannot run here
-            self._end(job, JobState.FAULTED, reply["message"])
-
-        self.link.send(LoopCommand(messages.Start(job.id, job.object, str(job.report) if job.report else None,
-                                                   job.settings, self.override), finish=started, failed=refused))
-
-    def _finish_current(self, message: dict) -> None:
-        job = self.current
-        if job is None or job.id != message["job"]:
-            return
-        job.summary = message["summary"]
-        fault = job.summary["fault"]
-        if fault is None and job.configuration is not None:
+    def _completed(self, job) -> None:
+        """A job has ended without a fault: a reconfiguration's configuration is in force."""
+        if job.configuration is not None:
             self.configuration = job.configuration
-        self._end(job, JobState.COMPLETED if fault is None else JobState.ABORTED if message["aborted"]
-                  else JobState.FAULTED, fault)
-
-    def _end(self, job: Job, state: JobState, fault: str | None) -> None:
-        """A program has ended (``completed``, ``faulted``, ``aborted``) or will never run
-        (``cancelled``): kept for status, said on telemetry, its waiters answered."""
-        job.state, job.fault, job.ended = state, fault, time.time()
-        if job is self.current:
-            self.current = None
-        self._retire(job)
-        log.info("program %d %s%s", job.id, state, f": {fault}" if fault else "")
-        self._publish({"kind": "event", "event": "program", "program": job.id, "state": state, "fault": fault})
-        self._answer_waiters()
-
-    def _retire(self, job: Job) -> None:
-        job.program = job.object = None  # the code is not needed any more
-        self.finished.append(job.id)
-        while len(self.finished) > HISTORY:
-            self.jobs.pop(self.finished.popleft(), None)
 
     # ---- telemetry --------------------------------------------------------------------------
     def _publish(self, message: dict) -> None:
@@ -422,10 +316,10 @@ class Server:
 
     def _publish_sample(self) -> None:
         snap = self.link.snapshot
-        job = self.current
+        job = self.jobs.current
         running = job is not None and snap.job == job.id
         sample = {"kind": "sample", "state": snap.state if running else "Idle",
-                  "program": job.id if running else None, "queued": len(self.queue),
+                  "program": job.id if running else None, "queued": len(self.jobs.queue),
                   "override": self.override, "position": snap.position, "inputs": snap.inputs,
                   "outputs": snap.outputs, "t": snap.t,
                   "tool": snap.tool, "base": snap.base, "tcp": snap.tcp, "tcp_base": snap.tcp_base}
@@ -498,11 +392,11 @@ class Server:
                 continue
             try:
                 self.link.forward()
-                self._poll_requests(5 if self.link.channel.pending else (50 if self.waiters else 200), poller)
+                self._poll_requests(5 if self.link.channel.pending else (50 if self.jobs.waiters else 200), poller)
                 for message in self.link.receive():
                     self._on_loop(message)
                 self.link.channel.flush()
-                self._answer_waiters()
+                self.jobs.answer_waiters()
             except LoopGone as exc:
                 log.error("%s: the server answers requests but runs no program; restart it", exc)
                 poller.unregister(self.link.channel.fileno())
@@ -543,9 +437,7 @@ class Server:
     def _fail_all(self, reason: str) -> None:
         """The loop is gone: the running program faulted, the waiting ones cancelled."""
         unanswered = self.link.fail(reason)
-        if self.current is not None:
-            self._end(self.current, JobState.FAULTED, reason)
-        self._cancel_queue(reason)
+        self.jobs.fail(reason)
         for identity, request_id, _command in unanswered:
             if identity is not None:
                 self._reply(identity, protocol.error(request_id, "internal", reason))
@@ -585,8 +477,7 @@ class Server:
                 self.link.commands.append((identity, request_id, result))
                 return
             if isinstance(result, Wait):  # answered when the program ends (or at the deadline)
-                self.waiters.append((result, identity, request_id, version))
-                self._answer_waiters()
+                self.jobs.add_waiter(result, identity, request_id, version)
                 return
             reply = protocol.ok(request_id, result, version)
         except ProtocolError as exc:
@@ -663,30 +554,6 @@ class Server:
         log.info("control taken by %s (lease %g s)", current.name, lease)
         return {"control": True, "name": current.name, "lease": lease, "token": current.token}
 
-    def _answer_waiters(self, now: float | None = None) -> None:
-        """Answer every ``wait`` whose program has ended, or whose deadline has passed."""
-        if not self.waiters:
-            return
-        now = time.monotonic() if now is None else now
-        keep = []
-        for entry in self.waiters:
-            wait, identity, request_id, version = entry
-            job = self.jobs.get(wait.program)
-            ended = job is None or job.state.ended
-            if not ended and now < wait.deadline:
-                keep.append(entry)
-                continue
-            if job is None:
-                reply = protocol.error(request_id, "not_found", f"no program {wait.program} (finished programs are "
-                                                                f"kept for the last {HISTORY})", version)
-            else:
-                result = self._running(job) if job is self.current else job.as_dict()
-                if not ended:
-                    result["timed_out"] = True
-                reply = protocol.ok(request_id, result, version)
-            self._reply(identity, reply)
-        self.waiters = keep
-
     # ---- operations (a LoopCommand result is carried out by the loop) ----------------------------
     def op_hello(self, args: dict) -> dict:
         return {"protocol": protocol.VERSION, "protocols": list(protocol.VERSIONS), "robot": self.spec.name,
@@ -697,32 +564,16 @@ class Server:
                 "configurations": list(self.configurations.names()) if self.configurations else [],
                 "pid": os.getpid(), "loop_pid": self.link.pid, "loop_scheduling": self.link.scheduling}
 
-    def _running(self, job: Job) -> dict:
-        """A running job as status shows it (from the loop's latest snapshot)."""
-        snap = self.link.snapshot
-        d = job.as_dict()
-        if snap.job == job.id and snap.progress is not None:
-            progress = snap.progress
-            d.update(line=progress.line, moves_done=progress.moves_done, paused=progress.paused, fsm=snap.state)
-        else:  # started, the loop's first snapshot of it not yet here
-            d.update(line=None, moves_done=0, paused=False, fsm="Start Robot")
-        return d
-
     def op_status(self, args: dict) -> dict:
-        current = self.current
         if "program" in args:
-            job = self.jobs.get(args["program"])
-            if job is None:
-                raise ProtocolError("not_found", f"no program {args['program']} (ids start at 1; finished "
-                                                 f"programs are kept for the last {HISTORY})")
-            return self._running(job) if job is current else job.as_dict()
+            return self.jobs.status(args["program"])
+        current = self.jobs.current
         snap = self.link.snapshot
-        running = self._running(current) if current else None
+        running = self.jobs.running(current) if current else None
         return {"state": running["fsm"] if running else "Idle",
                 "running": running,
-                "queue": [job.id for job in self.queue],
-                "programs": [job.as_dict(summary=False) for job in list(self.jobs.values())[-21:]
-                             if job.state != JobState.RUNNING][-20:],
+                "queue": [job.id for job in self.jobs.queue],
+                "programs": self.jobs.recent(),
                 "override": self.override, "configuration": self.configuration,
                 "calibrated": snap.calibrated, "initialized": snap.initialized,
                 "calibration": snap.calibration, "initialization": snap.initialization,
@@ -731,14 +582,6 @@ class Server:
                 "control": holder.name if (holder := self._holder()) is not None else None,
                 "loop_gone": self.link.gone}
 
-    def _check_queue_room(self) -> None:
-        """Refuse (``queue_full``) a program or reconfiguration beyond MAX_QUEUED waiting
-        ones (the running one does not count)."""
-        if len(self.queue) >= protocol.MAX_QUEUED:
-            raise ProtocolError("queue_full", f"the queue is full: it holds {len(self.queue)} programs waiting to "
-                                              f"run, at most {protocol.MAX_QUEUED} may wait; submit again when "
-                                              "one has started (or abort queued ones)")
-
     def _check_accepting(self) -> None:
         if self.stop_reason is not None:
             raise ProtocolError("refused", "the server is shutting down")
@@ -746,7 +589,7 @@ class Server:
             raise ProtocolError("refused", f"{self.link.gone}: restart irl serve")
 
     def op_submit(self, args: dict) -> dict:
-        self._check_queue_room()  # before verifying: a full queue costs no verification
+        self.jobs.check_room()  # before verifying: a full queue costs no verification
         data = args["object"]
         try:
             program = load(data, None)
@@ -763,13 +606,8 @@ class Server:
                                                f"{self.spec.name!r}")
         self._check_accepting()
         name = str(args.get("name") or program.name or "program")[:200]
-        job = Job(self.next_id, name, program, self.report_dir / f"program-{self.next_id}.csv")
-        job.object = bytes(data)
-        self.next_id += 1
-        self.jobs[job.id] = job
-        self.queue.append(job)
-        log.info("program %d (%s) queued", job.id, name)
-        return {"program": job.id, "queued": len(self.queue)}
+        job = self.jobs.submit(name, program, bytes(data))
+        return {"program": job.id, "queued": len(self.jobs.queue)}
 
     def op_pause(self, args: dict) -> LoopCommand:
         return LoopCommand(messages.Pause(args.get("program")))
@@ -782,10 +620,7 @@ class Server:
         if not 0.0 < timeout <= protocol.MAX_WAIT:
             raise ProtocolError("bad_request", f"wait: timeout must be more than 0 and at most "
                                                f"{protocol.MAX_WAIT:g} s, got {timeout:g}")
-        if args["program"] not in self.jobs:
-            raise ProtocolError("not_found", f"no program {args['program']} (ids start at 1; finished programs "
-                                             f"are kept for the last {HISTORY})")
-        return Wait(args["program"], time.monotonic() + timeout)
+        return self.jobs.wait(args["program"], timeout)
 
     #: The most telemetry messages one ``telemetry`` reply carries (ask again from the last).
     REPLAY_CHUNK = 2000
@@ -810,31 +645,16 @@ class Server:
 
     def op_abort(self, args: dict):
         wanted = args.get("program")
-        if wanted is not None and (self.current is None or self.current.id != wanted):
-            for job in self.queue:
-                if job.id == wanted:
-                    self.queue.remove(job)
-                    self._end(job, JobState.CANCELLED, "removed from the queue by the operator")
-                    return {"program": wanted, "state": JobState.CANCELLED}
-            job = self.jobs.get(wanted)
-            if job is not None:
-                raise ProtocolError("refused", f"program {wanted} has already ended ({job.state})")
-            raise ProtocolError("not_found", f"program {wanted} is neither running nor queued (no such program)")
-        if self.current is None:
+        current = self.jobs.current
+        if wanted is not None and (current is None or current.id != wanted):
+            return self.jobs.cancel(wanted)
+        if current is None:
             raise ProtocolError("refused", "no program is running")
-        return LoopCommand(messages.Abort(self.current.id, "aborted by the operator"))
+        return LoopCommand(messages.Abort(current.id, "aborted by the operator"))
 
     def op_estop(self, args: dict) -> LoopCommand:
-        cancelled = self._cancel_queue("cancelled by an emergency stop")
+        cancelled = self.jobs.cancel_queue("cancelled by an emergency stop")
         return LoopCommand(messages.Estop(), finish=lambda result: {**result, "cancelled": cancelled})
-
-    def _cancel_queue(self, reason: str) -> list[int]:
-        cancelled = []
-        while self.queue:
-            job = self.queue.popleft()
-            self._end(job, JobState.CANCELLED, reason)
-            cancelled.append(job.id)
-        return cancelled
 
     def op_override(self, args: dict) -> LoopCommand:
         percent = float(args["percent"])
@@ -875,11 +695,8 @@ class Server:
             raise ProtocolError("refused", f"{exc} (the configuration in force, {self.configuration!r}, stays)") \
                 from None
         self._check_accepting()
-        self._check_queue_room()
-        job = Job(self.next_id, f"reconfigure {name}", None, None, settings=settings, configuration=name)
-        self.next_id += 1
-        self.jobs[job.id] = job
-        self.queue.append(job)
+        self.jobs.check_room()
+        job = self.jobs.reconfigure(name, settings)
         self.configurations = configurations
         return {"requested": name, "program": job.id}
 

@@ -462,7 +462,7 @@ def test_a_request_is_the_holders_exactly_when_it_comes_on_its_connection_or_car
     exactly when nobody holds control, or it came on the holder's connection, or it carries
     the holder's token; the routing id plays no part; no reply shows the token but take's."""
     server = _in_process_server()
-    server.controller = None
+    server.controls.holder = None
     server.link.commands.clear()
     server.outbox.clear()
     holder = None  # the model: (connection, token)

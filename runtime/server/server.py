@@ -25,11 +25,9 @@ turn by turn: one turn is one tick.
 from __future__ import annotations
 
 import collections
-import hmac
 import itertools
 import logging
 import os
-import secrets
 import signal
 import sys
 import time
@@ -42,6 +40,7 @@ from compiler.objcode import ObjectCodeError, load, spec_mismatch
 
 from runtime.config import merge_settings
 from runtime.places import DEFAULT_ENDPOINT, DEFAULT_TELEMETRY, default_state_dir
+from runtime.server.controls import Controls
 from runtime.server.feeds import Feeds
 from runtime.server.jobs import Jobs, Wait
 from runtime.server.looplink import LoopCommand, LoopGone, LoopLink, LoopRefused
@@ -135,28 +134,6 @@ def check_endpoints(options: ServeOptions) -> None:
                   f"clients, or, on a network you trust completely, {INSECURE_FLAG}")
 
 
-class Control:
-    """Control's holder (protocol 2, ``control``): the connection that took it (the
-    identity the server gave it, runtime.server.connections), the token ``take`` returned, the
-    name shown, the lease and the time of its last request."""
-
-    __slots__ = ("connection", "token", "name", "lease", "last")
-
-    def __init__(self, connection: str | None, token: str, name: str, lease: float):
-        self.connection = connection
-        self.token = token
-        self.name = name
-        self.lease = lease
-        self.last = time.monotonic()
-
-    def owns(self, connection: str | None, token: str | None) -> bool:
-        """Whether a request from ``connection`` carrying ``token`` is the holder's (a
-        connection without an identity is nobody's)."""
-        if connection is not None and connection == self.connection:
-            return True
-        return token is not None and hmac.compare_digest(token.encode(), self.token.encode())
-
-
 class Server:
     def __init__(self, spec, options: ServeOptions, configurations=None):
         self.spec = spec
@@ -174,8 +151,7 @@ class Server:
         self.telemetry_history: collections.deque = collections.deque(maxlen=protocol.TELEMETRY_HISTORY)
         self.last_sample: dict | None = None
         self.feeds = Feeds()  # the subscribers' chosen fields and rates (the feed request)
-        self.controller: Control | None = None  # control's holder (protocol 2)
-        self.controls_taken = 0  # (an unnamed holder is shown as "client #N")
+        self.controls = Controls()  # control's holder (protocol 2)
         self.link = LoopLink(self._on_loop)
         self.jobs = Jobs(state_dir / "reports" / session, self.link, self._publish, self._reply)
         self.router = self.pub = self.connections = None
@@ -467,7 +443,7 @@ class Server:
                                                    "empty frame, and holds at most "
                                                    f"{protocol.MAX_ENVELOPE_FRAMES} frames)")
             request_id, op, args, version, token = protocol.decode(payload)
-            holder = self._check_control(connection, token, op, args)
+            holder = self.controls.check(connection, token, op, args)
             handler = getattr(self, f"op_{op}")
             result = self.op_control(args, connection, holder) if op == "control" else handler(args)
             if isinstance(result, LoopCommand):  # to be carried out by the loop
@@ -488,71 +464,10 @@ class Server:
             reply = protocol.error(request_id, "internal", f"{type(exc).__name__}: {exc}", version)
         self._reply(identity, reply)
 
-    def _holder(self) -> Control | None:
-        """Control's holder, once its lease is checked (it ends ``lease`` seconds after the
-        holder's last request)."""
-        holder = self.controller
-        if holder is not None and time.monotonic() - holder.last > holder.lease:
-            log.info("control of %s ended: no request from it for %g s", holder.name, holder.lease)
-            self.controller = holder = None
-        return holder
-
-    def _check_control(self, connection: str | None, token: str | None, op: str, args: dict) -> bool:
-        """Whether the request is control's holder's (it came on the connection that took
-        control, or carries its token; then it renews the lease). Refuses a controlling
-        request from anyone else while a client holds control."""
-        holder = self._holder()
-        if holder is None:
-            return False
-        if holder.owns(connection, token):
-            holder.last = time.monotonic()
-            return True
-        if op in protocol.CONTROLLING and not (op == "call" and self._reads_only(args)) or \
-                (op == "control" and args.get("take")):
-            left = holder.lease - (time.monotonic() - holder.last)
-            stale = " (the token this request carries is not the holder's: a token is void once control is given " \
-                    "back or its lease ends)" if token is not None else ""
-            raise ProtocolError("refused", f"{holder.name} holds control of the robot (for {left:.1f} s more "
-                                           f"without a request from it): this client may read, and estop{stale}")
-        return False
-
-    @staticmethod
-    def _reads_only(args: dict) -> bool:
-        from runtime.wire.scripting import CallOperation, SetProperty, ScriptError, parse
-
-        try:
-            return not isinstance(parse(args["text"]), (SetProperty, CallOperation))
-        except ScriptError:
-            return True  # (answered with its script_error)
-
     def op_control(self, args: dict, connection: str | None = None, holder: bool = False) -> dict:
         """``take: true``: this connection (and whoever sends the token returned) holds
-        control; the holder taking it again changes its name and lease. ``take: false``:
-        the holder gives it back (refused from another client while one holds it)."""
-        current = self._holder()
-        if not args["take"]:
-            if current is not None:
-                if not holder:
-                    raise ProtocolError("refused", f"{current.name} holds control of the robot, not this client: "
-                                                   "only the holder (its connection, or a request with its token) "
-                                                   "gives it back")
-                log.info("control given back by %s", current.name)
-                self.controller = None
-            return {"control": False}
-        lease = float(args.get("lease", protocol.DEFAULT_LEASE))
-        if not protocol.MIN_LEASE <= lease <= protocol.MAX_LEASE:
-            raise ProtocolError("bad_request", f"control: lease must be from {protocol.MIN_LEASE:g} to "
-                                               f"{protocol.MAX_LEASE:g} s, got {lease:g}")
-        if current is None:
-            self.controls_taken += 1
-            name = str(args.get("name") or f"client #{self.controls_taken}")[:100]
-            current = self.controller = Control(connection, secrets.token_urlsafe(32), name, lease)
-        else:  # the holder again (anyone else was refused): a new name or lease, the same token
-            current.name = str(args.get("name") or current.name)[:100]
-            current.lease = lease
-            current.last = time.monotonic()
-        log.info("control taken by %s (lease %g s)", current.name, lease)
-        return {"control": True, "name": current.name, "lease": lease, "token": current.token}
+        control; ``take: false``: the holder gives it back (see Controls.request)."""
+        return self.controls.request(args, connection, holder)
 
     # ---- operations (a LoopCommand result is carried out by the loop) ----------------------------
     def op_hello(self, args: dict) -> dict:
@@ -579,7 +494,7 @@ class Server:
                 "calibration": snap.calibration, "initialization": snap.initialization,
                 "position": snap.position, "inputs": snap.inputs, "outputs": snap.outputs,
                 "shutting_down": self.stop_reason is not None,
-                "control": holder.name if (holder := self._holder()) is not None else None,
+                "control": self.controls.name(),
                 "loop_gone": self.link.gone}
 
     def _check_accepting(self) -> None:

@@ -528,6 +528,6 @@ def test_the_server_itself_refuses_to_bind_a_remote_endpoint_without_keys(tmp_pa
     try:
         with pytest.raises(InsecureEndpoint, match="--insecure-allow-remote-without-encryption"):
             server.bind()
-        assert server.router is None and server.pub is None
+        assert server.router is None and server.telemetry.pub is None
     finally:
         server.close()

@@ -25,7 +25,6 @@ turn by turn: one turn is one tick.
 from __future__ import annotations
 
 import collections
-import itertools
 import logging
 import os
 import signal
@@ -41,9 +40,9 @@ from compiler.objcode import ObjectCodeError, load, spec_mismatch
 from runtime.config import merge_settings
 from runtime.places import DEFAULT_ENDPOINT, DEFAULT_TELEMETRY, default_state_dir
 from runtime.server.controls import Controls
-from runtime.server.feeds import Feeds
 from runtime.server.jobs import Jobs, Wait
 from runtime.server.looplink import LoopCommand, LoopGone, LoopLink, LoopRefused
+from runtime.server.telemetry import Telemetry
 from runtime.wire import messages, protocol
 from runtime.wire.messages import LoopOptions, Snapshot
 from runtime.wire.protocol import ProtocolError
@@ -146,15 +145,11 @@ class Server:
         self.override = 100.0
         self.outbox: collections.deque = collections.deque()  # (identity, reply bytes) when no socket is bound
         self.stop_reason: str | None = None
-        self.telemetry_seq = 0
-        self.telemetry_sent = 0
-        self.telemetry_history: collections.deque = collections.deque(maxlen=protocol.TELEMETRY_HISTORY)
-        self.last_sample: dict | None = None
-        self.feeds = Feeds()  # the subscribers' chosen fields and rates (the feed request)
         self.controls = Controls()  # control's holder (protocol 2)
         self.link = LoopLink(self._on_loop)
-        self.jobs = Jobs(state_dir / "reports" / session, self.link, self._publish, self._reply)
-        self.router = self.pub = self.connections = None
+        self.telemetry = Telemetry(self.link)
+        self.jobs = Jobs(state_dir / "reports" / session, self.link, self.telemetry.publish, self._reply)
+        self.router = self.connections = None
         loop_options = LoopOptions(seed=options.seed, realtime=not options.sim_clock, state_dir=state_dir,
                                    deadline_policy=options.deadline_policy, cell=options.cell,
                                    fieldbus=options.fieldbus, scheduling=options.scheduling)
@@ -193,12 +188,12 @@ class Server:
         kind = message["kind"]
         if kind == Snapshot.KIND:
             self.link.snapshot = Snapshot.from_wire(message)
-            self._publish_sample()
+            self.telemetry.publish_sample(self.jobs.current, len(self.jobs.queue), self.override)
         elif kind == "reply":
             self._on_reply(message)
         elif kind == "event":
             del message["kind"]
-            self._publish({"kind": "event", **message})
+            self.telemetry.publish({"kind": "event", **message})
         elif kind == "finished":
             self.jobs.finish(message, self._completed)
 
@@ -260,51 +255,6 @@ class Server:
         if job.configuration is not None:
             self.configuration = job.configuration
 
-    # ---- telemetry --------------------------------------------------------------------------
-    def _publish(self, message: dict) -> None:
-        self.telemetry_seq += 1
-        message["v"] = protocol.VERSION
-        message["seq"] = self.telemetry_seq
-        message.setdefault("t", self.link.time())
-        self.telemetry_history.append(message)  # (for replay: the telemetry request)
-        if message["kind"] == "sample":
-            self.last_sample = message
-        if self.pub is None:  # not bound (driven turn by turn, in-process)
-            return
-        try:
-            self.pub.send_multipart((protocol.TELEMETRY_TOPIC, protocol.pack(message)), zmq.NOBLOCK)
-            self.telemetry_sent += 1
-        except zmq.Again:
-            pass
-        for topic, fed in self.feeds.outgoing(message):
-            try:
-                self.pub.send_multipart((topic, protocol.pack(fed)), zmq.NOBLOCK)
-            except zmq.Again:
-                pass
-
-    def _poll_subscriptions(self) -> None:
-        """Which telemetry topics have subscribers (XPUB's subscription messages)."""
-        for _ in range(1000):
-            try:
-                self.feeds.subscription(self.pub.recv(zmq.NOBLOCK))
-            except zmq.ZMQError:  # (zmq.Again: none left)
-                return
-
-    def _publish_sample(self) -> None:
-        snap = self.link.snapshot
-        job = self.jobs.current
-        running = job is not None and snap.job == job.id
-        sample = {"kind": "sample", "state": snap.state if running else "Idle",
-                  "program": job.id if running else None, "queued": len(self.jobs.queue),
-                  "override": self.override, "position": snap.position, "inputs": snap.inputs,
-                  "outputs": snap.outputs, "t": snap.t,
-                  "tool": snap.tool, "base": snap.base, "tcp": snap.tcp, "tcp_base": snap.tcp_base}
-        progress = snap.progress
-        if running and progress is not None:
-            sample.update(line=progress.line, moves_done=progress.moves_done, moves_total=job.moves_total,
-                          paused=progress.paused, following_error=progress.following_error)
-        self._publish(sample)
-
     # ---- sockets and the server's own loop ------------------------------------------------
     def bind(self) -> None:
         """Bind the request and telemetry sockets (raises zmq.ZMQError when taken)."""
@@ -313,19 +263,19 @@ class Server:
 
         ctx = self.ctx
         self.router = ctx.socket(zmq.ROUTER)
-        self.pub = ctx.socket(zmq.XPUB)  # a PUB that says which topics have subscribers (feeds)
+        pub = self.telemetry.open(ctx)
         authorized = None
         if self.options.keys:
             from runtime.wire.keys import server_security
 
-            authorized = server_security(self.options.keys, (self.router, self.pub))
+            authorized = server_security(self.options.keys, (self.router, pub))
         # every connection's handshake is answered here: each gets an identity of its own
         # (control is bound to it, not to a routing id a client can choose; and with CURVE,
         # only the authorized keys connect)
         self.connections = Connections(ctx, authorized)
         self.connections.protect(self.router)
         if authorized is not None:
-            self.connections.protect(self.pub)
+            self.connections.protect(pub)
         self.router.setsockopt(zmq.MAXMSGSIZE, protocol.TRANSPORT_MAX_BYTES)
         self.router.setsockopt(zmq.LINGER, 0)
         # handover: a connection with a routing id another one has takes it over (libzmq closes
@@ -335,13 +285,11 @@ class Server:
         self.router.setsockopt(zmq.ROUTER_HANDOVER, 1)
         self.router.setsockopt(zmq.SNDHWM, 10_000)
         self.router.bind(self.options.endpoint)
-        self.pub.setsockopt(zmq.SNDHWM, 1000)  # bounded: a slow subscriber loses messages
-        self.pub.setsockopt(zmq.LINGER, 0)
-        self.pub.bind(self.options.telemetry)
+        self.telemetry.bind(self.options.telemetry)
 
     def close(self) -> None:
         self.link.stop(self.stop_reason or "the server is closing")
-        for sock in (self.router, self.pub):
+        for sock in (self.router, self.telemetry.pub):
             if sock is not None:  # the last replies and events (the queue cancelled, the shutdown) still go out
                 sock.close(linger=CLOSE_LINGER_MS)
         if self.connections is not None:
@@ -354,13 +302,13 @@ class Server:
         if self.link.loop is not None:  # the loop in this process (a debugging layout): one thread does all
             while self.turn():
                 self._poll_requests(0)
-            self._publish({"kind": "event", "event": "shutdown", "reason": self.stop_reason})
+            self.telemetry.publish({"kind": "event", "event": "shutdown", "reason": self.stop_reason})
             return 0
         log.info("loop: %s (process %d)", self.link.scheduling or "simulated clock", self.link.pid)
         poller = zmq.Poller()
         poller.register(self.router, zmq.POLLIN)
         poller.register(self.link.channel.fileno(), zmq.POLLIN)
-        poller.register(self.pub, zmq.POLLIN)
+        poller.register(self.telemetry.pub, zmq.POLLIN)
         poller.register(self.connections.socket, zmq.POLLIN)
         while self._dispatch():
             if self.link.gone is not None:  # keep answering (status says why), refuse work
@@ -377,7 +325,7 @@ class Server:
                 log.error("%s: the server answers requests but runs no program; restart it", exc)
                 poller.unregister(self.link.channel.fileno())
                 self._fail_all(str(exc))
-        self._publish({"kind": "event", "event": "shutdown", "reason": self.stop_reason})
+        self.telemetry.publish({"kind": "event", "event": "shutdown", "reason": self.stop_reason})
         return 1 if self.link.gone is not None else 0
 
     def _poll_requests(self, timeout: int, poller=None) -> None:
@@ -385,13 +333,13 @@ class Server:
             events = dict(poller.poll(timeout))
             if self.connections.socket in events:
                 self.connections.answer()
-            if self.pub in events:
-                self._poll_subscriptions()
+            if self.telemetry.pub in events:
+                self.telemetry.poll_subscriptions()
             if self.router not in events:
                 return
-        elif self.pub is not None:
+        elif self.telemetry.pub is not None:
             self.connections.answer()
-            self._poll_subscriptions()
+            self.telemetry.poll_subscriptions()
         for _ in range(100):
             try:
                 parts = self.router.recv_multipart(zmq.NOBLOCK, copy=False)
@@ -537,26 +485,11 @@ class Server:
                                                f"{protocol.MAX_WAIT:g} s, got {timeout:g}")
         return self.jobs.wait(args["program"], timeout)
 
-    #: The most telemetry messages one ``telemetry`` reply carries (ask again from the last).
-    REPLAY_CHUNK = 2000
-
     def op_telemetry(self, args: dict) -> dict:
-        result = {"seq": self.telemetry_seq, "sample": self.last_sample}
-        since = args.get("since")
-        if since is not None:
-            if not 0 <= since <= self.telemetry_seq:
-                raise ProtocolError("bad_request", f"telemetry: since must be a seq from 0 to the latest, "
-                                                   f"{self.telemetry_seq}, got {since}")
-            history = self.telemetry_history
-            oldest = history[0]["seq"] if history else self.telemetry_seq + 1
-            start = max(since + 1, oldest)
-            messages = [m for m in itertools.islice(history, start - oldest, None)][:self.REPLAY_CHUNK]
-            result.update(messages=messages, missing=start - (since + 1),
-                          more=bool(messages) and messages[-1]["seq"] < self.telemetry_seq)
-        return result
+        return self.telemetry.replay(args.get("since"))
 
     def op_feed(self, args: dict) -> dict:
-        return self.feeds.request(args)
+        return self.telemetry.feeds.request(args)
 
     def op_abort(self, args: dict):
         wanted = args.get("program")

@@ -19,6 +19,12 @@ loop never waits on. Nothing a client sends can raise into the loop: a bad reque
 an error reply and the server keeps serving; a flood of requests costs the server's
 time, not the loop's.
 
+``Server`` keeps the sockets and the ``op_*`` handlers (one per operation of
+runtime.wire.protocol.OPS) and delegates to its parts: :class:`~runtime.server.looplink.LoopLink`
+(the loop), :class:`~runtime.server.jobs.Jobs` (the programs),
+:class:`~runtime.server.controls.Controls` (control) and
+:class:`~runtime.server.telemetry.Telemetry` (what is published).
+
 Tests drive the same server with the loop in-process (``ServeOptions(loop_process=False)``),
 turn by turn: one turn is one tick.
 """

@@ -117,6 +117,11 @@ class InstrDef:
     #: verifier reads both.
     takes: tuple[str, ...] = ()
     gives: str = ""
+    #: A barrier to the motion look-ahead: the instruction acts where the robot is (I/O,
+    #: ``print``, ``wait for``, ``pause``, switching an interrupt), so the VM executes it
+    #: only when every move handed over has ended (in an interrupt's handler at once: it acts
+    #: beside the motion); until then the program waits before it, its stack untouched.
+    barrier: bool = False
 
     def pop_count(self, operands: tuple, program: "Program") -> int:
         return self.pops if isinstance(self.pops, int) else self.pops(operands, program)
@@ -127,97 +132,98 @@ def _call_pops(operands, program):
 
 
 _DEFS = [
-    # name, operands, pops, pushes, doc, effect, flow
-    ("NOP", (), 0, 0, "Do nothing.", "", "next"),
-    ("CONST", (("k", "const"),), 0, 1, "Push constant k.", "-> value", "next"),
-    ("LOAD_GLOBAL", (("g", "global"),), 0, 1, "Push global variable g.", "-> value", "next"),
-    ("STORE_GLOBAL", (("g", "global"),), 1, 0, "Pop a value into global variable g.", "value ->", "next"),
-    ("LOAD_LOCAL", (("l", "local"),), 0, 1, "Push local variable (or parameter) l.", "-> value", "next"),
-    ("STORE_LOCAL", (("l", "local"),), 1, 0, "Pop a value into local variable l.", "value ->", "next"),
+    # name, operands, pops, pushes, doc, effect, flow, barrier
+    ("NOP", (), 0, 0, "Do nothing.", "", "next", False),
+    ("CONST", (("k", "const"),), 0, 1, "Push constant k.", "-> value", "next", False),
+    ("LOAD_GLOBAL", (("g", "global"),), 0, 1, "Push global variable g.", "-> value", "next", False),
+    ("STORE_GLOBAL", (("g", "global"),), 1, 0, "Pop a value into global variable g.", "value ->", "next", False),
+    ("LOAD_LOCAL", (("l", "local"),), 0, 1, "Push local variable (or parameter) l.", "-> value", "next", False),
+    ("STORE_LOCAL", (("l", "local"),), 1, 0, "Pop a value into local variable l.", "value ->", "next", False),
     ("COPY", (), 1, 1, "Replace an array on top of the stack by a copy of it (arrays are values).",
-     "array -> array'", "next"),
-    ("TO_REAL", (), 1, 1, "Convert the integer on top of the stack to real.", "int -> real", "next"),
-    ("NEG", (), 1, 1, "Negate a number.", "a -> -a", "next"),
-    ("NOT", (), 1, 1, "Logical not.", "a -> not a", "next"),
-    ("ADD", (), 2, 1, "a + b (numbers, or two strings joined).", "a b -> a+b", "next"),
-    ("SUB", (), 2, 1, "a - b.", "a b -> a-b", "next"),
-    ("MUL", (), 2, 1, "a * b.", "a b -> a*b", "next"),
-    ("DIV", (), 2, 1, "a / b, real division; division by zero is a run-time error.", "a b -> a/b", "next"),
-    ("IDIV", (), 2, 1, "a div b, integer division truncating toward zero.", "a b -> a div b", "next"),
-    ("MOD", (), 2, 1, "a mod b, the remainder of div (sign of a).", "a b -> a mod b", "next"),
-    ("EQ", (), 2, 1, "a = b.", "a b -> bool", "next"),
-    ("NE", (), 2, 1, "a <> b.", "a b -> bool", "next"),
-    ("LT", (), 2, 1, "a < b.", "a b -> bool", "next"),
-    ("LE", (), 2, 1, "a <= b.", "a b -> bool", "next"),
-    ("GT", (), 2, 1, "a > b.", "a b -> bool", "next"),
-    ("GE", (), 2, 1, "a >= b.", "a b -> bool", "next"),
-    ("AND", (), 2, 1, "a and b (both are evaluated).", "a b -> bool", "next"),
-    ("OR", (), 2, 1, "a or b (both are evaluated).", "a b -> bool", "next"),
+     "array -> array'", "next", False),
+    ("TO_REAL", (), 1, 1, "Convert the integer on top of the stack to real.", "int -> real", "next", False),
+    ("NEG", (), 1, 1, "Negate a number.", "a -> -a", "next", False),
+    ("NOT", (), 1, 1, "Logical not.", "a -> not a", "next", False),
+    ("ADD", (), 2, 1, "a + b (numbers, or two strings joined).", "a b -> a+b", "next", False),
+    ("SUB", (), 2, 1, "a - b.", "a b -> a-b", "next", False),
+    ("MUL", (), 2, 1, "a * b.", "a b -> a*b", "next", False),
+    ("DIV", (), 2, 1, "a / b, real division; division by zero is a run-time error.", "a b -> a/b", "next", False),
+    ("IDIV", (), 2, 1, "a div b, integer division truncating toward zero.", "a b -> a div b", "next", False),
+    ("MOD", (), 2, 1, "a mod b, the remainder of div (sign of a).", "a b -> a mod b", "next", False),
+    ("EQ", (), 2, 1, "a = b.", "a b -> bool", "next", False),
+    ("NE", (), 2, 1, "a <> b.", "a b -> bool", "next", False),
+    ("LT", (), 2, 1, "a < b.", "a b -> bool", "next", False),
+    ("LE", (), 2, 1, "a <= b.", "a b -> bool", "next", False),
+    ("GT", (), 2, 1, "a > b.", "a b -> bool", "next", False),
+    ("GE", (), 2, 1, "a >= b.", "a b -> bool", "next", False),
+    ("AND", (), 2, 1, "a and b (both are evaluated).", "a b -> bool", "next", False),
+    ("OR", (), 2, 1, "a or b (both are evaluated).", "a b -> bool", "next", False),
     ("CALL_BUILTIN", (("fn", "builtin"), ("argc", "count")), lambda ops, p: ops[1], 1,
-     "Call built-in function fn with argc arguments.", "args... -> result", "next"),
+     "Call built-in function fn with argc arguments.", "args... -> result", "next", False),
     ("MAKE_JOINT", (("main", "count"), ("add", "count")), lambda ops, p: ops[0] + ops[1], 1,
-     "Build a joint value from main + add axis values.", "a1..an e1..em -> joint", "next"),
-    ("MAKE_POS", (), 3, 1, "Build pos(x, y, z).", "x y z -> position", "next"),
-    ("MAKE_RPY", (), 3, 1, "Build rpy(roll, pitch, yaw).", "r p y -> orientation", "next"),
+     "Build a joint value from main + add axis values.", "a1..an e1..em -> joint", "next", False),
+    ("MAKE_POS", (), 3, 1, "Build pos(x, y, z).", "x y z -> position", "next", False),
+    ("MAKE_RPY", (), 3, 1, "Build rpy(roll, pitch, yaw).", "r p y -> orientation", "next", False),
     ("MAKE_QUAT", (), 4, 1, "Build quat(w, x, y, z), normalised; a zero quaternion is a run-time error.",
-     "w x y z -> orientation", "next"),
-    ("MAKE_POSE", (), 2, 1, "Build pose(position, orientation).", "position orientation -> pose", "next"),
+     "w x y z -> orientation", "next", False),
+    ("MAKE_POSE", (), 2, 1, "Build pose(position, orientation).", "position orientation -> pose", "next", False),
     ("MAKE_ARRAY", (("n", "count"),), 1, 1, "Build an array of n copies of the value on top.",
-     "element -> array", "next"),
+     "element -> array", "next", False),
     ("GET_ITEM", (("low", "int"),), 2, 1, "Array element; index out of low..high is a run-time error.",
-     "array index -> element", "next"),
+     "array index -> element", "next", False),
     ("SET_ITEM", (("low", "int"),), 3, 0, "Store into an array element (the array is changed in place).",
-     "array index value ->", "next"),
-    ("GET_AXIS", (), 2, 1, "Axis value of a joint, axes numbered from 1.", "joint axis -> real", "next"),
-    ("SET_AXIS", (), 3, 1, "A joint with one axis value replaced.", "joint axis value -> joint", "next"),
+     "array index value ->", "next", False),
+    ("GET_AXIS", (), 2, 1, "Axis value of a joint, axes numbered from 1.", "joint axis -> real", "next", False),
+    ("SET_AXIS", (), 3, 1, "A joint with one axis value replaced.", "joint axis value -> joint", "next", False),
     ("GET_FIELD", (("f", "field"),), 1, 1, "Field x, y or z of a position or pose (mm).",
-     "position|pose -> real", "next"),
-    ("JUMP", (("target", "target"),), 0, 0, "Continue at target.", "", "jump"),
+     "position|pose -> real", "next", False),
+    ("JUMP", (("target", "target"),), 0, 0, "Continue at target.", "", "jump", False),
     ("JUMP_IF_FALSE", (("target", "target"),), 1, 0, "Pop a bool; continue at target when false.",
-     "bool ->", "branch"),
+     "bool ->", "branch", False),
     ("CALL", (("p", "proc"),), _call_pops, 0,
-     "Call procedure p; its parameters are popped into its first local slots.", "args... ->", "call"),
-    ("RET", (), 0, 0, "Return from the current procedure.", "", "return"),
-    ("IN_GET", (), 1, 1, "Read digital input n (bool).", "n -> bool", "next"),
-    ("OUT_SET", (), 2, 0, "Set digital output n.", "n value ->", "next"),
+     "Call procedure p; its parameters are popped into its first local slots.", "args... ->", "call", False),
+    ("RET", (), 0, 0, "Return from the current procedure.", "", "return", False),
+    ("IN_GET", (), 1, 1, "Read digital input n (bool).", "n -> bool", "next", True),
+    ("OUT_SET", (), 2, 0, "Set digital output n.", "n value ->", "next", True),
     ("MOVE_PTP", (("clauses", "clauses"),), lambda ops, p: 1 + _bits(ops[0]), 0,
      "Point-to-point move to a joint or pose target, with the clauses in the mask.",
-     "target clause-values... ->", "wait"),
+     "target clause-values... ->", "wait", False),
     ("MOVE_LIN", (("clauses", "clauses"),), lambda ops, p: 1 + _bits(ops[0]), 0,
-     "Straight-line move of the tool centre point to a pose.", "pose clause-values... ->", "wait"),
+     "Straight-line move of the tool centre point to a pose.", "pose clause-values... ->", "wait", False),
     ("MOVE_CIRC", (("clauses", "clauses"),), lambda ops, p: 2 + _bits(ops[0]), 0,
-     "Circular move through a via pose to an end pose.", "via end clause-values... ->", "wait"),
-    ("DWELL", (), 1, 0, "Stand still for the given seconds.", "seconds ->", "wait"),
+     "Circular move through a via pose to an end pose.", "via end clause-values... ->", "wait", False),
+    ("DWELL", (), 1, 0, "Stand still for the given seconds.", "seconds ->", "wait", False),
     ("WAIT_BEGIN", (("timeout", "flag"),), lambda ops, p: ops[0], 0,
-     "Start a 'wait for'; with timeout = 1, pop the time-out in seconds.", "[seconds] ->", "next"),
+     "Start a 'wait for'; with timeout = 1, pop the time-out in seconds.", "[seconds] ->", "next", True),
     ("WAIT_TEST", (("target", "target"),), 1, 0,
      "Pop the condition; when false and not timed out, yield and continue at target next cycle.",
-     "bool ->", "branch"),
+     "bool ->", "branch", False),
     ("PRINT", (("n", "count"),), lambda ops, p: ops[0], 0, "Send n values to the operator log.",
-     "values... ->", "next"),
-    ("PAUSE", (), 0, 0, "Hold until the operator resumes.", "", "wait"),
-    ("HALT", (), 0, 0, "End the program here.", "", "stop"),
-    ("END", (), 0, 0, "The end of the main program.", "", "stop"),
+     "values... ->", "next", True),
+    ("PAUSE", (), 0, 0, "Hold until the operator resumes.", "", "wait", True),
+    ("HALT", (), 0, 0, "End the program here.", "", "stop", False),
+    ("END", (), 0, 0, "The end of the main program.", "", "stop", False),
     ("CALL_FUNC", (("f", "proc"),), _call_pops, 1,
      "Call function f (a routine with a result); its parameters are popped into its first local slots, and its "
-     "result is on the stack when it returns.", "args... -> result", "call"),
+     "result is on the stack when it returns.", "args... -> result", "call", False),
     ("RET_VALUE", (), 1, 0, "Return from the current function with the value on top of the stack (left there for "
-                            "the caller).", "result ->", "return"),
+                            "the caller).", "result ->", "return", False),
     ("USE_BASE", (("name", "name"),), 1, 0,
      "Make the pose on top of the stack the active base (the frame later pose targets are in), called name "
-     "(compiler.frames).", "pose ->", "next"),
+     "(compiler.frames).", "pose ->", "next", False),
     ("USE_TOOL", (("name", "name"),), 1, 0,
      "Make the pose on top of the stack the active tool (the TCP, in the flange frame, that later targets put in "
-     "place), called name (compiler.frames).", "pose ->", "next"),
+     "place), called name (compiler.frames).", "pose ->", "next", False),
     ("INT_ENABLE", (("i", "interrupt"),), 0, 0,
-     "Switch interrupt i on: its condition is checked every period from now on (compiler.interrupts).", "", "next"),
-    ("INT_DISABLE", (("i", "interrupt"),), 0, 0, "Switch interrupt i off.", "", "next"),
+     "Switch interrupt i on: its condition is checked every period from now on (compiler.interrupts).", "",
+     "next", True),
+    ("INT_DISABLE", (("i", "interrupt"),), 0, 0, "Switch interrupt i off.", "", "next", True),
     ("TRIGGER_OUT", (("place", "place"), ("unit", "unit")), 3, 0,
      "A path trigger of the next move: set digital output n to value when the robot is amount (unit) from "
-     "place (compiler.triggers).", "amount n value ->", "next"),
+     "place (compiler.triggers).", "amount n value ->", "next", False),
     ("TRIGGER_SET", (("place", "place"), ("unit", "unit"), ("g", "global")), 2, 0,
      "A path trigger of the next move: store value into global variable g when the robot is amount (unit) from "
-     "place.", "amount value ->", "next"),
+     "place.", "amount value ->", "next", False),
 ]
 
 #: The types of the values on the stack (what a popped value must be, what is pushed). A
@@ -278,8 +284,9 @@ if _missing_types:  # pragma: no cover - the table is complete
     raise ImportError(f"compiler.objcode: no stack types for {', '.join(_missing_types)}")
 
 INSTRUCTIONS: tuple[InstrDef, ...] = tuple(
-    InstrDef(name, code, operands, pops, pushes, doc, effect, flow, tuple(_TYPES[name][0].split()), _TYPES[name][1])
-    for code, (name, operands, pops, pushes, doc, effect, flow) in enumerate(_DEFS)
+    InstrDef(name, code, operands, pops, pushes, doc, effect, flow, tuple(_TYPES[name][0].split()), _TYPES[name][1],
+             barrier)
+    for code, (name, operands, pops, pushes, doc, effect, flow, barrier) in enumerate(_DEFS)
 )
 BY_NAME: dict[str, InstrDef] = {d.name: d for d in INSTRUCTIONS}
 BY_CODE: dict[int, InstrDef] = {d.code: d for d in INSTRUCTIONS}

@@ -415,7 +415,7 @@ def _section_instructions() -> list[str]:
         operands = ", ".join(f"`{name}`: {kind}" for name, kind in d.operands) or "—"
         takes = " ".join(f"`{t}`" for t in d.takes) or "—"
         rows.append([d.code, f"`{d.name}`", operands, _code(d.effect) or "—", describe_pops(d), d.pushes,
-                     takes, f"`{d.gives}`" if d.gives else "—", f"`{d.flow}`", d.doc])
+                     takes, f"`{d.gives}`" if d.gives else "—", f"`{d.flow}`", "yes" if d.barrier else "—", d.doc])
     return [
         "## Instructions",
         "",
@@ -423,10 +423,16 @@ def _section_instructions() -> list[str]:
         "reads `before -> after`, the top of the stack on the right; *pops* and *pushes* are "
         "what the verifier counts (a formula when the count depends on the operands). *takes* "
         "are the types the popped values must have (deepest first; one pattern for a count that "
-        "depends on the operands: each value), *gives* the type of the value pushed (below).",
+        "depends on the operands: each value), *gives* the type of the value pushed (below). "
+        "*barrier*: the instruction is a barrier to the motion look-ahead. The runtime's VM runs "
+        "ahead of the robot (a move hands its request over and the program goes on), but an "
+        "instruction marked here acts where the robot is: the VM executes it only when every move "
+        "handed over has ended (inside an interrupt's handler at once: it acts beside the motion), "
+        "and until then the program waits before it with the stack untouched. (`DWELL` waits for "
+        "the motion too, after it has taken its seconds: the dwell starts when the robot stands.)",
         "",
         *_table(["code", "name", "operands", "stack effect", "pops", "pushes", "takes", "gives", "flow",
-                 "description"], rows),
+                 "barrier", "description"], rows),
         "",
         "### Stack types",
         "",

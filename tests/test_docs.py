@@ -66,13 +66,14 @@ def test_every_instruction_is_in_the_rendered_table():
     assert set(rows) == {d.name for d in INSTRUCTIONS}
     for d in INSTRUCTIONS:
         cells = rows[d.name]
-        assert len(cells) == 10, cells
+        assert len(cells) == 11, cells
         for name, kind in d.operands:
             assert f"`{name}`: {kind}" in cells[2]
         assert cells[5] == str(d.pushes)
         assert cells[6].replace("\\|", "|") == (" ".join(f"`{t}`" for t in d.takes) or "—")  # the types checked
         assert cells[7] == (f"`{d.gives}`" if d.gives else "—")
         assert cells[8] == f"`{d.flow}`"
+        assert cells[9] == ("yes" if d.barrier else "—")  # the motion look-ahead's barriers
         if isinstance(d.pops, int):
             assert cells[4] == str(d.pops)
         else:  # a variable count is described by a formula, never left open

@@ -183,6 +183,47 @@ def test_a_missing_handler_is_detected():
         build_dispatch(partial)
 
 
+class _LookAheadHost(FakeHost):
+    """A host with look-ahead room: a move does not end the step, the robot moves on."""
+
+    def __init__(self):
+        super().__init__(instant=False)
+
+    def queue_ready(self) -> bool:
+        return True
+
+
+@pytest.mark.parametrize("definition", [d for d in INSTRUCTIONS if d.barrier], ids=lambda d: d.name)
+def test_a_barrier_of_the_table_waits_for_the_motion_with_its_stack_untouched(definition, dispatch):
+    """The VM reads the instruction table's barrier column: while a move runs, each barrier
+    instruction waits before it (its own offset, nothing popped), whatever its operands."""
+    machine = VM(raw_program([(OP.END,)]), _LookAheadHost(), dispatch=dispatch)
+    machine.host.done = False  # a move handed over is running
+    machine.stack.append("untouched")
+    assert machine._handlers[definition.code](None, 7) == 7
+    assert machine.stack == ["untouched"] and machine.status == VMStatus.WAITING
+
+
+@pytest.mark.parametrize("barrier", [False, True])
+def test_the_look_ahead_stops_where_the_table_says(monkeypatch, barrier, dispatch):
+    """NOP made a barrier in the table: the program that ran on past it (look-ahead) now
+    waits before it until the move has ended."""
+    import dataclasses
+
+    table = tuple(dataclasses.replace(d, barrier=barrier) if d.name == "NOP" else d for d in INSTRUCTIONS)
+    monkeypatch.setattr(vm_module, "INSTRUCTIONS", table)
+    program = raw_program([(OP.CONST, 0), (OP.MOVE_PTP, 0), (OP.NOP,), (OP.END,)],
+                          (Joint((0.0, 0.0, 0.0, 0.0, 0.0, 0.0)),))
+    machine = VM(program, _LookAheadHost(), dispatch=dispatch)
+    status = machine.step()
+    assert len(machine.host.moves) == 1
+    if barrier:
+        assert status == VMStatus.WAITING and machine.offset == 2  # before the NOP, the robot moving
+        machine.host.finish()
+        status = machine.step()
+    assert status == VMStatus.DONE
+
+
 def test_both_dispatch_loops_agree_on_every_example_program(tmp_path):
     for path in sorted(PROGRAMS.glob("*.irl")):
         program = compile_text(tmp_path, path.read_text())

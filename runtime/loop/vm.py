@@ -243,7 +243,8 @@ class VM:
                       for instr in program.code]
         self._consts = list(program.constants)
         self._procs = [(p.entry, p.params, len(p.locals), p.name) for p in program.procedures]
-        self._handlers = [handler.__get__(self) for handler in HANDLERS]
+        self._handlers = [self._at_robot(handler.__get__(self)) if definition.barrier else handler.__get__(self)
+                          for definition, handler in zip(INSTRUCTIONS, HANDLERS)]
         self._run = self._run_inline if dispatch == "inline" else self._run_table
         self._here = 0  # offset of the instruction executing or last executed
         self._yield = False  # set by a handler: end this step after the instruction
@@ -434,11 +435,10 @@ class VM:
         self._armed = 0
         return self._end(self._here)
 
-    # enable and disable act where the robot is (as out[...] does): an interrupt guards the
-    # moves after its enable, and the moves before its disable
+    # enable and disable act where the robot is (barriers in the instruction table, as
+    # out[...] is): an interrupt guards the moves after its enable, and the moves before its
+    # disable
     def op_int_enable(self, i, pc):
-        if not self._at_robot():
-            return pc
         if not self._enabled[i]:
             self._enabled[i] = True
             self._armed += 1
@@ -446,8 +446,6 @@ class VM:
         return pc + 1
 
     def op_int_disable(self, i, pc):
-        if not self._at_robot():
-            return pc
         if self._enabled[i]:
             self._enabled[i] = False
             self._armed -= 1
@@ -482,17 +480,20 @@ class VM:
         self.status = WAITING
         self._yield = True
 
-    def _at_robot(self) -> bool:
-        """For an instruction that must happen where the robot really is (I/O, print,
-        ``wait for``, ``pause``): True when every move handed over has ended; else the
-        step ends waiting for the motion, and the instruction runs again after it (its
-        handler returns its own offset and has not touched the stack). In an interrupt's
-        handler, at once: it acts beside the motion."""
-        if self._handling is not None or self.host.motion_done():
-            return True
-        self._wait = _W_MOTION
-        self._block()
-        return False
+    def _at_robot(self, handler):
+        """The handler of an instruction the instruction table marks as a barrier to the
+        motion look-ahead (``InstrDef.barrier``: I/O, print, ``wait for``, ``pause``, switching
+        an interrupt): it must happen where the robot really is. It runs when every move
+        handed over has ended; else the step ends waiting for the motion, and the
+        instruction runs again after it (the stack untouched). In an interrupt's handler, at
+        once: it acts beside the motion."""
+        def at_robot(operand, pc):
+            if self._handling is not None or self.host.motion_done():
+                return handler(operand, pc)
+            self._wait = _W_MOTION
+            self._block()
+            return pc
+        return at_robot
 
     def _stop_with(self, message: str, offset: int) -> None:
         line, column = self.program.line_at(offset)
@@ -874,15 +875,11 @@ class VM:
     # The host reports an I/O number out of range as EvalError (its message stops the
     # program); any other exception is the host's failure (see _describe).
     def op_in_get(self, _, pc):
-        if not self._at_robot():
-            return pc
         stack = self.stack
         stack[-1] = bool(self.host.read_input(stack[-1]))
         return pc + 1
 
     def op_out_set(self, _, pc):
-        if not self._at_robot():
-            return pc
         stack = self.stack
         value = stack.pop()
         n = stack.pop()
@@ -955,8 +952,6 @@ class VM:
         return pc + 1
 
     def op_wait_begin(self, timeout, pc):
-        if not self._at_robot():
-            return pc
         if timeout:
             seconds = self.stack.pop()
             if seconds < 0:
@@ -982,8 +977,6 @@ class VM:
         return target
 
     def op_print(self, n, pc):
-        if not self._at_robot():
-            return pc
         parts, length = [], 0
         for v in self._pop_n(n):
             if length > MAX_STRING_LENGTH:
@@ -998,8 +991,6 @@ class VM:
         return pc + 1
 
     def op_pause(self, _, pc):
-        if not self._at_robot():
-            return pc
         self.paused = True
         self.host.log("paused by the program: resume to continue", self.program.line_at(pc)[0])
         self._block()

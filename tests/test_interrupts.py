@@ -116,15 +116,15 @@ def test_enable_and_disable_wait_for_the_moves_before_them(tmp_path):
     host = FakeHost(instant=False)
     machine = VM(program, host, 200)
     machine.step()
-    assert len(host.moves) == 1 and not machine._enabled[0]  # waiting at enable for the first move
+    assert len(host.moves) == 1 and not machine.interrupts.enabled[0]  # waiting at enable for the first move
     host.finish()
     machine.step()
-    assert len(host.moves) == 2 and machine._enabled[0]  # the second move is guarded ...
+    assert len(host.moves) == 2 and machine.interrupts.enabled[0]  # the second move is guarded ...
     machine.step()
-    assert machine._enabled[0]  # ... until it has ended
+    assert machine.interrupts.enabled[0]  # ... until it has ended
     host.finish()
     machine.step()
-    assert not machine._enabled[0] and machine.status == VMStatus.DONE
+    assert not machine.interrupts.enabled[0] and machine.status == VMStatus.DONE
 
 
 def test_a_handlers_io_and_waits_act_at_once_beside_the_motion(tmp_path):

@@ -171,16 +171,23 @@ def dispatch(request):
 def test_every_instruction_has_a_handler():
     assert len(HANDLERS) == len(INSTRUCTIONS)
     for definition in INSTRUCTIONS:
-        handler = HANDLERS[definition.code]
-        assert handler is getattr(VM, "op_" + definition.name.lower()), definition.name
+        owner, handler = HANDLERS[definition.code]
+        assert owner in vm_module.HANDLER_CLASSES
+        assert handler is getattr(owner, "op_" + definition.name.lower()), definition.name
         assert callable(handler)
 
 
 def test_a_missing_handler_is_detected():
-    attrs = {k: v for k, v in vars(VM).items() if k != "op_make_quat"}
-    partial = type("PartialVM", (), attrs)
+    attrs = {k: v for k, v in vars(vm_module.Memory).items() if k != "op_make_quat"}
+    partial = type("PartialMemory", (), attrs)
     with pytest.raises(ImportError, match="MAKE_QUAT"):
-        build_dispatch(partial)
+        build_dispatch((partial, vm_module.Interrupts, VM))
+
+
+def test_a_handler_written_twice_is_detected():
+    twice = type("Twice", (), {"op_make_quat": vm_module.Memory.op_make_quat})
+    with pytest.raises(ImportError, match=r"MAKE_QUAT \(Memory, Twice\)"):
+        build_dispatch(vm_module.HANDLER_CLASSES + (twice,))
 
 
 class _LookAheadHost(FakeHost):

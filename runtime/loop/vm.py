@@ -14,9 +14,17 @@ What the operators and built-in functions compute comes from
 A run-time error never escapes :meth:`VM.step`: the VM stops with status ``ERROR`` and
 a :class:`VMError` naming the source line.
 
-Dispatch. The handlers (``op_<name>`` methods, one per instruction) are collected from
-the instruction table when this module is imported, and the import fails if any
-instruction has none. Two loops run them:
+The parts. :class:`VM` steps the program (the program counter, the budget, the two
+dispatch loops, the status) and carries out the instructions that deal with the world
+through the host; :class:`Memory` holds the operand stack, the variables and the call
+frames; :class:`Waits` what a step waits for; :class:`Interrupts` the interrupts' state.
+
+Dispatch. The handlers (``op_<name>`` methods, one per instruction, each in the class whose
+state it works on: :data:`HANDLER_CLASSES`) are collected from the instruction table when
+this module is imported, and the import fails if any instruction has none, or two. The
+instructions the table marks as barriers to the motion look-ahead (``InstrDef.barrier``)
+run only where the robot is: the VM wraps their handlers (:meth:`VM._at_robot`). Two loops
+run them:
 
 * ``dispatch="inline"`` (the default): the most frequent instructions (loads, stores,
   constants, ``+ - *``, comparisons, jumps) are executed inline by an if-chain ordered
@@ -204,13 +212,455 @@ def _describe(exc: Exception, op: int | None = None) -> str:
     return f"internal error of the runtime{what}: not a fault of the program"
 
 
+class Memory:
+    """The program's data and its calls: the operand stack, the global slots, the local slots
+    of the routine running, the call frames; with the handlers of the instructions that only
+    compute on them (constants, loads and stores, operators, values, jumps, calls).
+
+    Real-time (its handlers run in the step); built once per program."""
+
+    def __init__(self, program: Program, max_call_depth: int):
+        self.stack: list = []
+        self.globals: list = [None] * len(program.globals)
+        self.locals: list = []  # the current procedure's slots (the main program has none)
+        self.frames: list[tuple[int, list]] = []  # (return offset, caller's locals)
+        self.max_call_depth = max_call_depth
+        self.consts = list(program.constants)
+        self.procs = [(p.entry, p.params, len(p.locals), p.name) for p in program.procedures]
+
+    def pop_n(self, n: int) -> list:
+        stack = self.stack
+        if not n:
+            return []
+        values = stack[-n:]
+        del stack[-n:]
+        return values
+
+    def enter_handler(self, proc: int) -> int:
+        """An interrupt's handler (procedure ``proc``, without parameters) starts: a frame
+        whose return goes back to the program (:data:`_FROM_INTERRUPT`). Returns its entry."""
+        entry, _params, slots, _name = self.procs[proc]
+        self.frames.append((_FROM_INTERRUPT, self.locals))
+        self.locals = [None] * slots
+        return entry
+
+    def leave(self) -> int:
+        """The routine running returns: the caller's slots again; returns where to go on
+        (:data:`_FROM_INTERRUPT` for an interrupt's handler)."""
+        back, self.locals = self.frames.pop()
+        return back
+
+    # -- the handlers: op_<name>(operand, pc) -> the next pc --------------------------------
+    # ``operand`` is None for an instruction without operands, the operand for one with
+    # one, and a tuple for one with two.
+
+    def op_nop(self, _, pc):
+        return pc + 1
+
+    def op_const(self, k, pc):
+        self.stack.append(self.consts[k])
+        return pc + 1
+
+    def op_load_global(self, g, pc):
+        self.stack.append(self.globals[g])
+        return pc + 1
+
+    def op_store_global(self, g, pc):
+        self.globals[g] = self.stack.pop()
+        return pc + 1
+
+    def op_load_local(self, slot, pc):
+        self.stack.append(self.locals[slot])
+        return pc + 1
+
+    def op_store_local(self, slot, pc):
+        self.locals[slot] = self.stack.pop()
+        return pc + 1
+
+    def op_copy(self, _, pc):
+        stack = self.stack
+        if type(stack[-1]) is list:
+            stack[-1] = copy_array(stack[-1])
+        return pc + 1
+
+    def op_to_real(self, _, pc):
+        stack = self.stack
+        stack[-1] = float(stack[-1])
+        return pc + 1
+
+    def op_neg(self, _, pc):
+        stack = self.stack
+        stack[-1] = unary("-", stack[-1])
+        return pc + 1
+
+    def op_not(self, _, pc):
+        stack = self.stack
+        stack[-1] = unary("not", stack[-1])
+        return pc + 1
+
+    def _binary(self, op: str, pc: int) -> int:
+        stack = self.stack
+        b = stack.pop()
+        stack[-1] = binary(op, stack[-1], b)
+        return pc + 1
+
+    def op_add(self, _, pc):
+        return self._binary("+", pc)
+
+    def op_sub(self, _, pc):
+        return self._binary("-", pc)
+
+    def op_mul(self, _, pc):
+        return self._binary("*", pc)
+
+    def op_div(self, _, pc):
+        return self._binary("/", pc)
+
+    def op_idiv(self, _, pc):
+        return self._binary("div", pc)
+
+    def op_mod(self, _, pc):
+        return self._binary("mod", pc)
+
+    def op_eq(self, _, pc):
+        return self._binary("=", pc)
+
+    def op_ne(self, _, pc):
+        return self._binary("<>", pc)
+
+    def op_lt(self, _, pc):
+        return self._binary("<", pc)
+
+    def op_le(self, _, pc):
+        return self._binary("<=", pc)
+
+    def op_gt(self, _, pc):
+        return self._binary(">", pc)
+
+    def op_ge(self, _, pc):
+        return self._binary(">=", pc)
+
+    def op_and(self, _, pc):
+        return self._binary("and", pc)
+
+    def op_or(self, _, pc):
+        return self._binary("or", pc)
+
+    def op_call_builtin(self, operands, pc):
+        fn, argc = operands
+        self.stack.append(call_builtin(BUILTIN_NAMES[fn], self.pop_n(argc)))
+        return pc + 1
+
+    def op_make_joint(self, operands, pc):
+        main, add = operands
+        values = self.pop_n(main + add)
+        self.stack.append(make_joint(values[:main], values[main:]))
+        return pc + 1
+
+    def op_make_pos(self, _, pc):
+        self.stack.append(make_pos(*self.pop_n(3)))
+        return pc + 1
+
+    def op_make_rpy(self, _, pc):
+        self.stack.append(make_rpy(*self.pop_n(3)))
+        return pc + 1
+
+    def op_make_quat(self, _, pc):
+        self.stack.append(make_quat(*self.pop_n(4)))
+        return pc + 1
+
+    def op_make_pose(self, _, pc):
+        stack = self.stack
+        orientation = stack.pop()
+        stack[-1] = Pose(stack[-1], orientation)
+        return pc + 1
+
+    def op_make_array(self, n, pc):
+        stack = self.stack
+        element = stack[-1]
+        if n * array_elements(element) > MAX_ARRAY_ELEMENTS:
+            raise EvalError(f"an array of {n} x {array_elements(element)} elements is larger than "
+                            f"{MAX_ARRAY_ELEMENTS} elements, the largest allowed")
+        if type(element) is list:
+            stack[-1] = [copy_array(element) for _ in range(n)]
+        else:
+            stack[-1] = [element] * n
+        return pc + 1
+
+    def op_get_item(self, low, pc):
+        stack = self.stack
+        index = stack.pop()
+        array = stack[-1]
+        stack[-1] = array[check_index(index, low, len(array))]
+        return pc + 1
+
+    def op_set_item(self, low, pc):
+        stack = self.stack
+        value = stack.pop()
+        index = stack.pop()
+        array = stack.pop()
+        array[check_index(index, low, len(array))] = value
+        return pc + 1
+
+    def op_get_axis(self, _, pc):
+        stack = self.stack
+        axis = stack.pop()
+        stack[-1] = get_axis(stack[-1], axis)
+        return pc + 1
+
+    def op_set_axis(self, _, pc):
+        stack = self.stack
+        value = stack.pop()
+        axis = stack.pop()
+        stack[-1] = set_axis(stack[-1], axis, value)
+        return pc + 1
+
+    def op_get_field(self, f, pc):
+        stack = self.stack
+        stack[-1] = get_field(stack[-1], FIELDS[f])
+        return pc + 1
+
+    def op_jump(self, target, pc):
+        return target
+
+    def op_jump_if_false(self, target, pc):
+        return pc + 1 if self.stack.pop() else target
+
+    def op_call(self, p, pc):
+        entry, params, slots, name = self.procs[p]
+        if len(self.frames) >= self.max_call_depth:
+            raise EvalError(f"too many nested procedure or function calls (more than {self.max_call_depth}) "
+                            f"calling {name}: is the recursion endless?")
+        frame = [None] * slots
+        if params:
+            stack = self.stack
+            frame[:params] = stack[-params:]
+            del stack[-params:]
+        self.frames.append((pc + 1, self.locals))
+        self.locals = frame
+        return entry
+
+    # A function is called as a procedure is; its RET_VALUE leaves the result on the stack,
+    # where the caller's expression goes on from (the verifier checked the depths).
+    op_call_func = op_call
+
+
+class Waits:
+    """What a step waits for before it can execute the next instruction: the motion, the
+    look-ahead queue's room, a dwell, and the time-out of a ``wait for``. Asks the host."""
+
+    def __init__(self, host: MotionHost):
+        self.host = host
+        self.kind = _NO_WAIT
+        self.dwell_seconds = 0.0
+        self.dwell_until: float | None = None
+        self.deadline: float | None = None  # of the current 'wait for', or None
+        self.timeout = 0.0
+        self._queue_ready = getattr(host, "queue_ready", host.motion_done)
+
+    def over(self) -> bool:
+        """Is the wait started by the last instruction over? (Asks the host.)"""
+        kind = self.kind
+        host = self.host
+        if kind == _W_QUEUE:
+            return self._queue_ready()
+        if kind == _W_MOTION:
+            return host.motion_done()
+        if kind == _W_DWELL:
+            if self.dwell_until is None:
+                if not host.motion_done():
+                    return False
+                self.dwell_until = host.now() + self.dwell_seconds
+            return host.now() >= self.dwell_until
+        return True
+
+    def start(self, kind: int) -> bool:
+        """Start a wait; True when it is over at once (then there is none)."""
+        self.kind = kind
+        if self.over():
+            self.kind = _NO_WAIT
+            return True
+        return False
+
+    def dwell(self, seconds, at_once: bool) -> bool:
+        """Start a dwell of ``seconds``: when the motion has ended, or ``at_once`` (in an
+        interrupt's handler, beside the motion). True when it is over at once."""
+        self.dwell_seconds = float(seconds)
+        self.dwell_until = self.host.now() + seconds if at_once else None
+        return self.start(_W_DWELL)
+
+    def begin_wait_for(self, timeout) -> None:
+        """A ``wait for`` starts: with a time-out in seconds, or None."""
+        if timeout is None:
+            self.deadline = None
+        else:
+            self.timeout = timeout
+            self.deadline = self.host.now() + timeout
+
+    def end_wait_for(self) -> None:
+        """The condition of the ``wait for`` holds."""
+        self.deadline = None
+
+    def timed_out(self) -> bool:
+        """Has the time-out of the ``wait for`` passed? (Then the wait is over.)"""
+        deadline = self.deadline
+        if deadline is not None and self.host.now() >= deadline:
+            self.deadline = None
+            return True
+        return False
+
+    def saved(self) -> tuple:
+        """The wait the program is in (an interrupt's handler runs meanwhile)."""
+        return self.kind, self.dwell_seconds, self.dwell_until, self.deadline, self.timeout
+
+    def restore(self, saved: tuple) -> None:
+        self.kind, self.dwell_seconds, self.dwell_until, self.deadline, self.timeout = saved
+
+
+class Interrupts:
+    """The program's interrupts (compiler.interrupts): which are enabled, their conditions
+    checked for an edge at each step, the pending ones, and the one whose handler runs (with
+    the program's state to go back to). With the handlers of INT_ENABLE and INT_DISABLE."""
+
+    def __init__(self, program: Program, host: MotionHost, memory: Memory, ops: list, args: list):
+        self.host = host
+        self._memory = memory  # (a condition reads the constants and the globals)
+        self._ops, self._args = ops, args
+        # per entry (name, condition entry, handler, stop, halt)
+        self.table = [(x.name, program.procedures[x.condition].entry, x.handler, x.stop, x.halt)
+                      for x in program.interrupts]
+        self.order = sorted(range(len(self.table)), key=lambda i: (program.interrupts[i].priority, i))
+        self.enabled = [False] * len(self.table)
+        self.was = [False] * len(self.table)  # its condition at the last check
+        self.pending = [False] * len(self.table)  # fired, its handler not run yet
+        self.armed = 0  # how many are enabled
+        self.handling: tuple | None = None  # (interrupt, the program's state to go back to, its line)
+
+    def check(self) -> None:
+        """Every enabled interrupt's condition: an edge (true now, not at the last check)
+        makes it pending, except while its own handler runs."""
+        handling = self.handling[0] if self.handling is not None else -1
+        for i, enabled in enumerate(self.enabled):
+            if enabled:
+                now = self._condition(i)
+                if now and not self.was[i] and i != handling:
+                    self.pending[i] = True
+                self.was[i] = now
+
+    def _condition(self, i: int) -> bool:
+        """Evaluate interrupt ``i``'s condition: straight-line code of the few instructions
+        the verifier allows there (compiler.interrupts.CONDITION_OPS); reads the inputs now."""
+        ops, args, consts, globals_ = self._ops, self._args, self._memory.consts, self._memory.globals
+        pc = self.table[i][1]
+        stack: list = []
+        while True:
+            op = ops[pc]
+            if op == OP.CONST:
+                stack.append(consts[args[pc]])
+            elif op == OP.LOAD_GLOBAL:
+                stack.append(globals_[args[pc]])
+            elif op == OP.IN_GET:
+                n = stack.pop()
+                try:
+                    stack.append(self.host.read_input(n))
+                except Exception as exc:  # the host's refusal (EvalError), or its failure
+                    raise EvalError(f"interrupt {self.table[i][0]}: {_describe(exc, op)}") from None
+            elif op == OP.NOT:
+                stack.append(not stack.pop())
+            elif op == OP.AND:
+                b = stack.pop()
+                stack[-1] = stack[-1] and b
+            elif op == OP.OR:
+                b = stack.pop()
+                stack[-1] = stack[-1] or b
+            else:  # RET_VALUE
+                value = stack.pop()
+                if type(value) is not bool:
+                    raise EvalError(f"interrupt {self.table[i][0]}: its condition is not a bool")
+                return value
+            pc += 1
+
+    def fire(self, line: int, saved: tuple) -> int:
+        """The pending interrupt of the highest priority fires while the program is at
+        ``line`` in state ``saved``: the motion stops on its path (``stop``), the log says
+        so. Returns its handler (a procedure), which the VM runs."""
+        i = next(k for k in self.order if self.pending[k])
+        self.pending[i] = False
+        name, _cond, handler, stop, _halt = self.table[i]
+        moving = self.host.motion_line()
+        line = line if moving is None else moving
+        if stop:
+            self.host.interrupt_stop()
+        self.host.log(f"interrupt {name} fired {'at' if moving is None else 'during the move at'} line {line}"
+                      f"{'' if stop else ' (the robot goes on)'}", line)
+        self.handling = (i, saved, line)
+        return handler
+
+    def handler_returned(self) -> tuple | None:
+        """The handler returned: the program's state to go on from (``then resume``, the
+        motion released after ``stop``), or None when the program ends (``then halt``:
+        :meth:`halt_program` follows)."""
+        i, saved, _line = self.handling
+        _name, _cond, _handler, stop, halt = self.table[i]
+        if halt:
+            return None
+        self.handling = None
+        if stop:
+            self.host.interrupt_release()
+        return saved
+
+    def halt_program(self) -> None:
+        """The program ends by the interrupt whose handler runs (``then halt``, or ``halt``
+        in the handler): stop on the path, drop the moves not made, switch every one off."""
+        i, _saved, line = self.handling
+        self.handling = None
+        name = self.table[i][0]
+        self.host.interrupt_halt(f"ended by interrupt {name}")
+        self.host.log(f"interrupt {name} ended the program (it fired at line {line})", line)
+        self.enabled = [False] * len(self.table)
+        self.armed = 0
+
+    def end_handling(self) -> None:
+        """The program stops with an error while an interrupt's handler runs: the handler
+        never returns, so an interrupt with ``stop`` would hold the motion for ever (the
+        program, waiting for its moves to end before its error ends it, with it). The
+        motion stops for good instead, its moves not made dropped (as ``then halt``): the
+        error then ends the program with the robot at rest."""
+        handling, self.handling = self.handling, None
+        if handling is not None and self.table[handling[0]][3]:
+            try:
+                self.host.interrupt_halt(f"program error in interrupt {self.table[handling[0]][0]}")
+            except Exception:  # never raise: the program has ended with its error anyway
+                pass
+
+    # enable and disable act where the robot is (barriers in the instruction table, as
+    # out[...] is): an interrupt guards the moves after its enable, and the moves before its
+    # disable
+    def op_int_enable(self, i, pc):
+        if not self.enabled[i]:
+            self.enabled[i] = True
+            self.armed += 1
+        self.was[i] = False  # a condition already true fires at the next check
+        return pc + 1
+
+    def op_int_disable(self, i, pc):
+        if self.enabled[i]:
+            self.enabled[i] = False
+            self.armed -= 1
+        self.pending[i] = False
+        return pc + 1
+
+
 class VM:
-    """Runs one program; see the module docstring.
+    """Runs one program; see the module docstring. The VM steps the program (the program
+    counter, the budget, the two dispatch loops) and carries out the instructions that deal
+    with the world through the host; its :class:`Memory` (the stack, variables and calls),
+    :class:`Waits` and :class:`Interrupts` hold the rest.
 
     Attributes: ``status`` (:class:`VMStatus`), ``error`` (:class:`VMError` or None),
     ``line`` (the line of the instruction executing or last executed),
     ``moves_issued`` (moves the host accepted), ``paused`` (by the operator or a
-    ``pause`` statement).
+    ``pause`` statement); ``stack``, ``globals`` and ``frames`` are the memory's.
     """
 
     def __init__(self, program: Program, host: MotionHost, budget: int = 200, *,
@@ -224,45 +674,41 @@ class VM:
         self.program = program
         self.host = host
         self.budget = budget
-        self.max_call_depth = max_call_depth
         self.status = READY
         self.error: VMError | None = None
         self.moves_issued = 0
         self.instructions = 0  # instructions executed so far
         self.paused = False
-        self._queue_ready = getattr(host, "queue_ready", host.motion_done)
-        # the machine
-        self.pc = 0
-        self.stack: list = []
-        self.globals: list = [None] * len(program.globals)
-        self.locals: list = []  # the current procedure's slots (the main program has none)
-        self.frames: list[tuple[int, list]] = []  # (return offset, caller's locals)
         # the code, flattened: opcode and operand (None, one int, or a tuple of ints)
         self._ops = [instr[0] for instr in program.code]
         self._args = [None if len(instr) == 1 else instr[1] if len(instr) == 2 else tuple(instr[1:])
                       for instr in program.code]
-        self._consts = list(program.constants)
-        self._procs = [(p.entry, p.params, len(p.locals), p.name) for p in program.procedures]
-        self._handlers = [self._at_robot(handler.__get__(self)) if definition.barrier else handler.__get__(self)
-                          for definition, handler in zip(INSTRUCTIONS, HANDLERS)]
+        self.memory = Memory(program, max_call_depth)
+        self.waits = Waits(host)
+        self.interrupts = Interrupts(program, host, self.memory, self._ops, self._args)
+        owners = {VM: self, Memory: self.memory, Interrupts: self.interrupts}
+        handlers = [handler.__get__(owners[owner]) for owner, handler in HANDLERS]
+        self._handlers = [self._at_robot(handler) if definition.barrier else handler
+                          for definition, handler in zip(INSTRUCTIONS, handlers)]
         self._run = self._run_inline if dispatch == "inline" else self._run_table
+        # stepping
+        self.pc = 0
         self._here = 0  # offset of the instruction executing or last executed
         self._yield = False  # set by a handler: end this step after the instruction
-        self._wait = _NO_WAIT
-        self._dwell_seconds = 0.0
-        self._dwell_until: float | None = None
-        self._deadline: float | None = None  # of the current 'wait for', or None
-        self._timeout = 0.0
-        # interrupts (compiler.interrupts): per entry (name, condition entry, handler, stop, halt)
-        self._ints = [(x.name, program.procedures[x.condition].entry, x.handler, x.stop, x.halt)
-                      for x in program.interrupts]
-        self._int_order = sorted(range(len(self._ints)), key=lambda i: (program.interrupts[i].priority, i))
-        self._enabled = [False] * len(self._ints)
-        self._was = [False] * len(self._ints)  # its condition at the last check
-        self._pending = [False] * len(self._ints)  # fired, its handler not run yet
-        self._armed = 0  # how many are enabled
-        self._handling: tuple | None = None  # (interrupt, the program's state to go back to, its line)
         self._back_here: int | None = None  # the program's offset, when a handler has just returned
+
+    # -- the memory's, by their old names ----------------------------------------------
+    @property
+    def stack(self) -> list:
+        return self.memory.stack
+
+    @property
+    def globals(self) -> list:
+        return self.memory.globals
+
+    @property
+    def frames(self) -> list:
+        return self.memory.frames
 
     # -- the operator's side (real-time) ------------------------------------------------
     @property
@@ -297,9 +743,9 @@ class VM:
         if self.status is not ERROR:
             self.error = VMError(message, line, 0, self._here)
             self.status = ERROR
-            self._wait = _NO_WAIT
+            self.waits.kind = _NO_WAIT
             self.paused = False
-            self._end_handling()
+            self.interrupts.end_handling()
 
     # -- running (real-time) --------------------------------------------------------------
     def step(self, deadline: float | None = None) -> VMStatus:
@@ -315,26 +761,28 @@ class VM:
             return status
         if self._back_here is not None:  # (the loop that ran the handler's RET ended at the handler)
             self._here, self._back_here = self._back_here, None
-        if self._armed:
+        interrupts = self.interrupts
+        if interrupts.armed:
             try:
-                self._check_interrupts()
+                interrupts.check()
             except Exception as exc:  # an input the host refuses: stop, never raise
                 self._stop_with(_describe(exc, OP.IN_GET), self._here)
                 return ERROR
         if self.paused:
             self.status = WAITING
             return WAITING
-        if self._handling is None and True in self._pending:
+        if interrupts.handling is None and True in interrupts.pending:
             self._fire()
-        if self._wait:
+        waits = self.waits
+        if waits.kind:
             try:
-                if not self._wait_over():
+                if not waits.over():
                     self.status = WAITING
                     return WAITING
             except Exception as exc:  # the host failed: stop, never raise
                 self._stop_with(_describe(exc, OP.WAIT_TEST), self._here)
                 return ERROR
-            self._wait = _NO_WAIT
+            waits.kind = _NO_WAIT
         self.status = RUNNING
         if deadline is None:
             self._run(self.budget)
@@ -348,132 +796,34 @@ class VM:
                 break
         return self.status
 
-    # -- interrupts (real-time) ----------------------------------------------------------
-    def _check_interrupts(self) -> None:
-        """Every enabled interrupt's condition: an edge (true now, not at the last check)
-        makes it pending, except while its own handler runs."""
-        handling = self._handling[0] if self._handling is not None else -1
-        for i, enabled in enumerate(self._enabled):
-            if enabled:
-                now = self._condition(i)
-                if now and not self._was[i] and i != handling:
-                    self._pending[i] = True
-                self._was[i] = now
-
-    def _condition(self, i: int) -> bool:
-        """Evaluate interrupt ``i``'s condition: straight-line code of the few instructions
-        the verifier allows there (compiler.interrupts.CONDITION_OPS); reads the inputs now."""
-        ops, args, consts, globals_ = self._ops, self._args, self._consts, self.globals
-        pc = self._ints[i][1]
-        stack: list = []
-        while True:
-            op = ops[pc]
-            if op == OP.CONST:
-                stack.append(consts[args[pc]])
-            elif op == OP.LOAD_GLOBAL:
-                stack.append(globals_[args[pc]])
-            elif op == OP.IN_GET:
-                n = stack.pop()
-                try:
-                    stack.append(self.host.read_input(n))
-                except Exception as exc:  # the host's refusal (EvalError), or its failure
-                    raise EvalError(f"interrupt {self._ints[i][0]}: {_describe(exc, op)}") from None
-            elif op == OP.NOT:
-                stack.append(not stack.pop())
-            elif op == OP.AND:
-                b = stack.pop()
-                stack[-1] = stack[-1] and b
-            elif op == OP.OR:
-                b = stack.pop()
-                stack[-1] = stack[-1] or b
-            else:  # RET_VALUE
-                value = stack.pop()
-                if type(value) is not bool:
-                    raise EvalError(f"interrupt {self._ints[i][0]}: its condition is not a bool")
-                return value
-            pc += 1
-
+    # -- interrupts (real-time): the program's side --------------------------------------
     def _fire(self) -> None:
         """Run the handler of the pending interrupt of the highest priority: the program's
         state is kept, the motion stops on its path (``stop``), the handler starts."""
-        i = next(k for k in self._int_order if self._pending[k])
-        self._pending[i] = False
-        name, _cond, handler, stop, _halt = self._ints[i]
-        moving = self.host.motion_line()
-        line = self.line if moving is None else moving
-        if stop:
-            self.host.interrupt_stop()
-        self.host.log(f"interrupt {name} fired {'at' if moving is None else 'during the move at'} line {line}"
-                      f"{'' if stop else ' (the robot goes on)'}", line)
-        self._handling = (i, (self.pc, self._here, self._wait, self._dwell_seconds, self._dwell_until,
-                              self._deadline, self._timeout), line)
-        entry, _params, slots, _name = self._procs[handler]
-        self.frames.append((_FROM_INTERRUPT, self.locals))
-        self.locals = [None] * slots
-        self.pc = entry
-        self._wait = _NO_WAIT
+        handler = self.interrupts.fire(self.line, (self.pc, self._here, self.waits.saved()))
+        self.pc = self.memory.enter_handler(handler)
+        self.waits.kind = _NO_WAIT
 
     def _handler_done(self) -> int:
         """The handler returned: the program goes on where it was (``then resume``), or
         ends (``then halt``). Ends the step (the inline loop's locals change)."""
-        i, saved, line = self._handling
-        self._handling = None
-        name, _cond, _handler, stop, halt = self._ints[i]
-        if halt:
-            return self._halt_by_interrupt(name, line)
-        if stop:
-            self.host.interrupt_release()
-        pc, self._back_here, self._wait, self._dwell_seconds, self._dwell_until, self._deadline, self._timeout = saved
+        saved = self.interrupts.handler_returned()
+        if saved is None:
+            return self._halt_by_interrupt()
+        pc, self._back_here, waits = saved
+        self.waits.restore(waits)
         self._yield = True
         return pc
 
-    def _halt_by_interrupt(self, name: str, line: int) -> int:
-        """The program ends by interrupt ``name`` (which fired at ``line``)."""
-        self.host.interrupt_halt(f"ended by interrupt {name}")
-        self.host.log(f"interrupt {name} ended the program (it fired at line {line})", line)
-        self._enabled = [False] * len(self._ints)
-        self._armed = 0
+    def _halt_by_interrupt(self) -> int:
+        """The program ends by the interrupt whose handler runs."""
+        self.interrupts.halt_program()
         return self._end(self._here)
 
-    # enable and disable act where the robot is (barriers in the instruction table, as
-    # out[...] is): an interrupt guards the moves after its enable, and the moves before its
-    # disable
-    def op_int_enable(self, i, pc):
-        if not self._enabled[i]:
-            self._enabled[i] = True
-            self._armed += 1
-        self._was[i] = False  # a condition already true fires at the next check
-        return pc + 1
-
-    def op_int_disable(self, i, pc):
-        if self._enabled[i]:
-            self._enabled[i] = False
-            self._armed -= 1
-        self._pending[i] = False
-        return pc + 1
-
-    def _wait_over(self) -> bool:
-        """Is the wait started by the last instruction over? (Asks the host.)"""
-        wait = self._wait
-        host = self.host
-        if wait == _W_QUEUE:
-            return self._queue_ready()
-        if wait == _W_MOTION:
-            return host.motion_done()
-        if wait == _W_DWELL:
-            if self._dwell_until is None:
-                if not host.motion_done():
-                    return False
-                self._dwell_until = host.now() + self._dwell_seconds
-            return host.now() >= self._dwell_until
-        return True
-
+    # -- ending a step ---------------------------------------------------------------------
     def _await(self, wait: int) -> None:
         """Start a wait; when it is not over at once, end the step with WAITING."""
-        self._wait = wait
-        if self._wait_over():
-            self._wait = _NO_WAIT
-        else:
+        if not self.waits.start(wait):
             self._block()
 
     def _block(self) -> None:
@@ -487,10 +837,12 @@ class VM:
         handed over has ended; else the step ends waiting for the motion, and the
         instruction runs again after it (the stack untouched). In an interrupt's handler, at
         once: it acts beside the motion."""
+        interrupts, host = self.interrupts, self.host
+
         def at_robot(operand, pc):
-            if self._handling is not None or self.host.motion_done():
+            if interrupts.handling is not None or host.motion_done():
                 return handler(operand, pc)
-            self._wait = _W_MOTION
+            self.waits.kind = _W_MOTION
             self._block()
             return pc
         return at_robot
@@ -500,21 +852,20 @@ class VM:
         self.error = VMError(message, line, column, offset)
         self.status = ERROR
         self._here = offset
-        self._wait = _NO_WAIT
-        self._end_handling()
+        self.waits.kind = _NO_WAIT
+        self.interrupts.end_handling()
 
-    def _end_handling(self) -> None:
-        """The program stops with an error while an interrupt's handler runs: the handler
-        never returns, so an interrupt with ``stop`` would hold the motion for ever (the
-        program, waiting for its moves to end before its error ends it, with it). The
-        motion stops for good instead, its moves not made dropped (as ``then halt``): the
-        error then ends the program with the robot at rest."""
-        handling, self._handling = self._handling, None
-        if handling is not None and self._ints[handling[0]][3]:
-            try:
-                self.host.interrupt_halt(f"program error in interrupt {self._ints[handling[0]][0]}")
-            except Exception:  # never raise: the program has ended with its error anyway
-                pass
+    def _ran(self, executed: int, pc: int, here: int) -> None:
+        """A dispatch loop's end: ``executed`` instructions, the next at ``pc``."""
+        self.instructions += executed
+        self.pc = pc
+        self._here = here
+
+    def _failed(self, executed: int, exc: Exception, here: int) -> None:
+        """A dispatch loop's end at an instruction that raised: the program stops with the
+        error at its line (never raised out of step())."""
+        self.instructions += executed
+        self._stop_with(_describe(exc, self._ops[here]), here)
 
     def _run_table(self, budget: int) -> None:
         """Every instruction through the handler table."""
@@ -530,21 +881,17 @@ class VM:
                     self._yield = False
                     break
         except Exception as exc:  # never raise out of step()
-            self.instructions += budget - n
-            self._stop_with(_describe(exc, ops[here]), here)
+            self._failed(budget - n, exc, here)
             return
-        self.instructions += budget - n
-        self.pc = pc
-        self._here = here
+        self._ran(budget - n, pc, here)
 
     def _run_inline(self, budget: int) -> None:
         """The frequent instructions inline, ordered by frequency; the rest through the
         handler table. Each inline case computes exactly what its handler computes."""
         n = budget
-        ops, args, consts, handlers = self._ops, self._args, self._consts, self._handlers
-        globals_ = self.globals
-        locals_ = self.locals
-        stack = self.stack
+        ops, args, handlers = self._ops, self._args, self._handlers
+        memory = self.memory
+        consts, globals_, locals_, stack = memory.consts, memory.globals, memory.locals, memory.stack
         push, pop = stack.append, stack.pop
         LOAD_GLOBAL, CONST, LOAD_LOCAL, STORE_GLOBAL, STORE_LOCAL = (
             OP.LOAD_GLOBAL, OP.CONST, OP.LOAD_LOCAL, OP.STORE_GLOBAL, OP.STORE_LOCAL)
@@ -650,237 +997,38 @@ class VM:
                     pc += 1
                 else:
                     pc = handlers[op](args[pc], pc)
-                    locals_ = self.locals  # CALL and RET switch frames
+                    locals_ = memory.locals  # CALL and RET switch frames
                     if self._yield:
                         self._yield = False
                         break
         except Exception as exc:  # never raise out of step()
-            self.instructions += budget - n
-            self._stop_with(_describe(exc, ops[here]), here)
+            self._failed(budget - n, exc, here)
             return
-        self.instructions += budget - n
-        self.pc = pc
-        self._here = here
+        self._ran(budget - n, pc, here)
 
-    # -- the handlers: op_<name>(operand, pc) -> the next pc --------------------------------
-    # ``operand`` is None for an instruction without operands, the operand for one with
-    # one, and a tuple for one with two. A handler that ends the step sets _yield (and
-    # the status).
-
-    def _pop_n(self, n: int) -> list:
-        stack = self.stack
-        if not n:
-            return []
-        values = stack[-n:]
-        del stack[-n:]
-        return values
-
-    def op_nop(self, _, pc):
-        return pc + 1
-
-    def op_const(self, k, pc):
-        self.stack.append(self._consts[k])
-        return pc + 1
-
-    def op_load_global(self, g, pc):
-        self.stack.append(self.globals[g])
-        return pc + 1
-
-    def op_store_global(self, g, pc):
-        self.globals[g] = self.stack.pop()
-        return pc + 1
-
-    def op_load_local(self, slot, pc):
-        self.stack.append(self.locals[slot])
-        return pc + 1
-
-    def op_store_local(self, slot, pc):
-        self.locals[slot] = self.stack.pop()
-        return pc + 1
-
-    def op_copy(self, _, pc):
-        stack = self.stack
-        if type(stack[-1]) is list:
-            stack[-1] = copy_array(stack[-1])
-        return pc + 1
-
-    def op_to_real(self, _, pc):
-        stack = self.stack
-        stack[-1] = float(stack[-1])
-        return pc + 1
-
-    def op_neg(self, _, pc):
-        stack = self.stack
-        stack[-1] = unary("-", stack[-1])
-        return pc + 1
-
-    def op_not(self, _, pc):
-        stack = self.stack
-        stack[-1] = unary("not", stack[-1])
-        return pc + 1
-
-    def _binary(self, op: str, pc: int) -> int:
-        stack = self.stack
-        b = stack.pop()
-        stack[-1] = binary(op, stack[-1], b)
-        return pc + 1
-
-    def op_add(self, _, pc):
-        return self._binary("+", pc)
-
-    def op_sub(self, _, pc):
-        return self._binary("-", pc)
-
-    def op_mul(self, _, pc):
-        return self._binary("*", pc)
-
-    def op_div(self, _, pc):
-        return self._binary("/", pc)
-
-    def op_idiv(self, _, pc):
-        return self._binary("div", pc)
-
-    def op_mod(self, _, pc):
-        return self._binary("mod", pc)
-
-    def op_eq(self, _, pc):
-        return self._binary("=", pc)
-
-    def op_ne(self, _, pc):
-        return self._binary("<>", pc)
-
-    def op_lt(self, _, pc):
-        return self._binary("<", pc)
-
-    def op_le(self, _, pc):
-        return self._binary("<=", pc)
-
-    def op_gt(self, _, pc):
-        return self._binary(">", pc)
-
-    def op_ge(self, _, pc):
-        return self._binary(">=", pc)
-
-    def op_and(self, _, pc):
-        return self._binary("and", pc)
-
-    def op_or(self, _, pc):
-        return self._binary("or", pc)
-
-    def op_call_builtin(self, operands, pc):
-        fn, argc = operands
-        self.stack.append(call_builtin(BUILTIN_NAMES[fn], self._pop_n(argc)))
-        return pc + 1
-
-    def op_make_joint(self, operands, pc):
-        main, add = operands
-        values = self._pop_n(main + add)
-        self.stack.append(make_joint(values[:main], values[main:]))
-        return pc + 1
-
-    def op_make_pos(self, _, pc):
-        self.stack.append(make_pos(*self._pop_n(3)))
-        return pc + 1
-
-    def op_make_rpy(self, _, pc):
-        self.stack.append(make_rpy(*self._pop_n(3)))
-        return pc + 1
-
-    def op_make_quat(self, _, pc):
-        self.stack.append(make_quat(*self._pop_n(4)))
-        return pc + 1
-
-    def op_make_pose(self, _, pc):
-        stack = self.stack
-        orientation = stack.pop()
-        stack[-1] = Pose(stack[-1], orientation)
-        return pc + 1
-
-    def op_make_array(self, n, pc):
-        stack = self.stack
-        element = stack[-1]
-        if n * array_elements(element) > MAX_ARRAY_ELEMENTS:
-            raise EvalError(f"an array of {n} x {array_elements(element)} elements is larger than "
-                            f"{MAX_ARRAY_ELEMENTS} elements, the largest allowed")
-        if type(element) is list:
-            stack[-1] = [copy_array(element) for _ in range(n)]
-        else:
-            stack[-1] = [element] * n
-        return pc + 1
-
-    def op_get_item(self, low, pc):
-        stack = self.stack
-        index = stack.pop()
-        array = stack[-1]
-        stack[-1] = array[check_index(index, low, len(array))]
-        return pc + 1
-
-    def op_set_item(self, low, pc):
-        stack = self.stack
-        value = stack.pop()
-        index = stack.pop()
-        array = stack.pop()
-        array[check_index(index, low, len(array))] = value
-        return pc + 1
-
-    def op_get_axis(self, _, pc):
-        stack = self.stack
-        axis = stack.pop()
-        stack[-1] = get_axis(stack[-1], axis)
-        return pc + 1
-
-    def op_set_axis(self, _, pc):
-        stack = self.stack
-        value = stack.pop()
-        axis = stack.pop()
-        stack[-1] = set_axis(stack[-1], axis, value)
-        return pc + 1
-
-    def op_get_field(self, f, pc):
-        stack = self.stack
-        stack[-1] = get_field(stack[-1], FIELDS[f])
-        return pc + 1
-
-    def op_jump(self, target, pc):
-        return target
-
-    def op_jump_if_false(self, target, pc):
-        return pc + 1 if self.stack.pop() else target
-
-    def op_call(self, p, pc):
-        entry, params, slots, name = self._procs[p]
-        if len(self.frames) >= self.max_call_depth:
-            raise EvalError(f"too many nested procedure or function calls (more than {self.max_call_depth}) "
-                            f"calling {name}: is the recursion endless?")
-        frame = [None] * slots
-        if params:
-            stack = self.stack
-            frame[:params] = stack[-params:]
-            del stack[-params:]
-        self.frames.append((pc + 1, self.locals))
-        self.locals = frame
-        return entry
+    # -- the handlers of the instructions that deal with the world, and of RET ----------------
+    # op_<name>(operand, pc) -> the next pc, as the memory's; a handler that ends the step
+    # sets _yield (and the status).
 
     def op_ret(self, _, pc):
-        back, self.locals = self.frames.pop()
+        back = self.memory.leave()
         if back == _FROM_INTERRUPT:
             return self._handler_done()
         return back
 
-    # A function is called as a procedure is; its RET_VALUE leaves the result on the stack,
+    # A function returns as a procedure does; its RET_VALUE leaves the result on the stack,
     # where the caller's expression goes on from (the verifier checked the depths).
-    op_call_func = op_call
     op_ret_value = op_ret
 
     # The host reports an I/O number out of range as EvalError (its message stops the
     # program); any other exception is the host's failure (see _describe).
     def op_in_get(self, _, pc):
-        stack = self.stack
+        stack = self.memory.stack
         stack[-1] = bool(self.host.read_input(stack[-1]))
         return pc + 1
 
     def op_out_set(self, _, pc):
-        stack = self.stack
+        stack = self.memory.stack
         value = stack.pop()
         n = stack.pop()
         self.host.write_output(n, value)
@@ -888,8 +1036,9 @@ class VM:
 
     def _move(self, kind: str, targets: int, mask: int, pc: int) -> int:
         names = _CLAUSE_NAMES[mask]
-        clauses = dict(zip(names, self._pop_n(len(names)))) if names else {}
-        problem = self.host.move(kind, tuple(self._pop_n(targets)), clauses, self.program.line_at(pc)[0])
+        pop_n = self.memory.pop_n
+        clauses = dict(zip(names, pop_n(len(names)))) if names else {}
+        problem = self.host.move(kind, tuple(pop_n(targets)), clauses, self.program.line_at(pc)[0])
         if problem is not None:
             raise EvalError(str(problem))
         self.moves_issued += 1
@@ -913,7 +1062,7 @@ class VM:
 
     def op_trigger_out(self, operands, pc):
         place, unit = operands
-        stack = self.stack
+        stack = self.memory.stack
         value, n, amount = stack.pop(), stack.pop(), stack.pop()
         problem = self.host.trigger(place, unit, amount, ("out", n, value))
         if problem is not None:
@@ -922,7 +1071,7 @@ class VM:
 
     def op_trigger_set(self, operands, pc):
         place, unit, g = operands
-        stack = self.stack
+        stack = self.memory.stack
         value, amount = stack.pop(), stack.pop()
         problem = self.host.trigger(place, unit, amount, ("set", g, value))
         if problem is not None:
@@ -930,7 +1079,7 @@ class VM:
         return pc + 1
 
     def _use(self, keyword: str, name: int, pc: int) -> int:
-        problem = self.host.use_frame(keyword, self.program.constants[name], self.stack.pop())
+        problem = self.host.use_frame(keyword, self.program.constants[name], self.memory.stack.pop())
         if problem is not None:
             raise EvalError(problem)
         return pc + 1
@@ -942,35 +1091,31 @@ class VM:
         return self._use("tool", name, pc)
 
     def op_dwell(self, _, pc):
-        seconds = self.stack.pop()
+        seconds = self.memory.stack.pop()
         if seconds < 0:
             raise EvalError(f"wait {format_number(seconds)} sec: a wait cannot be negative")
-        self._dwell_seconds = float(seconds)
         # (in an interrupt's handler the wait starts at once, beside the motion)
-        self._dwell_until = self.host.now() + seconds if self._handling is not None else None
-        self._await(_W_DWELL)
+        if not self.waits.dwell(seconds, at_once=self.interrupts.handling is not None):
+            self._block()
         return pc + 1
 
     def op_wait_begin(self, timeout, pc):
+        seconds = None
         if timeout:
-            seconds = self.stack.pop()
+            seconds = self.memory.stack.pop()
             if seconds < 0:
                 raise EvalError(f"wait for ... timeout {format_number(seconds)} sec: "
                                 f"a time-out cannot be negative")
-            self._timeout = seconds
-            self._deadline = self.host.now() + seconds
-        else:
-            self._deadline = None
+        self.waits.begin_wait_for(seconds)
         return pc + 1
 
     def op_wait_test(self, target, pc):
-        if self.stack.pop():
-            self._deadline = None
+        waits = self.waits
+        if self.memory.stack.pop():
+            waits.end_wait_for()
             return pc + 1
-        deadline = self._deadline
-        if deadline is not None and self.host.now() >= deadline:
-            self._deadline = None
-            self.host.log(f"wait for timed out after {format_number(self._timeout)} s",
+        if waits.timed_out():
+            self.host.log(f"wait for timed out after {format_number(waits.timeout)} s",
                           self.program.line_at(pc)[0])
             return pc + 1
         self._block()  # test again next cycle
@@ -978,7 +1123,7 @@ class VM:
 
     def op_print(self, n, pc):
         parts, length = [], 0
-        for v in self._pop_n(n):
+        for v in self.memory.pop_n(n):
             if length > MAX_STRING_LENGTH:
                 break
             part = v if type(v) is str else format_value(v)
@@ -1002,11 +1147,9 @@ class VM:
         return pc
 
     def op_halt(self, _, pc):
-        if self._handling is not None:  # 'halt' in a handler: as 'then halt'
+        if self.interrupts.handling is not None:  # 'halt' in a handler: as 'then halt'
             self._here = pc
-            i, _saved, line = self._handling
-            self._handling = None
-            return self._halt_by_interrupt(self._ints[i][0], line)
+            return self._halt_by_interrupt()
         return self._armed_end(pc)
 
     def op_end(self, _, pc):
@@ -1015,24 +1158,39 @@ class VM:
     def _armed_end(self, pc: int) -> int:
         """The program's end: with interrupts enabled, not before the motion has ended (so
         they can still fire during the last moves)."""
-        if self._armed and not self.host.motion_done():
-            self._wait = _W_MOTION
+        if self.interrupts.armed and not self.host.motion_done():
+            self.waits.kind = _W_MOTION
             self._block()
             return pc
         return self._end(pc)
 
 
-def build_dispatch(cls: type = VM) -> tuple:
-    """The handler of every instruction, indexed by opcode, from the instruction table.
-    Raises ImportError naming each instruction that has no ``op_<name>`` method."""
+#: The classes whose ``op_<name>`` methods are the instructions' handlers: each handler
+#: lives with the state it works on.
+HANDLER_CLASSES = (Memory, Interrupts, VM)
+
+
+def build_dispatch(classes: tuple = HANDLER_CLASSES) -> tuple:
+    """The handler of every instruction, indexed by opcode, from the instruction table:
+    (its class, its ``op_<name>`` function). Raises ImportError naming each instruction that
+    has no handler in ``classes``, or more than one."""
     if [d.code for d in INSTRUCTIONS] != list(range(len(INSTRUCTIONS))):
         raise ImportError("runtime.loop.vm: the instruction table's opcodes are not 0..n-1 in order")
-    handlers = [getattr(cls, "op_" + d.name.lower(), None) for d in INSTRUCTIONS]
-    missing = [d.name for d, h in zip(INSTRUCTIONS, handlers) if not callable(h)]
+    handlers, missing, twice = [], [], []
+    for d in INSTRUCTIONS:
+        found = [(cls, getattr(cls, "op_" + d.name.lower())) for cls in classes
+                 if callable(getattr(cls, "op_" + d.name.lower(), None))]
+        if not found:
+            missing.append(d.name)
+        elif len(found) > 1:
+            twice.append(f"{d.name} ({', '.join(cls.__name__ for cls, _ in found)})")
+        handlers.extend(found[:1])
     if missing:
         raise ImportError(f"runtime.loop.vm: no VM handler for instruction(s) {', '.join(missing)}")
+    if twice:
+        raise ImportError(f"runtime.loop.vm: more than one handler for instruction(s) {', '.join(twice)}")
     return tuple(handlers)
 
 
-#: The handler of each opcode (unbound ``VM.op_*`` functions); checked at import.
+#: The handler of each opcode: (its class, the unbound ``op_*`` function); checked at import.
 HANDLERS = build_dispatch()

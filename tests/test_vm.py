@@ -231,6 +231,102 @@ def test_the_look_ahead_stops_where_the_table_says(monkeypatch, barrier, dispatc
     assert status == VMStatus.DONE
 
 
+# ---- the inline fast path against the handler table --------------------------------------------
+
+def _inline_set() -> set[str]:
+    """The instructions the inline loop executes itself, found by running it: one instruction
+    each, every handler replaced by one that records its call (whatever the operands and the
+    stack: an inline instruction that fails on them has not called its handler either)."""
+    inline = set()
+    for definition in INSTRUCTIONS:
+        code = [(definition.code,) + (0,) * len(definition.operands), (OP.END,)]
+        machine = VM(raw_program(code), FakeHost(), budget=1, dispatch="inline")
+        called = []
+        machine._handlers = [lambda operand, pc, op=op: called.append(op) or pc + 1 for op in range(len(INSTRUCTIONS))]
+        machine.stack.extend([[0], 0, 0])
+        machine.memory.locals = [0]
+        machine.step()
+        if not called:
+            inline.add(definition.name)
+    return inline
+
+
+def test_the_inline_loop_executes_exactly_the_declared_instructions():
+    """vm.INLINE names instructions of the table, and is what the inline loop executes
+    itself: an instruction added to the loop, or to INLINE, alone fails here."""
+    assert set(vm_module.INLINE) <= {d.name for d in INSTRUCTIONS}
+    assert len(set(vm_module.INLINE)) == len(vm_module.INLINE)
+    assert _inline_set() == set(vm_module.INLINE)
+    assert set(_INLINE_CASES) == set(vm_module.INLINE)  # each has its property test below
+
+
+_FINITE = st.floats(allow_nan=False, allow_infinity=False)
+_NUMBER = st.one_of(st.integers(-(2 ** 63), 2 ** 63 - 1), st.integers(-100, 100), _FINITE)
+_VALUE = st.one_of(_NUMBER, st.text(max_size=3), st.booleans(),
+                   st.builds(Position, _FINITE, _FINITE, _FINITE),
+                   st.builds(Rpy, st.floats(-180, 180), st.floats(-90, 90), st.floats(-180, 180)))
+_SLOTS = st.lists(_VALUE, min_size=1, max_size=4)
+#: An operand of + - *: mostly numbers, the extremes too (overflow, non-finite results).
+_ARITHMETIC_OPERAND = st.one_of(_NUMBER, st.sampled_from([2 ** 63 - 1, -(2 ** 63), 1.7e308, -1.7e308]), _VALUE)
+
+
+def _ordered_pair(draw):
+    """Two values LT, LE, GT and GE take (the verifier's rule: two numbers or two strings)."""
+    strings = draw(st.booleans())
+    values = st.text(max_size=3) if strings else _NUMBER
+    return [draw(values), draw(values)]
+
+
+def _slot_case(draw, where: str, load: bool):
+    slots = draw(_SLOTS)
+    i = draw(st.integers(0, len(slots) - 1))
+    stack = [] if load else [draw(_VALUE)]
+    return {"operands": (i,), "stack": stack, where: slots}
+
+
+#: For each instruction of vm.INLINE: its operands and a state (stack, globals, locals,
+#: constants) of the values the verifier lets reach it.
+_INLINE_CASES = {
+    "LOAD_GLOBAL": lambda draw: _slot_case(draw, "globals", True),
+    "STORE_GLOBAL": lambda draw: _slot_case(draw, "globals", False),
+    "LOAD_LOCAL": lambda draw: _slot_case(draw, "locals", True),
+    "STORE_LOCAL": lambda draw: _slot_case(draw, "locals", False),
+    "CONST": lambda draw: _slot_case(draw, "consts", True),
+    "JUMP": lambda draw: {"operands": (draw(st.integers(0, 1)),), "stack": []},
+    "JUMP_IF_FALSE": lambda draw: {"operands": (draw(st.integers(0, 1)),), "stack": [draw(st.booleans())]},
+    "GET_ITEM": lambda draw: {"operands": (draw(st.integers(-3, 3)),),
+                              "stack": [draw(st.lists(_VALUE, max_size=5)),
+                                        draw(st.one_of(st.integers(-8, 8), st.integers(-(2 ** 63), 2 ** 63 - 1)))]},
+    **{name: (lambda draw: {"operands": (), "stack": [draw(_ARITHMETIC_OPERAND), draw(_ARITHMETIC_OPERAND)]})
+       for name in ("ADD", "SUB", "MUL")},
+    **{name: (lambda draw: {"operands": (), "stack": _ordered_pair(draw)}) for name in ("LT", "LE", "GT", "GE")},
+    **{name: (lambda draw: {"operands": (), "stack": [draw(_VALUE), draw(_VALUE)]}) for name in ("EQ", "NE")},
+}
+
+
+def _after_one(name: str, case: dict, dispatch: str) -> str:
+    """What one instruction leaves (status, error, next offset, stack, variables), as text
+    that tells 1 from 1.0 and True."""
+    program = raw_program([(getattr(OP, name),) + case["operands"], (OP.END,)], case.get("consts", ()),
+                          globals_=len(case.get("globals", ())))
+    machine = VM(program, FakeHost(), budget=1, dispatch=dispatch)
+    machine.globals[:] = case.get("globals", [])
+    machine.memory.locals = list(case.get("locals", []))
+    machine.stack.extend(case["stack"])
+    machine.step()
+    return repr((machine.status, machine.error and machine.error.message, machine.pc, machine.stack,
+                 machine.globals, machine.memory.locals))
+
+
+@settings(max_examples=400, deadline=None)
+@given(name=st.sampled_from(vm_module.INLINE), data=st.data())
+def test_each_inline_instruction_gives_what_its_handler_gives(name, data):
+    """Each instruction the inline loop executes itself leaves exactly what its handler in
+    the table leaves, errors included, on random operands of the types it takes."""
+    case = data.draw(st.composite(lambda draw: _INLINE_CASES[name](draw))())
+    assert _after_one(name, case, "inline") == _after_one(name, case, "table")
+
+
 def test_both_dispatch_loops_agree_on_every_example_program(tmp_path):
     for path in sorted(PROGRAMS.glob("*.irl")):
         program = compile_text(tmp_path, path.read_text())

@@ -26,9 +26,9 @@ instructions the table marks as barriers to the motion look-ahead (``InstrDef.ba
 run only where the robot is: the VM wraps their handlers (:meth:`VM._at_robot`). Two loops
 run them:
 
-* ``dispatch="inline"`` (the default): the most frequent instructions (loads, stores,
-  constants, ``+ - *``, comparisons, jumps) are executed inline by an if-chain ordered
-  by frequency, the others through the handler table;
+* ``dispatch="inline"`` (the default): the most frequent instructions (:data:`INLINE`:
+  loads, stores, constants, ``+ - *``, comparisons, jumps, array items) are executed inline
+  by an if-chain ordered by frequency, the others through the handler table;
 * ``dispatch="table"``: every instruction through the handler table. It is the
   reference the inline loop is tested against, and the baseline of
   ``benchmarks/vm_speed.py``.
@@ -58,6 +58,7 @@ Bounds (no program, and no forged object file, can stall the loop or exhaust mem
 from __future__ import annotations
 
 import enum
+import operator
 from dataclasses import dataclass
 from typing import Protocol
 
@@ -169,6 +170,20 @@ _NO_WAIT, _W_MOTION, _W_DWELL, _W_QUEUE = 0, 1, 2, 3
 _FROM_INTERRUPT = -1
 
 _CLAUSE_NAMES = tuple(tuple(clause_names(mask)) for mask in range(1 << 6))
+
+#: The instructions the inline dispatch loop (:meth:`VM._run_inline`) executes itself, the
+#: others going through their handlers. Each gives exactly what its handler gives:
+#: tests/test_vm.py runs both on random operands, and finds the loop's own set by running
+#: it, so an instruction added to the loop and not here (or here and not to the loop) fails.
+INLINE = ("LOAD_GLOBAL", "CONST", "LOAD_LOCAL", "STORE_GLOBAL", "STORE_LOCAL", "JUMP_IF_FALSE",
+          "ADD", "SUB", "MUL", "JUMP", "LE", "LT", "GE", "GT", "EQ", "NE", "GET_ITEM")
+
+# The inline loop's arithmetic (semantics.binary's operator of each) and comparisons.
+_SYMBOLS = {OP.ADD: "+", OP.SUB: "-", OP.MUL: "*"}
+_ARITHMETIC_OPS = frozenset(_SYMBOLS)
+_COMPARE = {OP.LE: operator.le, OP.LT: operator.lt, OP.GE: operator.ge, OP.GT: operator.gt, OP.EQ: operator.eq,
+            OP.NE: operator.ne}
+_COMPARISON_OPS = frozenset(_COMPARE)
 
 
 def array_elements(value) -> int:
@@ -886,8 +901,9 @@ class VM:
         self._ran(budget - n, pc, here)
 
     def _run_inline(self, budget: int) -> None:
-        """The frequent instructions inline, ordered by frequency; the rest through the
-        handler table. Each inline case computes exactly what its handler computes."""
+        """The instructions of :data:`INLINE` inline, ordered by frequency; the rest through
+        the handler table. Each inline case computes exactly what its handler computes
+        (tests/test_vm.py checks it on random operands)."""
         n = budget
         ops, args, handlers = self._ops, self._args, self._handlers
         memory = self.memory
@@ -895,9 +911,8 @@ class VM:
         push, pop = stack.append, stack.pop
         LOAD_GLOBAL, CONST, LOAD_LOCAL, STORE_GLOBAL, STORE_LOCAL = (
             OP.LOAD_GLOBAL, OP.CONST, OP.LOAD_LOCAL, OP.STORE_GLOBAL, OP.STORE_LOCAL)
-        JUMP_IF_FALSE, JUMP, ADD, SUB, MUL = OP.JUMP_IF_FALSE, OP.JUMP, OP.ADD, OP.SUB, OP.MUL
-        LT, LE, GT, GE, EQ, NE = OP.LT, OP.LE, OP.GT, OP.GE, OP.EQ, OP.NE
-        GET_ITEM = OP.GET_ITEM
+        JUMP_IF_FALSE, JUMP, ADD, SUB, GET_ITEM = OP.JUMP_IF_FALSE, OP.JUMP, OP.ADD, OP.SUB, OP.GET_ITEM
+        arithmetic, symbols, comparisons, compare = _ARITHMETIC_OPS, _SYMBOLS, _COMPARISON_OPS, _COMPARE
         lo, hi = INT_MIN, INT_MAX
         numbers = _NUMBER_TYPES
         pc = here = self.pc
@@ -923,69 +938,23 @@ class VM:
                     pc += 1
                 elif op == JUMP_IF_FALSE:
                     pc = pc + 1 if pop() else args[pc]
-                elif op == ADD:
+                elif op in arithmetic:
                     b = pop()
                     a = stack[-1]
-                    try:
-                        r = a + b
-                    except TypeError:  # positions, poses, orientations: semantics.binary
-                        r = None
-                    # the common results here; anything else (strings, overflow,
-                    # non-finite reals) through semantics.binary
-                    if (lo <= r <= hi) if type(r) is int else (type(r) is float and r - r == 0.0):
-                        stack[-1] = r
-                    else:
-                        stack[-1] = binary("+", a, b)
                     pc += 1
+                    # two numbers and a common result here; anything else (strings, positions,
+                    # poses, orientations, overflow, non-finite reals) through semantics.binary
+                    if type(a) in numbers and type(b) in numbers:
+                        r = a + b if op == ADD else a - b if op == SUB else a * b
+                        if (lo <= r <= hi) if type(r) is int else r - r == 0.0:
+                            stack[-1] = r
+                            continue
+                    stack[-1] = binary(symbols[op], a, b)
                 elif op == JUMP:
                     pc = args[pc]
-                elif op == LE:
+                elif op in comparisons:
                     b = pop()
-                    stack[-1] = stack[-1] <= b
-                    pc += 1
-                elif op == LT:
-                    b = pop()
-                    stack[-1] = stack[-1] < b
-                    pc += 1
-                elif op == GE:
-                    b = pop()
-                    stack[-1] = stack[-1] >= b
-                    pc += 1
-                elif op == GT:
-                    b = pop()
-                    stack[-1] = stack[-1] > b
-                    pc += 1
-                elif op == EQ:
-                    b = pop()
-                    stack[-1] = stack[-1] == b
-                    pc += 1
-                elif op == NE:
-                    b = pop()
-                    stack[-1] = stack[-1] != b
-                    pc += 1
-                elif op == SUB:
-                    b = pop()
-                    a = stack[-1]
-                    try:
-                        r = a - b
-                    except TypeError:  # positions, poses, orientations: semantics.binary
-                        r = None
-                    if (lo <= r <= hi) if type(r) is int else (type(r) is float and r - r == 0.0):
-                        stack[-1] = r
-                    else:
-                        stack[-1] = binary("-", a, b)
-                    pc += 1
-                elif op == MUL:
-                    b = pop()
-                    a = stack[-1]
-                    ta = type(a)
-                    # numbers only here: a string or an array times an integer (object code the
-                    # compiler never makes) would allocate before semantics.binary refuses it
-                    r = a * b if (ta is float or ta is int) and type(b) in numbers else None
-                    if (lo <= r <= hi) if type(r) is int else (type(r) is float and r - r == 0.0):
-                        stack[-1] = r
-                    else:
-                        stack[-1] = binary("*", a, b)
+                    stack[-1] = compare[op](stack[-1], b)
                     pc += 1
                 elif op == GET_ITEM:
                     index = pop()

@@ -24,7 +24,7 @@ ROOT = Path(__file__).resolve().parents[1]
 
 _CHILD = r"""
 import sys
-sys.path.insert(0, {root!r})
+sys.path[:0] = [{root!r}, {root!r} + "/benchmarks"]  # (sim_speed imports _stats beside it)
 from compiler.driver import compile_file
 from runtime.loop.system import RobotSystem, RunOptions
 from benchmarks.sim_speed import bare_loop

@@ -333,6 +333,12 @@ def run_options(spec, options: LoopOptions) -> RunOptions:
                       deadline_policy=options.deadline_policy, cell=cell, fieldbus=fieldbus)
 
 
+def in_process(spec, options: LoopOptions, send) -> RobotLoop:
+    """The loop in the server's own process (tests: ``ServeOptions(loop_process=False)``),
+    sending its messages through ``send``."""
+    return RobotLoop(spec, run_options(spec, options), send)
+
+
 def child(spec, options: LoopOptions, channel, servers_end) -> None:
     """The loop process (forked by the server: runtime/server/looplink.py): build the robot,
     ask for real-time scheduling, serve the loop."""

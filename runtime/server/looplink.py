@@ -13,7 +13,7 @@ import logging
 import time
 
 from runtime.wire import messages, protocol
-from runtime.wire.messages import EXIT_TIMEOUT, LoopOptions, Snapshot
+from runtime.wire.messages import EXIT_TIMEOUT, LOOP_MODULE, LoopOptions, Snapshot
 from runtime.wire.protocol import ProtocolError
 
 log = logging.getLogger("irl.serve")
@@ -47,9 +47,9 @@ class LoopRefused(LoopGone):
 def _loop_process(spec, options: LoopOptions, channel, servers_end) -> None:
     """The forked loop process: only here is the loop imported (the server's process has
     none of runtime.loop, runtime.motion, runtime.hardware)."""
-    from runtime.loop.robotloop import child
+    import importlib
 
-    child(spec, options, channel, servers_end)
+    importlib.import_module(LOOP_MODULE).child(spec, options, channel, servers_end)
 
 
 def start_process(spec, options: LoopOptions):
@@ -91,9 +91,9 @@ class LoopLink:
             self.process, self.channel = start_process(spec, options)
             ready = self._await("ready", LOOP_START_TIMEOUT)
         else:  # (tests: the loop in this process)
-            from runtime.loop.robotloop import RobotLoop, run_options
+            import importlib
 
-            self.loop = RobotLoop(spec, run_options(spec, options), self._from_loop)
+            self.loop = importlib.import_module(LOOP_MODULE).in_process(spec, options, self._from_loop)
             ready = self.loop.ready()
         self.snapshot = Snapshot.from_wire(ready["snapshot"])
         self.scheduling = ready["scheduling"]

@@ -14,6 +14,12 @@ from dataclasses import dataclass, field, fields
 from pathlib import Path
 from typing import ClassVar
 
+#: The loop process's module, by name: the server starts it (``child``) and, for tests, builds
+#: the loop in its own process (``in_process``) through this name alone, so the server's
+#: process imports nothing of runtime.loop, runtime.motion or runtime.hardware
+#: (tests/test_server_process.py checks its sys.modules; tests/house.py its imports).
+LOOP_MODULE = "runtime.loop.robotloop"
+
 #: How a user gets the wall clock, by command: said when a fieldbus needs it.
 WALL_CLOCK_HOW = {"run": "add --realtime", "serve": "drop --sim-clock"}
 

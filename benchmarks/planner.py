@@ -45,7 +45,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from compiler.spec import load_spec  # noqa: E402
-from runtime.motion.jerk import _minimum_duration, plan_ptp_jerk  # noqa: E402
+from runtime.motion.jerk import minimum_duration, plan_ptp_jerk  # noqa: E402
 from runtime.motion.planner import PtpInput  # noqa: E402
 from runtime.motion.planner import Result  # noqa: E402
 from _stats import LOLA15, arguments, percentiles  # noqa: E402
@@ -183,7 +183,7 @@ def main() -> int:
                 out.append(pc() - t0)
 
     line_extra = sorted(
-        dl - max(_minimum_duration(q - p, vi, ai, ji) for p, q, vi, ai, ji in zip(*move))
+        dl - max(minimum_duration(q - p, vi, ai, ji) for p, q, vi, ai, ji in zip(*move))
         for dl, move in zip(durations["line"], moves))
     diff_time = [x - y for x, y in zip(durations["time"], durations["ruckig"])]
     diff_line = [x - y for x, y in zip(durations["line"], durations["ruckig"])]

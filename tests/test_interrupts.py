@@ -270,7 +270,7 @@ START = (0.0, -30.0, 30.0, 0.0, 60.0, 0.0)
                                                 st.floats(-40, 40), st.floats(30, 80), st.floats(-60, 60)))
 # found by this test: the stop's last setpoint, a rounding error (1e-16 s) before its end, carried
 # accelerations of 1e16 deg/s^2 from central differences over that step; the servo's reference
-# jumped and the safety supervisor stopped the robot (runtime.motion.stops.MIN_DERIVATIVE_STEP)
+# jumped and the safety supervisor stopped the robot (runtime.motion.cartesian.MIN_DERIVATIVE_STEP)
 @example(kind="lin", into=0.0546875, hold=1.0, speed=0.75, end=(0.0, 0.0, 10.0, 1.0, 52.0, 0.0))
 # a stop that can only end at the target (found in CI): the move is done there, at rest
 @example(kind="lin", into=0.9499999999999998, hold=0.0625, speed=1.0, end=(0.0, 0.0, 10.0, 0.0, 30.0, 0.0))

@@ -687,3 +687,25 @@ def test_property_servo_evaluation_reproduces_sample_bit_for_bit(setpoints, time
             position, velocity = _servo_eval(interp, t + q)
             assert position == interp.sample(t + q)
             assert velocity == interp.sample_velocity(t + q)
+
+
+# ----------------------------------------------------------------------------- the package's layers
+
+
+def test_every_motion_module_imports_only_from_the_ones_before_it():
+    """runtime/motion/ is layered as its ``MODULES`` declares: no circle of imports (lazy and
+    type-checking ones included), no private name taken from another module, every module
+    in the list."""
+    import house
+    from runtime.motion import MODULES
+
+    prefix = "runtime.motion."
+    found = {name[len(prefix):] for name in house.modules() if name.startswith(prefix)}
+    assert found == set(MODULES), "runtime/motion/__init__.py MODULES lists every module once"
+    assert len(MODULES) == len(set(MODULES))
+    rank = {name: i for i, name in enumerate(MODULES)}
+    edges = [e for e in house.imports() if e.source.startswith(prefix) and e.target.startswith(prefix)]
+    upward = [f"{e.source} -> {e.target} (line {e.line})" for e in edges
+              if rank[e.target[len(prefix):]] >= rank[e.source[len(prefix):]]]
+    assert upward == [], "imports of a module at or above the importer in MODULES"
+    assert house.private_imports(edges) == []

@@ -10,14 +10,16 @@
   every axis starts and stops together and the slowest axis moves time-optimally.
 * :mod:`runtime.motion.jerk` -- seven-phase (double-S) jerk-limited profiles and
   ``plan_ptp_jerk(PtpInput)``, the default PTP planner (``[controller] profile``).
-* :mod:`runtime.motion.stops` -- controlled stops on a move's path (pause, abort).
+* :mod:`runtime.motion.stops` -- controlled stops on a move's path (pause, abort): the
+  joint-space ones (a lin or circ move's, :class:`runtime.motion.cartesian.PathStop`,
+  is beside the move's stream).
 * :mod:`runtime.motion.kinematics` -- forward and inverse kinematics of the
   specification's DH arm (spherical wrist, eight configurations).
 * :mod:`runtime.motion.rotation`, :mod:`runtime.motion.paths`,
   :mod:`runtime.motion.pathcheck`, :mod:`runtime.motion.cartesian` -- lin and circ moves:
   quaternions and slerp, the paths and their timing, the whole-path check, and
   ``plan_cartesian(CartesianInput)``: the move timed within every joint's limits and
-  streamed as joints every 5 ms.
+  streamed as joints every 5 ms (:mod:`runtime.motion.pathtiming`: its timing).
 * :mod:`runtime.motion.blend` -- blending a corner (``approx``): the overlap and its check.
 * :mod:`runtime.motion.moves`, :mod:`runtime.motion.motionqueue` -- a program's moves
   planned into segments, and the timeline that runs them (look-ahead, blending, the
@@ -30,4 +32,28 @@ accelerations per second squared, times in seconds. No NumPy in what a tick runs
 on six values is cheapest in plain Python floats, and the real-time loop must not pay
 NumPy's per-call overhead (the planning-time checks of paths and blends use NumPy).
 Importing this package imports nothing else.
+
+The modules form layers, declared once in :data:`MODULES` (lowest first): each imports
+only from the ones before it (tests/test_motion.py checks it), so there is no circle and
+each can be read knowing only what comes before it. No module imports another's private
+(``_name``) names: what two modules share is public in the lower one.
 """
+
+#: The package's modules, lowest first: each imports only from the ones before it.
+MODULES = (
+    "trajectory",  # the one Trajectory interface and the planners' Result
+    "profiles",  # one axis, trapezoidal
+    "stops",  # the joint-space stops (StopRamp, JerkStop, LineStop)
+    "planner",  # PtpInput, the trapezoidal PTP planner
+    "jerk",  # jerk-limited profiles and the jerk-limited PTP planner
+    "kinematics",  # forward and inverse kinematics
+    "rotation",  # quaternions, slerp
+    "pathtiming",  # a path's timing within the joints' limits
+    "interpolator",  # 5 ms setpoints to 1 ms references
+    "paths",  # lines and arcs, and their timing
+    "pathcheck",  # the whole-path check
+    "cartesian",  # lin and circ moves: JointStream, PathStop, plan_cartesian
+    "blend",  # the blend's overlap and its check
+    "moves",  # a program's move request planned into a segment
+    "motionqueue",  # the timeline
+)

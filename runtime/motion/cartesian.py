@@ -20,7 +20,8 @@ slowed down again (uniformly) should they break one (:func:`setpoint_ratios`).
 
 Per tick: :meth:`JointStream.sample` (about 29 us: one inverse kinematics per call when
 called at successive ticks ``t, t + period, ...``; it solves one period ahead and returns
-central-difference velocities). Plain floats and ``math``; no NumPy in a tick.
+central-difference velocities), and, once the move is paused or aborted, its stop on the
+line or arc (:class:`PathStop`). Plain floats and ``math``; no NumPy in a tick.
 """
 from __future__ import annotations
 
@@ -35,18 +36,46 @@ from compiler.values import Joint
 
 from runtime.timing import SETPOINT_PERIOD, TICK
 from runtime.motion.kinematics import Kinematics, KinematicsError
-from runtime.motion.stops import DERIVATIVE_STEP, MIN_DERIVATIVE_STEP, PathStop
+from runtime.motion.stops import JerkStop
 from runtime.motion.trajectory import Result, Trajectory
-from runtime.motion.pathcheck import CheckedPath, PathError, _percent, check_path, joint_limits
-from runtime.motion.paths import CircPath, LinPath, CartesianMove, _positive
+from runtime.motion.pathcheck import CheckedPath, PathError, check_path, joint_limits, percent
+from runtime.motion.paths import CircPath, LinPath, CartesianMove, positive
 from runtime.motion.pathtiming import (ConstantSpeed, PathProfile, nominal_profile, path_derivatives, path_profile,
                          predicted_ratios, uniform_scale, warped_profile)
 
-__all__ = ["JOINT_LIMIT_SHARE", "CartesianInput", "JointStream", "joint_limit_scale", "plan_cartesian"]
+__all__ = ["DERIVATIVE_STEP", "JOINT_LIMIT_SHARE", "MIN_DERIVATIVE_STEP", "CartesianInput", "JointStream",
+           "PathStop", "joint_limit_scale", "plan_cartesian"]
 
 
 # ============================================================================ per tick
 
+#: The half-width (s) of the central differences that give the joint velocities and
+#: accelerations of a move along a path (lin, circ, and their stops) at a setpoint.
+DERIVATIVE_STEP = 1e-4
+#: The smallest half-width used: closer to a path's end than this (a sample time a rounding
+#: error before it), the differences would divide rounding noise by its square (1e-12 s
+#: gave accelerations of 1e16 deg/s^2, which the servo's interpolator turned into a jump
+#: the safety supervisor stopped): the path is at rest there, so 0.
+MIN_DERIVATIVE_STEP = 1e-7
+
+_ZEROS6 = (0.0,) * 6
+
+
+def _central_differences(joints_at, t: float, q: tuple, duration: float) -> tuple[tuple, tuple]:
+    """Velocities and accelerations of the six main axes at ``t`` (0 < ``t`` <
+    ``duration``) of a path's joints ``joints_at(t, near)``, ``q`` the joints at ``t``:
+    central differences over +-DERIVATIVE_STEP, less near the ends, two more joint values
+    near ``q``; 0 within MIN_DERIVATIVE_STEP of an end (a rounding error from it, where
+    the path is at rest). What a lin or circ move (:class:`JointStream`) and its stop
+    (:class:`PathStop`) give as their velocities and accelerations. May raise
+    ``KinematicsError`` (from ``joints_at``)."""
+    e = min(DERIVATIVE_STEP, 0.5 * t, 0.5 * (duration - t))
+    if not e > MIN_DERIVATIVE_STEP:
+        return _ZEROS6, _ZEROS6
+    before, after = joints_at(t - e, q), joints_at(t + e, q)
+    k1, k2 = 0.5 / e, 1.0 / (e * e)
+    return (tuple([(c - a) * k1 for a, c in zip(before, after)]),
+            tuple([(a - 2.0 * b + c) * k2 for a, b, c in zip(before, q, after)]))
 
 
 class JointStream(Trajectory):
@@ -73,7 +102,7 @@ class JointStream(Trajectory):
 
     def __init__(self, checked: CheckedPath, period: float = SETPOINT_PERIOD, additional: Sequence[float] = ()):
         self.checked = checked
-        self.period = _positive("period", period)
+        self.period = positive("period", period)
         self.duration = checked.duration
         self.fault: str | None = None
         self._additional = add = tuple(float(v) for v in additional)
@@ -147,20 +176,13 @@ class JointStream(Trajectory):
 
     def stop(self, t: float, positions: tuple, velocities: tuple, rate: float = 1.0) -> PathStop:
         """Along the line or arc itself: the path speed to rest, jerk-limited within the
-        move's ``acc`` and jerk (:class:`runtime.motion.stops.PathStop`)."""
+        move's ``acc`` and jerk (:class:`PathStop`)."""
         return PathStop(self, t, positions, rate=rate)
 
     def _derivatives(self, t: float, q: tuple) -> tuple[tuple, tuple]:
         """Velocities and accelerations of the six main axes at ``t`` (q: the joints at
-        ``t``): central differences over +-DERIVATIVE_STEP; may raise KinematicsError."""
-        e = min(DERIVATIVE_STEP, 0.5 * t, 0.5 * (self.duration - t))
-        if not e > MIN_DERIVATIVE_STEP:  # a rounding error from an end, where the path is at rest
-            return self._zeros[:6], self._zeros[:6]
-        joints_at = self.checked.joints_at
-        before, after = joints_at(t - e, q), joints_at(t + e, q)
-        k1, k2 = 0.5 / e, 1.0 / (e * e)
-        return (tuple([(c - a) * k1 for a, c in zip(before, after)]),
-                tuple([(a - 2.0 * b + c) * k2 for a, b, c in zip(before, q, after)]))
+        ``t``): :func:`_central_differences`; may raise KinematicsError."""
+        return _central_differences(self.checked.joints_at, t, q, self.duration)
 
     def sample(self, t: float) -> tuple[tuple[float, ...], tuple[float, ...]]:
         duration = self.duration
@@ -182,7 +204,7 @@ class JointStream(Trajectory):
                 q = self.checked.joints_at(t)  # near: the check's nearest sample
             velocities, accelerations = self._derivatives(t, q)
         except KinematicsError as exc:
-            self.fault = (f"the arm cannot follow the path at {_percent(self.checked.move.fraction(t))} "
+            self.fault = (f"the arm cannot follow the path at {percent(self.checked.move.fraction(t))} "
                           f"of its length: {exc}")
             self._ac = None
             return (self._qc or self.checked.start_joints) + self._additional, self._zeros
@@ -226,6 +248,126 @@ class JointStream(Trajectory):
 
     def __repr__(self) -> str:
         return f"JointStream(duration={self.duration!r}, period={self.period!r})"
+
+
+class _ProfileRest:
+    """The rest of a path's profile from its time ``t``, run at ``rate``: what a stop on
+    the path does when stopping sooner within the limits of the stretch ahead would take
+    it past the path's end (the profile itself comes to rest there within every limit).
+    ``sample(t)`` gives the distance from the start, the speed and the acceleration, like
+    :class:`JerkStop`."""
+
+    __slots__ = ("duration", "distance", "_profile", "_t", "_rate", "_s0")
+
+    def __init__(self, profile, t: float, rate: float):
+        self._profile, self._t, self._rate = profile, t, rate
+        self._s0 = profile.sample(t)[0]
+        self.duration = max(profile.duration - t, 0.0) / rate
+        self.distance = profile.sample(profile.duration)[0] - self._s0
+
+    def sample(self, t: float) -> tuple[float, float, float]:
+        s, v, a = self._profile.sample(self._t + self._rate * max(t, 0.0))
+        return s - self._s0, v * self._rate, a * self._rate * self._rate
+
+
+class PathStop(Trajectory):
+    """A controlled stop **on** a Cartesian path (pause, abort): from the path parameter,
+    speed and acceleration of ``stream`` at its time ``t``, the path speed falls to rest
+    jerk-limited (:class:`runtime.motion.stops.JerkStop` within the move's ``acc`` and
+    jerk); every sample is one inverse kinematics of the path's pose
+    at ``s(t)`` near the last joints, so the tool stays on the line or arc. Velocities and
+    accelerations are central differences over +-DERIVATIVE_STEP of the path's joints
+    (two more inverse kinematics), as a move's stream gives them (0 at rest). Same interface as
+    :class:`JointStream`; ``s_end`` is where it stops (resume plans the rest from there).
+    Never raises: should an inverse kinematics fail, ``fault`` says why and the joints hold.
+    """
+
+    __slots__ = ("path", "kinematics", "duration", "s_end", "fault", "_s0", "_stop", "_last", "_last_t",
+                 "_add", "_zeros", "_end", "_acc")
+
+    def __init__(self, stream: JointStream, t: float, joints: Sequence[float], deceleration: float | None = None,
+                 rate: float = 1.0):
+        """``rate``: the stream was sampled at ``rate`` seconds of its time per real second
+        (a speed override): the real path speed is the profile's times ``rate``; the stop
+        itself is in real time, within the path acceleration and jerk of the stretch it
+        runs through (:meth:`runtime.motion.paths.CartesianMove.stop_limits`: the move's
+        ``acc`` and jerk, or less where the joints slowed the move down)."""
+        move = stream.checked.move
+        s0, v0, a0 = move.profile.sample(t)
+        limits = move.stop_limits(s0, v0 * rate, a0 * rate * rate)
+        self.path, self.kinematics = move.path, stream.checked.kinematics
+        if limits is not None:
+            acc, jerk = limits
+            self._stop = JerkStop(v0 * rate, a0 * rate * rate, acc if deceleration is None else deceleration, jerk)
+        if limits is None or s0 + self._stop.distance >= move.path.length:
+            self._stop = _ProfileRest(move.profile, t, rate)  # (no sooner stop keeps the limits: the move's own end)
+        self._s0 = s0
+        self.duration = self._stop.duration
+        self.s_end = min(s0 + self._stop.distance, move.path.length)
+        self.fault: str | None = None
+        self._add = tuple(joints[6:])
+        self._last = tuple(joints[:6])
+        self._last_t = 0.0
+        self._zeros = (0.0,) * len(joints)
+        self._end = None
+        self._acc = (None, None)  # (time, accelerations) of the last sample
+
+    def sample(self, t: float) -> tuple[tuple[float, ...], tuple[float, ...]]:
+        if t >= self.duration:
+            if self._end is None:
+                self._end = self._solve(self.s_end, self._last)
+            self._acc = (t, self._zeros)
+            return self._end + self._add, self._zeros
+        if not t > 0.0:
+            return self._last + self._add, self._zeros
+        q, velocities, accelerations = self._state(t, self._last)
+        self._last, self._last_t, self._acc = q, t, (t, accelerations + self._zeros[6:])
+        return q + self._add, velocities + self._zeros[6:]
+
+    def accelerations_at(self, t: float) -> tuple[float, ...]:
+        """The joints' accelerations at ``t`` (central differences of the path's joints
+        over +-DERIVATIVE_STEP, as the velocities :meth:`sample` gives): what the servo's
+        interpolator needs to keep the limits between the setpoints of a stop."""
+        if t == self._acc[0]:
+            return self._acc[1]
+        if t >= self.duration or not t > 0.0:
+            return self._zeros
+        return self._state(t, self._last)[2] + self._zeros[6:]
+
+    def _state(self, t: float, near: tuple) -> tuple[tuple, tuple, tuple]:
+        """The six main axes' positions, velocities and accelerations at ``t`` (0 <
+        ``t`` < duration): one inverse kinematics at ``t`` and two at +-DERIVATIVE_STEP
+        (less near the ends), central differences (:func:`_central_differences`)."""
+        q = self._joints_at(t, near)
+        velocities, accelerations = _central_differences(self._joints_at, t, q, self.duration)
+        return q, velocities, accelerations
+
+    def _joints_at(self, t: float, near: tuple) -> tuple[float, ...]:
+        """The six main axes at the stop's time ``t``, near ``near``."""
+        return self._solve(self._s_at(t), near)
+
+    def _s_at(self, t: float) -> float:
+        return min(self._s0 + self._stop.sample(t)[0], self.s_end)
+
+    def _solve(self, s: float, near: tuple) -> tuple[float, ...]:
+        try:
+            return tuple(self.kinematics.inverse(self.path.pose_at(s), near=near))
+        except KinematicsError as exc:
+            self.fault = self.fault or f"the stop left the arm's reach ({exc})"
+            return near
+
+    def rest(self, end: tuple = ()) -> tuple[str, tuple] | None:
+        """What is left of the path after the stop: ``("lin", (end,))`` or
+        ``("circ", (via, end))`` -- the arguments of :func:`plan_lin` / :func:`plan_circ`
+        from the stop on (the via point halfway along the rest of the arc); None when the
+        stop ends at the path's end (no sooner stop kept the limits: nothing is left)."""
+        path = self.path
+        if self.s_end >= path.length - 1e-9 * max(path.length, 1.0):
+            return None
+        end = path.pose_at(path.length)
+        if path.kind == "circ":
+            return "circ", (path.pose_at(0.5 * (self.s_end + path.length)), end)
+        return "lin", (end,)
 
 
 # ============================================================================ one call

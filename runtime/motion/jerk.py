@@ -113,7 +113,7 @@ from __future__ import annotations
 from math import cbrt, isfinite, sqrt
 from numbers import Real
 
-from runtime.motion.planner import DISTANCE_EPSILON, MAX_DURATION, PtpInput, SynchronizedTrajectory, _fmt
+from runtime.motion.planner import DISTANCE_EPSILON, MAX_DURATION, PtpInput, SynchronizedTrajectory, format_value
 from runtime.motion.stops import LineStop, StopRamp
 from runtime.motion.trajectory import Result, Trajectory
 
@@ -545,12 +545,12 @@ def _validate(values: tuple) -> tuple[Result, str]:
                         f"axis {i + 1}: {name} must be a number, got {value!r}")
             if not isfinite(value):
                 return (Result.ERROR_INVALID_INPUT,
-                        f"axis {i + 1}: {name} must be finite, got {_fmt(value)}")
+                        f"axis {i + 1}: {name} must be finite, got {format_value(value)}")
     for name, seq in zip(_QUANTITIES[2:], sequences[2:]):
         for i, value in enumerate(seq):
             if not value > 0:
                 return (Result.ERROR_INVALID_INPUT,
-                        f"axis {i + 1}: {name} must be positive, got {_fmt(value)}")
+                        f"axis {i + 1}: {name} must be positive, got {format_value(value)}")
     return Result.WORKING, ""
 
 
@@ -577,10 +577,11 @@ def _plainly_valid(current, target, velocity, acceleration, jerk) -> bool:
 
 def _too_long(duration, slowest, distances, v_max, a_max, j_max):
     return (Result.ERROR_LIMITS, None,
-            f"axis {slowest + 1}: the move needs {_fmt(duration)} s, more than "
-            f"{_fmt(MAX_DURATION)} s (max_velocity {_fmt(v_max[slowest])}, "
-            f"max_acceleration {_fmt(a_max[slowest])}, max_jerk {_fmt(j_max[slowest])}, "
-            f"distance {_fmt(distances[slowest])})")
+            f"axis {slowest + 1}: the move needs {format_value(duration)} s, more than "
+            f"{format_value(MAX_DURATION)} s (max_velocity {format_value(v_max[slowest])}, "
+            f"max_acceleration {format_value(a_max[slowest])}, "
+            f"max_jerk {format_value(j_max[slowest])}, "
+            f"distance {format_value(distances[slowest])})")
 
 
 def _too_short(distances, minima, v_max, a_max, j_max):
@@ -589,8 +590,9 @@ def _too_short(distances, minima, v_max, a_max, j_max):
     axis = next(i for i, (d, t) in enumerate(zip(distances, minima)) if d != 0.0 and not t > 0.0)
     return (Result.ERROR_LIMITS, None,
             f"axis {axis + 1}: the limits are too large for the distance, the move would take "
-            f"0 s (max_velocity {_fmt(v_max[axis])}, max_acceleration {_fmt(a_max[axis])}, "
-            f"max_jerk {_fmt(j_max[axis])}, distance {_fmt(distances[axis])})")
+            f"0 s (max_velocity {format_value(v_max[axis])}, "
+            f"max_acceleration {format_value(a_max[axis])}, "
+            f"max_jerk {format_value(j_max[axis])}, distance {format_value(distances[axis])})")
 
 
 def plan_ptp_jerk(inp: PtpInput) -> tuple[Result, JerkPtpTrajectory | None, str]:
@@ -647,7 +649,7 @@ def plan_ptp_jerk(inp: PtpInput) -> tuple[Result, JerkPtpTrajectory | None, str]
                 if d - d != 0.0:  # +-inf (or NaN): the subtraction overflowed
                     return (Result.ERROR_INVALID_INPUT, None,
                             f"axis {i + 1}: target_position - current_position overflows, "
-                            f"got {_fmt(target[i])} - {_fmt(start[i])}")
+                            f"got {format_value(target[i])} - {format_value(start[i])}")
                 distances[i] = 0.0  # closer than DISTANCE_EPSILON: no motion at all
                 snapped = True
         if snapped:

@@ -40,7 +40,7 @@ from __future__ import annotations
 
 from bisect import bisect_left
 from dataclasses import dataclass
-from math import atan2, ceil, floor, inf, log10, pi, sqrt
+from math import atan2, ceil, floor, inf, log10, sqrt
 from typing import Sequence
 
 from compiler.spec import Axis, Spec
@@ -54,10 +54,11 @@ from runtime.motion.kinematics import (
     KinematicsError,
     configuration_name,
 )
-from runtime.motion.paths import CartesianMove, _positive
-from runtime.motion.rotation import matrix_to_quat, quat_angle, rpy_to_quat
+from runtime.motion.paths import CartesianMove, positive
+from runtime.motion.rotation import R2D, matrix_to_quat, quat_angle, rpy_to_quat
 
-__all__ = ["CheckedPath", "JointLimits", "joint_limits", "MAX_JOINT_STEP", "MIN_SAMPLES", "PathError", "START_TOL", "check_path"]
+__all__ = ["CheckedPath", "JointLimits", "joint_limits", "MAX_JOINT_STEP", "MIN_SAMPLES", "PathError", "START_TOL",
+           "check_path", "percent"]
 
 #: deg: a joint moving more than this between two check samples is a jump
 MAX_JOINT_STEP = 10.0
@@ -67,8 +68,6 @@ MIN_SAMPLES = 50
 #: this much (mm, deg)
 START_TOL = 1e-3
 
-
-_R2D = 180.0 / pi
 
 
 class PathError(ValueError):
@@ -92,7 +91,9 @@ class PathError(ValueError):
 # ============================================================================ the check
 
 
-def _percent(fraction: float) -> str:
+def percent(fraction: float) -> str:
+    """Where along a path (``fraction`` 0..1) as a message says it: ``"37 %"``, and a
+    tenth of a percent next to either end (``"0.4 %"``, ``"99.6 %"``)."""
     p = 100.0 * fraction
     if 0.0 < p < 1.0 or 99.0 < p < 100.0:
         return f"{p:.1f} %"
@@ -228,9 +229,9 @@ def check_path(move: CartesianMove, kinematics: Kinematics, start_joints: Sequen
     q = _start_joints(start_joints)
     limits = joint_limits(axis_limits)
     pos_limits, vel_limits, acc_limits = limits.positions, limits.velocity, limits.acceleration
-    step = _positive("step", step)
-    step_deg = _positive("step_deg", step_deg)
-    max_joint_step = _positive("max_joint_step", max_joint_step)
+    step = positive("step", step)
+    step_deg = positive("step_deg", step_deg)
+    max_joint_step = positive("max_joint_step", max_joint_step)
     if check_acceleration and acc_limits is None:
         raise ValueError("check_acceleration needs axis_limits with max_acceleration (the spec's axes)")
     path, profile = move.path, move.profile
@@ -282,7 +283,7 @@ def check_path(move: CartesianMove, kinematics: Kinematics, start_joints: Sequen
         if pos_limits is not None:
             for j, ((lo, hi), v) in enumerate(zip(pos_limits, qi)):
                 if not lo - 1e-9 <= v <= hi + 1e-9:
-                    raise PathError(f"the path leaves the axis limits at {_percent(fraction)} of its "
+                    raise PathError(f"the path leaves the axis limits at {percent(fraction)} of its "
                                     f"length ({names[j]} would be {v:.2f} deg, limit {lo:g}..{hi:g})",
                                     fraction, "limit", names[j])
         c, m = configuration_and_margins(qi)
@@ -334,19 +335,19 @@ def check_path(move: CartesianMove, kinematics: Kinematics, start_joints: Sequen
         fit = min((vel_limits[k] / gain[k] for k in range(6) if gain[k] > 0.0), default=inf)
         hint = f" (to at most {_nice_speed(fit)} mm/s)" if fit < move.speed else ""
         raise PathError(f"{names[j]} would need {need:.0f} deg/s (limit {vel_limits[j]:g}) at "
-                        f"{_percent(fraction)} of the path: lower the speed{hint}",
+                        f"{percent(fraction)} of the path: lower the speed{hint}",
                         fraction, "velocity", names[j])
     if worst_acceleration is not None:
         _, j, need, fraction = worst_acceleration
         raise PathError(f"{names[j]} would need {need:.0f} deg/s^2 (limit {acc_limits[j]:g}) at "
-                        f"{_percent(fraction)} of the path: lower the acceleration (acc) or the speed",
+                        f"{percent(fraction)} of the path: lower the acceleration (acc) or the speed",
                         fraction, "acceleration", names[j])
     return CheckedPath(move, kinematics, _start_joints(start_joints), tuple(times),
                        tuple(fractions), tuple(joints), tuple(peak), tuple(min_margins))
 
 
 def _kinematics_failure(text: str, fraction: float) -> PathError:
-    at = _percent(fraction)
+    at = percent(fraction)
     if text.startswith("unreachable: "):
         return PathError(f"the path leaves the arm's reach at {at} of its length "
                          f"({text[len('unreachable: '):]})", fraction, "unreachable")
@@ -369,7 +370,7 @@ def _configuration_failure(before: int, after: int, fraction: float, names, q0, 
     passes through a singularity. (Over axis 1 the elbow bit, defined in world terms,
     changes with the shoulder bit.)"""
     changed = before ^ after
-    at = _percent(fraction)
+    at = percent(fraction)
     axis = None
     parts = []
     if changed & SHOULDER_BACK:
@@ -398,7 +399,7 @@ def _jump_failure(kinematics, pose, q0, q1, config0: int, config1: int, axis: in
     kinematics fell back to another one); the axis runs into a limit and its solution
     wrapped by 360 deg; the path passes next to a singularity; else the solution jumps."""
     names = kinematics.names
-    at = _percent(fraction)
+    at = percent(fraction)
     dq = q1[axis] - q0[axis]
     turn = (f"{names[axis]} would turn {abs(dq):.1f} deg between two points of the path "
             f"(the arm would change from {configuration_name(config0)} to "
@@ -443,4 +444,4 @@ def _jump_failure(kinematics, pose, q0, q1, config0: int, config1: int, axis: in
 
 
 def _asin_deg(x: float) -> float:
-    return atan2(x, sqrt(max(1.0 - x * x, 0.0))) * _R2D
+    return atan2(x, sqrt(max(1.0 - x * x, 0.0))) * R2D

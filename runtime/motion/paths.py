@@ -47,15 +47,16 @@ from __future__ import annotations
 
 from math import atan2, cos, inf, isfinite, pi, sin, sqrt
 
+from compiler.geometry import rpy_of_quat
 from compiler.values import Pose, Quat
 
 from runtime.motion.jerk import time_optimal_profile
 from runtime.motion.kinematics import matrix_to_rpy
 from runtime.motion.pathtiming import PathProfile
-from runtime.motion.rotation import _R2D, _Slerp, _rpy_of_quat, quat_to_rpy, rpy_to_quat
+from runtime.motion.rotation import R2D, Slerp, quat_to_rpy, rpy_to_quat
 
 __all__ = ["CartesianMove", "CircPath", "DEFAULT_JERK_FACTOR", "LinPath", "ORIENTATION_RADIUS", "POINT_TOL",
-           "pose_tuple"]
+           "pose_tuple", "positive"]
 
 #: mm per rad: a rotation by ``angle`` counts as ``angle * ORIENTATION_RADIUS`` mm of path
 ORIENTATION_RADIUS = 100.0
@@ -146,9 +147,9 @@ class _Path:
             raise ValueError(f"orientation_radius must be positive and finite, got {orientation_radius!r}")
         self.start, self.end = start, end
         self.orientation_radius = orientation_radius
-        self._slerp = sl = _Slerp(rpy_to_quat(*start[3:]), rpy_to_quat(*end[3:]))
+        self._slerp = sl = Slerp(rpy_to_quat(*start[3:]), rpy_to_quat(*end[3:]))
         self._turns = sl.angle > 0.0
-        self.rotation_angle = sl.angle * _R2D
+        self.rotation_angle = sl.angle * R2D
         self.position_length = position_length
         self.length = length = max(position_length, sl.angle * orientation_radius)
         self._inv_length = 1.0 / length if length > 0.0 else 0.0
@@ -165,7 +166,7 @@ class _Path:
     def _rpy_at(self, u: float) -> tuple[float, float, float]:
         if not self._turns:
             return self.start[3:]
-        return _rpy_of_quat(*self._slerp(u))
+        return rpy_of_quat(*self._slerp(u))
 
     def pose_at(self, s: float) -> tuple[float, float, float, float, float, float]:
         """The pose ``(x, y, z, roll, pitch, yaw)`` at path length ``s`` (mm): the start
@@ -290,8 +291,8 @@ class CircPath(_Path):
         self._re1 = (radius * e1[0], radius * e1[1], radius * e1[2])
         self._re2 = (radius * e2[0], radius * e2[1], radius * e2[2])
         self._sweep = sweep
-        self.angle = sweep * _R2D
-        self.via_angle = via_angle * _R2D
+        self.angle = sweep * R2D
+        self.via_angle = via_angle * R2D
         self._setup(start, end, radius * sweep, orientation_radius)
         self.via_length = self.length * via_angle / sweep
 
@@ -315,7 +316,9 @@ class CircPath(_Path):
 # ============================================================================ timing
 
 
-def _positive(name: str, value) -> float:
+def positive(name: str, value) -> float:
+    """``value`` as a float, or ``ValueError`` naming ``name`` unless it is a positive,
+    finite number (not a bool): the check of a move's and a path check's limits."""
     if isinstance(value, bool):
         raise ValueError(f"{name} must be a positive number, got {value!r}")
     try:
@@ -344,9 +347,9 @@ class CartesianMove:
     __slots__ = ("path", "speed", "acc", "jerk", "profile", "duration", "_tcp_ratio")
 
     def __init__(self, path: _Path, speed: float, acc: float, jerk: float | None = None, profile=None):
-        self.speed = speed = _positive("speed", speed)
-        self.acc = acc = _positive("acc", acc)
-        self.jerk = jerk = _positive("jerk", DEFAULT_JERK_FACTOR * acc if jerk is None else jerk)
+        self.speed = speed = positive("speed", speed)
+        self.acc = acc = positive("acc", acc)
+        self.jerk = jerk = positive("jerk", DEFAULT_JERK_FACTOR * acc if jerk is None else jerk)
         self.path = path
         self.profile = time_optimal_profile(0.0, path.length, speed, acc, jerk) if profile is None else profile
         self.duration = self.profile.duration

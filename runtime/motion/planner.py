@@ -39,16 +39,19 @@ from runtime.motion.stops import StopRamp
 from runtime.motion.trajectory import Result, Trajectory
 from runtime.motion.profiles import (
     TrapezoidalProfile,
-    _minimum_duration,
-    _profile_with_duration,
-    _time_optimal_profile,
+    unchecked_minimum_duration,
+    unchecked_profile_with_duration,
+    unchecked_time_optimal_profile,
 )
 
 __all__ = [
+    "DISTANCE_EPSILON",
     "MAX_DURATION",
     "PtpInput",
     "PtpTrajectory",
     "Result",
+    "SynchronizedTrajectory",
+    "format_value",
     "plan_ptp",
     "scaled_limits",
 ]
@@ -196,7 +199,7 @@ class PtpTrajectory(SynchronizedTrajectory):
                 f"degrees_of_freedom={len(self.profiles)})")
 
 
-def _fmt(value: object) -> str:
+def format_value(value: object) -> str:
     """A value for a message: ``0`` rather than ``0.0``, full precision otherwise."""
     if isinstance(value, float):
         if value == value and value.is_integer() and abs(value) < 1e16:
@@ -237,29 +240,29 @@ def _validate(inp: PtpInput) -> tuple[Result, str]:
                         f"axis {i + 1}: {name} must be a number, got {value!r}")
             if not isfinite(value):
                 return (Result.ERROR_INVALID_INPUT,
-                        f"axis {i + 1}: {name} must be finite, got {_fmt(value)}")
+                        f"axis {i + 1}: {name} must be finite, got {format_value(value)}")
     for name in ("max_velocity", "max_acceleration"):
         for i, value in enumerate(sequences[name]):
             if not value > 0:
                 return (Result.ERROR_INVALID_INPUT,
-                        f"axis {i + 1}: {name} must be positive, got {_fmt(value)}")
+                        f"axis {i + 1}: {name} must be positive, got {format_value(value)}")
     lows, highs = sequences.get("min_position"), sequences.get("max_position")
     if lows is not None and highs is not None:
         for i in range(n):
             if not lows[i] <= highs[i]:
                 return (Result.ERROR_INVALID_INPUT,
-                        f"axis {i + 1}: min_position {_fmt(lows[i])} is above "
-                        f"max_position {_fmt(highs[i])}")
+                        f"axis {i + 1}: min_position {format_value(lows[i])} is above "
+                        f"max_position {format_value(highs[i])}")
     targets = sequences["target_position"]
     for i in range(n):
         if lows is not None and targets[i] < lows[i]:
             return (Result.ERROR_POSITION_LIMITS,
-                    f"axis {i + 1}: target_position {_fmt(targets[i])} is below "
-                    f"min_position {_fmt(lows[i])}")
+                    f"axis {i + 1}: target_position {format_value(targets[i])} is below "
+                    f"min_position {format_value(lows[i])}")
         if highs is not None and targets[i] > highs[i]:
             return (Result.ERROR_POSITION_LIMITS,
-                    f"axis {i + 1}: target_position {_fmt(targets[i])} is above "
-                    f"max_position {_fmt(highs[i])}")
+                    f"axis {i + 1}: target_position {format_value(targets[i])} is above "
+                    f"max_position {format_value(highs[i])}")
     return Result.WORKING, ""
 
 
@@ -321,24 +324,24 @@ def plan_ptp(inp: PtpInput) -> tuple[Result, PtpTrajectory | None, str]:
             if not d - d == 0.0:
                 return (Result.ERROR_INVALID_INPUT, None,
                         f"axis {i + 1}: target_position - current_position overflows, got "
-                        f"{_fmt(target[i])} - {_fmt(start[i])}")
+                        f"{format_value(target[i])} - {format_value(start[i])}")
             if -DISTANCE_EPSILON < d < DISTANCE_EPSILON:  # already there: no motion at all
                 d = 0.0
                 start = start[:i] + (target[i],) + start[i + 1:]
             distances[i] = d
-            minima[i] = _minimum_duration(d, v_max[i], a_max[i])
+            minima[i] = unchecked_minimum_duration(d, v_max[i], a_max[i])
         duration = max(minima)
         slowest = minima.index(duration)
         if not duration <= MAX_DURATION:
             return (Result.ERROR_LIMITS, None,
-                    f"axis {slowest + 1}: the move needs {_fmt(duration)} s, more than "
-                    f"{_fmt(MAX_DURATION)} s (max_velocity {_fmt(v_max[slowest])}, "
-                    f"max_acceleration {_fmt(a_max[slowest])}, distance "
-                    f"{_fmt(distances[slowest])})")
+                    f"axis {slowest + 1}: the move needs {format_value(duration)} s, more than "
+                    f"{format_value(MAX_DURATION)} s (max_velocity {format_value(v_max[slowest])}, "
+                    f"max_acceleration {format_value(a_max[slowest])}, distance "
+                    f"{format_value(distances[slowest])})")
         profiles = tuple([
-            _time_optimal_profile(start[i], distances[i], v_max[i], a_max[i])
+            unchecked_time_optimal_profile(start[i], distances[i], v_max[i], a_max[i])
             if minima[i] == duration else
-            _profile_with_duration(start[i], distances[i], v_max[i], a_max[i], duration)
+            unchecked_profile_with_duration(start[i], distances[i], v_max[i], a_max[i], duration)
             for i in range(n)])
         trajectory = PtpTrajectory(profiles, duration, slowest, start, target, a_max)
         return (Result.WORKING if duration > 0.0 else Result.FINISHED), trajectory, ""
@@ -365,7 +368,7 @@ def scaled_limits(axes_max_velocity, axes_max_acceleration, speed_ptp: float,
     for name, value in (("speed_ptp", speed_ptp), ("acc_ptp", acc_ptp)):
         rng = BY_NAME[name].range_for("ptp")
         if not (isinstance(value, Real) and isfinite(value) and rng.contains(value, None)):
-            raise ValueError(f"{name} must be a fraction {rng.expected('x', None)}, got {_fmt(value)}")
+            raise ValueError(f"{name} must be a fraction {rng.expected('x', None)}, got {format_value(value)}")
     velocities = tuple(float(v) * speed_ptp for v in axes_max_velocity)
     accelerations = tuple(float(a) * acc_ptp for a in axes_max_acceleration)
     if len(velocities) != len(accelerations):

@@ -44,6 +44,9 @@ __all__ = [
     "minimum_duration",
     "time_optimal_profile",
     "profile_with_duration",
+    "unchecked_minimum_duration",
+    "unchecked_profile_with_duration",
+    "unchecked_time_optimal_profile",
 ]
 
 # A requested duration may fall short of the minimum by this relative amount (rounding
@@ -131,14 +134,14 @@ def minimum_duration(distance: float, max_velocity: float, max_acceleration: flo
     May be ``inf`` when the limits are tiny against the distance.
     """
     _check_limits(max_velocity, max_acceleration)
-    return _minimum_duration(distance, max_velocity, max_acceleration)
+    return unchecked_minimum_duration(distance, max_velocity, max_acceleration)
 
 
 def time_optimal_profile(start: float, distance: float, max_velocity: float,
                          max_acceleration: float) -> TrapezoidalProfile:
     """The fastest rest-to-rest profile from ``start`` over the signed ``distance``."""
     _check_limits(max_velocity, max_acceleration)
-    return _time_optimal_profile(start, distance, max_velocity, max_acceleration)
+    return unchecked_time_optimal_profile(start, distance, max_velocity, max_acceleration)
 
 
 def profile_with_duration(start: float, distance: float, max_velocity: float,
@@ -168,22 +171,22 @@ def profile_with_duration(start: float, distance: float, max_velocity: float,
     if not (duration >= t_min * (1.0 - _DURATION_SLACK) and duration < float("inf")):
         raise ValueError(f"duration must be finite and at least the minimum {t_min!r} s, "
                          f"got {duration!r}")
-    return _profile_with_duration(start, distance, max_velocity, max_acceleration, duration)
+    return unchecked_profile_with_duration(start, distance, max_velocity, max_acceleration, duration)
 
 
-# The unchecked forms, for the planner, which has validated its input and knows that
-# the duration is at least each axis's minimum. Same arithmetic, no checks.
+# The unchecked forms, for the planner (runtime.motion.planner), which has validated its
+# input and knows that the duration is at least each axis's minimum. Same arithmetic, no
+# checks: for valid input only.
 
 
-def _minimum_duration(distance: float, v: float, a: float) -> float:
+def unchecked_minimum_duration(distance: float, v: float, a: float) -> float:
     d = abs(distance)
     if d * a < v * v:
         return 2.0 * sqrt(d / a)
     return d / v + v / a
 
 
-def _time_optimal_profile(start: float, distance: float, v: float,
-                          a: float) -> TrapezoidalProfile:
+def unchecked_time_optimal_profile(start: float, distance: float, v: float, a: float) -> TrapezoidalProfile:
     d = abs(distance)
     sign = -1.0 if distance < 0.0 else 1.0
     if d * a < v * v:  # triangular: the peak velocity sqrt(a d) stays below v
@@ -193,8 +196,8 @@ def _time_optimal_profile(start: float, distance: float, v: float,
     return TrapezoidalProfile(start, distance, sign * v, sign * a, t_acc, d / v + t_acc)
 
 
-def _profile_with_duration(start: float, distance: float, max_velocity: float, a: float,
-                           big_t: float) -> TrapezoidalProfile:
+def unchecked_profile_with_duration(start: float, distance: float, max_velocity: float, a: float,
+                                    big_t: float) -> TrapezoidalProfile:
     sign = -1.0 if distance < 0.0 else 1.0
     d = abs(distance)
     if d == 0.0:

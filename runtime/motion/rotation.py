@@ -5,7 +5,7 @@
 * **Roll/pitch/yaw** in deg with the convention of :mod:`runtime.motion.kinematics`:
   ``R = Rz(yaw) Ry(pitch) Rx(roll)``; returned angles have pitch in [-90, 90], roll and
   yaw in [-180, 180].
-* **Slerp** (:func:`slerp`, :class:`_Slerp` for many samples of one pair): the shortest
+* **Slerp** (:func:`slerp`, :class:`Slerp` for many samples of one pair): the shortest
   arc between two orientations, at a constant angular rate about one fixed axis.
 
 Plain floats and ``math``; no NumPy (sampled every tick).
@@ -16,13 +16,12 @@ from math import atan2, pi, sin, sqrt
 
 from compiler.geometry import quat_multiply, quat_to_rpy, rpy_to_quat
 from compiler.geometry import unit_rotation as _unit
-from compiler.geometry import rpy_of_quat as _rpy_of_quat  # noqa: F401  (runtime.motion.paths)
 
-__all__ = ["matrix_to_quat", "quat_angle", "quat_multiply", "quat_to_matrix", "quat_to_rpy", "rpy_to_quat",
-           "slerp"]
+__all__ = ["R2D", "Slerp", "matrix_to_quat", "quat_angle", "quat_multiply", "quat_to_matrix", "quat_to_rpy",
+           "rpy_to_quat", "slerp"]
 
-_D2R = pi / 180.0
-_R2D = 180.0 / pi
+#: degrees per radian
+R2D = 180.0 / pi
 # below this slerp angle (rad) the slerp weights use their series (error ~ omega^4 / 100)
 _SMALL_ANGLE = 1e-4
 
@@ -78,7 +77,7 @@ def _half_angle(q0, q1) -> float:
 
 def quat_angle(q0, q1) -> float:
     """The rotation angle (deg, 0..180) that turns orientation ``q0`` into ``q1``."""
-    return 2.0 * _half_angle(_unit(q0), _unit(q1)) * _R2D
+    return 2.0 * _half_angle(_unit(q0), _unit(q1)) * R2D
 
 
 def _sin_ratio(k: float, omega: float, inv_sin: float) -> float:
@@ -89,8 +88,11 @@ def _sin_ratio(k: float, omega: float, inv_sin: float) -> float:
     return sin(k * omega) * inv_sin
 
 
-class _Slerp:
-    """Slerp from ``q0`` to ``q1`` with the constants worked out once (for the paths)."""
+class Slerp:
+    """Slerp from ``q0`` to ``q1`` with the constants worked out once: ``Slerp(q0,
+    q1)(u)`` is :func:`slerp` ``(q0, q1, u)``, for the many samples of a path's
+    orientation (:mod:`runtime.motion.paths`). ``angle``: the rotation (rad) from ``q0``
+    to ``q1``."""
 
     __slots__ = ("q0", "q1", "omega", "inv_sin", "angle")
 
@@ -123,4 +125,4 @@ def slerp(q0, q1, s: float) -> tuple[float, float, float, float]:
     way ``q1`` is given is taken). The weights ``sin((1 - s) omega) / sin(omega)`` and
     ``sin(s omega) / sin(omega)`` use their series for tiny ``omega``; the result is
     renormalised. ``s`` outside 0..1 extrapolates along the same great circle."""
-    return _Slerp(q0, q1)(s)
+    return Slerp(q0, q1)(s)

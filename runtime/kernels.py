@@ -271,6 +271,8 @@ LIMIT_SLACK = 1e-7
 STEP_MATCH = 1e-9
 _EPS = 2.220446049250313e-16
 _INF = math.inf
+#: what a candidate function returns with False: no segment of that kind
+_NO_SEGMENT: tuple[float, ...] = ()
 
 
 def hermite_segment(p0: float, v0: float, p1: float, v1: float, h: float) -> tuple[float, ...]:
@@ -477,6 +479,109 @@ def _end_fix(c: tuple[float, ...], p1: float, nu1: float, al1: float,
     return fixed, 1.875 * dp + dv + 0.068 * da, 5.78 * dp + 3.95 * dv + da, 60.0 * dp + 36.0 * dv + 9.0 * da
 
 
+def _switch_candidate(kind: int, p0: float, nu0: float, al0: float, al1: float, mv: float, mp: float, pr: float,
+                      vr: float, ar: float, vl: float, al: float,
+                      jl: float) -> tuple[bool, tuple[float, ...], float, float, float]:
+    """:func:`segment`'s candidate ``kind`` 1-9, continuous in acceleration (switches of jerk),
+    from the setpoints in s units (``nu0``, ``al0``, ``al1``: the velocity and the accelerations;
+    ``mv``, ``mp``: the integrals of the acceleration and of (1 - s) times it; ``pr``, ``vr``,
+    ``ar``: what the quintic has to make up): ``(True, segment, velocity, acceleration and
+    jerk ratios)``, or ``(False, ...)`` where that kind has no segment."""
+    if kind == 1:  # one switch of jerk: the moments of the jerk are 1, 2 (1 - s), 3 (1 - s)^2
+        m0 = ar
+        m1 = 2.0 * vr
+        m2 = 6.0 * pr
+        den = m0 + m2 - 2.0 * m1
+        if den != 0.0:
+            g1 = (m0 * m2 - m1 * m1) / den
+            if m0 != g1:
+                w = (m1 - g1) / (m0 - g1)  # the length of the second piece
+                if 0.0 < w < 1.0:
+                    sk = 1.0 - w
+                    am = al0 + g1 * sk
+                    candidate = (p0, nu0, 0.5 * al0, g1 / 6.0, 0.0, 0.0, sk, 0.0, (m0 - g1) / w / 6.0, NO_BREAK,
+                                 0.0, 0.0)
+                    rv, ra, rj = _linear_ratios(nu0, al0, sk, am, am, sk, am, am, al1, vl, al, jl)
+                    return True, candidate, rv, ra, rj
+    elif kind <= 7:  # two switches around a constant acceleration c: 0, +amax, -amax
+        c = 0.0 if kind <= 3 else al if kind <= 5 else -al
+        if c - c == 0.0:  # (a finite level)
+            b0 = al0 - c
+            b1 = al1 - c
+            bv = mv - c
+            bp = mp - 0.5 * c
+            if b1 != 0.0:
+                n, x1, x2 = _roots2(b0 * (b0 - b1), b0 * (3.0 * b1 - 4.0 * bv), 4.0 * bv * bv - 6.0 * b1 * bp)
+                if n > (kind - 2) % 2:
+                    t1 = x1 if kind % 2 == 0 else x2
+                    t2 = (2.0 * bv - b0 * t1) / b1  # the length of the last piece
+                    if t1 >= 0.0 and t2 > 0.0 and t1 + t2 <= 1.0 and (t1 > 0.0 or b0 == 0.0):
+                        g1 = -b0 / t1 if t1 > 0.0 else 0.0
+                        g2 = b1 / t2
+                        candidate = (p0, nu0, 0.5 * al0, g1 / 6.0, 0.0, 0.0, t1, 0.0, -g1 / 6.0, 1.0 - t2, 0.0,
+                                     g2 / 6.0)
+                        rv, ra, rj = _linear_ratios(nu0, al0, t1, c, c, 1.0 - t2, c, c, al1, vl, al, jl)
+                        return True, candidate, rv, ra, rj
+    elif kind <= 9:  # a0 constant, a ramp, a1 constant
+        if al0 != al1:
+            q1 = 2.0 * (mv - al1) / (al0 - al1)
+            q2 = (mp - 0.5 * al1) / (al0 - al1)
+            n, x1, x2 = _roots2(1.0, -q1, q1 * q1 - 3.0 * q1 + 6.0 * q2)
+            if n > kind - 8:
+                t1 = x1 if kind == 8 else x2
+                ramp = q1 - 2.0 * t1
+                t2 = 1.0 + t1 - q1  # the length of the last piece
+                if t1 >= 0.0 and t2 >= 0.0 and ramp > 0.0:
+                    g = (al1 - al0) / ramp
+                    candidate = (p0, nu0, 0.5 * al0, 0.0, 0.0, 0.0, t1, 0.0, g / 6.0,
+                                 t1 + ramp if t2 > 0.0 else NO_BREAK, 0.0, -g / 6.0)
+                    rv, ra, rj = _linear_ratios(nu0, al0, t1, al0, al0, t1 + ramp, al1, al1, al1, vl, al, jl)
+                    return True, candidate, rv, ra, rj
+    return False, _NO_SEGMENT, 0.0, 0.0, 0.0
+
+
+def _step_candidate(kind: int, p0: float, nu0: float, al0: float, al1: float, mv: float, mp: float, vl: float,
+                    al: float, jl: float) -> tuple[bool, tuple[float, ...], float, float, float]:
+    """:func:`segment`'s candidate ``kind`` 10-17, with steps of acceleration (a trapezoid
+    starting, ending, its short cruise or ramp), as :func:`_switch_candidate` gives them."""
+    if kind == 10:  # a step from an unknown acceleration c to a1 (a trapezoid starting)
+        den = al1 - mv
+        if den != 0.0:
+            t1 = 2.0 * (mp - mv + 0.5 * al1) / den
+            if 0.0 < t1 <= 1.0:
+                c = (mv - al1 * (1.0 - t1)) / t1
+                candidate = (p0, nu0, 0.5 * c, 0.0, 0.0, 0.0, t1, 0.5 * (al1 - c), 0.0, NO_BREAK, 0.0, 0.0)
+                rv, ra, rj = _linear_ratios(nu0, c, t1, c, al1, t1, al1, al1, al1, vl, al, jl)
+                return True, candidate, rv, ra, rj
+    elif kind == 11:  # a step from a0 to an unknown acceleration c (a trapezoid ending)
+        den = al0 - mv
+        if den != 0.0:
+            t1 = (2.0 * mp - mv) / den
+            if 0.0 <= t1 < 1.0:
+                c = (mv - al0 * t1) / (1.0 - t1)
+                candidate = (p0, nu0, 0.5 * al0, 0.0, 0.0, 0.0, t1, 0.5 * (c - al0), 0.0, NO_BREAK, 0.0, 0.0)
+                rv, ra, rj = _linear_ratios(nu0, al0, t1, al0, c, t1, c, c, c, vl, al, jl)
+                return True, candidate, rv, ra, rj
+    else:  # two steps around a constant acceleration c: 0, +amax, -amax (a short cruise or ramp)
+        c = 0.0 if kind <= 13 else al if kind <= 15 else -al
+        if c - c == 0.0:
+            b0 = al0 - c
+            b1 = al1 - c
+            bv = mv - c
+            bp = mp - 0.5 * c
+            if b0 != 0.0 and b1 != 0.0:
+                n, x1, x2 = _roots2(b0 * b0 - b0 * b1, 2.0 * b0 * b1 - 2.0 * b0 * bv, bv * bv - 2.0 * b1 * bp)
+                if n > kind % 2:
+                    t1 = x1 if kind % 2 == 0 else x2
+                    t2 = (bv - b0 * t1) / b1  # the length of the last piece
+                    if t1 > 0.0 and t2 > 0.0 and t1 + t2 <= 1.0:
+                        candidate = (p0, nu0, 0.5 * al0, 0.0, 0.0, 0.0, t1, 0.5 * (c - al0), 0.0, 1.0 - t2,
+                                     0.5 * (al1 - c), 0.0)
+                        rv, ra, rj = _linear_ratios(nu0, al0, t1, al0, c, 1.0 - t2, c, al1, al1, vl, al, jl)
+                        return True, candidate, rv, ra, rj
+    return False, _NO_SEGMENT, 0.0, 0.0, 0.0
+
+
 def segment(p0: float, v0: float, a0: float, p1: float, v1: float, a1: float, h: float, vmax: float,
             amax: float, jmax: float) -> tuple[float, ...]:
     """One axis's segment between the setpoints ``(p0, v0, a0)`` and ``(p1, v1, a1)``
@@ -530,94 +635,12 @@ def segment(p0: float, v0: float, a0: float, p1: float, v1: float, a1: float, h:
     if limited and hard <= top and rj <= top:
         return best
     k0, k1, k2 = (0.0, rj, hard) if hard <= top else (1.0, hard, rj)
-    candidate: tuple[float, ...] = best  # the candidates below, one at a time (kinds 10-17 step the acceleration)
+    candidate: tuple[float, ...] = best  # the candidates below, one at a time
     for kind in range(1, 18):
-        ok = False
-        if kind == 1:  # one switch of jerk: the moments of the jerk are 1, 2 (1 - s), 3 (1 - s)^2
-            m0 = ar
-            m1 = 2.0 * vr
-            m2 = 6.0 * pr
-            den = m0 + m2 - 2.0 * m1
-            if den != 0.0:
-                g1 = (m0 * m2 - m1 * m1) / den
-                if m0 != g1:
-                    w = (m1 - g1) / (m0 - g1)  # the length of the second piece
-                    if 0.0 < w < 1.0:
-                        sk = 1.0 - w
-                        am = al0 + g1 * sk
-                        candidate = (p0, nu0, 0.5 * al0, g1 / 6.0, 0.0, 0.0, sk, 0.0, (m0 - g1) / w / 6.0, NO_BREAK,
-                                     0.0, 0.0)
-                        rv, ra, rj = _linear_ratios(nu0, al0, sk, am, am, sk, am, am, al1, vl, al, jl)
-                        ok = True
-        elif kind <= 7:  # two switches around a constant acceleration c: 0, +amax, -amax
-            c = 0.0 if kind <= 3 else al if kind <= 5 else -al
-            if c - c == 0.0:  # (a finite level)
-                b0 = al0 - c
-                b1 = al1 - c
-                bv = mv - c
-                bp = mp - 0.5 * c
-                if b1 != 0.0:
-                    n, x1, x2 = _roots2(b0 * (b0 - b1), b0 * (3.0 * b1 - 4.0 * bv), 4.0 * bv * bv - 6.0 * b1 * bp)
-                    if n > (kind - 2) % 2:
-                        t1 = x1 if kind % 2 == 0 else x2
-                        t2 = (2.0 * bv - b0 * t1) / b1  # the length of the last piece
-                        if t1 >= 0.0 and t2 > 0.0 and t1 + t2 <= 1.0 and (t1 > 0.0 or b0 == 0.0):
-                            g1 = -b0 / t1 if t1 > 0.0 else 0.0
-                            g2 = b1 / t2
-                            candidate = (p0, nu0, 0.5 * al0, g1 / 6.0, 0.0, 0.0, t1, 0.0, -g1 / 6.0, 1.0 - t2, 0.0,
-                                         g2 / 6.0)
-                            rv, ra, rj = _linear_ratios(nu0, al0, t1, c, c, 1.0 - t2, c, c, al1, vl, al, jl)
-                            ok = True
-        elif kind <= 9:  # a0 constant, a ramp, a1 constant
-            if al0 != al1:
-                q1 = 2.0 * (mv - al1) / (al0 - al1)
-                q2 = (mp - 0.5 * al1) / (al0 - al1)
-                n, x1, x2 = _roots2(1.0, -q1, q1 * q1 - 3.0 * q1 + 6.0 * q2)
-                if n > kind - 8:
-                    t1 = x1 if kind == 8 else x2
-                    ramp = q1 - 2.0 * t1
-                    t2 = 1.0 + t1 - q1  # the length of the last piece
-                    if t1 >= 0.0 and t2 >= 0.0 and ramp > 0.0:
-                        g = (al1 - al0) / ramp
-                        candidate = (p0, nu0, 0.5 * al0, 0.0, 0.0, 0.0, t1, 0.0, g / 6.0,
-                                     t1 + ramp if t2 > 0.0 else NO_BREAK, 0.0, -g / 6.0)
-                        rv, ra, rj = _linear_ratios(nu0, al0, t1, al0, al0, t1 + ramp, al1, al1, al1, vl, al, jl)
-                        ok = True
-        elif kind == 10:  # a step from an unknown acceleration c to a1 (a trapezoid starting)
-            den = al1 - mv
-            if den != 0.0:
-                t1 = 2.0 * (mp - mv + 0.5 * al1) / den
-                if 0.0 < t1 <= 1.0:
-                    c = (mv - al1 * (1.0 - t1)) / t1
-                    candidate = (p0, nu0, 0.5 * c, 0.0, 0.0, 0.0, t1, 0.5 * (al1 - c), 0.0, NO_BREAK, 0.0, 0.0)
-                    rv, ra, rj = _linear_ratios(nu0, c, t1, c, al1, t1, al1, al1, al1, vl, al, jl)
-                    ok = True
-        elif kind == 11:  # a step from a0 to an unknown acceleration c (a trapezoid ending)
-            den = al0 - mv
-            if den != 0.0:
-                t1 = (2.0 * mp - mv) / den
-                if 0.0 <= t1 < 1.0:
-                    c = (mv - al0 * t1) / (1.0 - t1)
-                    candidate = (p0, nu0, 0.5 * al0, 0.0, 0.0, 0.0, t1, 0.5 * (c - al0), 0.0, NO_BREAK, 0.0, 0.0)
-                    rv, ra, rj = _linear_ratios(nu0, al0, t1, al0, c, t1, c, c, c, vl, al, jl)
-                    ok = True
-        else:  # two steps around a constant acceleration c: 0, +amax, -amax (a short cruise or ramp)
-            c = 0.0 if kind <= 13 else al if kind <= 15 else -al
-            if c - c == 0.0:
-                b0 = al0 - c
-                b1 = al1 - c
-                bv = mv - c
-                bp = mp - 0.5 * c
-                if b0 != 0.0 and b1 != 0.0:
-                    n, x1, x2 = _roots2(b0 * b0 - b0 * b1, 2.0 * b0 * b1 - 2.0 * b0 * bv, bv * bv - 2.0 * b1 * bp)
-                    if n > kind % 2:
-                        t1 = x1 if kind % 2 == 0 else x2
-                        t2 = (bv - b0 * t1) / b1  # the length of the last piece
-                        if t1 > 0.0 and t2 > 0.0 and t1 + t2 <= 1.0:
-                            candidate = (p0, nu0, 0.5 * al0, 0.0, 0.0, 0.0, t1, 0.5 * (c - al0), 0.0, 1.0 - t2,
-                                         0.5 * (al1 - c), 0.0)
-                            rv, ra, rj = _linear_ratios(nu0, al0, t1, al0, c, 1.0 - t2, c, al1, al1, vl, al, jl)
-                            ok = True
+        if kind < 10:
+            ok, candidate, rv, ra, rj = _switch_candidate(kind, p0, nu0, al0, al1, mv, mp, pr, vr, ar, vl, al, jl)
+        else:
+            ok, candidate, rv, ra, rj = _step_candidate(kind, p0, nu0, al0, al1, mv, mp, vl, al, jl)
         if not ok:
             continue
         candidate, ev, ea, ej = _end_fix(candidate, p1, nu1, al1, kind != 11)

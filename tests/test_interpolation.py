@@ -354,11 +354,11 @@ def test_setpoints_without_accelerations_are_interpolated_as_before():
 MUTATIONS = {
     "the quintic only": ("    if limited and hard <= top and rj <= top:\n        return best\n",
                          "    return best\n"),
-    "no one-switch spline": ("        if kind == 1:  # one switch of jerk", "        if kind == -1:  # one switch of jerk"),
-    "no plateau at the acceleration limit": ("            c = 0.0 if kind <= 3 else al if kind <= 5 else -al\n"
-                                             "            if c - c == 0.0:  # (a finite level)",
-                                             "            c = 0.0\n            if c - c == 0.0:  # (a finite level)"),
-    "a wrong switch": ("                    w = (m1 - g1) / (m0 - g1)", "                    w = (m1 - g1) / (m0 - g1) * 0.999"),
+    "no one-switch spline": ("    if kind == 1:  # one switch of jerk", "    if kind == -1:  # one switch of jerk"),
+    "no plateau at the acceleration limit": ("        c = 0.0 if kind <= 3 else al if kind <= 5 else -al\n"
+                                             "        if c - c == 0.0:  # (a finite level)",
+                                             "        c = 0.0\n        if c - c == 0.0:  # (a finite level)"),
+    "a wrong switch": ("                w = (m1 - g1) / (m0 - g1)", "                w = (m1 - g1) / (m0 - g1) * 0.999"),
     "a wrong evaluation": ("    if s > s1:\n        r = s - s1\n        x = x + r * r * (f1 + r * e1)\n        if s > s2:",
                            "    if s > s1:\n        r = s - s1\n        x = x + r * (f1 + r * e1)\n        if s > s2:"),
 }

@@ -111,9 +111,8 @@ a number ``t``. See benchmarks/planner.py.
 from __future__ import annotations
 
 from math import cbrt, isfinite, sqrt
-from numbers import Real
 
-from runtime.motion.planner import DISTANCE_EPSILON, MAX_DURATION, PtpInput, SynchronizedTrajectory, format_value
+from runtime.motion.planner import DISTANCE_EPSILON, MAX_DURATION, PtpInput, SynchronizedTrajectory, check_axes, format_value
 from runtime.motion.stops import LineStop, StopRamp
 from runtime.motion.trajectory import Result, Trajectory
 
@@ -154,11 +153,12 @@ def _sampling_parameters(start: float, distance: float, t_j: float, t_acc: float
 
 
 
-def _half(tau: float, t_j: float, t_2: float, t_acc: float, j2: float, j6: float, a_p: float,
-          v_p: float, v1: float, q1: float, q3: float, h3: float) -> tuple[float, float, float]:
+def _half(tau: float, shape: tuple) -> tuple[float, float, float]:
     """Displacement, velocity and acceleration ``tau`` seconds into the acceleration half
-    (and the cruise after it), from the parameters of :func:`_sampling_parameters` after
-    ``start, end``. The deceleration half is its mirror."""
+    (and the cruise after it), from ``shape``: the parameters of
+    :func:`_sampling_parameters` after ``start, end``. The deceleration half is its
+    mirror. Runs every tick (every axis of a jerk-limited PTP move)."""
+    t_j, t_2, t_acc, j2, j6, a_p, v_p, v1, q1, q3, h3 = shape
     if tau < t_j:
         return j6 * tau * tau * tau, j2 * tau * tau, 2.0 * j2 * tau
     if tau < t_2:
@@ -222,7 +222,7 @@ class JerkProfile:
         if not t > 0.0:  # also catches NaN
             return (self.start, 0.0, 0.0)
         first = t <= self._half
-        q, v, acc = _half(t if first else duration - t, *self._shape)  # the second half mirrors the first
+        q, v, acc = _half(t if first else duration - t, self._shape)  # the second half mirrors the first
         if first:
             return (self.start + q, v, acc)
         return (self._end - q, v, -acc)
@@ -396,7 +396,8 @@ class JerkPtpTrajectory(SynchronizedTrajectory):
             self.synchronization = "time"
             self._specs = specs
             self._shape = None
-            self._params = tuple([_sampling_parameters(*s) for s in specs])
+            # per axis: (start, end, what _half takes)
+            self._params = tuple([(p[0], p[1], p[2:]) for p in (_sampling_parameters(*s) for s in specs)])
 
     @property
     def profiles(self) -> tuple[JerkProfile, ...]:
@@ -423,43 +424,14 @@ class JerkPtpTrajectory(SynchronizedTrajectory):
             slowest = self._slowest = minima.index(max(minima))
         return slowest
 
-    @property
-    def degrees_of_freedom(self) -> int:
-        return len(self._distances)
-
-    def sample(self, t: float) -> tuple[tuple[float, ...], tuple[float, ...]]:
-        """Positions (unit) and velocities (unit/s) of all axes at time ``t`` (s).
-
-        ``t`` is clamped to ``[0, duration]``: before the start the axes rest at the
-        start positions, from ``duration`` on exactly at the target positions.
-        Real-time safe: plain float arithmetic, one pass, two result tuples.
-        """
+    def _moving(self, t: float) -> tuple[tuple[float, ...], tuple[float, ...]]:
+        """``"line"``: one evaluation of the shape, scaled per axis; ``"time"``: each
+        axis's own."""
         duration = self.duration
-        if t >= duration:  # first: a zero-length move is at its target at once
-            return self.target_position, self._zeros
-        if not t > 0.0:  # also catches NaN
-            return self.start_position, self._zeros
         first = t <= self._half
         tau = t if first else duration - t  # the deceleration half mirrors the first
         if self._specs is None:  # "line": one normalised shape s(t), scaled per axis
-            # _half, inlined: a call with twelve arguments costs half as much again as the
-            # arithmetic, in a path sampled every tick
-            t_j, t_2, t_acc, j2, j6, a_p, v_p, v1, q1, q3, h3 = self._params
-            if tau < t_j:
-                q = j6 * tau * tau * tau
-                v = j2 * tau * tau
-            elif tau < t_2:
-                u = tau - t_j
-                q = q1 + u * (v1 + 0.5 * a_p * u)
-                v = v1 + a_p * u
-            elif tau < t_acc:
-                r = t_acc - tau
-                rr = r * r
-                q = q3 - r * (v_p - j6 * rr)
-                v = v_p - j2 * rr
-            else:
-                q = v_p * (tau - h3)
-                v = v_p
+            q, v, _a = _half(tau, self._params)
             ds = self._distances
             if first:
                 base = self.start_position
@@ -477,23 +449,8 @@ class JerkPtpTrajectory(SynchronizedTrajectory):
         velocities = []
         put_position = positions.append
         put_velocity = velocities.append
-        # _half, inlined: it runs once per axis per tick, where a call would cost a third more
-        for start, end, t_j, t_2, t_acc, j2, j6, a_p, v_p, v1, q1, q3, h3 in self._params:
-            if tau < t_j:
-                q = j6 * tau * tau * tau
-                v = j2 * tau * tau
-            elif tau < t_2:
-                u = tau - t_j
-                q = q1 + u * (v1 + 0.5 * a_p * u)
-                v = v1 + a_p * u
-            elif tau < t_acc:
-                r = t_acc - tau
-                rr = r * r
-                q = q3 - r * (v_p - j6 * rr)
-                v = v_p - j2 * rr
-            else:
-                q = v_p * (tau - h3)
-                v = v_p
+        for start, end, shape in self._params:
+            q, v, _a = _half(tau, shape)
             put_position((start + q) if first else (end - q))
             put_velocity(v)
         return tuple(positions), tuple(velocities)
@@ -523,35 +480,8 @@ _INF = float("inf")
 def _validate(values: tuple) -> tuple[Result, str]:
     """(Result.WORKING, "") if the five sequences can be planned, else the error and its
     message, worded as :func:`runtime.motion.planner.plan_ptp` words it."""
-    sequences = []
-    for name, value in zip(_QUANTITIES, values):
-        try:
-            sequences.append(tuple(value))
-        except TypeError:
-            return (Result.ERROR_INVALID_INPUT,
-                    f"{name} must be a sequence of numbers, one per axis, got {value!r}")
-    n = len(sequences[0])
-    if n == 0:
-        return Result.ERROR_INVALID_INPUT, "current_position must have at least one axis, got 0"
-    for name, seq in zip(_QUANTITIES, sequences):
-        if len(seq) != n:
-            axis = min(len(seq), n) + 1
-            return (Result.ERROR_INVALID_INPUT,
-                    f"axis {axis}: {name} has {len(seq)} axes, current_position has {n}")
-    for name, seq in zip(_QUANTITIES, sequences):
-        for i, value in enumerate(seq):
-            if isinstance(value, bool) or not isinstance(value, Real):
-                return (Result.ERROR_INVALID_INPUT,
-                        f"axis {i + 1}: {name} must be a number, got {value!r}")
-            if not isfinite(value):
-                return (Result.ERROR_INVALID_INPUT,
-                        f"axis {i + 1}: {name} must be finite, got {format_value(value)}")
-    for name, seq in zip(_QUANTITIES[2:], sequences[2:]):
-        for i, value in enumerate(seq):
-            if not value > 0:
-                return (Result.ERROR_INVALID_INPUT,
-                        f"axis {i + 1}: {name} must be positive, got {format_value(value)}")
-    return Result.WORKING, ""
+    result, message, _sequences = check_axes(list(zip(_QUANTITIES, values)), _QUANTITIES[2:])
+    return result, message
 
 
 def _plainly_valid(current, target, velocity, acceleration, jerk) -> bool:

@@ -176,25 +176,39 @@ def _quat_matrix(w, x, y, z) -> tuple:
             s * (x * z - w * y), s * (y * z + w * x), 1.0 - s * (x * x + y * y))
 
 
-def _fit(q: float, lo: float, hi: float, n: float):
+# (_TURN) A joint value ``q`` turned by whole turns to its representation nearest ``n``:
+# ``q += 360.0 * ((n - q + 180.0) // 360.0)``, written out where the inverse needs it (a
+# call per axis would cost the inverse a twentieth of its time); outside the axis's
+# limits, :func:`_fit` then looks for another turn within them.
+
+
+def _fit(q: float, lo: float, hi: float, n: float, fails: list | None = None, axis: int = 0, cid: int = 0):
     """The representation ``q + k 360`` nearest ``n`` within ``lo..hi`` (``LIMIT_TOL``
-    outside counts as on the limit and is clamped), or None when there is none."""
-    q += 360.0 * round((n - q) / 360.0)
-    if q > hi:
-        if q <= hi + LIMIT_TOL:
+    outside counts as on the limit and is clamped), or None when there is none: then, with
+    ``fails``, the failure of configuration ``cid`` at axis ``axis`` (index) with the
+    value ``q`` goes there."""
+    r = q + 360.0 * round((n - q) / 360.0)
+    if r > hi:
+        if r <= hi + LIMIT_TOL:
             return hi
-        q -= 360.0 * ceil((q - hi - LIMIT_TOL) / 360.0)  # the largest one <= hi + LIMIT_TOL
-        if q < lo:
-            return lo if q >= lo - LIMIT_TOL else None
-        return hi if q > hi else q
-    if q < lo:
-        if q >= lo - LIMIT_TOL:
+        r -= 360.0 * ceil((r - hi - LIMIT_TOL) / 360.0)  # the largest one <= hi + LIMIT_TOL
+        if r >= lo:
+            return hi if r > hi else r
+        if r >= lo - LIMIT_TOL:
             return lo
-        q += 360.0 * ceil((lo - LIMIT_TOL - q) / 360.0)  # the smallest one >= lo - LIMIT_TOL
-        if q > hi:
-            return hi if q <= hi + LIMIT_TOL else None
-        return lo if q < lo else q
-    return q
+    elif r < lo:
+        if r >= lo - LIMIT_TOL:
+            return lo
+        r += 360.0 * ceil((lo - LIMIT_TOL - r) / 360.0)  # the smallest one >= lo - LIMIT_TOL
+        if r <= hi:
+            return lo if r < lo else r
+        if r <= hi + LIMIT_TOL:
+            return hi
+    else:
+        return r
+    if fails is not None:
+        fails.append((_LIMIT, (axis, q), cid))
+    return None
 
 
 def _sign90(alpha: float) -> float:
@@ -312,7 +326,7 @@ class Kinematics:
         self._wc_off = tuple(sum(rc[k][i] * pc[k] for k in range(3)) for i in range(3))
         s1, s3, s4, s5 = _sign90(al1), _sign90(al3), _sign90(al4), _sign90(al5)
         l3 = sqrt(a3 * a3 + d4 * d4)
-        self._reach = (abs(a2) + l3, abs(abs(a2) - l3))
+        rmax, rmin = abs(a2) + l3, abs(abs(a2) - l3)  # the arm's outer and inner reach from axis 2
         self._doff = d2 + d3
         sa2 = 1.0 if a2 > 0 else -1.0
         # sign of v = L3 sin(theta3 - phi) for (shoulder bit, elbow bit)
@@ -323,14 +337,13 @@ class Kinematics:
         self._phi = atan2(s3 * d4, a3)
         offs = (o1, o2, o3, o4, o5, o6)
         self._offs = offs
-        self._mtau = -s4 * s5
-        # everything the inverse needs, in one flat tuple: one unpack per call
-        self._ik = (
-            a1, d1, a2, s1, s1 * s3, s3, s4, s5, -s4 * s5, l3, self._phi,
-            self._doff * self._doff, s1 * self._doff, self._reach[0], self._reach[1],
-            1.0 / (2.0 * abs(a2) * l3), vsign, *self._wc_off, self._c_rot_identity,
-            *offs, *(v for lo_hi in limits for v in lo_hi), *map(float, self.directions), *self._k,
-        )
+        # what each stage of the inverse needs, in one flat tuple: one unpack per call
+        (lo1, hi1), (lo2, hi2), (lo3, hi3), (lo4, hi4), (lo5, hi5), (lo6, hi6) = limits
+        dq1, dq2, dq3, dq4, dq5, dq6 = map(float, self.directions)
+        self._ik_shoulder = (a1, d1, s1, self._doff * self._doff, s1 * self._doff, rmax, rmin, o1, lo1, hi1, dq1)
+        self._ik_elbow = (a2, l3, self._phi, rmax, rmin, 1.0 / (2.0 * abs(a2) * l3), vsign, o2, o3, lo2, hi2,
+                          lo3, hi3, dq2, dq3, *self._k)
+        self._ik_wrist = (s1, s1 * s3, s3, s4, s5, -s4 * s5, o4, o5, o6, lo4, hi4, lo5, hi5, lo6, hi6, dq4, dq5, dq6)
 
     def _joint_map(self, directions, couplings) -> None:
         """The joint values' map to the DH angles: ``theta_i = direction_i q_i +
@@ -596,7 +609,10 @@ class Kinematics:
         if configuration is not None and (type(configuration) is not int or not 0 <= configuration <= 7):
             raise ValueError(f"configuration must be an integer 0..7, got {configuration!r}")
         near = self.home if near is None else _main(near)
-        sols, fails = self._candidates(self._unmounted(_target(pose)), near, configuration, True)
+        target = _target(pose)
+        if self._mount_t is not None:
+            target = self._unmounted(target)
+        sols, fails = self._candidates(target, near, configuration, True)
         if sols:
             best = sols[0]
             for c in sols:
@@ -650,42 +666,64 @@ class Kinematics:
         that do not exist: _UNREACHABLE (info ("far" | "near" | "axis1", mm)) or _LIMIT
         (info (axis index, value in deg)).
 
+        The closed form branches three times, once per stage: axis 1 of each shoulder
+        branch (:meth:`_shoulders`), axes 2 and 3 of each elbow branch (:meth:`_elbows`),
+        axes 4-6 of each wrist branch (:meth:`_wrists`); here, what they start from: the
+        wrist centre and the rotation the wrist has to make.
+
         With ``prune`` (for :meth:`inverse`), branches are visited nearest ``near`` first
         (shoulder by axis 1, then elbow by axes 1-3) and a branch whose partial distance is
         already no better than the best solution so far is skipped: the nearest solution
         (valid or singular) is still among ``sols``, the others may be missing.
         """
         r00, r01, r02, r10, r11, r12, r20, r21, r22, px, py, pz = target
-        (a1, d1, a2, s1, s13, s3, s4, s5, mtau, l3, phi, doff2, dlat, rmax, rmin, inv2, vsign,
-         cx, cy, cz, c_rot_identity, o1, o2, o3, o4, o5, o6,
-         lo1, hi1, lo2, hi2, lo3, hi3, lo4, hi4, lo5, hi5, lo6, hi6,
-         dq1, dq2, dq3, dq4, dq5, dq6, k21, k31, k32) = self._ik
-        n1, n2, n3, n4, n5, n6 = near
+        cx, cy, cz = self._wc_off  # the wrist centre: the TCP less the constant offset after the wrist
         wx = px - (r00 * cx + r01 * cy + r02 * cz)
         wy = py - (r10 * cx + r11 * cy + r12 * cz)
         wz = pz - (r20 * cx + r21 * cy + r22 * cz)
-        if c_rot_identity:
-            w00, w01, w02, w10, w11, w12, w20, w21, w22 = r00, r01, r02, r10, r11, r12, r20, r21, r22
-        else:
+        if not self._c_rot_identity:  # the rotation the wrist's axes make up with the arm's: W = R Rc^T
             c00, c01, c02, c10, c11, c12, c20, c21, c22 = self._rct
-            w00 = r00 * c00 + r01 * c10 + r02 * c20
-            w01 = r00 * c01 + r01 * c11 + r02 * c21
-            w02 = r00 * c02 + r01 * c12 + r02 * c22
-            w10 = r10 * c00 + r11 * c10 + r12 * c20
-            w11 = r10 * c01 + r11 * c11 + r12 * c21
-            w12 = r10 * c02 + r11 * c12 + r12 * c22
-            w20 = r20 * c00 + r21 * c10 + r22 * c20
-            w21 = r20 * c01 + r21 * c11 + r22 * c21
-            w22 = r20 * c02 + r21 * c12 + r22 * c22
-        sols = []
-        fails = []
+            target = (r00 * c00 + r01 * c10 + r02 * c20, r00 * c01 + r01 * c11 + r02 * c21,
+                      r00 * c02 + r01 * c12 + r02 * c22,
+                      r10 * c00 + r11 * c10 + r12 * c20, r10 * c01 + r11 * c11 + r12 * c21,
+                      r10 * c02 + r11 * c12 + r12 * c22,
+                      r20 * c00 + r21 * c10 + r22 * c20, r20 * c01 + r21 * c11 + r22 * c21,
+                      r20 * c02 + r21 * c12 + r22 * c22, px, py, pz)
+        sols: list = []
+        fails: list = []
+        shoulders = self._shoulders(wx, wy, wz, near, want, sols, fails)
+        if prune and len(shoulders) == 2 and shoulders[1][0] < shoulders[0][0]:
+            shoulders.reverse()
+        best = inf  # the squared distance of the best solution so far, with prune; else inf
+        for e1, sb, q1, cc, ss, rho2, x, zr, r, singular in shoulders:
+            if e1 >= best:
+                break
+            elbows = self._elbows(e1, sb, q1, x, zr, r, near, want, fails)
+            if not elbows:
+                continue
+            if prune and len(elbows) == 2 and elbows[1][0] < elbows[0][0]:
+                elbows.reverse()
+            best = self._wrists(target, q1, cc / rho2, ss / rho2, singular, elbows, near, want, prune, best, sols,
+                                fails)
+        return sols, fails
+
+    def _shoulders(self, wx: float, wy: float, wz: float, near, want, sols: list, fails: list) -> list:
+        """Axis 1 of each shoulder branch (front: the wrist centre ``(wx, wy, wz)`` at +rs
+        along x1, back: at -rs) within its limits, as ``(squared distance of axis 1 to near,
+        shoulder bit, q1, cos and sin theta1 times rho^2, rho^2, the wrist centre in the
+        arm's plane from axis 2 (x, z, distance r), elbow_singular)``; the branches out of
+        reach or out of the limits go to ``fails``. The wrist centre on axis 1 (a shoulder
+        singularity) goes to ``sols`` as one singular representative."""
+        a1, d1, s1, doff2, dlat, rmax, rmin, o1, lo1, hi1, dq1 = self._ik_shoulder
+        n1 = near[0]
+        shoulders: list = []
         first = 0 if want is None else want
         rho2 = wx * wx + wy * wy
         rs2 = rho2 - doff2
         if rs2 < 0.0:
             if sqrt(doff2) - sqrt(rho2) >= SHOULDER_TOL:
                 fails.append((_UNREACHABLE, ("axis1", sqrt(doff2) - sqrt(rho2)), first))
-                return sols, fails
+                return shoulders
             rs2 = 0.0
         rs = sqrt(rs2)
         if rs < SHOULDER_TOL:
@@ -693,14 +731,9 @@ class Kinematics:
                    "singular: shoulder singularity (wrist centre on the cylinder of the lateral "
                    "shoulder offset around axis 1)")
             sols.append((first, tuple(near), _SINGULAR, msg, 0.0))
-            return sols, fails
+            return shoulders
         zr = s1 * (wz - d1)
-
-        # axis 1 of each shoulder branch (front: the wrist centre at +rs along x1, back: -rs)
-        shoulders = []
-        for sb in (0, 1):
-            if want is not None and want & 1 != sb:
-                continue
+        for sb in (0, 1) if want is None else (want & 1,):
             rb = rs if sb == 0 else -rs
             x = rb - a1
             r = sqrt(x * x + zr * zr)
@@ -718,154 +751,136 @@ class Kinematics:
             cc = rb * wx - dlat * wy
             ss = rb * wy + dlat * wx
             q1 = dq1 * (atan2(ss, cc) * _R2D - o1)  # the joint value of the DH angle
-            q1 += 360.0 * ((n1 - q1 + 180.0) // 360.0)
-            if not lo1 <= q1 <= hi1:
-                q = _fit(q1, lo1, hi1, n1)
-                if q is None:
-                    fails.append((_LIMIT, (0, q1), sb if want is None else want))
-                    continue
-                q1 = q
-            e1 = q1 - n1
-            shoulders.append((e1 * e1, sb, q1, cc, ss, x, r, elbow_singular))
-        if prune and len(shoulders) == 2 and shoulders[1][0] < shoulders[0][0]:
-            shoulders.reverse()
-
-        best = inf
-        for e1, sb, q1, cc, ss, x, r, elbow_singular in shoulders:
-            if prune and e1 >= best:
-                break
-            # axes 2 and 3 of each elbow branch: the law of cosines, k = cos(theta3 - phi),
-            # from the distances to the outer and inner reach (no cancellation next to either)
-            far = (rmax - r) * (rmax + r) * inv2
-            near_ = (r - rmin) * (r + rmin) * inv2
-            if far < 0.0:
-                far = 0.0
-            if near_ < 0.0:
-                near_ = 0.0
-            if a2 < 0.0:
-                far, near_ = near_, far
-            k = (near_ - far) * 0.5  # (1 + k) - (1 - k), halved
-            sbeta = sqrt(far * near_)
-            beta = atan2(sbeta, k)
-            au = a2 + l3 * k
-            lsb = l3 * sbeta
-            base = atan2(zr, x)
-            arms = []
-            for eb in (0, 1):
-                if want is not None and want >> 1 & 1 != eb:
-                    continue
-                cid0 = sb | eb << 1
-                vs = vsign[sb][eb]
-                t3 = phi + vs * beta
-                t2 = base - atan2(vs * lsb, au)
-                q2 = dq2 * (t2 * _R2D - o2 - k21 * q1)
-                q2 += 360.0 * ((n2 - q2 + 180.0) // 360.0)
-                if not lo2 <= q2 <= hi2:
-                    q = _fit(q2, lo2, hi2, n2)
-                    if q is None:
-                        fails.append((_LIMIT, (1, q2), cid0 if want is None else want))
-                        continue
-                    q2 = q
-                q3 = dq3 * (t3 * _R2D - o3 - k31 * q1 - k32 * q2)
-                q3 += 360.0 * ((n3 - q3 + 180.0) // 360.0)
-                if not lo3 <= q3 <= hi3:
-                    q = _fit(q3, lo3, hi3, n3)
-                    if q is None:
-                        fails.append((_LIMIT, (2, q3), cid0 if want is None else want))
-                        continue
-                    q3 = q
-                e2 = q2 - n2
-                e3 = q3 - n3
-                arms.append((e1 + e2 * e2 + e3 * e3, cid0, q2, q3, t2 + t3))
-            if not arms:
+            q1 += 360.0 * ((n1 - q1 + 180.0) // 360.0)  # (_TURN)
+            if not lo1 <= q1 <= hi1 and (q1 := _fit(q1, lo1, hi1, n1, fails, 0,
+                                                     sb if want is None else want)) is None:
                 continue
-            if prune and len(arms) == 2 and arms[1][0] < arms[0][0]:
-                arms.reverse()
-            # W seen from frame 1: h_j = c1 W0j + s1 W1j, g2 = s1 W02 - c1 W12
-            c1 = cc / rho2
-            sn1 = ss / rho2
-            h0 = c1 * w00 + sn1 * w10
-            h1 = c1 * w01 + sn1 * w11
-            h2 = c1 * w02 + sn1 * w12
-            g2 = sn1 * w02 - c1 * w12
-            m12 = s13 * g2
+            e1 = q1 - n1
+            shoulders.append((e1 * e1, sb, q1, cc, ss, rho2, x, zr, r, elbow_singular))
+        return shoulders
 
-            # axes 4-6: M = R03^T W is what the wrist has to turn (column 2 and row 2 of it)
-            for e123, cid0, q2, q3, t23 in arms:
-                if prune and e123 >= best:
-                    break
-                c23 = cos(t23)
-                s23 = sin(t23)
-                m02 = c23 * h2 + s1 * s23 * w22
-                m22 = s3 * s23 * h2 - s13 * c23 * w22
-                c5 = mtau * m22
-                sn5 = sqrt(m02 * m02 + m12 * m12)
-                if sn5 < WRIST_TOL:
-                    self._wrist_singular(sols, fails, want, cid0, q1, q2, q3, e123, elbow_singular,
-                                         c23 * h0 + s1 * s23 * w20, c23 * h1 + s1 * s23 * w21, m22, c5,
-                                         near)
-                    if sols and sols[-1][4] < best:
-                        best = sols[-1][4]
-                    continue
-                m20 = s3 * s23 * h0 - s13 * c23 * w20
-                m21 = s3 * s23 * h1 - s13 * c23 * w21
-                # the two wrist solutions: (t4, t5, t6) and (t4 + 180, -t5, t6 + 180) deg
-                q4a = dq4 * (atan2(s5 * m12, s5 * m02) * _R2D - o4)
-                t5a = atan2(sn5, c5) * _R2D
-                q6a = dq6 * (atan2(-s4 * m21, s4 * m20) * _R2D - o6)
-                q5a = dq5 * (t5a - o5)
-                q5b = dq5 * (-t5a - o5)
-                # axis 5's angular distance from near bounds each one's distance from below:
-                # the nearer first, the other only if it can still be better
-                d5a = (q5a - n5 + 180.0) % 360.0 - 180.0
-                d5b = (q5b - n5 + 180.0) % 360.0 - 180.0
-                d5a *= d5a
-                d5b *= d5b
-                for wb in ((0, 4) if d5a <= d5b else (4, 0)):
-                    if want is not None and want & 4 != wb:
+    def _elbows(self, e1: float, sb: int, q1: float, x: float, zr: float, r: float, near, want,
+                fails: list) -> list:
+        """Axes 2 and 3 of each elbow branch of a shoulder branch (:meth:`_shoulders`: the
+        squared distance ``e1`` of axis 1 to near, the shoulder bit ``sb``, axis 1 at
+        ``q1``, the wrist centre in the arm's plane) within their limits, as ``(squared
+        distance of axes 1-3 to near, configuration id so far, q2, q3, theta2 + theta3)``;
+        the others go to ``fails``."""
+        a2, l3, phi, rmax, rmin, inv2, vsign, o2, o3, lo2, hi2, lo3, hi3, dq2, dq3, k21, k31, k32 = self._ik_elbow
+        n2 = near[1]
+        n3 = near[2]
+        # the law of cosines, k = cos(theta3 - phi), from the distances to the outer and
+        # inner reach (no cancellation next to either)
+        far = (rmax - r) * (rmax + r) * inv2
+        near_ = (r - rmin) * (r + rmin) * inv2
+        if far < 0.0:
+            far = 0.0
+        if near_ < 0.0:
+            near_ = 0.0
+        if a2 < 0.0:
+            far, near_ = near_, far
+        k = (near_ - far) * 0.5  # (1 + k) - (1 - k), halved
+        sbeta = sqrt(far * near_)
+        beta = atan2(sbeta, k)
+        au = a2 + l3 * k
+        lsb = l3 * sbeta
+        base = atan2(zr, x)
+        elbows: list = []
+        vsigns = vsign[sb]
+        for eb in (0, 1) if want is None else (want >> 1 & 1,):
+            cid = sb | eb << 1 if want is None else want
+            vs = vsigns[eb]
+            t3 = phi + vs * beta
+            t2 = base - atan2(vs * lsb, au)
+            q2 = dq2 * (t2 * _R2D - o2 - k21 * q1)
+            q2 += 360.0 * ((n2 - q2 + 180.0) // 360.0)  # (_TURN)
+            if not lo2 <= q2 <= hi2 and (q2 := _fit(q2, lo2, hi2, n2, fails, 1, cid)) is None:
+                continue
+            q3 = dq3 * (t3 * _R2D - o3 - k31 * q1 - k32 * q2)
+            q3 += 360.0 * ((n3 - q3 + 180.0) // 360.0)  # (_TURN)
+            if not lo3 <= q3 <= hi3 and (q3 := _fit(q3, lo3, hi3, n3, fails, 2, cid)) is None:
+                continue
+            e2 = q2 - n2
+            e3 = q3 - n3
+            elbows.append((e1 + e2 * e2 + e3 * e3, sb | eb << 1, q2, q3, t2 + t3))
+        return elbows
+
+    def _wrists(self, w: tuple, q1: float, c1: float, sn1: float, elbow_singular: str | None, elbows: list, near,
+                want, prune: bool, best: float, sols: list, fails: list) -> float:
+        """Axes 4-6 of each wrist branch of each of ``elbows`` (:meth:`_elbows`) of the
+        shoulder branch with axis 1 at ``q1`` (``c1``, ``sn1``: cos and sin of theta1;
+        ``elbow_singular``: its message, if the elbow is singular), for the rotation ``w``
+        the wrist makes up with the arm (``W = R Rc^T``, row-major, then the position): the
+        solutions within the limits go to ``sols`` (a wrist-singular arm configuration: one
+        representative, :meth:`_wrist_singular`), the others to ``fails``. Branches no
+        nearer ``near`` than ``best`` are skipped; with ``prune``, ``best`` is the squared
+        distance of the best solution so far (without, inf). Returns the new best."""
+        s1, s13, s3, s4, s5, mtau, o4, o5, o6, lo4, hi4, lo5, hi5, lo6, hi6, dq4, dq5, dq6 = self._ik_wrist
+        w00, w01, w02, w10, w11, w12, w20, w21, w22, _x, _y, _z = w
+        n4 = near[3]
+        n5 = near[4]
+        n6 = near[5]
+        # W seen from frame 1: h_j = c1 W0j + s1 W1j, g2 = s1 W02 - c1 W12
+        h0 = c1 * w00 + sn1 * w10
+        h1 = c1 * w01 + sn1 * w11
+        h2 = c1 * w02 + sn1 * w12
+        m12 = s13 * (sn1 * w02 - c1 * w12)
+        # M = R03^T W is what the wrist has to turn (column 2 and row 2 of it)
+        for e123, cid0, q2, q3, t23 in elbows:
+            if e123 >= best:
+                break
+            c23 = cos(t23)
+            s23 = sin(t23)
+            m02 = c23 * h2 + s1 * s23 * w22
+            m22 = s3 * s23 * h2 - s13 * c23 * w22
+            c5 = mtau * m22
+            sn5 = sqrt(m02 * m02 + m12 * m12)
+            if sn5 < WRIST_TOL:
+                self._wrist_singular(sols, fails, want, cid0, q1, q2, q3, e123, elbow_singular,
+                                     c23 * h0 + s1 * s23 * w20, c23 * h1 + s1 * s23 * w21, m22, c5, near)
+                if prune and sols and sols[-1][4] < best:
+                    best = sols[-1][4]
+                continue
+            m20 = s3 * s23 * h0 - s13 * c23 * w20
+            m21 = s3 * s23 * h1 - s13 * c23 * w21
+            # the two wrist solutions: (t4, t5, t6) and (t4 + 180, -t5, t6 + 180) deg
+            q4a = dq4 * (atan2(s5 * m12, s5 * m02) * _R2D - o4)
+            t5a = atan2(sn5, c5) * _R2D
+            q6a = dq6 * (atan2(-s4 * m21, s4 * m20) * _R2D - o6)
+            q5a = dq5 * (t5a - o5)
+            q5b = dq5 * (-t5a - o5)
+            # axis 5's angular distance from near bounds each one's distance from below:
+            # the nearer first, the other only if it can still be better
+            d5a = (q5a - n5 + 180.0) % 360.0 - 180.0
+            d5b = (q5b - n5 + 180.0) % 360.0 - 180.0
+            d5a *= d5a
+            d5b *= d5b
+            for wb in ((0, 4) if d5a <= d5b else (4, 0)) if want is None else (want & 4,):
+                if wb:
+                    if e123 + d5b >= best:
                         continue
-                    if wb:
-                        if prune and e123 + d5b >= best:
-                            continue
-                        q4 = q4a + 180.0
-                        q5 = q5b
-                        q6 = q6a + 180.0
-                    else:
-                        if prune and e123 + d5a >= best:
-                            continue
-                        q4 = q4a
-                        q5 = q5a
-                        q6 = q6a
-                    q4 += 360.0 * ((n4 - q4 + 180.0) // 360.0)
-                    if not lo4 <= q4 <= hi4:
-                        q = _fit(q4, lo4, hi4, n4)
-                        if q is None:
-                            fails.append((_LIMIT, (3, q4), cid0 | wb))
-                            continue
-                        q4 = q
-                    q5 += 360.0 * ((n5 - q5 + 180.0) // 360.0)
-                    if not lo5 <= q5 <= hi5:
-                        q = _fit(q5, lo5, hi5, n5)
-                        if q is None:
-                            fails.append((_LIMIT, (4, q5), cid0 | wb))
-                            continue
-                        q5 = q
-                    q6 += 360.0 * ((n6 - q6 + 180.0) // 360.0)
-                    if not lo6 <= q6 <= hi6:
-                        q = _fit(q6, lo6, hi6, n6)
-                        if q is None:
-                            fails.append((_LIMIT, (5, q6), cid0 | wb))
-                            continue
-                        q6 = q
-                    e4 = q4 - n4
-                    e5 = q5 - n5
-                    e6 = q6 - n6
-                    dist = e123 + e4 * e4 + e5 * e5 + e6 * e6
-                    sols.append((cid0 | wb, (q1, q2, q3, q4, q5, q6),
-                                 _SINGULAR if elbow_singular else _OK, elbow_singular, dist))
-                    if dist < best:
-                        best = dist
-        return sols, fails
+                    q4, q5, q6 = q4a + 180.0, q5b, q6a + 180.0
+                else:
+                    if e123 + d5a >= best:
+                        continue
+                    q4, q5, q6 = q4a, q5a, q6a
+                cid = cid0 | wb
+                q4 += 360.0 * ((n4 - q4 + 180.0) // 360.0)  # (_TURN)
+                q5 += 360.0 * ((n5 - q5 + 180.0) // 360.0)
+                q6 += 360.0 * ((n6 - q6 + 180.0) // 360.0)
+                if ((not lo4 <= q4 <= hi4 and (q4 := _fit(q4, lo4, hi4, n4, fails, 3, cid)) is None)
+                        or (not lo5 <= q5 <= hi5 and (q5 := _fit(q5, lo5, hi5, n5, fails, 4, cid)) is None)
+                        or (not lo6 <= q6 <= hi6 and (q6 := _fit(q6, lo6, hi6, n6, fails, 5, cid)) is None)):
+                    continue
+                e4 = q4 - n4
+                e5 = q5 - n5
+                e6 = q6 - n6
+                dist = e123 + e4 * e4 + e5 * e5 + e6 * e6
+                sols.append((cid, (q1, q2, q3, q4, q5, q6), _SINGULAR if elbow_singular else _OK, elbow_singular,
+                             dist))
+                if prune and dist < best:
+                    best = dist
+        return best
 
     def _wrist_singular(self, sols, fails, want, cid0, q1, q2, q3, e123, elbow_singular,
                         m00, m01, m22, c5, near) -> None:
@@ -874,7 +889,7 @@ class Kinematics:
         o4, o5, o6 = self._offs[3:]
         (lo4, hi4), (lo5, hi5), (lo6, hi6) = self.limits[3:]
         n4, n5, n6 = near[3:]
-        tau = -self._mtau
+        tau = self._ik_wrist[3] * self._ik_wrist[4]  # s4 s5
         d4, d5, d6 = self.directions[3:]
         t4 = (d4 * n4 + o4) * _D2R
         if m22 > 0.0:  # theta5 = 0 or 180 such that only theta4 + theta6 counts

@@ -51,6 +51,7 @@ __all__ = [
     "PtpTrajectory",
     "Result",
     "SynchronizedTrajectory",
+    "check_axes",
     "format_value",
     "plan_ptp",
     "scaled_limits",
@@ -102,9 +103,30 @@ class PtpInput:
 
 class SynchronizedTrajectory(Trajectory):
     """What the PTP trajectories share: one profile per axis (``profiles``), all of the
-    move's duration, whose accelerations are exact."""
+    move's duration, whose accelerations are exact.
+
+    :meth:`sample` gives the positions (unit) and velocities (unit/s) of all axes at time
+    ``t`` (s), clamped to ``[0, duration]``: before the start the axes rest at the start
+    positions, from ``duration`` on exactly at the target positions; in between, each kind
+    evaluates its profiles (:meth:`_moving`). Real-time safe: plain float arithmetic, two
+    result tuples."""
 
     __slots__ = ()
+
+    @property
+    def degrees_of_freedom(self) -> int:
+        return len(self.start_position)
+
+    def sample(self, t: float) -> tuple[tuple[float, ...], tuple[float, ...]]:
+        if t >= self.duration:  # first: a zero-length move is at its target at once
+            return self.target_position, self._zeros
+        if not t > 0.0:  # also catches NaN
+            return self.start_position, self._zeros
+        return self._moving(t)
+
+    def _moving(self, t: float) -> tuple[tuple[float, ...], tuple[float, ...]]:
+        """:meth:`sample` for ``0 < t < duration``."""
+        raise NotImplementedError
 
     def sample_accelerations(self, t: float) -> tuple[float, ...]:
         """Accelerations (unit/s^2) of all axes at time ``t`` (s); 0 outside the move."""
@@ -156,22 +178,9 @@ class PtpTrajectory(SynchronizedTrajectory):
             (p.start, p.start + p.distance, p.v_cruise, p.accel, p.t_acc, duration - p.t_acc)
             for p in profiles)
 
-    @property
-    def degrees_of_freedom(self) -> int:
-        return len(self.profiles)
-
-    def sample(self, t: float) -> tuple[tuple[float, ...], tuple[float, ...]]:
-        """Positions (unit) and velocities (unit/s) of all axes at time ``t`` (s).
-
-        ``t`` is clamped to ``[0, duration]``: before the start the axes rest at the
-        start positions, from ``duration`` on exactly at the target positions.
-        Real-time safe: plain float arithmetic, two result tuples.
-        """
+    def _moving(self, t: float) -> tuple[tuple[float, ...], tuple[float, ...]]:
+        """Each axis on its trapezoid."""
         duration = self.duration
-        if t >= duration:  # first: a zero-length move is at its target at once
-            return self.target_position, self._zeros
-        if not t > 0.0:  # also catches NaN
-            return self.start_position, self._zeros
         positions = []
         velocities = []
         for start, end, v, a, t_acc, t_dec in self._params:
@@ -208,6 +217,46 @@ def format_value(value: object) -> str:
     return repr(value)
 
 
+def check_axes(named: list[tuple[str, object]],
+               positive: tuple[str, ...]) -> tuple[Result, str, dict[str, tuple]]:
+    """The per-axis quantities of a PTP input, ``(name, value)`` pairs (the first:
+    ``current_position``), checked: sequences of as many finite numbers (not bools) as
+    the first has axes, at least one, those ``positive`` named above 0. Returns
+    ``(Result.WORKING, "", the sequences by name)``, or the error, its message (naming the
+    axis, the quantity and the value) and the sequences read so far. The careful check of
+    :func:`plan_ptp` and of :func:`runtime.motion.jerk.plan_ptp_jerk`."""
+    sequences: dict[str, tuple] = {}
+    for name, value in named:
+        try:
+            sequences[name] = tuple(value)
+        except TypeError:
+            return (Result.ERROR_INVALID_INPUT,
+                    f"{name} must be a sequence of numbers, one per axis, got {value!r}", sequences)
+    first = named[0][0]
+    n = len(sequences[first])
+    if n == 0:
+        return Result.ERROR_INVALID_INPUT, f"{first} must have at least one axis, got 0", sequences
+    for name, values in sequences.items():
+        if len(values) != n:
+            axis = min(len(values), n) + 1
+            return (Result.ERROR_INVALID_INPUT,
+                    f"axis {axis}: {name} has {len(values)} axes, {first} has {n}", sequences)
+    for name, values in sequences.items():
+        for i, value in enumerate(values):
+            if isinstance(value, bool) or not isinstance(value, Real):
+                return (Result.ERROR_INVALID_INPUT,
+                        f"axis {i + 1}: {name} must be a number, got {value!r}", sequences)
+            if not isfinite(value):
+                return (Result.ERROR_INVALID_INPUT,
+                        f"axis {i + 1}: {name} must be finite, got {format_value(value)}", sequences)
+    for name in positive:
+        for i, value in enumerate(sequences[name]):
+            if not value > 0:
+                return (Result.ERROR_INVALID_INPUT,
+                        f"axis {i + 1}: {name} must be positive, got {format_value(value)}", sequences)
+    return Result.WORKING, "", sequences
+
+
 _QUANTITIES = ("current_position", "target_position", "max_velocity", "max_acceleration")
 
 
@@ -215,37 +264,13 @@ def _validate(inp: PtpInput) -> tuple[Result, str]:
     """(Result.WORKING, "") if ``inp`` can be planned, else the error and its message."""
     if not all(hasattr(inp, name) for name in _QUANTITIES):
         return Result.ERROR_INVALID_INPUT, f"input must be a PtpInput, got {type(inp).__name__}"
-    sequences = {}
-    for name in _QUANTITIES + ("min_position", "max_position"):
-        value = getattr(inp, name, None)
-        if value is None and name in ("min_position", "max_position"):
-            continue
-        try:
-            sequences[name] = tuple(value)
-        except TypeError:
-            return (Result.ERROR_INVALID_INPUT,
-                    f"{name} must be a sequence of numbers, one per axis, got {value!r}")
+    named = [(name, getattr(inp, name)) for name in _QUANTITIES]
+    named += [(name, value) for name in ("min_position", "max_position")
+              if (value := getattr(inp, name, None)) is not None]
+    result, message, sequences = check_axes(named, ("max_velocity", "max_acceleration"))
+    if result != Result.WORKING:
+        return result, message
     n = len(sequences["current_position"])
-    if n == 0:
-        return Result.ERROR_INVALID_INPUT, "current_position must have at least one axis, got 0"
-    for name, values in sequences.items():
-        if len(values) != n:
-            axis = min(len(values), n) + 1
-            return (Result.ERROR_INVALID_INPUT,
-                    f"axis {axis}: {name} has {len(values)} axes, current_position has {n}")
-    for name, values in sequences.items():
-        for i, value in enumerate(values):
-            if isinstance(value, bool) or not isinstance(value, Real):
-                return (Result.ERROR_INVALID_INPUT,
-                        f"axis {i + 1}: {name} must be a number, got {value!r}")
-            if not isfinite(value):
-                return (Result.ERROR_INVALID_INPUT,
-                        f"axis {i + 1}: {name} must be finite, got {format_value(value)}")
-    for name in ("max_velocity", "max_acceleration"):
-        for i, value in enumerate(sequences[name]):
-            if not value > 0:
-                return (Result.ERROR_INVALID_INPUT,
-                        f"axis {i + 1}: {name} must be positive, got {format_value(value)}")
     lows, highs = sequences.get("min_position"), sequences.get("max_position")
     if lows is not None and highs is not None:
         for i in range(n):

@@ -35,14 +35,22 @@ timeline up again inside a blend. An abort ends, once at rest, with ``ended`` (t
 text); so does a rest that cannot be planned.
 
 To change what "pause inside a blend" does, read :meth:`MotionQueue._stop_on_path` (the
-``second.start is not None`` branch), :meth:`MotionQueue._step_rate` and
-:meth:`MotionQueue.resume`; ``tests/test_motionqueue.py`` runs the queue alone.
+``second.start is not None`` branch), :meth:`SpeedOverride.step` and
+:meth:`MotionQueue.resume`; ``tests/test_motionqueue.py`` runs the queue alone. What holds
+the motion, and the stop under way, is a :class:`Holds`.
 
 The override
 ------------
 ``override`` (percent) scales the time of the moves, the running one too: a smooth,
-monotonic change of the timeline's rate (:meth:`_step_rate`) within every axis's
+monotonic change of the timeline's rate (:class:`SpeedOverride`) within every axis's
 acceleration limit.
+
+The parts
+---------
+:class:`MotionQueue` is the timeline (the segments, where the setpoint is, the records)
+and what coordinates its parts, each a class with the behaviour of its data:
+:class:`Lookahead` (the moves handed over and not planned yet, the worker's job),
+:class:`SpeedOverride` (the rate), :class:`Triggers` (armed and due) and :class:`Holds`.
 
 Real time: :meth:`sample`, :meth:`add` with a worker, :meth:`pause`, :meth:`resume`,
 :meth:`abort` and the override are real-time safe (no blocking, no thread creation, no
@@ -61,7 +69,7 @@ from compiler.triggers import PLACES, UNITS
 from runtime.motion.moves import MovePlanner, MoveRecord, MoveRequest, Segment
 from runtime.motion.trajectory import Trajectory
 
-__all__ = ["RATE_CHANGE_MARGIN", "MotionQueue", "PlanningWorker"]
+__all__ = ["RATE_CHANGE_MARGIN", "Holds", "Lookahead", "MotionQueue", "PlanningWorker", "SpeedOverride", "Triggers"]
 
 #: Timeline times closer than this are the same instant (the timeline is a running sum).
 _SAME_TIME = 1e-9
@@ -109,8 +117,262 @@ class PlanningWorker:
             self.jobs.get().run()
 
 
+class SpeedOverride:
+    """The speed override and the rate of the timeline it sets (trajectory seconds per real
+    second): ``rate`` now, ``target`` (the override's rate, what the rate goes to),
+    ``percent`` (as the operator set it) and ``velocity_limit_scale`` (the rate never
+    exceeds it). A change of rate while a move runs takes ``change_time`` seconds (0:
+    steady), a smooth, monotonic schedule slowed down where the path would break an
+    axis's acceleration limit (:meth:`step`), which is why it follows the path's velocity
+    and acceleration (:meth:`observe`). Real-time safe."""
+
+    def __init__(self, axes):
+        self.rate = 1.0
+        self.target = 1.0
+        self.percent = 100.0
+        self.velocity_limit_scale = 1.0
+        self._from = self._to = 1.0
+        self._t = self.change_time = 0.0  # progress and length (s) of a change of rate
+        zeros = (0.0,) * len(axes)
+        self._path_velocity: tuple = zeros  # the timeline's velocity per trajectory second
+        self._path_acceleration: tuple = zeros  # ... and acceleration (estimated)
+        self._limits = tuple(a.max_acceleration * RATE_CHANGE_MARGIN for a in axes)
+        self._v_per_a = max((a.max_velocity / a.max_acceleration for a in axes), default=0.0)
+
+    def set_percent(self, percent: float) -> float:
+        """The override in percent (clamped to 1-100); returns its rate, the new target."""
+        self.percent = min(max(float(percent), 1.0), 100.0)
+        self.target = min(self.percent / 100.0, self.velocity_limit_scale)
+        return self.target
+
+    def jump_to(self, rate: float) -> None:
+        """The rate at once (nothing moves)."""
+        self.rate = self._from = self._to = rate
+        self._t = self.change_time = 0.0
+
+    def change_to(self, rate: float) -> None:
+        """Start a change of the rate to ``rate``: a quintic smoothstep (continuous in rate,
+        its derivative and second derivative) long enough that v * dr/dt stays within the
+        acceleration limits (dr/dt peaks at 1.875 |dr| / T for the quintic), and at least
+        0.2 s."""
+        self._from, self._to, self._t = self.rate, rate, 0.0
+        self.change_time = max(0.2, 1.875 * abs(rate - self.rate) * self._v_per_a)
+
+    def settle(self) -> None:
+        """End a change of rate under way at its end (the next move starts at it)."""
+        self.rate = self._from = self._to
+        self.change_time = 0.0
+
+    def restore(self) -> None:
+        """The override's rate at once, after an abort's stop."""
+        self.rate = self.target
+        self.change_time = 0.0
+
+    def step(self, dt: float) -> float:
+        """The rate for the next period: towards the quintic schedule, but never changing
+        faster than every axis's acceleration limit allows where the path is now. With the
+        rate r of trajectory time, an axis moving at v (per trajectory second) and
+        accelerating at a has the acceleration ``r^2 a + r' v``: a change of rate adds
+        ``r' v`` to what the path itself asks, so r' is kept where the sum stays within the
+        limit (0 always is: r <= 1). The rate then only lags the schedule, monotonically."""
+        self._t += dt
+        u = self._t / self.change_time
+        target = self._to
+        if u >= 1.0:
+            scheduled = target
+        else:
+            scheduled = self._from + (target - self._from) * u * u * u * (10.0 + u * (6.0 * u - 15.0))
+        rate = self.rate
+        wanted = (scheduled - rate) / dt
+        peak = 1.875 * abs(target - self._from) / self.change_time  # the schedule's steepest
+        low, high = self._change_bounds(rate)
+        change = min(max(wanted, low, -peak), high, peak)
+        rate += change * dt
+        if (change >= 0.0 and rate >= target) or (change <= 0.0 and rate <= target):
+            if u >= 1.0 or rate == target:
+                rate = target
+        if u >= 1.0 and rate == target:
+            self._from = target
+            self.change_time = 0.0
+        self.rate = rate
+        return rate
+
+    def _change_bounds(self, rate: float) -> tuple[float, float]:
+        """How fast (1/s) the rate may change now: every axis within RATE_CHANGE_MARGIN of
+        its acceleration limit, given the path's velocity and acceleration here."""
+        low, high = -math.inf, math.inf
+        r2 = rate * rate
+        for v, a, limit in zip(self._path_velocity, self._path_acceleration, self._limits):
+            if -1e-9 < v < 1e-9:
+                continue
+            lo, hi = (-limit - r2 * a) / v, (limit - r2 * a) / v
+            if v < 0.0:
+                lo, hi = hi, lo
+            if lo > low:
+                low = lo
+            if hi < high:
+                high = hi
+        return min(low, 0.0), max(high, 0.0)
+
+    def observe(self, velocities: tuple, step: float) -> None:
+        """The path's velocities (per trajectory second) after a ``step`` of trajectory
+        time: its acceleration, for the next change of rate."""
+        if step > 1e-9:
+            self._path_acceleration = tuple([(v - w) / step for v, w in zip(velocities, self._path_velocity)])
+        self._path_velocity = velocities
+
+
+class Triggers:
+    """The triggers of the moves on the timeline (``armed``: ``[timeline time, action,
+    trigger, segment]`` in time order) and the ones reached (``due``: ``(real time the
+    servo's reference is there, action)``, for the host to take). Real-time safe."""
+
+    def __init__(self):
+        self.armed: list = []
+        self.due: list = []
+
+    def clear(self) -> None:
+        self.armed = []
+        self.due = []
+
+    def arm(self, segment: Segment) -> None:
+        """A move placed on the timeline: its triggers at their times there."""
+        if segment.triggers:
+            self.armed.extend([[segment.start + t, action, trigger, segment]
+                               for t, action, trigger in segment.triggers])
+            self.armed.sort(key=lambda x: x[0])
+
+    def fire(self, t_before: float, t_now: float, now: float, period: float) -> None:
+        """The armed triggers the timeline reached from ``t_before`` to ``t_now`` (this
+        tick's setpoint): each is due when the servo's reference passes it, between this
+        tick and the next (it runs a ``period`` behind, interpolating these two setpoints)."""
+        armed = self.armed
+        span = t_now - t_before
+        while armed and armed[0][0] <= t_now + 1e-12:
+            at, action, _trigger, _segment = armed.pop(0)
+            fraction = min(max((at - t_before) / span, 0.0), 1.0) if span > 0.0 else 1.0
+            self.due.append((now + fraction * period, action))
+
+    def carry(self, segment: Segment, t: float, stop: Trajectory) -> None:
+        """A move stops on its path from its time ``t`` (``stop``): its triggers not reached
+        go with the rest of the move (counted from its end as before; from its start, the
+        distance left after the stop, or the time left when it began; at once where the
+        robot has passed them)."""
+        left = []
+        for entry in [e for e in self.armed if e[3] is segment]:
+            self.armed.remove(entry)
+            place, unit, amount, action = entry[2]
+            if PLACES[place].words == "after start":
+                done = segment.trajectory.path_distance(t, stop) if UNITS[unit].name == "mm" else t * 1000.0
+                amount = max(amount - (done if done is not None else amount), 0.0)
+            left.append((place, unit, amount, action))
+        segment.request.carried = tuple(left)
+
+
+class Lookahead:
+    """The moves handed over and not planned yet (``requests``, oldest first) and the one
+    being planned on the ``worker`` (``job``; None: no worker, or it is free): planned at
+    once without a worker (the simulated clock: deterministic), else on the worker, one
+    at a time in order. Real-time safe with a worker."""
+
+    def __init__(self, planner: MovePlanner, worker: PlanningWorker | None):
+        self.planner = planner
+        self.worker = worker
+        self.clear()
+
+    def clear(self) -> None:
+        self.requests: deque[MoveRequest] = deque()
+        self.job: _PlanningJob | None = None
+
+    @property
+    def count(self) -> int:
+        """Moves handed over and not planned yet."""
+        return len(self.requests) + (self.job is not None)
+
+    def plan_oldest(self, start: tuple, previous: Segment | None, period: float) -> tuple | None:
+        """Plan the oldest request from ``start`` after ``previous``: without a worker at
+        once (the request leaves the queue; returns ``(request, segment, problem)``), else
+        on the worker (None; :meth:`finished` gives it when done)."""
+        request = self.requests[0]
+        planner = self.planner
+
+        def plan():
+            return planner.plan(request, start, previous, period)
+
+        if self.worker is None:
+            self.requests.popleft()
+            return (request, *plan())
+        self.job = self.worker.submit(_PlanningJob(plan, request))
+        return None
+
+    def finished(self) -> _PlanningJob | None:
+        """The worker's job, once done (then no longer the queue's)."""
+        job = self.job
+        if job is None or not job.done:
+            return None
+        self.job = None
+        return job
+
+
+class Holds:
+    """Why no new move may start, and the controlled stop under way: the operator's pause
+    (``paused``), an interrupt's stop (``interrupt``, released at rest when its handler
+    ended first: ``release_at_rest``), an abort (``abort_reason``; ``abort_fault``: it
+    ends the program with a fault, else quietly, an interrupt's halt); a stop on a move's
+    path (``stop``, at its time ``t_stop``; ``interrupted``: the move, whose rest resumes)
+    or on the timeline inside a blend (``on_timeline``: its rate to 0)."""
+
+    def __init__(self):
+        self.abort_reason: str | None = None
+        self.abort_fault = True
+        self.clear()
+
+    def clear(self) -> None:
+        """No stop under way and nothing held (an abort's reason aside)."""
+        self.stop: Trajectory | None = None
+        self.t_stop = 0.0
+        self.interrupted: Segment | None = None
+        self.on_timeline = False
+        self.paused = False
+        self.interrupt = False
+        self.release_at_rest = False
+
+    def holding(self) -> bool:
+        """Paused, stopped for an interrupt, aborting, stopping, or a move to resume first."""
+        return (self.paused or self.interrupt or self.abort_reason is not None or self.stop is not None
+                or self.interrupted is not None or self.on_timeline)
+
+    @property
+    def released(self) -> bool:
+        """Neither the operator nor an interrupt holds the motion."""
+        return not (self.paused or self.interrupt)
+
+    def stop_on_path(self, segment: Segment, stop: Trajectory) -> None:
+        """``segment`` stops on its path by ``stop`` (real seconds from now)."""
+        segment.blendable = False
+        segment.stop = stop
+        self.interrupted = segment
+        self.stop, self.t_stop = stop, 0.0
+
+    def sample_stop(self, period: float) -> tuple[tuple, tuple, tuple | None, bool]:
+        """The stop one ``period`` on: positions, velocities, accelerations and whether it
+        reached rest (the stop is then over)."""
+        stop = self.stop
+        self.t_stop += period
+        positions, velocities = stop.sample(self.t_stop)
+        accelerations = stop.accelerations_at(self.t_stop)  # exact for a StopRamp and a LineStop
+        at_rest = self.t_stop >= stop.duration - 1e-12
+        if at_rest:
+            self.stop = None
+        return positions, velocities, accelerations, at_rest
+
+
 class MotionQueue:
-    """The timeline of one robot's moves (module docstring).
+    """The timeline of one robot's moves (module docstring), with its parts: the
+    look-ahead (:class:`Lookahead`: the moves not planned yet), the speed override
+    (:class:`SpeedOverride`: the timeline's rate), the triggers on the timeline
+    (:class:`Triggers`) and what holds the motion (:class:`Holds`: pause, interrupt,
+    abort and the stop under way).
 
     ``planner`` plans the moves; ``axes`` (with ``max_velocity`` and
     ``max_acceleration``) bound the changes of rate; ``worker``: plan there (None: at
@@ -120,32 +382,25 @@ class MotionQueue:
 
     What the host reads: ``positions`` / ``velocities`` (the last setpoint), ``moves``
     and ``completed``, ``failed`` (a move that could not be planned in the background:
-    ``(problem, line)``, taken by the host) and ``ended`` (the fault that ends the
-    program: an abort at rest, a rest that cannot be planned).
+    ``(problem, line)``, taken by the host), ``ended`` (the fault that ends the program:
+    an abort at rest, a rest that cannot be planned) and ``due`` (the triggers reached).
     """
 
     def __init__(self, planner: MovePlanner, axes, worker: PlanningWorker | None = None,
                  holds: Callable[[], bool] = lambda: False, program_line: Callable[[], int] = lambda: 0):
-        self.planner = planner
         self.axes = tuple(axes)
         self.n = len(self.axes)
-        self.worker = worker
         self.holds = holds
         self.program_line = program_line
+        self.lookahead = Lookahead(planner, worker)
+        self.speed = SpeedOverride(self.axes)
+        self.triggers = Triggers()
+        self.hold = Holds()
         self.period = 0.0
         self.t_move = 0.0  # the timeline (trajectory seconds)
         self.positions: tuple = (0.0,) * self.n
         self.velocities: tuple = (0.0,) * self.n
         self.accelerations: tuple | None = (0.0,) * self.n  # exact ones, or None (the setpoint goes without)
-        self.rate = 1.0  # trajectory seconds per real second: the override, now
-        self._override = 1.0  # the override's rate (what the rate goes to)
-        self._percent = 100.0  # the override as the operator set it
-        self.velocity_limit_scale = 1.0  # robot.velocity_limit_scale: the rate never exceeds it
-        self._rate_from = self._rate_to = 1.0
-        self._rate_t = self._rate_T = 0.0  # progress and length (s) of a change of rate
-        self._path_velocity: tuple = (0.0,) * self.n  # the timeline's velocity per trajectory second
-        self._path_acceleration: tuple = (0.0,) * self.n  # ... and acceleration (estimated)
-        self._accelerations = tuple(a.max_acceleration * RATE_CHANGE_MARGIN for a in self.axes)
         self._now = 0.0  # the time of the last sample
         self.reset()
 
@@ -153,8 +408,8 @@ class MotionQueue:
         """Forget the last program's moves and records (not real-time)."""
         self.moves: list[MoveRecord] = []
         self.completed = 0  # moves that reached their end (telemetry reads it every 10 ms)
-        self.abort_reason: str | None = None  # set by abort(): end once at rest
-        self._abort_fault = True  # the abort ends the program with a fault (else: quietly, an interrupt's halt)
+        self.hold.abort_reason = None  # set by abort(): end once at rest
+        self.hold.abort_fault = True
         self.failed: tuple[str, int] | None = None
         self.ended: str | None = None
         self.clear()
@@ -162,19 +417,10 @@ class MotionQueue:
     def clear(self) -> None:
         """Drop every move, planned or not, and any stop (the robot is at rest)."""
         self._segments: deque[Segment] = deque()  # planned, in order; the first one or two run
-        self._requests: deque[MoveRequest] = deque()  # handed over, not planned yet (worker)
-        self._planning: _PlanningJob | None = None
+        self.lookahead.clear()
         self._last: Segment | None = None  # the last segment planned (the next plans from its end)
-        self._stop: Trajectory | None = None  # a controlled stop under way (real seconds)
-        self.t_stop = 0.0
-        self.interrupted: Segment | None = None  # a move stopped before its end (pause/abort)
-        self._hold = False  # stopping (or stopped) by bringing the timeline's rate to 0
-        self._paused = False  # by the operator (the program may have handed over all its moves)
-        self._interrupt = False  # stopped for an interrupt's handler (compiler.interrupts: stop)
-        self._release_at_rest = False
-        self._armed: list = []  # triggers of moves on the timeline: [timeline time, action, trigger, segment]
-        self.due: list = []  # triggers reached: (real time the servo's reference is there, action), for the host
-        self._release_at_rest = False  # an interrupt's handler ended before its stop did: go on at rest
+        self.hold.clear()
+        self.triggers.clear()
 
     def start(self, positions: tuple, period: float) -> None:
         """A new program starts with the robot at ``positions``, setpoints every ``period``."""
@@ -185,13 +431,56 @@ class MotionQueue:
         self.accelerations = (0.0,) * self.n
         self.t_move = 0.0
 
+    # ---- the parts' names the host and the tests use ----
+    @property
+    def planner(self) -> MovePlanner:
+        return self.lookahead.planner
+
+    @property
+    def worker(self) -> PlanningWorker | None:
+        """Where the moves are planned (None: at once, in the caller)."""
+        return self.lookahead.worker
+
+    @worker.setter
+    def worker(self, worker: PlanningWorker | None) -> None:
+        self.lookahead.worker = worker
+
+    @property
+    def rate(self) -> float:
+        """Trajectory seconds per real second: the override, now."""
+        return self.speed.rate
+
+    @property
+    def velocity_limit_scale(self) -> float:
+        """robot.velocity_limit_scale: the rate never exceeds it."""
+        return self.speed.velocity_limit_scale
+
+    @velocity_limit_scale.setter
+    def velocity_limit_scale(self, scale: float) -> None:
+        self.speed.velocity_limit_scale = scale
+
+    @property
+    def due(self) -> list:
+        """The triggers reached: (real time the servo's reference is there, action), for the host."""
+        return self.triggers.due
+
+    @property
+    def interrupted(self) -> Segment | None:
+        """A move stopped before its end (pause, abort), its rest to resume."""
+        return self.hold.interrupted
+
+    @property
+    def abort_reason(self) -> str | None:
+        """The abort under way (the program ends once the robot is at rest)."""
+        return self.hold.abort_reason
+
     # ---- what is moving ----
     @property
     def current(self) -> Trajectory | None:
         """What is being sampled now: a controlled stop, or the first running move's
         trajectory; None when the robot is not moving."""
-        if self._stop is not None:
-            return self._stop
+        if self.hold.stop is not None:
+            return self.hold.stop
         segs = self._segments
         if segs and segs[0].start is not None:
             return segs[0].trajectory
@@ -200,15 +489,14 @@ class MotionQueue:
     @property
     def queued(self) -> int:
         """Moves handed over that have not started yet."""
-        return (sum(1 for s in self._segments if s.start is None) + len(self._requests)
-                + (self._planning is not None))
+        return sum(1 for s in self._segments if s.start is None) + self.lookahead.count
 
     @property
     def line(self) -> int | None:
         """The source line of the move the robot is executing (stopping on, or waiting to
         resume); None when no move is under way."""
-        if self.interrupted is not None:
-            return self.interrupted.request.line
+        if self.hold.interrupted is not None:
+            return self.hold.interrupted.request.line
         segs = self._segments
         if segs and segs[0].start is not None:
             return segs[0].request.line
@@ -217,24 +505,22 @@ class MotionQueue:
     @property
     def paused(self) -> bool:
         """Paused by the operator (:meth:`pause`)."""
-        return self._paused
+        return self.hold.paused
 
     def done(self, triggers: bool = True) -> bool:
         """Every move handed over has ended (and no stop is under way), and (``triggers``)
         its triggers have fired (the servo's reference is where they are)."""
-        return (not self._segments and not self._requests and self._planning is None
-                and self._stop is None and self.interrupted is None
-                and (not triggers or (not self._armed and not self.due)))
+        hold = self.hold
+        return (not self._segments and not self.lookahead.count and hold.stop is None and hold.interrupted is None
+                and (not triggers or (not self.triggers.armed and not self.triggers.due)))
 
     def at_rest(self) -> bool:
-        return self.current is None or (self._hold and self.rate == 0.0 and not self._rate_T)
+        return self.current is None or (self.hold.on_timeline and self.speed.rate == 0.0 and not self.speed.change_time)
 
     def _holding(self) -> bool:
         """No new move may start: held by the host, paused, aborting, stopping, or a move
         to resume first."""
-        return (self.holds() or self._paused or self._interrupt or self.abort_reason is not None
-                or self._stop is not None
-                or self.interrupted is not None or self._hold)
+        return self.holds() or self.hold.holding()
 
     # ---- the speed override: a rate of trajectory time (real-time safe) ----
     @property
@@ -247,97 +533,38 @@ class MotionQueue:
         monotonic, so the speed never overshoots the new value. The rate never exceeds
         ``velocity_limit_scale`` (reduced speed: every axis within that fraction of its
         max_velocity)."""
-        return self._percent
+        return self.speed.percent
 
     @override.setter
     def override(self, percent: float) -> None:
-        self._percent = min(max(float(percent), 1.0), 100.0)
-        rate = min(self._percent / 100.0, self.velocity_limit_scale)
-        self._override = rate
-        if self._hold:  # stopping or stopped on the timeline: resume goes to the new rate
+        rate = self.speed.set_percent(percent)
+        if self.hold.on_timeline:  # stopping or stopped on the timeline: resume goes to the new rate
             return
-        if self.current is None or self._stop is not None:
-            self.rate = self._rate_from = self._rate_to = rate
-            self._rate_t = self._rate_T = 0.0
+        if self.current is None or self.hold.stop is not None:
+            self.speed.jump_to(rate)
             return
-        self._change_rate(rate)
-
-    def _change_rate(self, rate: float) -> None:
-        self._rate_from, self._rate_to, self._rate_t = self.rate, rate, 0.0
-        # long enough that v * dr/dt stays within the acceleration limits (dr/dt peaks at
-        # 1.875 |dr| / T for the quintic), and at least 0.2 s
-        ratio = max((a.max_velocity / a.max_acceleration for a in self.axes), default=0.0)
-        self._rate_T = max(0.2, 1.875 * abs(rate - self.rate) * ratio)
-
-    def _step_rate(self, dt: float) -> float:
-        """The rate for the next period: towards the quintic schedule, but never changing
-        faster than every axis's acceleration limit allows where the path is now. With the
-        rate r of trajectory time, an axis moving at v (per trajectory second) and
-        accelerating at a has the acceleration ``r^2 a + r' v``: a change of rate adds
-        ``r' v`` to what the path itself asks, so r' is kept where the sum stays within the
-        limit (0 always is: r <= 1). The rate then only lags the schedule, monotonically."""
-        self._rate_t += dt
-        u = self._rate_t / self._rate_T
-        target = self._rate_to
-        if u >= 1.0:
-            scheduled = target
-        else:
-            scheduled = self._rate_from + (target - self._rate_from) * u * u * u * (10.0 + u * (6.0 * u - 15.0))
-        rate = self.rate
-        wanted = (scheduled - rate) / dt
-        peak = 1.875 * abs(target - self._rate_from) / self._rate_T  # the schedule's steepest
-        low, high = self._rate_change_bounds(rate)
-        change = min(max(wanted, low, -peak), high, peak)
-        rate += change * dt
-        if (change >= 0.0 and rate >= target) or (change <= 0.0 and rate <= target):
-            if u >= 1.0 or rate == target:
-                rate = target
-        if u >= 1.0 and rate == target:
-            self._rate_from = target
-            self._rate_T = 0.0
-        self.rate = rate
-        return rate
-
-    def _rate_change_bounds(self, rate: float) -> tuple[float, float]:
-        """How fast (1/s) the rate may change now: every axis within RATE_CHANGE_MARGIN of
-        its acceleration limit, given the path's velocity and acceleration here."""
-        low, high = -math.inf, math.inf
-        r2 = rate * rate
-        for v, a, limit in zip(self._path_velocity, self._path_acceleration, self._accelerations):
-            if -1e-9 < v < 1e-9:
-                continue
-            lo, hi = (-limit - r2 * a) / v, (limit - r2 * a) / v
-            if v < 0.0:
-                lo, hi = hi, lo
-            if lo > low:
-                low = lo
-            if hi < high:
-                high = hi
-        return min(low, 0.0), max(high, 0.0)
+        self.speed.change_to(rate)
 
     # ---- the period's sample (real-time) ----
     def sample(self, now: float) -> None:
         """Real-time: take a finished plan, then advance the motion by one period:
         ``positions`` and ``velocities`` are the setpoint for ``now``."""
         self._now = now
-        if self._planning is not None and self._planning.done:
-            self._planned()
-        if self._stop is not None:
+        job = self.lookahead.finished()
+        if job is not None:
+            self._planned(job)
+        if self.hold.stop is not None:
             self._sample_stop()
         elif self._segments:
             self._sample_timeline(now)
-        elif self._armed:  # at rest with triggers 'after end' to come: the timeline goes on
+        elif self.triggers.armed:  # at rest with triggers 'after end' to come: the timeline goes on
             before = self.t_move
-            self.t_move += self.period * self.rate
-            self._fire(before, self.t_move, now)
+            self.t_move += self.period * self.speed.rate
+            self.triggers.fire(before, self.t_move, now, self.period)
 
     def _sample_stop(self) -> None:
-        stop = self._stop
-        self.t_stop += self.period
-        self.positions, self.velocities = stop.sample(self.t_stop)
-        self.accelerations = stop.accelerations_at(self.t_stop)  # exact for a StopRamp and a LineStop
-        if self.t_stop >= stop.duration - 1e-12:
-            self._stop = None
+        self.positions, self.velocities, self.accelerations, at_rest = self.hold.sample_stop(self.period)
+        if at_rest:
             self.velocities = (0.0,) * self.n
             self.accelerations = self.velocities  # at rest (not the stop's value a rounding error before its end)
             self._at_rest_after_stop()
@@ -349,18 +576,19 @@ class MotionQueue:
             if self._holding():
                 return
             first.start = self.t_move  # starts now: its first sample one period on
-            self._arm(first)
+            self.triggers.arm(first)
             self._schedule()
         held = False
-        if self._rate_T:
-            before = self.rate
-            rate = self._step_rate(self.period)
-            held = self._hold and not self._rate_T  # the rate reached 0: at rest on the path
+        speed = self.speed
+        if speed.change_time:
+            before = speed.rate
+            rate = speed.step(self.period)
+            held = self.hold.on_timeline and not speed.change_time  # the rate reached 0: at rest on the path
             # trajectory time over the period at the mean rate: the setpoints' positions then
             # agree with their velocities (rate x the path's), which the servo interpolates
             step = self.period * 0.5 * (before + rate)
         else:
-            rate = self.rate
+            rate = speed.rate
             step = self.period * rate
         t_before = self.t_move
         tm = self.t_move = self.t_move + step
@@ -380,11 +608,9 @@ class MotionQueue:
         else:
             self.accelerations = self._exact_accelerations((first,), tm, rate)
         self.positions = positions
-        if self._armed:
-            self._fire(t_before, tm, now)
-        if step > 1e-9:  # the path's acceleration, for the next change of rate
-            self._path_acceleration = tuple([(v - w) / step for v, w in zip(velocities, self._path_velocity)])
-        self._path_velocity = velocities
+        if self.triggers.armed:
+            self.triggers.fire(t_before, tm, now, self.period)
+        speed.observe(velocities, step)  # the path's acceleration, for the next change of rate
         self.velocities = velocities if rate == 1.0 else tuple([v * rate for v in velocities])
         if held:
             self._held()
@@ -399,17 +625,16 @@ class MotionQueue:
                 self._schedule()
             if not segs or segs[0].start is None:  # nothing moving on: at rest
                 self.velocities = (0.0,) * self.n
-                if self._rate_T and not self._hold:  # a change of override under way: the next move has it
-                    self.rate = self._rate_from = self._rate_to
-                    self._rate_T = 0.0
-                if self._hold:
+                if speed.change_time and not self.hold.on_timeline:
+                    speed.settle()  # a change of override under way: the next move has it
+                if self.hold.on_timeline:
                     self._held()
 
     def _exact_accelerations(self, running: tuple, tm: float, rate: float) -> tuple | None:
         """The timeline's accelerations at ``tm`` (per real second squared) when every move
         running has exact ones (:meth:`Trajectory.accelerations_at`) and the rate is steady;
         else None: the setpoint goes without, and the servo interpolates it C1 as before."""
-        if self._rate_T:
+        if self.speed.change_time:
             return None
         total = None
         for segment in running:
@@ -421,7 +646,7 @@ class MotionQueue:
 
     def _started(self, segment: Segment, now: float) -> None:
         request = segment.request
-        rate = max(self.rate, 1e-9)
+        rate = max(self.speed.rate, 1e-9)
         # it began (its time 0) between the last tick and this one: its first setpoint
         t_start = now - (self.t_move - segment.start) / rate
         segment.record = MoveRecord(request.line, request.kind, segment.end, segment.duration / rate, t_start,
@@ -429,23 +654,6 @@ class MotionQueue:
         if segment.previous is not None and segment.offset is not None and segment.previous.record is not None:
             segment.previous.record.blended = True
         self.moves.append(segment.record)
-
-    def _arm(self, segment: Segment) -> None:
-        """A move placed on the timeline: its triggers at their times there."""
-        if segment.triggers:
-            self._armed.extend([[segment.start + t, action, trigger, segment] for t, action, trigger in segment.triggers])
-            self._armed.sort(key=lambda x: x[0])
-
-    def _fire(self, t_before: float, t_now: float, now: float) -> None:
-        """The armed triggers the timeline reached from ``t_before`` to ``t_now`` (this
-        tick's setpoint): each is due when the servo's reference passes it, between this
-        tick and the next (it runs a period behind, interpolating these two setpoints)."""
-        armed = self._armed
-        span = t_now - t_before
-        while armed and armed[0][0] <= t_now + 1e-12:
-            at, action, _trigger, _segment = armed.pop(0)
-            fraction = min(max((at - t_before) / span, 0.0), 1.0) if span > 0.0 else 1.0
-            self.due.append((now + fraction * self.period, action))
 
     def _schedule(self) -> None:
         """Put the next segment on the timeline if it is blended into the running one
@@ -459,7 +667,7 @@ class MotionQueue:
         start = first.start + second.offset
         if first.blendable and second.previous is first and start >= self.t_move - _SAME_TIME and not self._holding():
             second.start = start
-            self._arm(second)
+            self.triggers.arm(second)
         else:
             second.offset = None  # too late (or interrupted): the corner is a stop
 
@@ -469,7 +677,7 @@ class MotionQueue:
         stop, a lin or circ move along its own line or arc, a blend along the blend); no
         new move starts until :meth:`resume`. Returns the time (s) within which the
         robot will be at rest, or None when it is already."""
-        self._paused = True
+        self.hold.paused = True
         return self._stop_on_path()
 
     def resume(self) -> None:
@@ -477,32 +685,34 @@ class MotionQueue:
         move is re-planned from where the robot stopped (at once, or when its stop ends);
         a blend stopped on the timeline speeds up again on it. Not while an interrupt's
         stop holds it (:meth:`interrupt_stop`)."""
-        self._paused = False
+        self.hold.paused = False
         self._release()
 
     def interrupt_stop(self) -> float | None:
         """An interrupt fired with ``stop``: the motion stops on its path as for
         :meth:`pause`, held until :meth:`interrupt_release` (and the operator's resume, if
         the operator paused too). Returns the time within which the robot is at rest."""
-        self._interrupt = True
+        self.hold.interrupt = True
         return self._stop_on_path()
 
     def interrupt_release(self) -> None:
         """The interrupt's handler ended (``then resume``): go on as :meth:`resume` does,
         once the robot is at rest (the stop is never cut short: ``stop`` stops)."""
-        if self._stop is not None or (self._hold and (self.rate > 0.0 or self._rate_T)):
-            self._release_at_rest = True
+        hold = self.hold
+        if hold.stop is not None or (hold.on_timeline and (self.speed.rate > 0.0 or self.speed.change_time)):
+            hold.release_at_rest = True
             return
-        self._interrupt = False
+        hold.interrupt = False
         self._release()
 
     def _release(self) -> None:
-        if self._paused or self._interrupt:
+        hold = self.hold
+        if not hold.released:
             return
-        if self._hold:
-            self._hold = False
-            self._change_rate(self._override)
-        elif self.interrupted is not None and self._stop is None:
+        if hold.on_timeline:
+            hold.on_timeline = False
+            self.speed.change_to(self.speed.target)
+        elif hold.interrupted is not None and hold.stop is None:
             self._resume_move()
 
     def abort(self, reason: str, fault: bool = True) -> float | None:
@@ -510,17 +720,18 @@ class MotionQueue:
         (at once when the robot is at rest); without ``fault`` (an interrupt's ``then
         halt``) the moves are dropped and nothing ends with a fault. Returns the time
         within which it will be at rest (None: already, or an abort is already under way)."""
-        if self.abort_reason is not None:
+        if self.hold.abort_reason is not None:
             return None
-        self.abort_reason = reason
-        self._abort_fault = fault
+        self.hold.abort_reason = reason
+        self.hold.abort_fault = fault
         within = self._stop_on_path()
         if self.at_rest():
             self._at_rest_after_stop()
         return within
 
     def _stop_on_path(self) -> float | None:
-        if self._stop is not None or self.interrupted is not None or self._hold:
+        hold = self.hold
+        if hold.stop is not None or hold.interrupted is not None or hold.on_timeline:
             return None
         segs = self._segments
         if not segs or segs[0].start is None:
@@ -530,98 +741,82 @@ class MotionQueue:
         if second is not None and second.start is not None:
             # in (or scheduled into) a blend: stop on the timeline itself, so the robot stays
             # on the blended path and resume speeds up again on it
-            self._hold = True
-            self._change_rate(0.0)
-            return self._rate_T
-        stop = first.trajectory.stop(self.t_move - first.start, self.positions, self.velocities, self.rate)
-        self._disarm(first, self.t_move - first.start, stop)
+            hold.on_timeline = True
+            self.speed.change_to(0.0)
+            return self.speed.change_time
+        stop = first.trajectory.stop(self.t_move - first.start, self.positions, self.velocities, self.speed.rate)
+        self.triggers.carry(first, self.t_move - first.start, stop)
         segs.popleft()
-        first.blendable = False
         if second is not None:
             second.offset = None
-        first.stop = stop
-        self.interrupted = first
-        self._stop, self.t_stop = stop, 0.0
+        hold.stop_on_path(first, stop)
         return stop.duration
-
-    def _disarm(self, segment: Segment, t: float, stop: Trajectory) -> None:
-        """A move stops on its path from its time ``t`` (``stop``): its triggers not reached
-        go with the rest of the move (counted from its end as before; from its start, the
-        distance left after the stop, or the time left when it began; at once where the
-        robot has passed them)."""
-        left = []
-        for entry in [e for e in self._armed if e[3] is segment]:
-            self._armed.remove(entry)
-            place, unit, amount, action = entry[2]
-            if PLACES[place].words == "after start":
-                done = segment.trajectory.path_distance(t, stop) if UNITS[unit].name == "mm" else t * 1000.0
-                amount = max(amount - (done if done is not None else amount), 0.0)
-            left.append((place, unit, amount, action))
-        segment.request.carried = tuple(left)
 
     def _held(self) -> None:
         """The timeline's rate reached 0 (a stop inside a blend): at rest."""
         self.velocities = (0.0,) * self.n
-        if self.abort_reason is not None:
+        hold = self.hold
+        if hold.abort_reason is not None:
             self._at_rest_after_stop()
-        elif self._release_at_rest:
-            self._release_at_rest = self._interrupt = False
+        elif hold.release_at_rest:
+            hold.release_at_rest = hold.interrupt = False
             self._release()
 
     def _at_rest_after_stop(self) -> None:
-        if self.abort_reason is not None:
+        hold = self.hold
+        if hold.abort_reason is not None:
             line = self.line
             self.clear()
-            self.rate = self._override
-            self._rate_T = 0.0
-            if self._abort_fault:
-                self.ended = self.ended or f"{self.abort_reason} at line {self.program_line() if line is None else line}"
+            self.speed.restore()
+            if hold.abort_fault and not self.ended:
+                self.ended = f"{hold.abort_reason} at line {self.program_line() if line is None else line}"
             return
-        if self._release_at_rest:
-            self._release_at_rest = self._interrupt = False
-        if not (self._paused or self._interrupt or self.holds()):
+        if hold.release_at_rest:
+            hold.release_at_rest = hold.interrupt = False
+        if hold.released and not self.holds():
             self._resume_move()
 
     def _resume_move(self) -> None:
         """Plan the rest of the interrupted move from where the robot stopped (a PTP move
         at once; the rest of a line or arc like any Cartesian move: at once without a
         worker, else first in the planning queue)."""
-        move = self.interrupted
+        move = self.hold.interrupted
         request = move.request
         left = move.stop.rest(move.end)
         if left is None:  # the stop ended at the move's target: the move is done
-            self.interrupted = None
+            self.hold.interrupted = None
             if move.record is not None:
                 move.record.t_end = self._now
             self.completed += 1
             if self._last is move:
                 self._last = None
-            self.due.extend([(self._now, action) for _place, _unit, _amount, action in request.carried])
+            self.triggers.due.extend([(self._now, action) for _place, _unit, _amount, action in request.carried])
             return
         kind, targets = left
         rest = MoveRequest(kind, tuple(targets), request.speed, request.acc, 0.0, request.line, rest_of=move,
                            frames=request.frames, triggers=request.carried)
         if kind == "ptp":
-            self._take_plan(rest, *self.planner.plan(rest, self.positions, None, self.period))
+            self._take_plan(rest, *self.lookahead.planner.plan(rest, self.positions, None, self.period))
             return
-        self._requests.appendleft(rest)
-        if self.worker is None:
+        self.lookahead.requests.appendleft(rest)
+        if self.lookahead.worker is None:
             self._plan_next()
 
     # ---- planning ----
     def add(self, request: MoveRequest) -> str | None:
         """Hand over a move: planned at once without a worker (returns the problem of a
         move that cannot be planned), else when the worker is free."""
-        self._requests.append(request)
-        if self.worker is None:  # deterministic: plan at once (simulated time does not pass)
+        self.lookahead.requests.append(request)
+        if self.lookahead.worker is None:  # deterministic: plan at once (simulated time does not pass)
             return self._plan_next()
         return None
 
     def plan_waiting(self) -> tuple[str, int] | None:
         """Real-time: start planning the oldest waiting move if the worker is free;
         ``(problem, line)`` of one that cannot be planned (no worker)."""
-        if self._requests and self._planning is None:
-            request = self._requests[0]
+        lookahead = self.lookahead
+        if lookahead.requests and lookahead.job is None:
+            request = lookahead.requests[0]
             problem = self._plan_next()
             if problem is not None:
                 return problem, request.line
@@ -631,36 +826,27 @@ class MotionQueue:
         """Plan the oldest request (from the end of the last planned move): at once
         without a worker (returns the problem of a move that cannot be planned), else on
         the worker."""
-        request = self._requests[0]
-        if request.rest_of is not None:  # from where the robot stopped, no blend before it
+        if self.lookahead.requests[0].rest_of is not None:  # from where the robot stopped, no blend before it
             previous, start = None, self.positions
         else:
             previous = self._last
             start = previous.end if previous is not None else self._chain_start()
-        planner, period = self.planner, self.period
-
-        def plan():
-            return planner.plan(request, start, previous, period)
-
-        if self.worker is None:
-            self._requests.popleft()
-            return self._take_plan(request, *plan())
-        self._planning = self.worker.submit(_PlanningJob(plan, request))
-        return None
+        planned = self.lookahead.plan_oldest(start, previous, self.period)
+        return None if planned is None else self._take_plan(*planned)
 
     def _chain_start(self) -> tuple:
-        if self.interrupted is not None:
-            return self.interrupted.end
+        if self.hold.interrupted is not None:
+            return self.hold.interrupted.end
         return self.positions
 
-    def _planned(self) -> None:
+    def _planned(self, job: _PlanningJob) -> None:
         """Real-time: take a finished background plan."""
-        job, self._planning = self._planning, None
-        if self.abort_reason is not None:
+        if self.hold.abort_reason is not None:
             return
         request = job.what
-        if request in self._requests:
-            self._requests.remove(request)
+        requests = self.lookahead.requests
+        if request in requests:
+            requests.remove(request)
             problem = self._take_plan(request, *job.result)
             if problem is not None:
                 self.failed = (problem, request.line)
@@ -670,7 +856,7 @@ class MotionQueue:
         planned (the program stops at it, after the moves before it)."""
         move = request.rest_of
         if move is not None:  # the rest of an interrupted move: it goes first
-            self.interrupted = None
+            self.hold.interrupted = None
             if segment is None:
                 self.ended = self.ended or f"cannot resume the move at line {request.line}: {problem}"
                 self.clear()
@@ -681,7 +867,7 @@ class MotionQueue:
                 self._last = segment
             return None
         if segment is None:
-            self._requests.clear()
+            self.lookahead.requests.clear()
             return problem
         if segment.previous is not None and segment.previous is not self._last:
             segment.offset = None  # the move it was to blend with was interrupted meanwhile

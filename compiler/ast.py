@@ -221,7 +221,7 @@ class Clause:
 class Move:
     """``move ptp|lin|circ TARGET [, TARGET] {CLAUSE}``; circ has (via, end) targets."""
 
-    kind: str
+    kind: str  # a compiler.clauses.Motion
     targets: tuple[Expr, ...]
     clauses: tuple[Clause, ...]
     span: Span

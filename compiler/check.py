@@ -27,7 +27,7 @@ from .triggers import problem as trigger_problem
 from .clauses import BY_NAME as CLAUSE_BY_NAME
 from .clauses import CLAUSES as CLAUSE_TABLE
 from .clauses import NAMES as CLAUSES
-from .clauses import Clause
+from .clauses import Clause, Motion
 from .objcode import BUILTINS, MAX_ARRAY_ELEMENTS, MAX_COUNT, MAX_STRING_LENGTH
 from .semantics import (GEOMETRIC_BUILTINS, GEOMETRY, INT_MAX, INT_MIN, EvalError, binary, call_builtin,
                         compose, geometric_result, make_joint, make_pos, make_quat, make_rpy, unary)
@@ -45,6 +45,8 @@ ERROR = "<error>"  # the type of an expression already reported: suppresses foll
 
 NAMED_TYPES = (INTEGER, REAL, BOOL, STRING, JOINT, POSITION, ORIENTATION, POSE, FRAME, TOOL)
 NUMERIC = (INTEGER, REAL)
+#: The types a move's target may have, per motion (a circ move's via pose too).
+MOVE_TARGETS: dict[Motion, tuple[str, ...]] = {Motion.PTP: (JOINT, POSE), Motion.LIN: (POSE,), Motion.CIRC: (POSE,)}
 MAX_ARRAY_LENGTH = MAX_ARRAY_ELEMENTS  # the object-code contract's limit
 
 
@@ -834,10 +836,10 @@ class Checker:
         self.expect(node.value, BOOL, "a digital output's value")
 
     def s_Move(self, node: ast.Move):
-        wanted = {"ptp": (JOINT, POSE), "lin": (POSE,), "circ": (POSE,)}[node.kind]
-        names = ["the via pose", "the end pose"] if node.kind == "circ" else ["the target"]
+        wanted = MOVE_TARGETS[node.kind]
+        names = ["the via pose", "the end pose"] if node.kind == Motion.CIRC else ["the target"]
         if len(node.targets) != len(names):
-            self.error(node.span, "move circ takes two poses: via, end" if node.kind == "circ"
+            self.error(node.span, "move circ takes two poses: via, end" if node.kind == Motion.CIRC
                        else f"move {node.kind} takes one target, not {len(node.targets)}")
             for target in node.targets:
                 self.expr(target)

@@ -18,17 +18,30 @@ Imports nothing from Lark, NumPy or ZeroMQ.
 """
 from __future__ import annotations
 
+import enum
 import math
 from dataclasses import dataclass
 
 from .diagnostics import did_you_mean
 from .params import MIN_TOOL_ACCELERATION, MIN_TOOL_SPEED, describe
 
-__all__ = ["CLAUSES", "BY_NAME", "NAMES", "MOTIONS", "Clause", "MoveClauses", "Problem", "Range",
+__all__ = ["CLAUSES", "BY_NAME", "NAMES", "MOTIONS", "Motion", "Clause", "MoveClauses", "Problem", "Range",
            "defaults_markdown", "markdown", "validate_move_clauses"]
 
-#: The motions a move statement names (``move ptp``, ``move lin``, ``move circ``).
-MOTIONS = ("ptp", "lin", "circ")
+class Motion(enum.StrEnum):
+    """The motions a move statement names (``move ptp``, ``move lin``, ``move circ``),
+    declared once: the compiler, the object code (``MOVE_PTP``, ``MOVE_LIN``,
+    ``MOVE_CIRC``), the runtime's moves and the clause table below compare against these
+    members. Each is its keyword as a string (``Motion.PTP == "ptp"``, and ``"ptp"`` is
+    what a message, a report or the object code shows)."""
+
+    PTP = "ptp"
+    LIN = "lin"
+    CIRC = "circ"
+
+
+#: The motions, in the object code's order.
+MOTIONS: tuple[Motion, ...] = tuple(Motion)
 
 
 @dataclass(frozen=True)
@@ -71,7 +84,7 @@ class Range:
     an attribute of the specification (``"max_speed"``), read where the range is checked.
     ``meaning``: what the value is after these motions (documentation, hints)."""
 
-    motions: tuple[str, ...]
+    motions: tuple[Motion, ...]
     low: float
     high: float | str | None
     low_open: bool = False
@@ -124,7 +137,7 @@ class Clause:
     ``instead``: the clause that does its job for the other motions (a hint)."""
 
     name: str
-    motions: tuple[str, ...]
+    motions: tuple[Motion, ...]
     type: str
     field: str
     ranges: tuple[Range, ...] = ()
@@ -229,35 +242,35 @@ class Clause:
 #: THE table, in the object code's bit order: bit 0 (mask 1) is speed_ptp. The values of
 #: the clauses a move gives are pushed in this order.
 CLAUSES: tuple[Clause, ...] = (
-    Clause("speed_ptp", ("ptp",), "real", "speed",
-           (Range(("ptp",), 0.01, 1.0, meaning="a fraction of each axis's max_velocity",
+    Clause("speed_ptp", (Motion.PTP,), "real", "speed",
+           (Range((Motion.PTP,), 0.01, 1.0, meaning="a fraction of each axis's max_velocity",
                   hint="it is a fraction of each axis's max_velocity"),),
            default="speed_ptp", builtin=0.5, instead="speed",
            doc="speed of every axis, as a fraction of its max_velocity (the axes start and stop together)"),
-    Clause("acc_ptp", ("ptp",), "real", "acc",
-           (Range(("ptp",), 0.01, 1.0, meaning="a fraction of each axis's max_acceleration",
+    Clause("acc_ptp", (Motion.PTP,), "real", "acc",
+           (Range((Motion.PTP,), 0.01, 1.0, meaning="a fraction of each axis's max_acceleration",
                   hint="it is a fraction of each axis's max_acceleration"),),
            default="acc_ptp", builtin=0.5, instead="acc",
            doc="acceleration of every axis, as a fraction of its max_acceleration (its max_jerk scales with it)"),
-    Clause("speed", ("lin", "circ"), "real", "speed",
-           (Range(("lin", "circ"), MIN_TOOL_SPEED, "max_speed", unit="mm/s", meaning="the tool's speed"),),
+    Clause("speed", (Motion.LIN, Motion.CIRC), "real", "speed",
+           (Range((Motion.LIN, Motion.CIRC), MIN_TOOL_SPEED, "max_speed", unit="mm/s", meaning="the tool's speed"),),
            default="speed", builtin=250.0, instead="speed_ptp",
            doc="speed of the tool centre point along the path (an upper bound: the move runs slower where "
                "an axis's limits ask for it)"),
-    Clause("acc", ("lin", "circ"), "real", "acc",
-           (Range(("lin", "circ"), MIN_TOOL_ACCELERATION, "max_acceleration", unit="mm/s^2",
+    Clause("acc", (Motion.LIN, Motion.CIRC), "real", "acc",
+           (Range((Motion.LIN, Motion.CIRC), MIN_TOOL_ACCELERATION, "max_acceleration", unit="mm/s^2",
                   meaning="the tool's acceleration"),),
            default="acc", builtin=1000.0, instead="acc_ptp",
            doc="acceleration of the tool centre point along the path (an upper bound, like speed)"),
-    Clause("approx", ("ptp", "lin", "circ"), "real", "approx",
-           (Range(("ptp",), 0.0, 1.0, meaning="a fraction of the move's slowdown",
+    Clause("approx", MOTIONS, "real", "approx",
+           (Range((Motion.PTP,), 0.0, 1.0, meaning="a fraction of the move's slowdown",
                   hint="after a ptp move it is a fraction of the slowdown (after lin and circ a distance in mm)"),
-            Range(("lin", "circ"), 0.0, None, unit="mm", meaning="a distance from the target")),
+            Range((Motion.LIN, Motion.CIRC), 0.0, None, unit="mm", meaning="a distance from the target")),
            default="approx", builtin=0.0,
            doc="blend into the next move instead of stopping at the target: after ptp, the fraction of the "
                "slowdown overlapped with the next move's speed-up; after lin and circ, how far from the "
                "target the tool leaves the path (0: stop at the target)"),
-    Clause("act_rob", ("ptp", "lin", "circ"), "robot", "robot",
+    Clause("act_rob", MOTIONS, "robot", "robot",
            doc="the robot that executes the move (a program drives exactly the robot of its specification)"),
 )
 

@@ -15,6 +15,7 @@ from .frames import BY_KEYWORD as FRAME_BY_KEYWORD
 from .frames import describe_name
 from .triggers import PLACE_INDEX, UNIT_INDEX
 from .clauses import CLAUSES as CLAUSE_TABLE
+from .clauses import Motion
 from .objcode import BUILTIN_NAMES, FIELDS, OP, InterruptInfo, ProcInfo, Program
 from .values import Joint, Pose, Position, Rpy
 
@@ -22,6 +23,8 @@ _BINARY_OPS = {"+": OP.ADD, "-": OP.SUB, "*": OP.MUL, "/": OP.DIV, "div": OP.IDI
                "=": OP.EQ, "<>": OP.NE, "<": OP.LT, "<=": OP.LE, ">": OP.GT, ">=": OP.GE,
                "and": OP.AND, "or": OP.OR}
 _BUILTIN_INDEX = {name: i for i, name in enumerate(BUILTIN_NAMES)}
+#: Each motion's instruction (the object code's MOVE_PTP, MOVE_LIN, MOVE_CIRC).
+MOVE_OPS = {Motion.PTP: OP.MOVE_PTP, Motion.LIN: OP.MOVE_LIN, Motion.CIRC: OP.MOVE_CIRC}
 _NO_VALUE = object()
 
 
@@ -251,7 +254,7 @@ class CodeGen:
             if clause.name in given:
                 mask |= 1 << clause.bit
                 self.value(given[clause.name].value, REAL if clause.type == "real" else None)
-        self.emit({"ptp": OP.MOVE_PTP, "lin": OP.MOVE_LIN, "circ": OP.MOVE_CIRC}[node.kind], mask)
+        self.emit(MOVE_OPS[node.kind], mask)
 
     def s_If(self, node: ast.If) -> None:
         to_end = []

@@ -14,6 +14,7 @@ from grammar import make_parser
 
 from . import ast
 from .clauses import NAMES as CLAUSE_NAMES
+from .clauses import Motion
 from .diagnostics import CompileError, Diagnostic, did_you_mean
 from .semantics import INT_MAX
 
@@ -189,7 +190,7 @@ class _Builder(Transformer):
         kw, kind, *rest = c
         targets = tuple(item for item in rest if not isinstance(item, ast.Clause))
         clauses = tuple(item for item in rest if isinstance(item, ast.Clause))
-        return ast.Move(kind.value.lower(), targets, clauses, _span(kw).to(rest[-1].span))
+        return ast.Move(Motion(kind.value.lower()), targets, clauses, _span(kw).to(rest[-1].span))
 
     def clause(self, c):
         name, value = c

@@ -13,6 +13,8 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+from .clauses import MOTIONS, Motion
+
 __all__ = ["PLACES", "PLACE_INDEX", "UNITS", "UNIT_INDEX", "Place", "Unit", "markdown", "problem", "MAX_PENDING",
            "SET_TYPES"]
 
@@ -23,7 +25,7 @@ class Unit:
 
     name: str
     high: float
-    motions: tuple[str, ...]
+    motions: tuple[Motion, ...]
     doc: str
 
 
@@ -47,9 +49,9 @@ class Place:
 
 #: In the object code's order (a TRIGGER instruction's ``unit`` operand indexes it).
 UNITS: tuple[Unit, ...] = (
-    Unit("ms", 60_000.0, ("ptp", "lin", "circ"),
+    Unit("ms", 60_000.0, MOTIONS,
          "a time: where the robot is that long after the start (before the end) at 100 % override"),
-    Unit("mm", 100_000.0, ("lin", "circ"), "a distance along the tool's path (lin and circ moves)"),
+    Unit("mm", 100_000.0, (Motion.LIN, Motion.CIRC), "a distance along the tool's path (lin and circ moves)"),
 )
 
 #: In the object code's order (a TRIGGER instruction's ``place`` operand indexes it).

@@ -81,6 +81,23 @@ def test_the_table_is_the_object_codes_clause_list_in_bit_order():
     assert clause_names((1 << len(NAMES)) - 1) == list(NAMES)
 
 
+def test_every_motion_has_its_instruction_target_types_and_handler():
+    """The motions are declared once (compiler.clauses.Motion); each has its MOVE_ instruction
+    (the code generator's), the types its targets may have (the checker's) and the VM's
+    handler, and is its keyword as a string wherever it is shown."""
+    from compiler import check, codegen
+    from compiler.clauses import Motion
+    from compiler.objcode import OP
+    from runtime.loop.vm import VM
+
+    assert [m.value for m in Motion] == ["ptp", "lin", "circ"] and MOTIONS == tuple(Motion)  # the format
+    assert set(codegen.MOVE_OPS) == set(Motion) == set(check.MOVE_TARGETS)
+    for motion in Motion:
+        assert codegen.MOVE_OPS[motion] == getattr(OP, f"MOVE_{motion.name}")
+        assert callable(getattr(VM, f"op_move_{motion}", None)), motion
+        assert motion == motion.value and f"{motion}" == str(motion) == motion.value  # messages show the keyword
+
+
 def test_every_motion_and_clause_has_the_documented_rule():
     applies = {(c.name, kind) for c in CLAUSES for kind in c.motions}
     assert applies == set(RULES) | {("act_rob", kind) for kind in MOTIONS}

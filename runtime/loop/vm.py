@@ -64,6 +64,7 @@ from typing import Protocol
 
 from time import perf_counter
 
+from compiler.clauses import Motion
 from compiler.objcode import BUILTIN_NAMES, FIELDS, INSTRUCTIONS, MAX_ARRAY_ELEMENTS, OP, Program, clause_names
 from compiler.semantics import (INT_MAX, INT_MIN, MAX_STRING_LENGTH, EvalError, binary, call_builtin,
                                 check_index, get_axis, get_field, make_joint, make_pos, make_quat, make_rpy,
@@ -117,8 +118,8 @@ class MotionHost(Protocol):
     def now(self) -> float:
         """Seconds, the executive's clock."""
 
-    def move(self, kind: str, targets: tuple, clauses: dict, line: int) -> str | None:
-        """Hand over a move: ``kind`` is "ptp", "lin" or "circ"; ``targets`` is
+    def move(self, kind: Motion, targets: tuple, clauses: dict, line: int) -> str | None:
+        """Hand over a move: ``kind`` is a :class:`compiler.clauses.Motion`; ``targets`` is
         ``(target,)``, or ``(via, end)`` for circ; ``clauses`` holds only the clauses the
         program gave ({name: value}). None when accepted, else an error message (which
         stops the program with an error at ``line``)."""
@@ -1003,7 +1004,7 @@ class VM:
         self.host.write_output(n, value)
         return pc + 1
 
-    def _move(self, kind: str, targets: int, mask: int, pc: int) -> int:
+    def _move(self, kind: Motion, targets: int, mask: int, pc: int) -> int:
         names = _CLAUSE_NAMES[mask]
         pop_n = self.memory.pop_n
         clauses = dict(zip(names, pop_n(len(names)))) if names else {}
@@ -1021,13 +1022,13 @@ class VM:
         self._await(_W_QUEUE)
 
     def op_move_ptp(self, mask, pc):
-        return self._move("ptp", 1, mask, pc)
+        return self._move(Motion.PTP, 1, mask, pc)
 
     def op_move_lin(self, mask, pc):
-        return self._move("lin", 1, mask, pc)
+        return self._move(Motion.LIN, 1, mask, pc)
 
     def op_move_circ(self, mask, pc):
-        return self._move("circ", 2, mask, pc)
+        return self._move(Motion.CIRC, 2, mask, pc)
 
     def op_trigger_out(self, operands, pc):
         place, unit = operands

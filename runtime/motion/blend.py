@@ -38,6 +38,8 @@ from math import ceil
 
 import numpy as np
 
+from compiler.clauses import Motion
+
 from runtime.timing import TICK
 from runtime.motion.interpolator import Interpolator
 from runtime.motion.trajectory import Trajectory
@@ -67,7 +69,8 @@ class Limits:
                       map(max, self.jerk, other.jerk))
 
 
-def overlap_wanted(first_kind: str, first: Trajectory, approx: float, second_kind: str, second: Trajectory) -> float:
+def overlap_wanted(first_kind: Motion, first: Trajectory, approx: float, second_kind: Motion,
+                   second: Trajectory) -> float:
     """The overlap (s) that ``approx`` on the move ``first`` asks for with the move
     ``second`` (module docstring; the kinds say what ``approx`` means: a fraction after
     a ptp move, a distance after a lin or circ move); 0 when the corner is not to be
@@ -75,10 +78,10 @@ def overlap_wanted(first_kind: str, first: Trajectory, approx: float, second_kin
     if not approx > 0.0 or first.duration <= 0.0 or second.duration <= 0.0:
         return 0.0
     ramp = min(first.ramp_time, second.ramp_time)
-    if first_kind == "ptp":
+    if first_kind == Motion.PTP:
         return min(approx, 1.0) * ramp
     wanted = min(ramp, first.path_time(approx, at_end=True))
-    if second_kind != "ptp":
+    if second_kind != Motion.PTP:
         wanted = min(wanted, second.path_time(approx, at_end=False))
     return wanted
 

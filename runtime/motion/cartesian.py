@@ -32,6 +32,7 @@ from typing import Mapping, Sequence
 import numpy as np
 import numpy.ma  # noqa: F401  (np.unique imports it on its first call: in a tick, that is file I/O)
 
+from compiler.clauses import Motion
 from compiler.values import Joint
 
 from runtime.timing import SETPOINT_PERIOD, TICK
@@ -356,18 +357,18 @@ class PathStop(Trajectory):
             self.fault = self.fault or f"the stop left the arm's reach ({exc})"
             return near
 
-    def rest(self, end: tuple = ()) -> tuple[str, tuple] | None:
-        """What is left of the path after the stop: ``("lin", (end,))`` or
-        ``("circ", (via, end))`` -- the arguments of :func:`plan_lin` / :func:`plan_circ`
-        from the stop on (the via point halfway along the rest of the arc); None when the
-        stop ends at the path's end (no sooner stop kept the limits: nothing is left)."""
+    def rest(self, end: tuple = ()) -> tuple[Motion, tuple] | None:
+        """What is left of the path after the stop: ``(Motion.LIN, (end,))`` or
+        ``(Motion.CIRC, (via, end))`` -- the lin or circ move from the stop on (the via
+        point halfway along the rest of the arc); None when the stop ends at the path's
+        end (no sooner stop kept the limits: nothing is left)."""
         path = self.path
         if self.s_end >= path.length - 1e-9 * max(path.length, 1.0):
             return None
         end = path.pose_at(path.length)
-        if path.kind == "circ":
-            return "circ", (path.pose_at(0.5 * (self.s_end + path.length)), end)
-        return "lin", (end,)
+        if path.kind == Motion.CIRC:
+            return Motion.CIRC, (path.pose_at(0.5 * (self.s_end + path.length)), end)
+        return Motion.LIN, (end,)
 
 
 # ============================================================================ one call

@@ -64,6 +64,7 @@ import threading
 from collections import deque
 from typing import Callable
 
+from compiler.clauses import Motion
 from compiler.triggers import PLACES, UNITS
 
 from runtime.motion.moves import MovePlanner, MoveRecord, MoveRequest, Segment
@@ -795,7 +796,7 @@ class MotionQueue:
         kind, targets = left
         rest = MoveRequest(kind, tuple(targets), request.speed, request.acc, 0.0, request.line, rest_of=move,
                            frames=request.frames, triggers=request.carried)
-        if kind == "ptp":
+        if kind == Motion.PTP:
             self._take_plan(rest, *self.lookahead.planner.plan(rest, self.positions, None, self.period))
             return
         self.lookahead.requests.appendleft(rest)

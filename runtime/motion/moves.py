@@ -24,6 +24,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import NamedTuple
 
+from compiler.clauses import Motion
 from compiler.frames import IDENTITY
 from compiler.triggers import PLACES, UNITS
 from compiler.values import Joint, Pose
@@ -82,8 +83,8 @@ class MoveRecord:
 
 
 class MoveRequest:
-    """A move the program handed over, not planned yet: ``kind`` (``"ptp"``, ``"lin"``,
-    ``"circ"``), ``targets`` (one target; a circ move's via pose first), ``speed`` and
+    """A move the program handed over, not planned yet: ``kind`` (a
+    :class:`compiler.clauses.Motion`), ``targets`` (one target; a circ move's via pose first), ``speed`` and
     ``acc`` (fractions for ptp, mm/s and mm/s^2 for lin/circ), ``approx``, the source
     ``line``; ``rest_of``: the interrupted segment whose rest this is (planned from where
     it stopped); ``frames``: its base and tool (:class:`Frames`; None: the
@@ -192,7 +193,7 @@ class MovePlanner:
         """Plan ``request`` from the joints ``start`` (blended after ``previous`` when
         that one has ``approx``), for setpoints every ``period`` s: ``(segment, None)`` or
         ``(None, problem)``. Pure: safe on the planning worker."""
-        if request.kind == "ptp":
+        if request.kind == Motion.PTP:
             segment, problem = self._plan_ptp(request, start)
         else:
             segment, problem = self._plan_cartesian(request, start, period)
@@ -255,7 +256,7 @@ class MovePlanner:
             return None, self.kinematics_problem
         poses = tuple(kinematics.forward(t.axes[:self.main]) if isinstance(t, Joint) else t
                       for t in request.targets)
-        via, target = (None, poses[0]) if request.kind == "lin" else poses
+        via, target = (None, poses[0]) if request.kind == Motion.LIN else poses
         result, stream, message = plan_cartesian(CartesianInput(
             kinematics, start, target, request.speed, request.acc, via=via,
             axis_limits=self.joint_limits, period=period))

@@ -47,6 +47,7 @@ from __future__ import annotations
 
 from math import atan2, cos, inf, isfinite, pi, sin, sqrt
 
+from compiler.clauses import Motion
 from compiler.geometry import rpy_of_quat
 from compiler.values import Pose, Quat
 
@@ -200,7 +201,7 @@ class LinPath(_Path):
     rotation counts in ``length`` (module docstring)."""
 
     __slots__ = ("_p0", "_d", "_dir")
-    kind = "lin"
+    kind = Motion.LIN
 
     def __init__(self, start_pose, end_pose, orientation_radius: float = ORIENTATION_RADIUS):
         start, end = pose_tuple(start_pose), pose_tuple(end_pose)
@@ -238,7 +239,7 @@ class CircPath(_Path):
 
     __slots__ = ("centre", "radius", "normal", "angle", "via_angle", "via_length", "via",
                  "_re1", "_re2", "_sweep", "_e1", "_e2")
-    kind = "circ"
+    kind = Motion.CIRC
 
     def __init__(self, start_pose, via_pose, end_pose, orientation_radius: float = ORIENTATION_RADIUS):
         start, end = pose_tuple(start_pose), pose_tuple(end_pose)

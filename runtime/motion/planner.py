@@ -388,10 +388,10 @@ def scaled_limits(axes_max_velocity, axes_max_acceleration, speed_ptp: float,
     lengths: the compiler and the specification loader already reject those, so in the
     loop this would be a programming error, not a program's.
     """
-    from compiler.clauses import BY_NAME
+    from compiler.clauses import BY_NAME, Motion
 
     for name, value in (("speed_ptp", speed_ptp), ("acc_ptp", acc_ptp)):
-        rng = BY_NAME[name].range_for("ptp")
+        rng = BY_NAME[name].range_for(Motion.PTP)
         if not (isinstance(value, Real) and isfinite(value) and rng.contains(value, None)):
             raise ValueError(f"{name} must be a fraction {rng.expected('x', None)}, got {format_value(value)}")
     velocities = tuple(float(v) * speed_ptp for v in axes_max_velocity)

@@ -31,6 +31,8 @@ from __future__ import annotations
 
 import enum
 
+from compiler.clauses import Motion
+
 __all__ = ["Result", "Trajectory"]
 
 
@@ -142,11 +144,11 @@ class Trajectory:
         Cartesian line or arc), within the move's acceleration limits."""
         raise NotImplementedError
 
-    def rest(self, end: tuple) -> tuple[str, tuple] | None:
+    def rest(self, end: tuple) -> tuple[Motion, tuple] | None:
         """For a stop: what is left of the interrupted move whose end is ``end`` (all
         axes), as ``(kind, targets)`` to plan from where the stop ends: by default a
-        ``"ptp"`` move to ``end``; None when nothing is left."""
-        return "ptp", (tuple(end),)
+        ptp move to ``end``; None when nothing is left."""
+        return Motion.PTP, (tuple(end),)
 
 
 #: The step (s) of :meth:`Trajectory.at_time`'s central differences.

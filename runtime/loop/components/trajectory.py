@@ -23,7 +23,7 @@ from __future__ import annotations
 
 import time
 
-from compiler.clauses import MoveClauses, validate_move_clauses
+from compiler.clauses import Motion, MoveClauses, validate_move_clauses
 from compiler.frames import BY_KEYWORD as FRAME_BY_KEYWORD
 from compiler.frames import IDENTITY, describe_name, pose_of, values_of
 from compiler.frames import problem as frame_problem
@@ -307,17 +307,18 @@ class TrajectoryGenerator(Component):
         """The program's time (waits, timeouts): the tick's, as the motion's."""
         return self.clock.tick_time
 
-    def move(self, kind: str, targets: tuple, clauses: dict, line: int) -> str | None:
+    def move(self, kind: Motion, targets: tuple, clauses: dict, line: int) -> str | None:
         """The VM's move instruction: check the move, hand it to the motion queue; the
         problem of a move that cannot be made (the program stops at its line)."""
         checked = validate_move_clauses(kind, clauses, self.spec)  # the clause table's rules and defaults
         if isinstance(checked, str):
             return checked
+        kind = Motion(kind)  # (one of them: checked)
         frames = self.frames
         if frames.base != IDENTITY:  # pose targets are in the active base
             base = pose_of(frames.base)
             targets = tuple(compose(base, t) if isinstance(t, Pose) else t for t in targets)
-        if kind == "ptp":
+        if kind == Motion.PTP:
             target = targets[0]
             if isinstance(target, Pose):
                 if self.planner.kinematics is None:
@@ -393,7 +394,7 @@ class TrajectoryGenerator(Component):
             return self.motion_done()
         return self.motion.queued < self.lookahead
 
-    def _cartesian_request(self, kind: str, targets: tuple, clauses: MoveClauses, line: int):
+    def _cartesian_request(self, kind: Motion, targets: tuple, clauses: MoveClauses, line: int):
         """``move lin TARGET`` / ``move circ VIA, TARGET``: the path is checked whole
         against the kinematics, the axis limits and velocities before it starts (a refused
         move leaves the robot where it is, and the program stops at its line with the

@@ -34,3 +34,19 @@ def arguments(doc: str, **counts: int) -> argparse.ArgumentParser:
     for name, default in counts.items():
         parser.add_argument(f"--{name}", type=int, default=default)
     return parser
+
+
+def timing_table(overhead_ns, width: int):
+    """Print the timer's own overhead and a table's head; returns ``row(label, ns)``, which
+    prints one row of durations in nanoseconds and returns their (p50, p99) in us."""
+    o50, o99 = percentiles(overhead_ns)
+    print(f"timer overhead (perf_counter_ns pair): p50 {o50:.3f} us, p99 {o99:.3f} us "
+          f"(included in every figure below)")
+    print(f"{'':{width}s} {'p50 us':>8s} {'p99 us':>8s} {'calls':>9s}")
+
+    def row(label: str, ns) -> tuple[float, float]:
+        p50, p99 = percentiles(ns)
+        print(f"{label:{width}s} {p50:8.2f} {p99:8.2f} {len(ns):9d}")
+        return p50, p99
+
+    return row

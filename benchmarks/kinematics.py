@@ -41,7 +41,7 @@ import numpy as np  # noqa: E402
 
 from compiler.spec import load_spec  # noqa: E402
 from runtime.motion.kinematics import Kinematics, configuration_name  # noqa: E402
-from _stats import LOLA15, arguments, percentiles  # noqa: E402
+from _stats import LOLA15, arguments, timing_table  # noqa: E402
 
 GOAL_POS = 1e-9  # m
 GOAL_ROT = 1e-9  # rad
@@ -151,7 +151,6 @@ def main() -> int:
                 worst = (q, cid, joints)
             max_dp, max_dr = max(max_dp, dp), max(max_dr, dr)
 
-    o50, o99 = percentiles(overhead)
     print(f"{args.poses} random reachable poses of the {spec.name} (joints within the limits, away from "
           f"singularities), seed {args.seed}")
     print(f"solutions within the limits: {n_solutions} in all, {n_solutions / args.poses:.2f} per pose "
@@ -168,14 +167,7 @@ def main() -> int:
         print(f"  (largest error at q = ({', '.join(f'{v:.2f}' for v in q)}), configuration {cid}: "
               f"{configuration_name(cid)})")
     print()
-    print(f"timer overhead (perf_counter_ns pair): p50 {o50:.3f} us, p99 {o99:.3f} us "
-          f"(included in every figure below)")
-    print(f"{'':44s} {'p50 us':>8s} {'p99 us':>8s} {'calls':>9s}")
-
-    def row(label, ns):
-        p50, p99 = percentiles(ns)
-        print(f"{label:44s} {p50:8.2f} {p99:8.2f} {len(ns):9d}")
-        return p50, p99
+    row = timing_table(overhead, 44)
 
     ik50, ik99 = row("inverse(pose, near=q)  [8 configurations]", t_near)
     best50, best99 = row("  the same, best of 3 calls per pose", t_near_best)

@@ -34,7 +34,7 @@ sys.path.insert(0, str(ROOT))
 from compiler.spec import load_spec  # noqa: E402
 from runtime.motion.interpolator import Interpolator  # noqa: E402
 from runtime.motion.planner import PtpInput, Result, plan_ptp, scaled_limits  # noqa: E402
-from _stats import LOLA15, arguments, percentiles  # noqa: E402
+from _stats import LOLA15, arguments, timing_table  # noqa: E402
 
 TICK = 0.005  # s, trajectory generator period
 SERVO = 0.001  # s
@@ -130,17 +130,12 @@ def main() -> int:
                         interp.sample(t)
                         interp_ns.append(pc() - t0)
 
-    o50, o99 = percentiles(overhead)
     print(f"{args.moves} random {n_axes}-axis moves ({spec.name} limits, speed_ptp and acc_ptp "
           f"in [0.05, 1]), {total_duration:.0f} s of motion, {errors} planning errors")
-    print(f"timer overhead (perf_counter_ns pair): p50 {o50:.3f} us, p99 {o99:.3f} us "
-          f"(included in every figure below)")
-    print(f"{'':34s} {'p50 us':>8s} {'p99 us':>8s} {'calls':>9s}")
+    table = timing_table(overhead, 34)
 
     def row(label, ns):
-        p50, p99 = percentiles(ns)
-        print(f"{label:34s} {p50:8.2f} {p99:8.2f} {len(ns):9d}")
-        return p50
+        return table(label, ns)[0]
 
     plan50 = row("plan_ptp", plan_ns)
     ref_plan50 = row(f"  reference: {muls_plan} multiplications", plan_ref_ns)

@@ -164,7 +164,6 @@ def circles(edges: list[Import]) -> list[list[str]]:
             if len(component) > 1:
                 found.append(sorted(component))
 
-    sys.setrecursionlimit(max(sys.getrecursionlimit(), 10000))
     for node in sorted(graph):
         if node not in index:
             visit(node)

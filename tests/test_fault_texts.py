@@ -14,7 +14,7 @@ from pathlib import Path
 from conftest import ROOT
 
 #: Functions that turn any exception into a text in the robot's terms.
-TRANSLATORS = {"_describe", "_why"}
+TRANSLATORS = {"_describe", "_why", "_failed"}  # (_failed: the VM's dispatch loops' end, through _describe)
 
 #: (file, function) -> why the exception's text may be used there (never a fault text).
 ALLOWED = {

@@ -235,22 +235,12 @@ def cmd_run(args, env: Environment) -> int:
     problem = io_sources_problem(bool(args.fieldbus), bool(args.cell_scenario), args.realtime, "run")
     if problem is not None:
         raise UsageError(problem)
-    cell = None
-    if args.cell_scenario:
-        from runtime.hardware.sim.cell import ScenarioError, load_scenario
+    from runtime.hardware.backends import load_io_files
 
-        try:
-            cell = load_scenario(args.cell_scenario, spec)
-        except ScenarioError as exc:
-            raise UsageError(f"--cell-scenario: {exc}") from None
-    fieldbus = None
-    if args.fieldbus:
-        from runtime.hardware.backends import FieldbusError, load_fieldbus
-
-        try:
-            fieldbus = load_fieldbus(args.fieldbus, spec)
-        except FieldbusError as exc:
-            raise UsageError(f"--fieldbus: {exc}") from None
+    try:
+        cell, fieldbus = load_io_files(args.cell_scenario, args.fieldbus, spec)
+    except ValueError as exc:
+        raise UsageError(str(exc)) from None
     columns = _report_columns(args.report_columns, spec) if args.report_columns is not None else None
     settings = _run_settings(args)
     options = RunOptions(seed=args.seed, realtime=args.realtime, report=args.report, state_dir=args.state_dir,
@@ -500,24 +490,32 @@ def build_parser(command: str | None = None) -> argparse.ArgumentParser:
     return parser
 
 
+#: what --spec means to a command that compiles the program it is given
+OTHER_SPEC = "use this system specification instead of the program's"
+
+
+def _program_arguments(p, metavar: str, what: str, spec: str) -> None:
+    """The program (or object code) a command reads, and the specification for it."""
+    p.add_argument("file", metavar=metavar, help=what)
+    p.add_argument("--spec", metavar="FILE.spc", help=spec)
+
+
 def _check_arguments(p) -> None:
-    p.add_argument("file", metavar="FILE.irl", help="the program")
-    p.add_argument("--spec", metavar="FILE.spc", help="use this system specification instead of the program's")
+    _program_arguments(p, "FILE.irl", "the program", OTHER_SPEC)
     p.add_argument("--json", action="store_true", help="diagnostics as a JSON list (for editors)")
     p.set_defaults(run=cmd_check)
 
 
 def _compile_arguments(p) -> None:
-    p.add_argument("file", metavar="FILE.irl", help="the program")
+    _program_arguments(p, "FILE.irl", "the program", OTHER_SPEC)
     p.add_argument("-o", "--output", metavar="OUT.irlo", help="default: beside the source, suffix .irlo")
-    p.add_argument("--spec", metavar="FILE.spc", help="use this system specification instead of the program's")
     p.add_argument("--json", action="store_true", help="diagnostics as a JSON list")
     p.set_defaults(run=cmd_compile)
 
 
 def _dis_arguments(p) -> None:
-    p.add_argument("file", metavar="FILE.irlo|FILE.irl", help="the object code, or a program to compile first")
-    p.add_argument("--spec", metavar="FILE.spc", help="for FILE.irl: the system specification to use")
+    _program_arguments(p, "FILE.irlo|FILE.irl", "the object code, or a program to compile first",
+                       "for FILE.irl: the system specification to use")
     p.add_argument("--json", action="store_true", help="the listing as JSON")
     p.set_defaults(run=cmd_dis)
 
@@ -526,8 +524,8 @@ def _run_arguments(p) -> None:
     from runtime.hardware.backends import DEFAULT_ROBOT, ROBOTS
     from runtime.loop.realtime import add_arguments
 
-    p.add_argument("file", metavar="FILE.irl|FILE.irlo", help="the program, or its object code (then --spec)")
-    p.add_argument("--spec", metavar="FILE.spc", help="the robot's specification (needed for FILE.irlo)")
+    _program_arguments(p, "FILE.irl|FILE.irlo", "the program, or its object code (then --spec)",
+                       "the robot's specification (needed for FILE.irlo)")
     p.add_argument("--report", metavar="OUT.csv", help="write the report (and OUT.states.csv)")
     p.add_argument("--plot", metavar="OUT.png", help="draw the report (needs --report and matplotlib)")
     p.add_argument("--report-columns", metavar="LIST",

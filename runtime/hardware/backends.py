@@ -21,7 +21,7 @@ from runtime.hardware.faults import FAULTS
 from runtime.hardware.interface import FieldbusError, IoBackend, RobotBackend
 
 __all__ = ["DEFAULT_ROBOT", "FIELDBUSES", "ROBOTS", "FieldbusError", "FieldbusKind", "RobotKind",
-           "load_fieldbus", "make_io", "make_robot", "parse_fieldbus"]
+           "load_fieldbus", "load_io_files", "make_io", "make_robot", "parse_fieldbus"]
 
 
 @dataclass(frozen=True)
@@ -141,3 +141,23 @@ def load_fieldbus(path: str | Path, spec) -> FieldbusConfig:
 def make_io(fieldbus: FieldbusConfig, spec) -> IoBackend:
     """Not real-time: the I/O backend of a checked fieldbus file."""
     return FIELDBUSES[fieldbus.kind].make(fieldbus.config, spec)
+
+
+def load_io_files(cell: str | Path | None, fieldbus: str | Path | None, spec) -> tuple:
+    """Not real-time: a run's cell scenario and fieldbus files (either may be None), read
+    and checked: (the cell, the fieldbus configuration), each None when not given. Raises
+    ValueError saying which option's file is wrong and how, in the command line's words."""
+    loaded_cell = loaded_fieldbus = None
+    if cell is not None:
+        from runtime.hardware.sim.cell import ScenarioError, load_scenario
+
+        try:
+            loaded_cell = load_scenario(cell, spec)
+        except ScenarioError as exc:
+            raise ValueError(f"--cell-scenario: {exc}") from None
+    if fieldbus is not None:
+        try:
+            loaded_fieldbus = load_fieldbus(fieldbus, spec)
+        except FieldbusError as exc:
+            raise ValueError(f"--fieldbus: {exc}") from None
+    return loaded_cell, loaded_fieldbus

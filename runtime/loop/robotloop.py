@@ -314,21 +314,9 @@ def run_options(spec, options: LoopOptions) -> RunOptions:
     problem = options.problem()
     if problem is not None:
         raise ValueError(problem)
-    cell = fieldbus = None
-    if options.cell is not None:
-        from runtime.hardware.sim.cell import ScenarioError, load_scenario
+    from runtime.hardware.backends import load_io_files
 
-        try:
-            cell = load_scenario(options.cell, spec)
-        except ScenarioError as exc:
-            raise ValueError(f"--cell-scenario: {exc}") from None
-    if options.fieldbus is not None:
-        from runtime.hardware.backends import FieldbusError, load_fieldbus
-
-        try:
-            fieldbus = load_fieldbus(options.fieldbus, spec)
-        except FieldbusError as exc:
-            raise ValueError(f"--fieldbus: {exc}") from None
+    cell, fieldbus = load_io_files(options.cell, options.fieldbus, spec)
     return RunOptions(seed=options.seed, realtime=options.realtime, state_dir=options.state_dir,
                       deadline_policy=options.deadline_policy, cell=cell, fieldbus=fieldbus)
 

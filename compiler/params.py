@@ -394,9 +394,9 @@ PARAMS: tuple[Param, ...] = (
     # a configuration's robot.* keys are the component's, below) ----
     _p("robot", "name", "text", None, doc="the robot's name (what a program's act_rob names)"),
     _p("robot", "description", "text", "", doc="what the robot is (optional)"),
-    _p("robot", "max_speed", "number", 2000.0, "mm/s", MIN_TOOL_SPEED,
+    _p("robot", "max_speed", "number", 2000.0, "mm/s", MIN_TOOL_SPEED, 20_000.0,
        doc="the tool centre point's speed limit: the speed clause's upper bound (compiler.clauses)"),
-    _p("robot", "max_acceleration", "number", 10_000.0, "mm/s^2", MIN_TOOL_ACCELERATION,
+    _p("robot", "max_acceleration", "number", 10_000.0, "mm/s^2", MIN_TOOL_ACCELERATION, 500_000.0,
        doc="the tool centre point's acceleration limit: the acc clause's upper bound (compiler.clauses)"),
     # ---- [[axis]]: what each axis is (the position keys are checked against each other in
     # compiler/spec.py: min < max, home and sensor_position within them) ----

@@ -371,6 +371,20 @@ def test_irl_check_names_a_value_below_its_range(tmp_path, table, key, index):
     assert re.search(r"expected (a number |an integer )?[0-9.e+]+ <=|>= [0-9.]+|<= x", text), text
 
 
+@pytest.mark.parametrize("key", ["max_speed", "max_acceleration"])
+@pytest.mark.parametrize("value", [1e305, 1e299, 1e7])
+def test_irl_check_names_a_tool_limit_above_its_range(tmp_path, key, value):
+    """[robot] max_speed and max_acceleration have an upper bound of their own (20 m/s,
+    50 g): a value above it is named with its range. (When they moved into the parameter
+    table, a value from 1e300 up to the largest float was accepted for a while.)"""
+    (tmp_path / "lola15.spc").write_text(_set(SPEC_TEXT, "robot", key, value), encoding="utf-8")
+    (tmp_path / "test.irl").write_text(TEST_IRL, encoding="utf-8")
+    out, err = io.StringIO(), io.StringIO()
+    code = main(["check", str(tmp_path / "test.irl")], Environment(stdout=out, stderr=err))
+    text = out.getvalue() + err.getvalue()
+    assert code == 1 and f"lola15.spc: robot.{key}: expected" in text and "<=" in text, text
+
+
 def test_a_too_coarse_encoder_is_refused_with_its_resolution():
     text = _set(_set(SPEC_TEXT, "axis", "gear_ratio", 1.0, 0), "axis", "encoder_counts", 4096, 0)
     with pytest.raises(SpecError, match=r"axis\[1\]\.gear_ratio: .*11\.38 counts per deg: expected 50 to 20000"):
@@ -430,5 +444,5 @@ def test_every_axis_and_robot_key_is_declared_once_with_its_default():
     for name in ("description", "max_speed", "max_acceleration"):
         assert getattr(spec, name) == robot[name].default, name
     assert isinstance(spec, Spec)
-    with pytest.raises(SpecError, match=r"robot\.max_speed: expected a number >= 0\.1 \(mm/s\), got 0\.05"):
+    with pytest.raises(SpecError, match=r"robot\.max_speed: expected a number 0\.1 <= x <= 20000 \(mm/s\), got 0\.05"):
         parse_spec(text.replace('name = "r"\n', 'name = "r"\nmax_speed = 0.05\n'), "min.spc")

@@ -1,7 +1,8 @@
-"""The house's shape, measured from the source: the import graph (circles, arrows that run
-back up a layer, private names imported across modules), the fields of every class and the
-length of every function. ``tests/test_architecture.py`` holds the limits;
-``python tests/house.py`` prints the figures (docs/architecture.md).
+"""The house's shape, measured from the source: import circles and private names imported
+across modules (the layers and the processes kept apart are import-linter's contracts in
+pyproject.toml), the fields of every class and the length of every function.
+``tests/test_architecture.py`` holds the limits; ``python tests/house.py`` prints the
+figures (docs/architecture.md).
 """
 from __future__ import annotations
 
@@ -13,33 +14,6 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
 PACKAGES = ("grammar", "compiler", "runtime")
-
-#: the layers, lowest first: a module may import from its own layer and the ones below it.
-#: The first prefix that matches a module's name decides its layer.
-LAYERS: tuple[tuple[str, ...], ...] = (
-    ("grammar",),
-    ("compiler",),
-    ("runtime", "runtime.kernels", "runtime.accel", "runtime.timing", "runtime.config", "runtime.places"),
-    ("runtime.motion",),
-    ("runtime.wire",),
-    ("runtime.hardware",),
-    ("runtime.loop",),
-    ("runtime.server",),
-    ("runtime.client",),
-    ("runtime.cli",),
-)
-
-#: Packages of one layer or of layers apart that must not import each other: the processes
-#: talk over runtime.wire only. (importer, what it must not import)
-APART: tuple[tuple[str, str], ...] = (
-    ("runtime.server", "runtime.loop"),
-    ("runtime.server", "runtime.motion"),
-    ("runtime.server", "runtime.hardware"),
-    ("runtime.client", "runtime.server"),
-    ("runtime.client", "runtime.loop"),
-    ("runtime.client", "runtime.motion"),
-    ("runtime.client", "runtime.hardware"),
-)
 
 #: compiled modules that stand for a source module (setup.py builds runtime/_kernels_c from
 #: runtime/kernels.py)
@@ -120,17 +94,6 @@ def imports(known: dict[str, Path] | None = None) -> list[Import]:
     return found
 
 
-def layer(module: str) -> int:
-    best = None
-    for index, prefixes in enumerate(LAYERS):  # the longest prefix decides
-        for p in prefixes:
-            if (module == p or module.startswith(p + ".")) and (best is None or len(p) > len(best[1])):
-                best = (index, p)
-    if best is not None:
-        return best[0]
-    raise KeyError(f"{module} is in no layer of tests/house.py LAYERS")
-
-
 def circles(edges: list[Import]) -> list[list[str]]:
     """The strongly connected components of more than one module (Tarjan's algorithm)."""
     graph: dict[str, set[str]] = {}
@@ -168,20 +131,6 @@ def circles(edges: list[Import]) -> list[list[str]]:
         if node not in index:
             visit(node)
     return found
-
-
-def upward(edges: list[Import]) -> list[Import]:
-    """Imports from a lower layer to a higher one."""
-    return [e for e in edges if layer(e.target) > layer(e.source)]
-
-
-def _inside(module: str, package: str) -> bool:
-    return module == package or module.startswith(package + ".")
-
-
-def apart(edges: list[Import]) -> list[Import]:
-    """Imports between packages that must stay apart (:data:`APART`)."""
-    return [e for e in edges if any(_inside(e.source, a) and _inside(e.target, b) for a, b in APART)]
 
 
 def private_imports(edges: list[Import]) -> list[Import]:
@@ -249,18 +198,6 @@ def main() -> int:
     print(f"circles: {len(found)}")
     for component in found:
         print("   ", " <-> ".join(component))
-    try:
-        ups = upward(edges)
-    except KeyError as exc:
-        print(f"layers: {exc}")
-        ups = []
-    print(f"imports up a layer: {len(ups)}")
-    for e in ups:
-        print(f"    {e.source} -> {e.target} (line {e.line})")
-    crossing = apart(edges)
-    print(f"imports between processes kept apart: {len(crossing)}")
-    for e in crossing:
-        print(f"    {e.source} -> {e.target} (line {e.line})")
     privates = private_imports(edges)
     print(f"private names imported across modules: {len(privates)}")
     for e in privates:

@@ -223,13 +223,15 @@ _ROBOT = params.spec_section("robot")
 
 def _param(r: "_Reader", param: params.Param, default=...):
     """The key ``param`` of the table ``r`` reads, checked by its declaration
-    (compiler.params); its default (``default`` where the default depends on other keys)
-    when the table leaves it out, or missing when it has none."""
+    (compiler.params); when the table leaves it out, ``default`` if one is given (where
+    it depends on other keys; None for an optional key), else the declaration's, else
+    it is missing."""
     r.used.add(param.name)
     if param.name not in r.table:
-        default = param.default if default is ... else default
-        if default is ... or default is None:
-            raise SpecError(r.file, r.key(param.name), f"missing; expected {param.allowed()}")
+        if default is ...:
+            default = param.default
+            if default is None:
+                raise SpecError(r.file, r.key(param.name), f"missing; expected {param.allowed()}")
         return default
     try:
         return param.check(r.table[param.name])
@@ -250,21 +252,10 @@ def _axis(file: str, index: int, table) -> Axis:
     unit = "deg" if kind == "revolute" else "mm"
     low = r.get("min", "number", expect=f"a number ({unit})")
     high = r.get("max", "number", check=lambda v: v > low, expect=f"a number ({unit}) greater than min ({low:g})")
-    axis_params = params.section_params("axis")
-
     def limit(key: str, default=..., cap: float | None = None, cap_name: str = ""):
         """A key declared in compiler.params (section "axis"), within its range (and at
         most ``cap``, another key's value)."""
-        param = axis_params[key]
-        r.used.add(key)
-        if key not in r.table:
-            if default is ...:
-                raise SpecError(file, r.key(key), f"missing; expected {param.allowed()}")
-            return default
-        try:
-            value = param.check(r.table[key])
-        except params.ParamError as exc:
-            raise SpecError(file, r.key(key), exc.reason) from None
+        value = _param(r, _AXIS[key], default)
         if cap is not None and value > cap:
             raise SpecError(file, r.key(key), f"expected at most {cap_name} ({cap:g} {unit}/s), got {value:g}")
         return value
@@ -276,8 +267,8 @@ def _axis(file: str, index: int, table) -> Axis:
     home_default = _AXIS["home"].default if low <= _AXIS["home"].default <= high else ...  # none outside the limits
     home = r.get("home", "number", home_default, check=lambda v: low <= v <= high,
                  expect=f"a number ({unit}) within min..max ({low:g}..{high:g})")
-    gear = limit("gear_ratio", axis_params["gear_ratio"].default)
-    counts = limit("encoder_counts", axis_params["encoder_counts"].default)
+    gear = limit("gear_ratio")
+    counts = limit("encoder_counts")
     resolution = counts * gear / (360.0 if kind == "revolute" else 1.0)
     if not params.MIN_COUNTS_PER_UNIT <= resolution <= params.MAX_COUNTS_PER_UNIT:
         raise SpecError(file, r.key("gear_ratio"),
@@ -288,10 +279,10 @@ def _axis(file: str, index: int, table) -> Axis:
     sensor_default = sensor_default if low <= sensor_default else ...
     sensor = r.get("sensor_position", "number", sensor_default, check=lambda v: low <= v <= high,
                    expect=f"a number ({unit}) within min..max, where the homing sensor is")
-    window = limit("sensor_window", axis_params["sensor_window"].default)
-    search = limit("search_velocity", min(axis_params["search_velocity"].default, vel), cap=vel,
+    window = limit("sensor_window")
+    search = limit("search_velocity", min(_AXIS["search_velocity"].default, vel), cap=vel,
                    cap_name="max_velocity")
-    direction = limit("direction", axis_params["direction"].default)
+    direction = limit("direction")
     coupling = limit("coupling", None)
     dh = None
     if "dh" in r.table:

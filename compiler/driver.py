@@ -29,6 +29,13 @@ class Result:
     modules: dict = field(default_factory=dict)  # a module's name in the object code -> its text
     sources: dict = field(default_factory=dict)  # a module's path (as diagnostics name it) -> its text
 
+    module_files: dict = field(default_factory=dict)  # a module's name in the object code -> its path
+
+    def path_of(self, name: str) -> str:
+        """The file a diagnostic names for a file of the object code (``Program.file_at``:
+        "" for the program's own source, else a module's name in the object code)."""
+        return self.module_files.get(name, name) if name else self.file
+
     @property
     def ok(self) -> bool:
         return self.program is not None and not any(d.severity == "error" for d in self.diagnostics)
@@ -119,15 +126,16 @@ def _compile_nested(source: str, file: str, spec_path, generate_code: bool) -> R
     checked, diagnostics = check(merged, spec, file, decl_files, sees)
     checked.modules = {path: name for path, (name, _text, _m) in modules.items()}
     texts = {name: text for name, text, _m in modules.values()}
+    files = {name: path for path, (name, _text, _m) in modules.items()}
     diagnostics = syntax_errors + module_errors + diagnostics
     if diagnostics:
         diagnostics.sort(key=lambda d: (d.file != file, d.file, d.line, d.column))
         return Result(file, source, None, diagnostics, spec, texts, sources)
     if not generate_code:  # (irl check: the code generator is not even imported)
-        return Result(file, source, None, [], spec, texts, sources)
+        return Result(file, source, None, [], spec, texts, sources, files)
     from .codegen import generate
 
-    return Result(file, source, generate(checked, file), [], spec, texts, sources)
+    return Result(file, source, generate(checked, file), [], spec, texts, sources, files)
 
 
 def load_modules(tree, file: str) -> tuple[dict, list[Diagnostic], dict, dict]:

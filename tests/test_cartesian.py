@@ -472,9 +472,13 @@ def test_leaving_the_reach_fails_where_it_leaves():
     expected = expected_reach_fraction(move.path)
     assert 0.5 < expected < 0.95
     assert abs(err.fraction - expected) <= 2.0 / move.path.length + 1e-9  # within a sample
-    assert re.search(r"leaves the arm's reach at \d+ % of its length \(the wrist centre is "
-                     r"[\d.]+ mm beyond the arm's reach\)", str(err)), str(err)
+    m = re.search(r"leaves the arm's reach at \d+ % of its length, ([\d.]+) mm from its start \(the wrist centre "
+                  r"is [\d.]+ mm beyond the arm's reach\)", str(err))
+    assert m, str(err)
     assert f"{round(100 * err.fraction)} %" in str(err)
+    # where along the tool's path, in mm: the fraction of its length
+    assert err.distance == pytest.approx(err.fraction * move.path.position_length)
+    assert float(m.group(1)) == pytest.approx(err.distance, abs=0.051)
 
 
 def wrist_path(dy=0.0):
@@ -527,8 +531,8 @@ def test_too_high_a_speed_fails_naming_the_axis():
     err = info.value
     assert err.reason == "velocity" and err.axis == "A4"
     a4 = AXES[3].max_velocity  # 330 deg/s
-    m = re.fullmatch(rf"A4 would need (\d+) deg/s \(limit {a4:g}\) at (\d+) % of the path: lower "
-                     rf"the speed \(to at most ([\d.]+) mm/s\)", str(err))
+    m = re.fullmatch(rf"A4 would need (\d+) deg/s \(limit {a4:g}\) at (\d+) % of the path, [\d.]+ mm from its "
+                     rf"start: lower the speed \(to at most ([\d.]+) mm/s\)", str(err))
     assert m, str(err)
     assert int(m.group(1)) > a4 and 0.0 < err.fraction < 1.0
     # the speed it suggests passes, and keeps A4 within its limit

@@ -48,8 +48,11 @@ def work(tmp_path: Path) -> Path:
 def test_check_ok(work):
     code, out, err = run("check", work / "valid.irl")
     assert code == 0
-    assert out.strip() == f"{work / 'valid.irl'}: ok"
+    assert out.splitlines()[0] == f"{work / 'valid.irl'}: ok"
+    assert out.splitlines()[1].startswith("motion: 0 moves planned, cycle time ")  # (the motion check: no move)
     assert err == ""
+    code, out, err = run("check", "--no-motion", work / "valid.irl")
+    assert (code, out.strip(), err) == (0, f"{work / 'valid.irl'}: ok", "")
 
 
 def test_check_invalid_renders_diagnostics(work):
@@ -95,11 +98,15 @@ def test_check_syntax_error(work):
     assert lines[2] == "          ^"
 
 
-def test_check_json_valid_program_is_empty_list(work):
+def test_check_json_valid_program_has_no_diagnostics(work):
     code, out, err = run("check", "--json", work / "valid.irl")
-    assert code == 0
-    assert json.loads(out) == []
-    assert err == ""
+    assert code == 0 and err == ""
+    data = json.loads(out)
+    assert data["ok"] is True and data["diagnostics"] == [] and data["file"] == str(work / "valid.irl")
+    assert data["motion"]["moves"] == [] and data["motion"]["runs"] == 1
+    code, out, err = run("check", "--json", "--no-motion", work / "valid.irl")
+    assert code == 0 and json.loads(out) == {"file": str(work / "valid.irl"), "ok": True, "diagnostics": [],
+                                             "motion": None}
 
 
 def test_check_json_invalid_program(work):
@@ -108,9 +115,10 @@ def test_check_json_invalid_program(work):
     assert code == 1
     assert err == ""
     data = json.loads(out)
-    assert isinstance(data, list) and len(data) == 1
-    d = data[0]
-    assert set(d) == {"file", "line", "column", "end", "severity", "message", "hint"}
+    assert data["ok"] is False and data["motion"] is None  # (a program with errors does not run)
+    [d] = data["diagnostics"]
+    assert set(d) == {"file", "line", "column", "end", "severity", "message", "hint", "motion"}
+    assert d["motion"] is False
     assert d["file"] == str(path)
     assert (d["line"], d["column"]) == (5, 8)
     assert d["end"] == {"line": 5, "column": 9}
@@ -124,7 +132,7 @@ def test_check_json_hint(work):
     path.write_text(HEAD + "var speed_val : real;\nseq\n  speed_vla := 1;\nendseq\nendprogram;\n", encoding="utf-8")
     code, out, _ = run("check", "--json", path)
     assert code == 1
-    [d] = json.loads(out)
+    [d] = json.loads(out)["diagnostics"]
     assert "speed_val" in d["hint"]
 
 
@@ -440,7 +448,8 @@ def test_console_script_entry_point():
     proc = subprocess.run([str(script), "check", "programs/test.irl"], cwd=ROOT, capture_output=True, text=True,
                           timeout=60)
     assert proc.returncode == 0, proc.stderr
-    assert proc.stdout.strip() == "programs/test.irl: ok"
+    assert proc.stdout.splitlines()[0] == "programs/test.irl: ok"
+    assert proc.stdout.splitlines()[1] == "motion: 3 moves planned, cycle time 15.896 s"
     assert proc.stderr == ""
 
 
@@ -515,7 +524,7 @@ def test_spec_number_beyond_float_range(work, old, new, key):
 # ---- irl check stays light (issue 26) --------------------------------------------------------
 
 #: The runtime modules `irl` itself is made of (the command line and the names it offers).
-CLI_MODULES = {"runtime", "runtime.cli", "runtime.cli.main", "runtime.cli.common", "runtime.hardware",
+CLI_MODULES = {"runtime", "runtime.cli", "runtime.cli.main", "runtime.cli.common", "runtime.cli.checking", "runtime.hardware",
                "runtime.hardware.faults", "runtime.timing"}
 
 
@@ -530,11 +539,12 @@ def modules_imported_by(*argv: str) -> set[str]:
     return set(modules)
 
 
-@pytest.mark.parametrize("argv", [("check", "programs/test.irl"),
-                                  ("check", "--json", "tests/diagnostics/paper_unmended.irl")])
+@pytest.mark.parametrize("argv", [("check", "--no-motion", "programs/test.irl"),
+                                  ("check", "--no-motion", "--json", "tests/diagnostics/paper_unmended.irl")])
 def test_check_imports_only_what_checking_needs(argv):
-    """`irl check` starts fast (benchmarks/check_startup.py: <= 8x `python -c pass`) because it
-    imports neither the runtime nor the heavy libraries; a fresh interpreter shows what it did."""
+    """`irl check --no-motion` starts fast (benchmarks/check_startup.py: <= 8x `python -c pass`)
+    because it imports neither the runtime nor the heavy libraries; a fresh interpreter shows
+    what it did."""
     modules = modules_imported_by(*argv)
     heavy = sorted(m for m in modules if any(m == n or m.startswith(n + ".") for n in NOT_FOR_CHECKING))
     assert not heavy, f"irl {' '.join(argv)} imported what checking does not need: {heavy}"

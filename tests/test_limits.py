@@ -69,7 +69,7 @@ def test_an_integer_literal_of_thousands_of_digits_is_a_diagnostic(work, digits)
         assert not (work / "p.irlo").exists()
     code, out, err = run("check", "--json", path)
     assert code == 1
-    [d] = json.loads(out)
+    [d] = json.loads(out)["diagnostics"]
     assert (d["line"], d["column"], d["end"]["column"]) == (5, 8, 8 + digits)
     assert "too large" in d["message"] and str(INT_MAX) in d["message"]
 

@@ -112,6 +112,11 @@ def log_line(at: float, line: int, text: str) -> str:
     return f"  [{at:8.3f} s] line {line}: {text}"
 
 
+def add_cell_scenario(p, what: str) -> None:
+    """``--cell-scenario FILE.toml`` (irl check, irl run, irl serve): ``what`` the cell does there."""
+    p.add_argument("--cell-scenario", metavar="FILE.toml", help=what)
+
+
 def add_deadline_policy(p) -> None:
     """``--deadline-policy`` (irl run, irl serve): the servo's miss policy, the choices as
     compiler.params declares them."""

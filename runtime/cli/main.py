@@ -13,7 +13,7 @@ import shlex
 import sys
 from pathlib import Path
 
-from runtime.cli.common import (EXIT_INTERNAL, EXIT_INVALID, EXIT_OK, EXIT_USAGE, Environment, UsageError, add_deadline_policy, compile_source, joint_values, log_line, read_object, report_diagnostics, say, spec_compiled_for, warn)
+from runtime.cli.common import (EXIT_INTERNAL, EXIT_INVALID, EXIT_OK, EXIT_USAGE, Environment, UsageError, add_cell_scenario, add_deadline_policy, compile_source, joint_values, log_line, read_object, report_diagnostics, say, spec_compiled_for, warn)
 from runtime.timing import TICK
 
 
@@ -47,11 +47,21 @@ class _Parser(argparse.ArgumentParser):
 
 
 def cmd_check(args, env: Environment) -> int:
-    result = compile_source(args.file, args.spec, generate_code=False)
-    report_diagnostics(env, result, args.json)
-    if not result.diagnostics and not args.json:
-        say(env, f"{args.file}: ok")
-    return EXIT_OK if not result.diagnostics else EXIT_INVALID
+    from runtime.cli.checking import report
+
+    motion = not args.no_motion
+    if args.cell_scenario is not None and not motion:
+        raise UsageError("--cell-scenario is for the motion check: leave out --no-motion")
+    if args.max_moves < 1:
+        raise UsageError(f"--max-moves {args.max_moves}: expected a whole number of moves >= 1")
+    result = compile_source(args.file, args.spec, generate_code=motion)
+    check = None
+    if motion and result.ok:  # (a program with errors does not run)
+        from runtime.cli.checking import MotionCheck
+
+        check = MotionCheck(result, args.cell_scenario, args.max_moves)
+        check.run()
+    return report(env, result, check, args.json)
 
 
 def _write_atomically(path: Path, data: bytes) -> None:
@@ -490,6 +500,10 @@ def build_parser(command: str | None = None) -> argparse.ArgumentParser:
     return parser
 
 
+#: the most moves ``irl check`` plans by default (runtime.loop.offline.MAX_MOVES: a test
+#: checks they agree; not imported here, so that ``--no-motion`` imports nothing of the runtime)
+MAX_CHECKED_MOVES = 2000
+
 #: what --spec means to a command that compiles the program it is given
 OTHER_SPEC = "use this system specification instead of the program's"
 
@@ -502,7 +516,16 @@ def _program_arguments(p, metavar: str, what: str, spec: str) -> None:
 
 def _check_arguments(p) -> None:
     _program_arguments(p, "FILE.irl", "the program", OTHER_SPEC)
-    p.add_argument("--json", action="store_true", help="diagnostics as a JSON list (for editors)")
+    p.add_argument("--json", action="store_true",
+                   help="one JSON object (for editors): the diagnostics (motion ones marked), and the motion check's "
+                        "cycle time, moves and assumptions")
+    p.add_argument("--no-motion", action="store_true",
+                   help="only the compiler's checks: do not run the program's moves offline through the runtime's "
+                        "planners")
+    add_cell_scenario(p, "the cell the motion check runs the program in, as irl run --cell-scenario (default: the "
+                         "assumed cell, see docs/language.md)")
+    p.add_argument("--max-moves", type=int, default=MAX_CHECKED_MOVES, metavar="N",
+                   help="the most moves the motion check plans, all runs together")
     p.set_defaults(run=cmd_check)
 
 
@@ -539,9 +562,8 @@ def _run_arguments(p) -> None:
                    help="component configurations (as irl serve --config): the run uses the file's default "
                         "configuration (see docs/runtime.md); --report-period and --report-columns apply over it")
     p.add_argument("--realtime", action="store_true", help="run on the wall clock (default: simulated clock)")
-    p.add_argument("--cell-scenario", metavar="FILE.toml",
-                   help="what the simulated cell does with the digital I/O: inputs that follow outputs, latch or "
-                        "toggle on a timeline (see docs/runtime.md); the report gains the io columns")
+    add_cell_scenario(p, "what the simulated cell does with the digital I/O: inputs that follow outputs, latch or "
+                         "toggle on a timeline (see docs/runtime.md); the report gains the io columns")
     p.add_argument("--fieldbus", metavar="FILE.toml",
                    help="the digital I/O on a PLC over Modbus TCP (see docs/runtime.md); needs --realtime")
     p.add_argument("--on-pause", choices=("ask", "resume", "abort"),

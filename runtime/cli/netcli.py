@@ -650,9 +650,8 @@ def add_commands(declare) -> None:
         p.add_argument("--state-dir", metavar="DIR", help="calibration and reports (default ~/.local/state/irl)")
         p.add_argument("--sim-clock", action="store_true", help="simulated clock (default: wall clock)")
         p.add_argument("--seed", type=int, default=0, help="the simulated robot's seed")
-        p.add_argument("--cell-scenario", metavar="FILE.toml",
-                       help="what the simulated cell does with the digital I/O (see docs/runtime.md); reports gain "
-                            "the io columns")
+        common.add_cell_scenario(p, "what the simulated cell does with the digital I/O (see docs/runtime.md); reports gain "
+                                    "the io columns")
         p.add_argument("--fieldbus", metavar="FILE.toml",
                        help="the digital I/O on a PLC over Modbus TCP (see docs/runtime.md; wall clock only)")
         p.add_argument("--keys", metavar="DIR", help="require CURVE authentication with the keys in DIR")

@@ -164,6 +164,11 @@ class MotionHost(Protocol):
         the problem (which stops the program at the statement's line)."""
 
 
+#: Seconds within which two times are the same instant: a dwell or a time-out ends at the
+#: step whose time is its end, whatever the rounding of the clock's sum (a clock counts
+#: ticks from power-up, and 10.0 + 0.2 need not be the float of tick 10200).
+_SAME_INSTANT = 1e-9
+
 # What a step is waiting for before it can execute the next instruction.
 _NO_WAIT, _W_MOTION, _W_DWELL, _W_QUEUE = 0, 1, 2, 3
 
@@ -487,7 +492,7 @@ class Waits:
                 if not host.motion_done():
                     return False
                 self.dwell_until = host.now() + self.dwell_seconds
-            return host.now() >= self.dwell_until
+            return host.now() >= self.dwell_until - _SAME_INSTANT
         return True
 
     def start(self, kind: int) -> bool:
@@ -520,7 +525,7 @@ class Waits:
     def timed_out(self) -> bool:
         """Has the time-out of the ``wait for`` passed? (Then the wait is over.)"""
         deadline = self.deadline
-        if deadline is not None and self.host.now() >= deadline:
+        if deadline is not None and self.host.now() >= deadline - _SAME_INSTANT:
             self.deadline = None
             return True
         return False
@@ -703,15 +708,28 @@ class VM:
         self.waits = Waits(host)
         self.interrupts = Interrupts(program, host, self.memory, self._ops, self._args)
         owners = {VM: self, Memory: self.memory, Interrupts: self.interrupts}
-        handlers = [handler.__get__(owners[owner]) for owner, handler in HANDLERS]
+        self._own = [handler.__get__(owners[owner]) for owner, handler in HANDLERS]  # (before the barrier)
         self._handlers = [self._at_robot(handler) if definition.barrier else handler
-                          for definition, handler in zip(INSTRUCTIONS, handlers)]
+                          for definition, handler in zip(INSTRUCTIONS, self._own)]
         self._run = self._run_inline if dispatch == "inline" else self._run_table
         # stepping
         self.pc = 0
         self._here = 0  # offset of the instruction executing or last executed
         self._yield = False  # set by a handler: end this step after the instruction
         self._back_here: int | None = None  # the program's offset, when a handler has just returned
+
+    def wrap(self, name: str, wrapper) -> None:
+        """Not real-time: the handler of instruction ``name`` becomes ``wrapper(handler)``, a
+        function ``(operand, pc) -> next pc`` as every handler is, called when the instruction
+        really executes (a look-ahead barrier's wrapper runs only where the robot is, as the
+        handler does). An offline run (runtime.loop.offline) sees this way where the program
+        reads an input and tests a ``wait for``. The instructions of :data:`INLINE` are
+        executed by the inline loop itself: they cannot be wrapped (ValueError)."""
+        if name in INLINE or not hasattr(OP, name):
+            raise ValueError(f"instruction {name!r} cannot be wrapped")
+        code = getattr(OP, name)
+        handler = self._own[code] = wrapper(self._own[code])
+        self._handlers[code] = self._at_robot(handler) if INSTRUCTIONS[code].barrier else handler
 
     # -- the memory's, by their old names ----------------------------------------------
     @property

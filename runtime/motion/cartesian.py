@@ -38,7 +38,7 @@ from compiler.values import Joint
 from runtime.timing import SETPOINT_PERIOD, TICK
 from runtime.motion.kinematics import Kinematics, KinematicsError
 from runtime.motion.stops import JerkStop
-from runtime.motion.trajectory import Result, Trajectory
+from runtime.motion.trajectory import Refusal, Result, Trajectory
 from runtime.motion.pathcheck import CheckedPath, PathError, check_path, joint_limits, percent
 from runtime.motion.paths import CircPath, LinPath, CartesianMove, positive
 from runtime.motion.pathtiming import (ConstantSpeed, PathProfile, nominal_profile, path_derivatives, path_profile,
@@ -623,7 +623,9 @@ def plan_cartesian(inp: CartesianInput) -> tuple[Result, JointStream | None, str
                     break
                 k = _scale(ratios, JOINT_LIMIT_SHARE)
         return Result.WORKING, JointStream(checked, period, additional), ""
-    except (PathError, KinematicsError) as exc:
+    except PathError as exc:
+        return Result.ERROR_PATH, None, Refusal(str(exc), exc.fraction, exc.distance, exc.reason)
+    except KinematicsError as exc:
         return Result.ERROR_PATH, None, str(exc)
     except (ValueError, TypeError) as exc:
         return Result.ERROR_INVALID_INPUT, None, str(exc)

@@ -402,6 +402,10 @@ class MotionQueue:
         self.positions: tuple = (0.0,) * self.n
         self.velocities: tuple = (0.0,) * self.n
         self.accelerations: tuple | None = (0.0,) * self.n  # exact ones, or None (the setpoint goes without)
+        #: compute the setpoint every period (False: an offline run, which needs the timeline
+        #: only: the setpoint is computed where a move ends and when a stop needs it)
+        self.setpoints = True
+        self._stale: float | None = None  # (setpoints off) the step of the period whose setpoint was not computed
         self._now = 0.0  # the time of the last sample
         self.reset()
 
@@ -431,6 +435,7 @@ class MotionQueue:
         self.velocities = (0.0,) * self.n
         self.accelerations = (0.0,) * self.n
         self.t_move = 0.0
+        self._stale = None
 
     # ---- the parts' names the host and the tests use ----
     @property
@@ -581,7 +586,8 @@ class MotionQueue:
             self._schedule()
         held = False
         speed = self.speed
-        if speed.change_time:
+        changing = bool(speed.change_time)
+        if changing:
             before = speed.rate
             rate = speed.step(self.period)
             held = self.hold.on_timeline and not speed.change_time  # the rate reached 0: at rest on the path
@@ -596,23 +602,18 @@ class MotionQueue:
         if first.record is None:
             self._started(first, now)
         t = tm - first.start
-        positions, velocities = first.trajectory.sample(t)
-        second = segs[1] if len(segs) > 1 else None
-        if second is not None and second.start is not None and tm > second.start + _SAME_TIME:
-            if second.record is None:
-                self._started(second, now)
-            p2, v2 = second.trajectory.sample(tm - second.start)
-            corner = first.end
-            positions = tuple([a + b - c for a, b, c in zip(positions, p2, corner)])
-            velocities = tuple([a + b for a, b in zip(velocities, v2)])
-            self.accelerations = self._exact_accelerations((first, second), tm, rate)
+        second = self._blending(tm)
+        if second is not None and second.record is None:
+            self._started(second, now)
+        if self.setpoints or changing or t >= first.duration - 1e-12:
+            self._stale = None
+            velocities = self._setpoint(tm, second, rate)
+            speed.observe(velocities, step)  # the path's acceleration, for the next change of rate
+            self.velocities = velocities if rate == 1.0 else tuple([v * rate for v in velocities])
         else:
-            self.accelerations = self._exact_accelerations((first,), tm, rate)
-        self.positions = positions
+            self._stale = step  # (an offline run: the setpoint when something needs it, _refresh)
         if self.triggers.armed:
             self.triggers.fire(t_before, tm, now, self.period)
-        speed.observe(velocities, step)  # the path's acceleration, for the next change of rate
-        self.velocities = velocities if rate == 1.0 else tuple([v * rate for v in velocities])
         if held:
             self._held()
             return
@@ -630,6 +631,46 @@ class MotionQueue:
                     speed.settle()  # a change of override under way: the next move has it
                 if self.hold.on_timeline:
                     self._held()
+
+    def _blending(self, tm: float) -> Segment | None:
+        """The second move when it runs at timeline time ``tm`` (blended into the first)."""
+        segs = self._segments
+        second = segs[1] if len(segs) > 1 else None
+        if second is not None and second.start is not None and tm > second.start + _SAME_TIME:
+            return second
+        return None
+
+    def _setpoint(self, tm: float, second: Segment | None, rate: float) -> tuple:
+        """The setpoint at timeline time ``tm``: ``positions`` and ``accelerations`` set, the
+        path's velocities (per trajectory second) returned; ``second`` blended in if given."""
+        first = self._segments[0]
+        positions, velocities = first.trajectory.sample(tm - first.start)
+        if second is not None:
+            p2, v2 = second.trajectory.sample(tm - second.start)
+            corner = first.end
+            positions = tuple([a + b - c for a, b, c in zip(positions, p2, corner)])
+            velocities = tuple([a + b for a, b in zip(velocities, v2)])
+            self.accelerations = self._exact_accelerations((first, second), tm, rate)
+        else:
+            self.accelerations = self._exact_accelerations((first,), tm, rate)
+        self.positions = positions
+        return velocities
+
+    def _refresh(self) -> None:
+        """Not every period's setpoint was computed (``setpoints`` off): compute the one of
+        now, with the path's velocity and acceleration as sampling every period would
+        have left them (from this period's sample and the one before)."""
+        step = self._stale
+        if step is None or not self._segments or self._segments[0].start is None:
+            return
+        self._stale = None
+        speed, tm, rate = self.speed, self.t_move, self.speed.rate
+        before = tm - step
+        if before - self._segments[0].start > 0.0:
+            speed.observe(self._setpoint(before, self._blending(before), rate), 0.0)
+        velocities = self._setpoint(tm, self._blending(tm), rate)
+        speed.observe(velocities, step)
+        self.velocities = velocities if rate == 1.0 else tuple([v * rate for v in velocities])
 
     def _exact_accelerations(self, running: tuple, tm: float, rate: float) -> tuple | None:
         """The timeline's accelerations at ``tm`` (per real second squared) when every move
@@ -734,6 +775,7 @@ class MotionQueue:
         hold = self.hold
         if hold.stop is not None or hold.interrupted is not None or hold.on_timeline:
             return None
+        self._refresh()
         segs = self._segments
         if not segs or segs[0].start is None:
             return None  # at rest: the moves still queued wait (no new move starts while held)
@@ -830,10 +872,20 @@ class MotionQueue:
         if self.lookahead.requests[0].rest_of is not None:  # from where the robot stopped, no blend before it
             previous, start = None, self.positions
         else:
-            previous = self._last
-            start = previous.end if previous is not None else self._chain_start()
+            previous, start = self._last, self.planning_start()
         planned = self.lookahead.plan_oldest(start, previous, self.period)
         return None if planned is None else self._take_plan(*planned)
+
+    @property
+    def last_planned(self) -> Segment | None:
+        """The move planned last (the next one is planned from its end and may blend with
+        it); None when no planned move is left on the timeline."""
+        return self._last
+
+    def planning_start(self) -> tuple:
+        """The joints the next move handed over is planned from: the end of the move planned
+        last, else the end of the interrupted move, else where the robot is."""
+        return self._last.end if self._last is not None else self._chain_start()
 
     def _chain_start(self) -> tuple:
         if self.hold.interrupted is not None:

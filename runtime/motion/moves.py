@@ -35,9 +35,12 @@ from runtime.motion.jerk import plan_ptp_jerk
 from runtime.motion.kinematics import Kinematics, KinematicsError
 from runtime.motion.pathcheck import JointLimits
 from runtime.motion.planner import PtpInput, plan_ptp, scaled_limits
-from runtime.motion.trajectory import Trajectory
+from runtime.motion.trajectory import Refusal, Trajectory
 
-__all__ = ["Frames", "MovePlanner", "MoveRecord", "MoveRequest", "Segment"]
+__all__ = ["CACHE_SIZE", "Frames", "MovePlanner", "MoveRecord", "MoveRequest", "Segment"]
+
+#: The most moves :attr:`MovePlanner.cache` keeps (the oldest goes first).
+CACHE_SIZE = 512
 
 
 class Frames(NamedTuple):
@@ -187,16 +190,16 @@ class MovePlanner:
                              (a.max_jerk if jerk else float("inf") for a in self.axes))
         self.cartesian_limits = Limits(self.limits.velocity, self.limits.acceleration,
                                        (a.max_jerk for a in self.axes))
+        #: the moves planned so far, by what they are and where they start (None: none kept,
+        #: as on the robot); an offline run keeps them, since a program's cycle repeats them
+        self.cache: dict | None = None
 
     def plan(self, request: MoveRequest, start: tuple, previous: Segment | None,
              period: float) -> tuple[Segment | None, str | None]:
         """Plan ``request`` from the joints ``start`` (blended after ``previous`` when
         that one has ``approx``), for setpoints every ``period`` s: ``(segment, None)`` or
         ``(None, problem)``. Pure: safe on the planning worker."""
-        if request.kind == Motion.PTP:
-            segment, problem = self._plan_ptp(request, start)
-        else:
-            segment, problem = self._plan_cartesian(request, start, period)
+        segment, problem = self._planned(request, start, period)
         if segment is None:
             return None, problem
         if request.triggers:
@@ -212,6 +215,28 @@ class MovePlanner:
                                           previous.limits.union(segment.limits), period, cap)
             segment.previous = previous
         return segment, None
+
+    def _planned(self, request: MoveRequest, start: tuple, period: float) -> tuple[Segment | None, str | None]:
+        """The move's own trajectory (no blend, no triggers), or its problem; from
+        ``cache`` when it holds the same move from the same start (a new segment either way)."""
+        cache = self.cache
+        key = None
+        if cache is not None and request.rest_of is None:
+            key = (request.kind, request.targets, request.speed, request.acc, request.frames, tuple(start), period)
+            known = cache.get(key)
+            if known is not None:
+                trajectory, end, limits, problem = known
+                return (None, problem) if trajectory is None else (Segment(request, trajectory, end, limits), None)
+        if request.kind == Motion.PTP:
+            segment, problem = self._plan_ptp(request, start)
+        else:
+            segment, problem = self._plan_cartesian(request, start, period)
+        if key is not None:
+            if len(cache) >= CACHE_SIZE:
+                cache.pop(next(iter(cache)))
+            cache[key] = ((None, None, None, problem) if segment is None else
+                          (segment.trajectory, segment.end, segment.limits, None))
+        return segment, problem
 
     def kinematics_for(self, frames: Frames | None) -> Kinematics | None:
         """The arm with the move's tool (built once per tool, on the planning worker where
@@ -261,7 +286,8 @@ class MovePlanner:
             kinematics, start, target, request.speed, request.acc, via=via,
             axis_limits=self.joint_limits, period=period))
         if result < 0:
-            return None, f"move {request.kind} refused: {message}"
+            prefix = f"move {request.kind} refused: "
+            return None, message.prefixed(prefix) if isinstance(message, Refusal) else prefix + message
         return Segment(request, stream, stream.target_position, self.cartesian_limits), None
 
     def joint_target(self, pose: Pose, near: tuple, frames: Frames | None = None) -> tuple[Joint | None, str | None]:

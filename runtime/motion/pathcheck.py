@@ -58,7 +58,7 @@ from runtime.motion.paths import CartesianMove, positive
 from runtime.motion.rotation import R2D, matrix_to_quat, quat_angle, rpy_to_quat
 
 __all__ = ["CheckedPath", "JointLimits", "joint_limits", "MAX_JOINT_STEP", "MIN_SAMPLES", "PathError", "START_TOL",
-           "check_path", "percent"]
+           "check_path", "percent", "where"]
 
 #: deg: a joint moving more than this between two check samples is a jump
 MAX_JOINT_STEP = 10.0
@@ -80,12 +80,14 @@ class PathError(ValueError):
     * ``str(error)`` -- the message.
     """
 
-    def __init__(self, message: str, fraction: float, reason: str, axis: str | None = None):
+    def __init__(self, message: str, fraction: float, reason: str, axis: str | None = None,
+                 distance: float | None = None):
         super().__init__(message)
         self.message = message
         self.fraction = fraction
         self.reason = reason
         self.axis = axis
+        self.distance = distance  # mm of the tool's path from its start (None: not known)
 
 
 # ============================================================================ the check
@@ -98,6 +100,16 @@ def percent(fraction: float) -> str:
     if 0.0 < p < 1.0 or 99.0 < p < 100.0:
         return f"{p:.1f} %"
     return f"{p:.0f} %"
+
+
+def where(fraction: float, length: float = 0.0, of: str = "its length") -> str:
+    """Where along a path (``fraction`` 0..1 of it) as a message says it: ``"37 % of its
+    length"``, and with the tool's path ``length`` (mm) how far from its start: ``"37 % of
+    its length, 185.2 mm from its start"``."""
+    text = f"{percent(fraction)} of {of}"
+    if length > 0.0:
+        text += f", {fraction * length:.1f} mm from its start"
+    return text
 
 
 def _start_joints(joints) -> tuple[float, ...]:
@@ -237,6 +249,7 @@ def check_path(move: CartesianMove, kinematics: Kinematics, start_joints: Sequen
     path, profile = move.path, move.profile
     names = kinematics.names
     length = path.length
+    mm = path.position_length  # the tool's path (mm): where a failure is, from its start
 
     # the path must start where the arm is
     fk = kinematics.forward_matrix(q)
@@ -279,13 +292,13 @@ def check_path(move: CartesianMove, kinematics: Kinematics, start_joints: Sequen
         try:
             qi = inverse(pose, near=q)
         except KinematicsError as exc:
-            raise _kinematics_failure(str(exc), fraction) from None
+            raise _kinematics_failure(str(exc), fraction, mm) from None
         if pos_limits is not None:
             for j, ((lo, hi), v) in enumerate(zip(pos_limits, qi)):
                 if not lo - 1e-9 <= v <= hi + 1e-9:
-                    raise PathError(f"the path leaves the axis limits at {percent(fraction)} of its "
-                                    f"length ({names[j]} would be {v:.2f} deg, limit {lo:g}..{hi:g})",
-                                    fraction, "limit", names[j])
+                    raise PathError(f"the path leaves the axis limits at {where(fraction, mm)} "
+                                    f"({names[j]} would be {v:.2f} deg, limit {lo:g}..{hi:g})",
+                                    fraction, "limit", names[j], fraction * mm)
         c, m = configuration_and_margins(qi)
         for k in range(3):
             if m[k] < min_margins[k]:
@@ -299,7 +312,7 @@ def check_path(move: CartesianMove, kinematics: Kinematics, start_joints: Sequen
                 raise _jump_failure(kinematics, pose, q, qi, config, c, big, s - prev_s, path,
                                     fraction, max_joint_step, margins(q), m)
             if c != config:
-                raise _configuration_failure(config, c, fraction, names, q, qi)
+                raise _configuration_failure(config, c, fraction, names, q, qi, mm)
             h = t - times[-1]
             vel = [d / h for d in dq]
             ds = s - prev_s
@@ -335,42 +348,42 @@ def check_path(move: CartesianMove, kinematics: Kinematics, start_joints: Sequen
         fit = min((vel_limits[k] / gain[k] for k in range(6) if gain[k] > 0.0), default=inf)
         hint = f" (to at most {_nice_speed(fit)} mm/s)" if fit < move.speed else ""
         raise PathError(f"{names[j]} would need {need:.0f} deg/s (limit {vel_limits[j]:g}) at "
-                        f"{percent(fraction)} of the path: lower the speed{hint}",
-                        fraction, "velocity", names[j])
+                        f"{where(fraction, mm, 'the path')}: lower the speed{hint}",
+                        fraction, "velocity", names[j], fraction * mm)
     if worst_acceleration is not None:
         _, j, need, fraction = worst_acceleration
         raise PathError(f"{names[j]} would need {need:.0f} deg/s^2 (limit {acc_limits[j]:g}) at "
-                        f"{percent(fraction)} of the path: lower the acceleration (acc) or the speed",
-                        fraction, "acceleration", names[j])
+                        f"{where(fraction, mm, 'the path')}: lower the acceleration (acc) or the speed",
+                        fraction, "acceleration", names[j], fraction * mm)
     return CheckedPath(move, kinematics, _start_joints(start_joints), tuple(times),
                        tuple(fractions), tuple(joints), tuple(peak), tuple(min_margins))
 
 
-def _kinematics_failure(text: str, fraction: float) -> PathError:
-    at = percent(fraction)
+def _kinematics_failure(text: str, fraction: float, mm: float) -> PathError:
+    at, distance = where(fraction, mm), fraction * mm
     if text.startswith("unreachable: "):
-        return PathError(f"the path leaves the arm's reach at {at} of its length "
-                         f"({text[len('unreachable: '):]})", fraction, "unreachable")
+        return PathError(f"the path leaves the arm's reach at {at} "
+                         f"({text[len('unreachable: '):]})", fraction, "unreachable", None, distance)
     if text.startswith("singular: "):
         detail = text[len("singular: "):]
-        where = ("the path starts at a singularity" if fraction == 0.0 else
-                 f"the path passes through a singularity at {at} of its length")
-        return PathError(f"{where} ({detail})", fraction, "singular")
+        place = ("the path starts at a singularity" if fraction == 0.0 else
+                 f"the path passes through a singularity at {at}")
+        return PathError(f"{place} ({detail})", fraction, "singular", None, distance)
     if text.startswith("no solution within the axis limits"):
         detail = text[len("no solution within the axis limits"):].strip(" ()")
         axis = detail.split(" ", 1)[0] if detail else None
-        return PathError(f"the path leaves the axis limits at {at} of its length ({detail})",
-                         fraction, "limit", axis)
-    return PathError(f"the arm cannot follow the path at {at} of its length ({text})",
-                     fraction, "unreachable")
+        return PathError(f"the path leaves the axis limits at {at} ({detail})",
+                         fraction, "limit", axis, distance)
+    return PathError(f"the arm cannot follow the path at {at} ({text})",
+                     fraction, "unreachable", None, distance)
 
 
-def _configuration_failure(before: int, after: int, fraction: float, names, q0, q1) -> PathError:
+def _configuration_failure(before: int, after: int, fraction: float, names, q0, q1, mm: float) -> PathError:
     """The configuration changed between two close samples without a jump: the path
     passes through a singularity. (Over axis 1 the elbow bit, defined in world terms,
     changes with the shoulder bit.)"""
     changed = before ^ after
-    at = percent(fraction)
+    at = where(fraction, mm)
     axis = None
     parts = []
     if changed & SHOULDER_BACK:
@@ -383,8 +396,8 @@ def _configuration_failure(before: int, after: int, fraction: float, names, q0, 
         parts.append(f"the wrist singularity ({names[4]} passes 0 deg, from {q0[4]:.2f} to "
                      f"{q1[4]:.2f} deg: axes {names[3]} and {names[5]} in line; the wrist "
                      f"would flip)")
-    return PathError(f"the path passes through {' and '.join(parts)} at {at} of its length",
-                     fraction, "configuration", axis)
+    return PathError(f"the path passes through {' and '.join(parts)} at {at}",
+                     fraction, "configuration", axis, fraction * mm)
 
 
 #: a singularity margin below this (|sin| of the elbow or wrist angle; the shoulder's mm
@@ -399,7 +412,8 @@ def _jump_failure(kinematics, pose, q0, q1, config0: int, config1: int, axis: in
     kinematics fell back to another one); the axis runs into a limit and its solution
     wrapped by 360 deg; the path passes next to a singularity; else the solution jumps."""
     names = kinematics.names
-    at = percent(fraction)
+    mm = path.position_length
+    at, distance = where(fraction, mm), fraction * mm
     dq = q1[axis] - q0[axis]
     turn = (f"{names[axis]} would turn {abs(dq):.1f} deg between two points of the path "
             f"(the arm would change from {configuration_name(config0)} to "
@@ -410,8 +424,8 @@ def _jump_failure(kinematics, pose, q0, q1, config0: int, config1: int, axis: in
         try:
             same = kinematics.inverse(pose, near=q0, configuration=config0)
         except KinematicsError as exc:
-            err = _kinematics_failure(str(exc), fraction)
-            return PathError(f"{err.message}: {turn}", fraction, err.reason, err.axis or names[axis])
+            err = _kinematics_failure(str(exc), fraction, mm)
+            return PathError(f"{err.message}: {turn}", fraction, err.reason, err.axis or names[axis], distance)
     # in its configuration the arm would jump too: an axis at its limit wrapped by 360 deg
     j = max(range(6), key=lambda k: abs(same[k] - q0[k]))
     d = same[j] - q0[j]
@@ -419,9 +433,9 @@ def _jump_failure(kinematics, pose, q0, q1, config0: int, config1: int, axis: in
     if abs(d) > max_step and ((d > 0.0 and q0[j] - lo < max_step) or
                               (d < 0.0 and hi - q0[j] < max_step)):
         limit = lo if d > 0.0 else hi
-        return PathError(f"the path leaves the axis limits at {at} of its length ({names[j]} "
+        return PathError(f"the path leaves the axis limits at {at} ({names[j]} "
                          f"would pass its limit {limit:g} deg, limit {lo:g}..{hi:g}): {turn}",
-                         fraction, "limit", names[j])
+                         fraction, "limit", names[j], distance)
     shoulder = min(m0[0], m1[0])
     elbow = min(m0[1], m1[1])
     wrist = min(m0[2], m1[2])
@@ -431,16 +445,16 @@ def _jump_failure(kinematics, pose, q0, q1, config0: int, config1: int, axis: in
     turned = ds * path.rotation_angle / path.length if path.length > 0.0 else 0.0
     motion = f"{turn} while the tool moves {moved:.2f} mm and turns {turned:.2f} deg"
     if margin >= _NEAR_SINGULAR:
-        return PathError(f"the arm's joint solution jumps at {at} of the path: {motion}",
-                         fraction, "jump", names[axis])
+        return PathError(f"the arm's joint solution jumps at {where(fraction, mm, 'the path')}: {motion}",
+                         fraction, "jump", names[axis], distance)
     if kind == "wrist":
         what = f"the wrist singularity ({names[4]} within {abs(_asin_deg(wrist)):.2f} deg of 0)"
     elif kind == "elbow":
         what = "the elbow singularity (the arm nearly stretched or folded)"
     else:
         what = f"the shoulder singularity (the wrist centre {shoulder:.1f} mm from axis {names[0]})"
-    return PathError(f"the path passes next to {what} at {at} of its length: {motion}",
-                     fraction, "jump", names[axis])
+    return PathError(f"the path passes next to {what} at {at}: {motion}",
+                     fraction, "jump", names[axis], distance)
 
 
 def _asin_deg(x: float) -> float:

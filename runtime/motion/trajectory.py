@@ -33,7 +33,25 @@ import enum
 
 from compiler.clauses import Motion
 
-__all__ = ["Result", "Trajectory"]
+__all__ = ["Refusal", "Result", "Trajectory"]
+
+
+class Refusal(str):
+    """Why a move cannot be planned: its text (a ``str``, so it goes wherever a problem's
+    text goes: the program's error, the log), and, for a path the arm cannot follow, where
+    along it: ``fraction`` (0..1 of the path), ``distance`` (mm of the tool's path from its
+    start) and ``reason`` (runtime.motion.pathcheck's: ``"limit"``, ``"singular"``, ...).
+    What the offline check (runtime.loop.offline) reports besides the text."""
+
+    def __new__(cls, text: str, fraction: float | None = None, distance: float | None = None,
+                reason: str | None = None) -> "Refusal":
+        self = super().__new__(cls, text)
+        self.fraction, self.distance, self.reason = fraction, distance, reason
+        return self
+
+    def prefixed(self, prefix: str) -> "Refusal":
+        """The same refusal, its text after ``prefix``."""
+        return Refusal(prefix + self, self.fraction, self.distance, self.reason)
 
 
 class Result(enum.IntEnum):

@@ -49,7 +49,7 @@ from compiler.objcode import OP, Program
 from compiler.semantics import compose
 from compiler.values import Joint, Pose
 
-from runtime.hardware.interface import DigitalIo
+from runtime.hardware.interface import DigitalIo, IoBackend
 from runtime.loop.component import DataPort
 from runtime.loop.components.io import IoComponent
 from runtime.loop.components.trajectory import TrajectoryGenerator
@@ -61,7 +61,7 @@ from runtime.motion.trajectory import Refusal
 from runtime.settings import Settings
 from runtime.timing import TICK
 
-__all__ = ["AssumedWorld", "Finding", "MAX_INSTRUCTIONS", "MAX_MOVES", "MAX_PATHS", "MAX_SEARCH_INPUTS",
+__all__ = ["AssumedWorld", "BRANCH_MOVES", "Finding", "MAX_INSTRUCTIONS", "MAX_MOVES", "MAX_PATHS", "MAX_SEARCH_INPUTS",
            "MAX_TIME", "OfflineHost", "Outcome", "PlannedMove", "check_motion"]
 
 #: Moves handed over in all runs of one check before it stops (a note says so).
@@ -70,6 +70,8 @@ MAX_MOVES = 2000
 MAX_PATHS = 16
 #: Simulated seconds one run may take (``irl run``'s own limit).
 MAX_TIME = 3600.0
+#: The fewest moves a run exploring a branch may plan (else an eighth of the check's).
+BRANCH_MOVES = 50
 #: Instructions one run may execute.
 MAX_INSTRUCTIONS = 5_000_000
 #: The most inputs a ``wait for``'s condition may read for the assumed cell to look for
@@ -136,6 +138,7 @@ class Choice:
     options: tuple[str, ...]
     taken: int
     time: int
+    given: tuple = ()  # the inputs chosen just before at the same instant (the rest of its condition), sorted
 
 
 @dataclass
@@ -170,7 +173,7 @@ class AssumedWorld:
     end it). Choices are taken in order from ``decisions`` (a run that explores a branch:
     the index of the option), else the first option. ``choices`` lists those taken."""
 
-    def __init__(self, backend: DigitalIo, io: IoComponent, decisions: tuple = ()):
+    def __init__(self, backend: IoBackend, io: IoComponent, decisions: tuple = ()):
         self.backend, self.io = backend, io
         self.decisions = decisions
         self.choices: list[Choice] = []
@@ -184,10 +187,12 @@ class AssumedWorld:
     def ran(self, offset: int) -> None:
         self.runs[offset] = self.runs.get(offset, 0) + 1
 
-    def _choose(self, offset: int, options: tuple[str, ...], time: int | None = None) -> int:
+    def _choose(self, offset: int, options: tuple[str, ...], now: float, time: int | None = None) -> int:
         k = len(self.choices)
         taken = min(self.decisions[k], len(options) - 1) if k < len(self.decisions) else 0
-        self.choices.append(Choice(offset, options, taken, self.runs.get(offset, 1) if time is None else time))
+        given = tuple(sorted((n, self.backend.input(n)) for n, at in self.decided.items() if at == now))
+        self.choices.append(Choice(offset, options, taken, self.runs.get(offset, 1) if time is None else time,
+                                   given))
         return taken
 
     def read(self, n: int, offset: int, now: float, where: tuple, moves: int, line: str) -> None:
@@ -206,7 +211,7 @@ class AssumedWorld:
         self.visits[where] = moves
         current = self.backend.input(n)
         values = (current, not current)
-        value = values[self._choose(offset, tuple(f"in[{n}] reads {'true' if v else 'false'}" for v in values))]
+        value = values[self._choose(offset, tuple(f"in[{n}] reads {'true' if v else 'false'}" for v in values), now)]
         self.decided[n] = now
         if value != current:
             self._set({n: value}, now)
@@ -261,7 +266,7 @@ class AssumedWorld:
             wait.phase = "waits"
             self._set(wait.start, now)
             return
-        chosen = options[self._choose(wait.offset, tuple(label for label, _values in options), wait.time)][1]
+        chosen = options[self._choose(wait.offset, tuple(label for label, _values in options), now, wait.time)][1]
         wait.phase = "commit" if chosen is not None else "times out"
         self._set(chosen if chosen is not None else wait.start, now)
 
@@ -324,6 +329,55 @@ class _Wait:
         return options
 
 
+#: What to do about a path the arm cannot follow, by its reason (runtime.motion.pathcheck),
+#: when no other configuration of its start helps.
+PATH_HINTS = {
+    "configuration": "a lin or circ path cannot pass through a singularity (the arm would flip on the way): make "
+                     "this motion a ptp move (the axes pass it in joint space), or tilt the tool so that the path "
+                     "passes beside it",
+    "singular": "a lin or circ path cannot start, end or run on a singularity: tilt the tool a few degrees, or "
+                "make this motion a ptp move",
+    "jump": "a lin or circ path cannot pass next to a singularity, where the axes would have to turn too fast: "
+            "make this motion a ptp move, or tilt the tool so that the path passes farther from it",
+    "unreachable": "the path leaves the arm's reach: keep it nearer the robot, or go around with ptp moves",
+    "limit": "an axis would have to pass its limit on this path: go around with a ptp move, or change the "
+             "orientation along the path",
+}
+
+#: The other start joints tried for a hint when a lin or circ move is refused (nearest first).
+OTHER_STARTS = 12
+
+
+def _turns(joints: tuple, limits) -> list[tuple]:
+    """``joints`` and the same with A1, A4 or A6 a whole turn (360 deg) away, within
+    ``limits``: the start joints of one pose that differ only by a turn."""
+    out = [tuple(joints)]
+    for i in (0, 3, 5):
+        lo, hi = limits[i]
+        out += [q[:i] + (q[i] + k,) + q[i + 1:] for q in list(out) for k in (-360.0, 360.0) if lo <= q[i] + k <= hi]
+    return out
+
+
+def _wound(problem: str, axes, first: tuple, now: tuple) -> str:
+    """A move refused: said with the axes that start it a turn or more from where they
+    started it the first time it ran (an axis winding up over a program's cycles)."""
+    wound = [f"{axis.name} starts it at {b:.1f} {axis.unit}, {b - a:+.0f} {axis.unit} from the first time it ran"
+             for axis, a, b in zip(axes, first, now) if abs(b - a) >= 300.0]
+    if not wound:
+        return problem
+    text = f"{problem} ({'; '.join(wound)}: it winds up over the cycles)"
+    return Refusal(text, problem.fraction, problem.distance, problem.reason) if isinstance(problem, Refusal) else text
+
+
+def describe_configuration(kinematics, joints) -> str:
+    """The configuration of joint values in words, with the turn of A1, A4 and A6 (the
+    turn k of an axis value q: -180 + 360 k <= q < 180 + 360 k)."""
+    turns = [int((q + 180.0) // 360.0) for q in (joints[0], joints[3], joints[5])]
+    text = configuration_name(kinematics.configuration(joints))
+    turned = [f"{name} turn {k}" for name, k in zip(("A1", "A4", "A6"), turns) if k]
+    return f"({text}{', ' + ', '.join(turned) if turned else ''})"
+
+
 class OfflineHost(TrajectoryGenerator):
     """The trajectory generator, run offline (module docstring): what the runtime would
     refuse is recorded (``findings``) and the run goes on; every move accepted is kept
@@ -338,6 +392,7 @@ class OfflineHost(TrajectoryGenerator):
         self.findings: list[Finding] = []
         self.planned: list[tuple[int, Segment]] = []  # (offset, segment) of every move accepted
         self.corners: dict[int, tuple] = {}  # a move with approx -> (times blended, times not, its approx)
+        self.starts: dict[int, tuple] = {}  # a move -> the joints it started from the first time
         self.at = 0  # the offset of the located instruction executing
         self.reading = False  # the program (not an interrupt's condition) reads an input
 
@@ -399,6 +454,8 @@ class OfflineHost(TrajectoryGenerator):
 
     def move(self, kind: Motion, targets: tuple, clauses: dict, line: int) -> str | None:
         before = self.motion.last_planned
+        start = tuple(self.motion.planning_start())
+        first = self.starts.setdefault(self.at, start)
         problem = super().move(kind, targets, clauses, line)
         if problem is None:
             segment = self.motion.last_planned
@@ -406,9 +463,54 @@ class OfflineHost(TrajectoryGenerator):
                 self._accepted(segment)
             return None
         self.triggers = []  # (a refused move's triggers go with it)
-        self.record("move", problem)
+        hint = self._other_start(kind, targets, clauses, line) if kind != Motion.PTP else None
+        if hint is None and isinstance(problem, Refusal):
+            hint = PATH_HINTS.get(problem.reason)
+        self.record("move", _wound(problem, self.axes, first, start), hint=hint)
         self._stand_in(kind, targets, line)
         return None
+
+    def _in_world(self, targets: tuple) -> tuple:
+        """Pose targets in the world frame (they are given in the active base)."""
+        base = self.frames.base
+        if base == IDENTITY:
+            return targets
+        frame = pose_of(base)
+        return tuple(compose(frame, t) if isinstance(t, Pose) else t for t in targets)
+
+    def _other_start(self, kind: Motion, targets: tuple, clauses: dict, line: int) -> str | None:
+        """A lin or circ move refused from where it starts: is there another configuration,
+        or another turn of an axis, of the same start pose from which the arm can follow
+        it? Then a hint that says so (None: there is none)."""
+        kinematics = self.planner.kinematics_for(self.frames)
+        checked = validate_move_clauses(kind, clauses, self.spec)
+        if kinematics is None or isinstance(checked, str) or not all(isinstance(t, (Pose, Joint)) for t in targets):
+            return None
+        start = tuple(self.motion.planning_start())
+        here, extra = start[:6], start[6:]
+        request = MoveRequest(kind, self._in_world(targets), checked.speed, checked.acc, 0.0, line,
+                              frames=self.frames)
+        candidates = [q for _cid, joints in kinematics.solutions(kinematics.forward(here), near=here)
+                      for q in _turns(joints, kinematics.limits)
+                      if max(abs(a - b) for a, b in zip(q, here)) > 1e-6]
+        same = kinematics.configuration(here)  # the same configuration at another turn first: the least change
+        candidates.sort(key=lambda q: (kinematics.configuration(q) != same, sum((a - b) ** 2 for a, b in zip(q, here))))
+        for joints in candidates[:OTHER_STARTS]:
+            segment, _problem = self.planner.plan(request, joints + extra, None, self.period)
+            if segment is not None:
+                return (f"from the same start pose the arm can follow this path in the configuration "
+                        f"{describe_configuration(kinematics, joints)} (it is in "
+                        f"{describe_configuration(kinematics, here)}): name it on the target of the ptp move "
+                        f"that takes the robot there{self._last_ptp()}")
+        return None
+
+    def _last_ptp(self) -> str:
+        for offset, segment in reversed(self.planned):
+            if segment.kind == Motion.PTP:
+                line = self.program.line_at(offset)[0]
+                file = self.program.file_at(offset)
+                return f" (line {line}{f' of {file}' if file else ''})"
+        return ""
 
     def _accepted(self, segment: Segment) -> None:
         self.planned.append((self.at, segment))
@@ -429,8 +531,7 @@ class OfflineHost(TrajectoryGenerator):
         frames = self.frames
         joints = None
         if isinstance(target, Pose) and self.planner.kinematics is not None:
-            if frames.base != IDENTITY:
-                target = compose(pose_of(frames.base), target)
+            target = self._in_world((target,))[0]
             joints, _problem = self.planner.joint_target(target, self.motion.planning_start(), frames)
         elif isinstance(target, Joint) and len(target.axes) == self.n:
             if all(axis.target_problem(v) is None for axis, v in zip(self.axes, target.axes)):
@@ -467,7 +568,7 @@ class _Run:
     cell ``scenario``)."""
 
     def __init__(self, program: Program, spec, scenario, decisions: tuple | None, limits: _Limits,
-                 setpoints: bool = False, cache: dict | None = None):
+                 setpoints: bool = False, cache: dict | None = None, start: tuple | None = None):
         self.spec, self.limits = spec, limits
         self.clock = SimClock(TICK)
         settings = Settings(spec)
@@ -484,7 +585,7 @@ class _Run:
         self.host = OfflineHost(spec, settings, self.clock, self.io, self.world)
         self.host.motion.setpoints = setpoints
         self.host.planner.cache = cache
-        self.host.start_position = tuple(float(axis.home) for axis in spec.axes)
+        self.host.start_position = tuple(float(axis.home) for axis in spec.axes) if start is None else start
         self.host.load(program)
         self.ended = "completed"
         self.end_time: float | None = None
@@ -612,20 +713,6 @@ def _ordinal(n: int) -> str:
     return f"{n}{'th' if 10 <= n % 100 <= 20 else {1: 'st', 2: 'nd', 3: 'rd'}.get(n % 10, 'th')}"
 
 
-def _merge(findings: dict, run: _Run, assumed: tuple, corners: dict) -> None:
-    for offset, (blended, refused, approx) in run.host.corners.items():
-        was = corners.get(offset, (0, 0, approx, assumed))
-        corners[offset] = (was[0] + blended, was[1] + refused, approx, was[3])
-    for f in run.host.findings:
-        key = (f.offset, f.kind)
-        known = findings.get(key)
-        if known is None:
-            f.assumed = assumed
-            findings[key] = f
-        else:
-            known.count += 1
-
-
 def _planned_moves(run: _Run) -> list[PlannedMove]:
     host = run.host
     program, kinematics = host.program, host.planner.kinematics
@@ -644,65 +731,112 @@ def _planned_moves(run: _Run) -> list[PlannedMove]:
     return moves
 
 
+class _Check:
+    """The runs of one check and what they found: the findings of all (each once, with
+    how often), the corners with ``approx`` (blended or not), the moves planned so far (the
+    bound), and, in the assumed cell, the branches still to explore."""
+
+    def __init__(self, program: Program, spec, scenario, limits: _Limits, start: tuple | None):
+        self.program, self.spec, self.scenario, self.limits, self.start = program, spec, scenario, limits, start
+        self.cache: dict = {}  # the moves planned, shared by every run (a branch repeats most of the main run)
+        self.findings: dict = {}
+        self.corners: dict = {}  # a move with approx -> (times blended, times not, its approx, first run's choices)
+        self.used = 0  # moves planned in all runs
+        self.runs = 0
+        self.worlds: list[AssumedWorld] = []
+        self.explored: set = set()  # (offset, option) of every choice taken or queued
+        self.branches: deque = deque()  # (decisions, the choices that lead there, described)
+        self.flips: list[str] = []  # the branches run, each by its last choice
+        self.cut = 0  # branch runs stopped at their bound
+
+    def run(self, decisions: tuple | None, assumed: tuple, moves: int) -> _Run:
+        run = _Run(self.program, self.spec, self.scenario, decisions, self.limits, cache=self.cache, start=self.start)
+        run.run(moves)
+        self.runs += 1
+        self.used += len(run.host.planned)
+        for offset, (blended, refused, approx) in run.host.corners.items():
+            was = self.corners.get(offset, (0, 0, approx, assumed))
+            self.corners[offset] = (was[0] + blended, was[1] + refused, approx, was[3])
+        for f in run.host.findings:
+            known = self.findings.get((f.offset, f.kind))
+            if known is None:
+                f.assumed = assumed
+                self.findings[f.offset, f.kind] = f
+            else:
+                known.count += 1
+        if run.world is not None:
+            self.worlds.append(run.world)
+            self._offer(run, len(decisions or ()), assumed)
+        return run
+
+    def _offer(self, run: _Run, forced: int, flips: tuple) -> None:
+        """The other options of the run's own choices (after those it was given), each once
+        per place in the program."""
+        choices = run.world.choices
+        for i, c in enumerate(choices):
+            if i < forced:
+                continue
+            self.explored.add((c.offset, c.given, c.options[c.taken]))
+            for option in range(len(c.options)):
+                if (c.offset, c.given, c.options[option]) not in self.explored:
+                    self.explored.add((c.offset, c.given, c.options[option]))
+                    decisions = tuple(x.taken for x in choices[:i]) + (option,)
+                    self.branches.append((decisions, flips + (_describe_choice(self.program, c, option),)))
+
+    def explore(self, max_paths: int) -> list[str]:
+        """Run the branches (breadth first) until none is left or a bound is reached; the
+        notes to say."""
+        per_run = max(BRANCH_MOVES, self.limits.moves // 8)
+        while self.branches and self.runs < max_paths and self.used < self.limits.moves:
+            decisions, flips = self.branches.popleft()
+            run = self.run(decisions, flips, min(per_run, self.limits.moves - self.used))
+            self.flips.append(flips[-1])
+            self.cut += run.ended == "bounded"
+        notes = []
+        if self.cut:
+            notes.append(f"{self.cut} of the branches explored ran longer than {per_run} moves: the check stopped "
+                         "each there")
+        if self.branches:
+            why = (f"the check runs the program at most {max_paths} times" if self.runs >= max_paths else
+                   f"the check plans at most {self.limits.moves} moves in all (--max-moves)")
+            notes.append(f"{len(self.branches)} more branch{'es' if len(self.branches) != 1 else ''} on inputs not "
+                         f"explored: {why}")
+        return notes
+
+    def sorted_findings(self) -> list[Finding]:
+        """Every finding, by place; with a warning for each corner never blended (one
+        blended sometimes is the program's choice: it may move on before the robot is
+        there)."""
+        program = self.program
+        for offset, (blended, refused, approx, assumed) in self.corners.items():
+            if refused and not blended:
+                line, column = program.line_at(offset)
+                self.findings[offset, "blend"] = Finding(
+                    offset, program.file_at(offset), line, column, "blend",
+                    f"approx := {approx:g} has no effect: no blend into the next move keeps every axis within its "
+                    "velocity, acceleration and jerk limits, so the robot stops at the target", "warning",
+                    "a smaller approx, or lower speeds around the corner, may blend", count=refused, assumed=assumed)
+        return sorted(self.findings.values(), key=lambda f: (f.file, f.line, f.column, f.kind))
+
+
 def check_motion(program: Program, spec, scenario=None, *, max_moves: int = MAX_MOVES,
-                 max_paths: int = MAX_PATHS, max_time: float = MAX_TIME) -> Outcome:
-    """Run ``program`` offline (module docstring): with the cell ``scenario`` (a
-    runtime.hardware.sim.cell.Scenario) once, as ``irl run`` would; without one in the
-    assumed cell, the main run and up to ``max_paths - 1`` runs that take the other value
-    of a choice. The findings of all runs, each once (``count``: how often)."""
-    limits = _Limits(max_moves, max_time)
-    outcome = Outcome()
-    findings: dict = {}
-    corners: dict = {}  # a move with approx -> (times blended, times not, its approx, the first run's choices)
-    cache: dict = {}  # the moves planned, shared by every run (a branch repeats most of the main run's)
-    main = _Run(program, spec, scenario, None if scenario is not None else (), limits, cache=cache)
-    main.run(max_moves)
-    used = len(main.host.planned)
-    outcome.cycle_time = main.end_time
-    outcome.ended = main.ended
-    outcome.moves = _planned_moves(main)
-    outcome.notes.extend(main.notes)
-    _merge(findings, main, (), corners)
+                 max_paths: int = MAX_PATHS, max_time: float = MAX_TIME, start: tuple | None = None) -> Outcome:
+    """Run ``program`` offline (module docstring) from ``start`` (joint values; default:
+    every axis at its home, where ``irl run`` starts a program): with the cell
+    ``scenario`` (a runtime.hardware.sim.cell.Scenario) once, as ``irl run`` would;
+    without one in the assumed cell, the main run and up to ``max_paths - 1`` runs that take
+    the other option of a choice (each at most ``max_moves // 8`` moves). The findings of
+    all runs, each once (``count``: how often)."""
+    if start is not None:
+        start = tuple(float(v) for v in start)
+        if len(start) != len(spec.axes):
+            raise ValueError(f"start: expected {len(spec.axes)} joint values, got {len(start)}")
+    check = _Check(program, spec, scenario, _Limits(max_moves, max_time), start)
+    main = check.run(None if scenario is not None else (), (), max_moves)
+    outcome = Outcome(cycle_time=main.end_time, ended=main.ended, moves=_planned_moves(main), notes=list(main.notes))
     if scenario is None:
-        explored: set = set()
-        branches: deque = deque()
-
-        def offer(run: _Run, forced: int, flips: tuple) -> None:
-            choices = run.world.choices
-            for i, c in enumerate(choices):
-                if i < forced:
-                    continue
-                explored.add((c.offset, c.options[c.taken]))
-                for option in range(len(c.options)):
-                    if (c.offset, c.options[option]) not in explored:
-                        explored.add((c.offset, c.options[option]))
-                        decisions = tuple(x.taken for x in choices[:i]) + (option,)
-                        branches.append((decisions, flips + (_describe_choice(program, c, option),)))
-
-        offer(main, 0, ())
-        worlds = [main.world]
-        explored_flips: list[str] = []
-        while branches and outcome.paths < max_paths and used < max_moves:
-            decisions, flips = branches.popleft()
-            run = _Run(program, spec, None, decisions, limits, cache=cache)
-            run.run(max_moves - used)
-            outcome.paths += 1
-            used += len(run.host.planned)
-            _merge(findings, run, flips, corners)
-            worlds.append(run.world)
-            explored_flips.append(flips[-1])
-            offer(run, len(decisions), flips)
-        outcome.assumed = _assumptions(program, worlds, explored_flips)
-        if branches:
-            outcome.notes.append(f"{len(branches)} more branch{'es' if len(branches) != 1 else ''} on inputs not "
-                                 f"explored (the check runs the program at most {max_paths} times)")
-    for offset, (blended, refused, approx, assumed) in corners.items():
-        if refused and not blended:  # a corner never blended (one blended sometimes is the program's choice)
-            line, column = program.line_at(offset)
-            findings[offset, "blend"] = Finding(
-                offset, program.file_at(offset), line, column, "blend",
-                f"approx := {approx:g} has no effect: no blend into the next move keeps every axis within its velocity, "
-                "acceleration and jerk limits, so the robot stops at the target", "warning",
-                "a smaller approx, or lower speeds around the corner, may blend", count=refused, assumed=assumed)
-    outcome.findings = sorted(findings.values(), key=lambda f: (f.file, f.line, f.column, f.kind))
+        outcome.notes += check.explore(max_paths)
+        outcome.assumed = _assumptions(program, check.worlds, check.flips)
+    outcome.paths = check.runs
+    outcome.findings = check.sorted_findings()
     return outcome

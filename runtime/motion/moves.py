@@ -39,8 +39,8 @@ from runtime.motion.trajectory import Refusal, Trajectory
 
 __all__ = ["CACHE_SIZE", "Frames", "MovePlanner", "MoveRecord", "MoveRequest", "Segment"]
 
-#: The most moves :attr:`MovePlanner.cache` keeps (the oldest goes first).
-CACHE_SIZE = 512
+#: The most moves and blends :attr:`MovePlanner.cache` keeps (the oldest goes first).
+CACHE_SIZE = 1024
 
 
 class Frames(NamedTuple):
@@ -210,11 +210,30 @@ class MovePlanner:
             overlap_before = (previous.previous.duration - previous.offset
                               if previous.offset is not None and previous.previous is not None else 0.0)
             cap = previous.duration - overlap_before
-            segment.offset = blend_offset(previous.kind, previous.trajectory, previous.request.approx,
-                                          request.kind, segment.trajectory, previous.end,
-                                          previous.limits.union(segment.limits), period, cap)
+            segment.offset = self._blend(previous, segment, period, cap)
             segment.previous = previous
         return segment, None
+
+    def _blend(self, previous: Segment, segment: Segment, period: float, cap: float) -> float | None:
+        """The blend offset of ``segment`` after ``previous`` (blend_offset), from ``cache``
+        when it holds the same two trajectories blended the same way."""
+        key = None
+        if self.cache is not None:
+            key = ("blend", previous.trajectory, previous.kind, previous.request.approx, segment.kind,
+                   segment.trajectory, previous.end, previous.limits, segment.limits, period, cap)
+            if key in self.cache:
+                return self.cache[key]
+        offset = blend_offset(previous.kind, previous.trajectory, previous.request.approx, segment.kind,
+                              segment.trajectory, previous.end, previous.limits.union(segment.limits), period, cap)
+        if key is not None:
+            self._keep(key, offset)
+        return offset
+
+    def _keep(self, key: tuple, value) -> None:
+        cache = self.cache
+        if len(cache) >= CACHE_SIZE:
+            cache.pop(next(iter(cache)))
+        cache[key] = value
 
     def _planned(self, request: MoveRequest, start: tuple, period: float) -> tuple[Segment | None, str | None]:
         """The move's own trajectory (no blend, no triggers), or its problem; from
@@ -222,7 +241,8 @@ class MovePlanner:
         cache = self.cache
         key = None
         if cache is not None and request.rest_of is None:
-            key = (request.kind, request.targets, request.speed, request.acc, request.frames, tuple(start), period)
+            key = ("move", request.kind, request.targets, request.speed, request.acc, request.frames, tuple(start),
+                   period)
             known = cache.get(key)
             if known is not None:
                 trajectory, end, limits, problem = known
@@ -232,10 +252,8 @@ class MovePlanner:
         else:
             segment, problem = self._plan_cartesian(request, start, period)
         if key is not None:
-            if len(cache) >= CACHE_SIZE:
-                cache.pop(next(iter(cache)))
-            cache[key] = ((None, None, None, problem) if segment is None else
-                          (segment.trajectory, segment.end, segment.limits, None))
+            self._keep(key, (None, None, None, problem) if segment is None else
+                       (segment.trajectory, segment.end, segment.limits, None))
         return segment, problem
 
     def kinematics_for(self, frames: Frames | None) -> Kinematics | None:

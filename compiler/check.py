@@ -32,7 +32,7 @@ from .configs import CONTEXTUAL_NAME, GROUPS as CONFIG_GROUPS, TURN_AXES, WORDS 
 from .configs import turn_problem as config_turn_problem
 from .objcode import BUILTINS, MAX_ARRAY_ELEMENTS, MAX_COUNT, MAX_STRING_LENGTH
 from .semantics import (GEOMETRIC_BUILTINS, GEOMETRY, INT_MAX, INT_MIN, EvalError, binary, call_builtin,
-                        compose, geometric_result, make_joint, make_pos, make_quat, make_rpy, unary)
+                        compose, geometric_result, make_joint, make_pos, make_pose, make_quat, make_rpy, unary)
 from .spec import Spec
 from .values import AddJoint, Joint, MainJoint, Pose
 
@@ -733,7 +733,7 @@ class Checker:
             return ERROR
         values = [self.value_of(arg) for arg in node.args]
         if _NO_VALUE not in values:
-            self.values[id(node)] = Pose(*values)
+            self.values[id(node)] = make_pose(*values)
         return node.name
 
     def c_config(self, node: ast.Call):

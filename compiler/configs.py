@@ -252,7 +252,8 @@ def operand_text(value: int) -> str:
 
 def markdown() -> str:
     """docs/language.md's table of the words (``python -m runtime.cli.docgen --write``)."""
-    lines = ["| group | words | bit of the configuration id | the second word means |", "|---|---|---|---|"]
+    lines = ["| group | words | bit of the configuration id (set by the second word) | the second word means |",
+             "|---|---|---|---|"]
     for g in GROUPS:
         lines.append(f"| {g.what[4:]} | `{g.words[0]}` \\| `{g.words[1]}` | {g.bit} | {g.doc} |")
     return "\n".join(lines) + "\n"

@@ -344,6 +344,12 @@ def make_rpy(r, p, y) -> Rpy:
     return Rpy(float(r), float(p), float(y))
 
 
+def make_pose(position: Position, orientation, config: Config | None = None) -> Pose:
+    """``pose(position, orientation[, config])``: a configuration that names nothing
+    (``config()``) is no configuration, so such a pose is the pose without one."""
+    return Pose(position, orientation, None if config is None or config.free else config)
+
+
 def get_axis(joint: Joint, axis: int) -> float:
     values = joint.axes
     if not 1 <= axis <= len(values):

@@ -232,7 +232,7 @@ def from_plain(data, nested: bool = False):
         config = from_plain(rest[2], nested=True) if len(rest) == 3 else None
         if len(rest) == 3 and not isinstance(config, Config):
             raise ValueError("pose: its third item must be a configuration")
-        return Pose(position, orientation, config)
+        return Pose(position, orientation, None if config is None or config.free else config)
     if kind == "config":
         return _config(rest)
     raise ValueError(f"unknown constant kind {kind!r:.30}")

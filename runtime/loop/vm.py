@@ -67,8 +67,8 @@ from time import perf_counter
 from compiler.clauses import Motion
 from compiler.objcode import BUILTIN_NAMES, FIELDS, INSTRUCTIONS, MAX_ARRAY_ELEMENTS, OP, Program, clause_names
 from compiler.semantics import (INT_MAX, INT_MIN, MAX_STRING_LENGTH, EvalError, binary, call_builtin,
-                                check_index, get_axis, get_field, make_joint, make_pos, make_quat, make_rpy,
-                                set_axis, unary)
+                                check_index, get_axis, get_field, make_joint, make_pos, make_pose, make_quat,
+                                make_rpy, set_axis, unary)
 from compiler.configs import TURNS_FLAG, from_operand
 from compiler.values import Pose, format_number, format_value
 
@@ -406,7 +406,7 @@ class Memory:
         stack = self.stack
         config = stack.pop()
         orientation = stack.pop()
-        stack[-1] = Pose(stack[-1], orientation, config)
+        stack[-1] = make_pose(stack[-1], orientation, config)
         return pc + 1
 
     def op_make_array(self, n, pc):

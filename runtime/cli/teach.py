@@ -91,8 +91,10 @@ def pose_literal(kinematics: Kinematics, joints, base: tuple | None = None, exac
         if config_of(kinematics.configuration(resolved), resolved) == config:
             return Taught(str(pose), pose, joints, cid, config, resolved)
         why = f"it resolves to {format_config(config_of(kinematics.configuration(resolved), resolved))}"
-    raise PoseError(f"no pose target reaches these joints in {format_config(config)} ({why}): they are at (or "
-                    "too near) a singularity; teach them as joint(...) or move them away from it")
+    hint = ("they are at (or too near) a singularity" if why.startswith("singular") else
+            "a value of A1, A4 or A6 a hair below the end of its turn is the other end of it, the same pose")
+    raise PoseError(f"no pose target reaches these joints in {format_config(config)} ({why}): {hint}; teach them "
+                    "as joint(...) or move them away from it")
 
 
 # ---- the command ------------------------------------------------------------------------------

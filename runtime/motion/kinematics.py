@@ -153,6 +153,10 @@ LIMIT_TOL = 1e-9
 #: deg: tolerance of the geometry checks on alpha (0 or +-90)
 _ALPHA_TOL = 1e-9
 
+#: deg: a named turn k seeds its axis at 360 k less this, so that the representation chosen
+#: is in (-180 + 360 k - bias, 180 + 360 k - bias]: a value on the turn's lower boundary
+#: (-180 + 360 k, in turn k) comes out there, not at the upper one (in turn k + 1)
+_TURN_BIAS = 1e-9
 _D2R = pi / 180.0
 _R2D = 180.0 / pi
 _OK, _SINGULAR, _LIMIT, _UNREACHABLE = 0, 1, 2, 3
@@ -647,7 +651,7 @@ class Kinematics:
             raise KinematicsError(problem)
         seed = list(near)  # a named turn: its axis's representation nearest the turn's middle
         for axis, k in zip(TURN_AXES, config.turns or ()):
-            seed[axis] = 360.0 * k
+            seed[axis] = 360.0 * k - _TURN_BIAS
         target = self._unmounted(_target(pose))
         sols: list = []
         fails: list = []

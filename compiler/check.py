@@ -723,6 +723,12 @@ class Checker:
             return ERROR
         if node.name == POSE and len(node.args) == 3:
             c = self.expect(node.args[2], CONFIG, "the third argument of pose (its configuration)")
+        elif node.name == POSE and len(node.args) != 2:
+            self.error(node.span, f"pose takes 2 or 3 arguments (a position, an orientation and optionally a "
+                                  f"configuration), not {len(node.args)}")
+            for arg in node.args:
+                self.expr(arg)
+            return ERROR
         elif not self.arity(node, 2):
             return ERROR
         else:

@@ -179,8 +179,10 @@ def add_arguments(p) -> None:
     p.add_argument("--endpoint", metavar="E", help="take the robot's current joints from the server at E (default "
                                                    "without joint values: $IRL_ENDPOINT)")
     p.add_argument("--keys", metavar="DIR", help="with --endpoint: CURVE keys (made by 'irl keys DIR')")
-    p.add_argument("--timeout", type=float, default=5.0, metavar="S", help="with --endpoint: seconds to wait for "
-                                                                           "a reply")
+    from runtime.cli.netcli import REPLY_TIMEOUT
+
+    p.add_argument("--timeout", type=float, default=REPLY_TIMEOUT, metavar="S",
+                   help="with --endpoint: seconds to wait for a reply")
     p.add_argument("--exact", action="store_true", help="every digit of the numbers (default: to 0.001 mm and "
                                                         "deg, finer only where the configuration needs it)")
     p.add_argument("--json", action="store_true", help="the pose, its configuration and the joints as one JSON "

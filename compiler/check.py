@@ -28,9 +28,11 @@ from .clauses import BY_NAME as CLAUSE_BY_NAME
 from .clauses import CLAUSES as CLAUSE_TABLE
 from .clauses import NAMES as CLAUSES
 from .clauses import Clause, Motion
+from .configs import CONTEXTUAL_NAME, GROUPS as CONFIG_GROUPS, TURN_AXES, WORDS as CONFIG_WORDS, Config
+from .configs import turn_problem as config_turn_problem
 from .objcode import BUILTINS, MAX_ARRAY_ELEMENTS, MAX_COUNT, MAX_STRING_LENGTH
 from .semantics import (GEOMETRIC_BUILTINS, GEOMETRY, INT_MAX, INT_MIN, EvalError, binary, call_builtin,
-                        compose, geometric_result, make_joint, make_pos, make_quat, make_rpy, unary)
+                        compose, geometric_result, make_joint, make_pos, make_pose, make_quat, make_rpy, unary)
 from .spec import Spec
 from .values import AddJoint, Joint, MainJoint, Pose
 
@@ -39,11 +41,12 @@ from .values import AddJoint, Joint, MainJoint, Pose
 INTEGER, REAL, BOOL, STRING = "integer", "real", "bool", "string"
 JOINT, POSITION, ORIENTATION, POSE = "joint", "position", "orientation", "pose"
 FRAME, TOOL = "frame", "tool"  # poses with a role (compiler.frames): a frame in the world, a TCP on the flange
+CONFIG = "config"  # the arm's configuration a pose target names (compiler.configs)
 POSE_LIKE = (POSE, FRAME, TOOL)
 MAINJOINT, ADDJOINT = "mainjoint(...)", "addjoint(...)"
 ERROR = "<error>"  # the type of an expression already reported: suppresses follow-on errors
 
-NAMED_TYPES = (INTEGER, REAL, BOOL, STRING, JOINT, POSITION, ORIENTATION, POSE, FRAME, TOOL)
+NAMED_TYPES = (INTEGER, REAL, BOOL, STRING, JOINT, POSITION, ORIENTATION, POSE, FRAME, TOOL, CONFIG)
 NUMERIC = (INTEGER, REAL)
 #: The types a move's target may have, per motion (a circ move's via pose too).
 MOVE_TARGETS: dict[Motion, tuple[str, ...]] = {Motion.PTP: (JOINT, POSE), Motion.LIN: (POSE,), Motion.CIRC: (POSE,)}
@@ -544,7 +547,8 @@ class Checker:
 
     def e_Call(self, node: ast.Call):
         name = node.name
-        if name in CONSTRUCTORS:
+        if name in CONSTRUCTORS and (name != CONTEXTUAL_NAME or self.lookup(name) is None):
+            self.hidden = None  # (a 'config' declared where this code cannot see it: the constructor here)
             return CONSTRUCTORS[name](self, node)
         if name in BUILTINS:
             return self.builtin(node)
@@ -708,17 +712,90 @@ class Checker:
         return self.numeric_constructor(node, 4, "a component of quat", make_quat, ORIENTATION)
 
     def c_pose(self, node: ast.Call):
-        """``pose(P, O)``, and ``frame(P, O)`` and ``tool(P, O)``: the same value, typed."""
-        if not self.arity(node, 2):
+        """``pose(P, O [, C])``, and ``frame(P, O)`` and ``tool(P, O)``: the same value,
+        typed; only a pose names the arm's configuration (compiler.configs)."""
+        if node.name != POSE and len(node.args) == 3:
+            self.error(node.args[2].span, f"a {node.name} has no configuration: {node.name} takes a position and an "
+                                          "orientation", "frames and tools are not reached by the arm: only a pose "
+                                                         "target names a configuration")
+            for arg in node.args:
+                self.expr(arg)
             return ERROR
+        if node.name == POSE and len(node.args) == 3:
+            c = self.expect(node.args[2], CONFIG, "the third argument of pose (its configuration)")
+        elif node.name == POSE and len(node.args) != 2:
+            self.error(node.span, f"pose takes 2 or 3 arguments (a position, an orientation and optionally a "
+                                  f"configuration), not {len(node.args)}")
+            for arg in node.args:
+                self.expr(arg)
+            return ERROR
+        elif not self.arity(node, 2):
+            return ERROR
+        else:
+            c = None
         p = self.expect(node.args[0], POSITION, f"the first argument of {node.name}")
         o = self.expect(node.args[1], ORIENTATION, f"the second argument of {node.name}")
-        if ERROR in (p, o):
+        if ERROR in (p, o, c):
             return ERROR
-        pv, ov = self.value_of(node.args[0]), self.value_of(node.args[1])
-        if pv is not _NO_VALUE and ov is not _NO_VALUE:
-            self.values[id(node)] = Pose(pv, ov)
+        values = [self.value_of(arg) for arg in node.args]
+        if _NO_VALUE not in values:
+            self.values[id(node)] = make_pose(*values)
         return node.name
+
+    def c_config(self, node: ast.Call):
+        """``config(WORDS..., [T1, T4, T6])`` (compiler.configs): the words first, each
+        group at most once; a name that is a word is the word whatever the program declares
+        (the words mean something only here); then none or three integer turns."""
+        named: dict[str, tuple[int, str]] = {}
+        turns: list[ast.Expr] = []
+        ok = True
+        for arg in node.args:
+            word = arg.name if isinstance(arg, ast.Ref) else None
+            if word in CONFIG_WORDS:
+                ok = self.config_word(arg, word, named, turns) and ok
+                continue
+            if word is not None and not turns and self.lookup(word) is None and self.hidden is None:
+                guess = did_you_mean(word, list(CONFIG_WORDS))
+                words = ", ".join(w for g in CONFIG_GROUPS for w in g.words)
+                self.error(arg.span, f"unknown configuration word '{word}'",
+                           f"did you mean '{guess}'?" if guess else f"the words are {words}; then three turn numbers "
+                                                                     "(A1, A4, A6)")
+                ok = False
+                continue
+            turns.append(arg)
+        for turn in turns:
+            t = self.expr(turn)
+            if t not in (INTEGER, ERROR):
+                self.error(turn.span, f"a turn number must be an integer, not {type_name(t)}",
+                           "turn k of an axis means -180 + 360 k <= its value < 180 + 360 k")
+            ok = ok and t == INTEGER
+        if len(turns) not in (0, len(TURN_AXES)):
+            self.error(turns[0].span.to(turns[-1].span), f"config takes three turn numbers (A1, A4, A6) or none, "
+                                                         f"not {len(turns)}")
+            ok = False
+        if not ok:
+            return ERROR
+        values = [self.value_of(turn) for turn in turns]
+        if _NO_VALUE not in values:
+            self.values[id(node)] = Config(**{f: v for f, (v, _w) in named.items()},
+                                           turns=tuple(values) if values else None)
+        return CONFIG
+
+    def config_word(self, arg: ast.Ref, word: str, named: dict, turns: list) -> bool:
+        """One word of ``config(...)``: before the turns, its group not given yet."""
+        group, value = CONFIG_WORDS[word]
+        if turns:
+            self.error(arg.span, f"'{word}' comes after the turn numbers: config's words come first",
+                       "write config(WORDS..., T1, T4, T6)")
+            return False
+        if group.field in named:
+            first = named[group.field][1]
+            self.error(arg.span, f"'{word}' is given twice" if first == word else
+                                 f"'{word}': {group.what} is already given ('{first}')",
+                       f"config names {group.what} once: {' or '.join(group.words)}")
+            return False
+        named[group.field] = (value, word)
+        return True
 
     # ---- statements ----
     def stmts(self, body) -> None:
@@ -851,7 +928,18 @@ class Checker:
                     self.check_joint_limits(target, value)
                 elif t in POSE_LIKE and value is not _NO_VALUE:
                     self.check_reach(target, value)
+                    self.check_turns(target, value)
         self.clauses(node)
+
+    def check_turns(self, target: ast.Expr, value: Pose) -> None:
+        """The turns a constant pose target names, each with a value within its axis's
+        limits (compiler.configs; the rest is found when the move runs)."""
+        axes = self.spec.main_axes
+        if value.config is None or len(axes) <= max(TURN_AXES):
+            return
+        problem = config_turn_problem(value.config, [(a.min, a.max) for a in axes], [a.name for a in axes])
+        if problem is not None:
+            self.error(target.span, f"the target's configuration cannot be reached: {problem}")
 
     def check_joint_limits(self, target: ast.Expr, value: Joint) -> None:
         for axis, v in zip(self.spec.axes, value.axes):
@@ -1257,7 +1345,7 @@ class Checker:
         result = None
         if node.result is not None:
             result = self.resolve_type(node.result)
-            if node.name in BUILTINS or node.name in CONSTRUCTORS:
+            if node.name in BUILTINS or (node.name in CONSTRUCTORS and node.name != CONTEXTUAL_NAME):
                 self.error(node.name_span, f"'{node.name}' is a built-in function: a function needs another name")
                 return
         kind = "func" if node.result is not None else "interrupt" if node.interrupt is not None else "proc"
@@ -1372,6 +1460,7 @@ CONSTRUCTORS = {
     "pose": Checker.c_pose,
     "frame": Checker.c_pose,
     "tool": Checker.c_pose,
+    CONTEXTUAL_NAME: Checker.c_config,  # (a declaration of that name shadows it: compiler.configs)
 }
 
 

@@ -9,13 +9,14 @@ from __future__ import annotations
 from pathlib import Path
 
 from . import ast
-from .check import (BOOL, FRAME, INTEGER, JOINT, ORIENTATION, POSE, POSITION, REAL, STRING, TOOL, ArrayT,
+from .check import (BOOL, CONFIG, FRAME, INTEGER, JOINT, ORIENTATION, POSE, POSITION, REAL, STRING, TOOL, ArrayT,
                     CheckedProgram, Symbol, type_name)
 from .frames import BY_KEYWORD as FRAME_BY_KEYWORD
 from .frames import describe_name
 from .triggers import PLACE_INDEX, UNIT_INDEX
 from .clauses import CLAUSES as CLAUSE_TABLE
 from .clauses import Motion
+from .configs import CONTEXTUAL_NAME, WORDS as CONFIG_WORDS, Config, operand_of
 from .objcode import BUILTIN_NAMES, FIELDS, OP, InterruptInfo, ProcInfo, Program
 from .values import Joint, Pose, Position, Rpy
 
@@ -183,9 +184,15 @@ class CodeGen:
                 self.value(arg, REAL)
             self.emit({"pos": OP.MAKE_POS, "rpy": OP.MAKE_RPY, "quat": OP.MAKE_QUAT}[name])
         elif name in ("pose", "frame", "tool"):
-            self.value(node.args[0])
-            self.value(node.args[1])
-            self.emit(OP.MAKE_POSE)
+            for arg in node.args:
+                self.value(arg)
+            self.emit(OP.MAKE_POSE_CONFIG if len(node.args) == 3 else OP.MAKE_POSE)
+        elif name == CONTEXTUAL_NAME:  # (its words are constant; its turns, if any, are not: else it was folded)
+            words = [CONFIG_WORDS[a.name] for a in node.args if isinstance(a, ast.Ref) and a.name in CONFIG_WORDS]
+            turns = node.args[len(words):]
+            for arg in turns:
+                self.value(arg)
+            self.emit(OP.MAKE_CONFIG, operand_of(Config(**{g.field: v for g, v in words}), bool(turns)))
         else:  # pragma: no cover - the checker rejects everything else
             raise AssertionError(f"cannot generate a call of {name}")
 
@@ -376,7 +383,7 @@ class CodeGen:
                  JOINT: Joint(tuple(0.0 for _ in self.checked.spec.main_axes),
                               tuple(0.0 for _ in self.checked.spec.additional_axes)),
                  POSITION: Position(0.0, 0.0, 0.0), ORIENTATION: Rpy(0.0, 0.0, 0.0),
-                 POSE: Pose(Position(0.0, 0.0, 0.0), Rpy(0.0, 0.0, 0.0))}
+                 POSE: Pose(Position(0.0, 0.0, 0.0), Rpy(0.0, 0.0, 0.0)), CONFIG: Config()}
         zeros[FRAME] = zeros[TOOL] = zeros[POSE]
         self.constant(zeros[t])
 

@@ -9,6 +9,7 @@ from dataclasses import dataclass
 from typing import Iterator
 
 from .objcode import BUILTIN_NAMES, BY_CODE, FIELDS, Program, checksum_of, clause_names
+from .configs import operand_text as config_operand_text
 from .triggers import PLACES, UNITS
 from .values import format_value, to_plain
 
@@ -50,6 +51,8 @@ def _argrepr(program: Program, definition, operands: tuple[int, ...], routine_lo
             parts.append(PLACES[value].words)
         elif kind == "unit":
             parts.append(UNITS[value].name)
+        elif kind == "config":
+            parts.append(config_operand_text(value))
     return "; ".join(parts)
 
 

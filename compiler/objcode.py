@@ -20,6 +20,9 @@ from typing import Callable
 from .clauses import BY_NAME as _CLAUSES_BY_NAME
 from .clauses import MOTIONS as _MOTIONS
 from .clauses import NAMES as _CLAUSE_NAMES
+from .configs import TURN_AXES as _TURN_AXES
+from .configs import TURNS_FLAG as _TURNS_FLAG
+from .configs import operand_problem as _config_operand_problem
 from .semantics import MAX_STRING_LENGTH as _MAX_STRING_LENGTH
 from .values import from_plain, to_plain
 
@@ -68,6 +71,9 @@ OPERAND_KINDS = {
     "interrupt": "index into the interrupt table",
     "place": "where a trigger is counted from: 0 after start, 1 before end, 2 after end (compiler.triggers)",
     "unit": "a trigger's unit: 0 ms, 1 mm (compiler.triggers)",
+    "config": "the words of config(...) (compiler.configs): two bits per group, the shoulder's lowest (0 free, "
+              "1 front, 2 back; bits 2-3: 0 free, 1 elbow_up, 2 elbow_down; bits 4-5: 0 free, 1 noflip, 2 flip); "
+              "bit 6: the turns of A1, A4, A6 follow on the stack; two bits of 3 are refused",
 }
 
 #: Built-in functions: name -> number of arguments. Angles in degrees.
@@ -129,6 +135,10 @@ class InstrDef:
 
 def _call_pops(operands, program):
     return program.procedures[operands[0]].params
+
+
+def _config_pops(operands, program):
+    return len(_TURN_AXES) if operands[0] & _TURNS_FLAG else 0
 
 
 _DEFS = [
@@ -224,6 +234,11 @@ _DEFS = [
     ("TRIGGER_SET", (("place", "place"), ("unit", "unit"), ("g", "global")), 2, 0,
      "A path trigger of the next move: store value into global variable g when the robot is amount (unit) from "
      "place.", "amount value ->", "next", False),
+    ("MAKE_CONFIG", (("words", "config"),), _config_pops, 1,
+     "Build config(...): the words the operand names and, when it says so, the turns of A1, A4, A6 popped "
+     "(compiler.configs).", "[t1 t4 t6] -> config", "next", False),
+    ("MAKE_POSE_CONFIG", (), 3, 1, "Build pose(position, orientation, configuration).",
+     "position orientation config -> pose", "next", False),
 ]
 
 #: The types of the values on the stack (what a popped value must be, what is pushed). A
@@ -233,7 +248,7 @@ _DEFS = [
 #: ``@g`` / ``@l`` the declared type of the global / local slot the instruction names,
 #: ``@item`` the element type of the array popped first, ``@params`` the called routine's
 #: parameters, ``@clauses`` the move's clause values, ``@result`` the function's result.
-VALUE_TYPES = ("integer", "real", "bool", "string", "joint", "position", "orientation", "pose")
+VALUE_TYPES = ("integer", "real", "bool", "string", "joint", "position", "orientation", "pose", "config")
 
 #: The rules for a pushed value whose type depends on what was popped or on an operand.
 TYPE_RULES = {
@@ -278,6 +293,7 @@ _TYPES: dict[str, tuple[str, str]] = {
     "CALL_FUNC": ("@params", "@result"), "RET_VALUE": ("@result", ""), "USE_BASE": ("pose", ""),
     "USE_TOOL": ("pose", ""), "INT_ENABLE": ("", ""), "INT_DISABLE": ("", ""),
     "TRIGGER_OUT": ("real integer bool", ""), "TRIGGER_SET": ("real @g", ""),
+    "MAKE_CONFIG": ("integer", "config"), "MAKE_POSE_CONFIG": ("position orientation config", "pose"),
 }
 _missing_types = [d[0] for d in _DEFS if d[0] not in _TYPES]
 if _missing_types:  # pragma: no cover - the table is complete
@@ -543,6 +559,8 @@ def _check_operand(kind: str, value: int, program: Program, nlocals: int | None)
         ok, limit = 0 <= value < len(UNITS), f"0..{len(UNITS) - 1}"
     elif kind == "interrupt":
         ok, limit = 0 <= value < len(program.interrupts), f"0..{len(program.interrupts) - 1}"
+    elif kind == "config":
+        return _config_operand_problem(value)
     elif kind == "name":
         ok, limit = 0 <= value < len(program.constants), f"0..{len(program.constants) - 1}"
         if ok and not isinstance(program.constants[value], str):
@@ -571,10 +589,11 @@ def declared_type(text: object) -> str | None:
 
 def value_type(value: object) -> str | None:
     """The stack type of a constant, or None (no value of the language)."""
-    from .values import Joint, Pose, Position, Quat, Rpy
+    from .values import Config, Joint, Pose, Position, Quat, Rpy
 
     for cls, name in ((bool, "bool"), (int, "integer"), (float, "real"), (str, "string"), (Joint, "joint"),
-                      (Position, "position"), (Rpy, "orientation"), (Quat, "orientation"), (Pose, "pose")):
+                      (Position, "position"), (Rpy, "orientation"), (Quat, "orientation"), (Pose, "pose"),
+                      (Config, "config")):
         if isinstance(value, cls):
             return name
     return None

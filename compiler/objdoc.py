@@ -47,6 +47,9 @@ from .objcode import (
     encode,
     verify,
 )
+from .configs import MAX_OPERAND as MAX_CONFIG_OPERAND
+from .configs import TURNS_FLAG, Config
+from .configs import operand_problem as config_operand_problem
 from .values import Joint, Pose, Position, Quat, Rpy, format_value, to_plain
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -161,6 +164,8 @@ def _samples(kind: str) -> list[int]:
         return list(range(len(FIELDS)))
     if kind == "int":
         return [0, 1, -1, 5]
+    if kind == "config":
+        return [v for v in range(MAX_CONFIG_OPERAND + 1) if config_operand_problem(v) is None]
     return [0, 1, 2]
 
 
@@ -172,6 +177,8 @@ def _measure(kind: str, value: int) -> int | None:
         return bin(value).count("1")
     if kind == "proc":
         return _PROBE_PARAMS[value]
+    if kind == "config":
+        return 1 if value & TURNS_FLAG else 0
     return None
 
 
@@ -180,6 +187,8 @@ def _measure_words(kind: str, name: str) -> str:
         return f"one per clause bit set in `{name}`"
     if kind == "proc":
         return f"the parameter count of procedure `{name}`"
+    if kind == "config":
+        return f"bit 6 of `{name}`"
     return f"`{name}`"
 
 
@@ -272,6 +281,9 @@ _CONSTANT_EXAMPLES = [
     ("orientation (rpy)", Rpy(0.0, 90.0, 0.0)),
     ("orientation (quat)", Quat(1.0, 0.0, 0.0, 0.0)),
     ("pose", Pose(Position(100.0, 0.0, 500.0), Rpy(0.0, 90.0, 0.0))),
+    ("config", Config(shoulder=0, elbow=None, wrist=1, turns=(0, 0, -1))),
+    ("config (nothing named)", Config()),
+    ("pose (with a configuration)", Pose(Position(100.0, 0.0, 500.0), Rpy(0.0, 90.0, 0.0), Config(wrist=1))),
 ]
 
 
@@ -320,7 +332,13 @@ def _section_format() -> list[str]:
                 [[kind, f"`{format_value(v)}`", f"`{json.dumps(to_plain(v))}`"] for kind, v in _CONSTANT_EXAMPLES]),
         "",
         "A quaternion in the pool is already normalised (`quat(...)` normalises at compile "
-        "time). An integer constant must fit msgpack's integer range (−2^63 .. 2^64 − 1).",
+        "time). An integer constant must fit msgpack's integer range (−2^63 .. 2^64 − 1). A "
+        "configuration (`config(...)`, compiler.configs) is `[\"config\", shoulder, elbow, wrist, "
+        "turns]`: each group `0` (its first word: `front`, `elbow_up`, `noflip`), `1` (its second: "
+        "`back`, `elbow_down`, `flip`) or nil (free), the turns of A1, A4, A6 three integers "
+        "(within 64 bits) or nil; anything else (a `2`, a `true`, two turns) is refused. A pose "
+        "that names a configuration has it as a third item; one that names none has two items, "
+        "as before configurations existed, so a program without them is encoded as it was.",
         "",
         "### Line table",
         "",

@@ -9,7 +9,7 @@ from __future__ import annotations
 import math
 
 from . import geometry
-from .values import Joint, Pose, Position, Quat, Rpy
+from .values import Config, Joint, Pose, Position, Quat, Rpy
 
 
 class EvalError(Exception):
@@ -85,7 +85,8 @@ def kind(value) -> str:
     return _KINDS.get(type(value), type(value).__name__)
 
 
-_KINDS = {Position: "position", Pose: "pose", Rpy: "orientation", Quat: "orientation", Joint: "joint", str: "string"}
+_KINDS = {Position: "position", Pose: "pose", Rpy: "orientation", Quat: "orientation", Joint: "joint", str: "string",
+          Config: "config"}
 
 
 def _quat(o) -> tuple[float, float, float, float]:
@@ -127,12 +128,13 @@ def _shrink(p: Position, k) -> Position:
 
 
 def compose(a: Pose, b: Pose) -> Pose:
-    """``a * b``: the pose ``b``, given in the frame ``a``, in the frame ``a`` is given in."""
+    """``a * b``: the pose ``b``, given in the frame ``a``, in the frame ``a`` is given in;
+    with ``b``'s configuration (the target placed in a frame: ``pallet * place``)."""
     qa = _quat(a.orientation)
     moved = geometry.rotate(qa, _vector(b.position))
     rpy = isinstance(a.orientation, Rpy) and isinstance(b.orientation, Rpy)
     return Pose(_plus(a.position, _position(moved)),
-                _orientation(geometry.quat_multiply(qa, _quat(b.orientation)), rpy))
+                _orientation(geometry.quat_multiply(qa, _quat(b.orientation)), rpy), b.config)
 
 
 def transform(a: Pose, p: Position) -> Position:
@@ -141,8 +143,8 @@ def transform(a: Pose, p: Position) -> Position:
 
 
 def inverse(a):
-    """``inv(a)``: the inverse of a pose (``a * inv(a)`` is the identity) or of an
-    orientation; the orientation stays ``rpy`` or ``quat`` as it was."""
+    """``inv(a)``: the inverse of a pose (``a * inv(a)`` is the identity; it names no
+    configuration) or of an orientation; the orientation stays ``rpy`` or ``quat`` as it was."""
     if isinstance(a, Pose):
         qi = geometry.quat_conjugate(_quat(a.orientation))
         x, y, z = geometry.rotate(qi, _vector(a.position))
@@ -152,8 +154,9 @@ def inverse(a):
 
 def tool_offset(a: Pose, p: Position) -> Pose:
     """``tool_offset(a, p)``: ``a`` moved by ``p`` along its own (the tool's) axes; the
-    orientation unchanged (``a * pose(p, rpy(0, 0, 0))``)."""
-    return Pose(transform(a, p), a.orientation)
+    orientation and the configuration unchanged (``a * pose(p, rpy(0, 0, 0))``, but ``a``'s
+    configuration)."""
+    return Pose(transform(a, p), a.orientation, a.config)
 
 
 def distance(a, b) -> float:
@@ -172,12 +175,12 @@ GEOMETRY: dict[tuple[str, str, str], tuple[str, object, str]] = {
     ("*", "position", "number"): ("position", _scale, "scaled"),
     ("*", "number", "position"): ("position", lambda k, p: _scale(p, k), "scaled"),
     ("/", "position", "number"): ("position", _shrink, "scaled by 1/k; k = 0 is an error"),
-    ("+", "pose", "position"): ("pose", lambda a, p: Pose(_plus(a.position, p), a.orientation),
-                                "offset along the base frame's axes (orientation unchanged)"),
-    ("-", "pose", "position"): ("pose", lambda a, p: Pose(_minus(a.position, p), a.orientation),
-                                "offset against the base frame's axes"),
+    ("+", "pose", "position"): ("pose", lambda a, p: Pose(_plus(a.position, p), a.orientation, a.config),
+                                "offset along the base frame's axes (orientation and configuration unchanged)"),
+    ("-", "pose", "position"): ("pose", lambda a, p: Pose(_minus(a.position, p), a.orientation, a.config),
+                                "offset against the base frame's axes (orientation and configuration unchanged)"),
     ("*", "pose", "pose"): ("pose", compose, "composition: the right pose, given in the frame of the left "
-                                             "one, in the left one's frame"),
+                                             "one, in the left one's frame; the right one's configuration"),
     ("*", "pose", "position"): ("position", transform, "the point, given in the frame of the pose, in the pose's "
                                                        "frame"),
     ("*", "orientation", "orientation"): ("orientation", lambda a, b: _orientation(
@@ -195,9 +198,10 @@ def geometry_markdown() -> str:
     for (op, left, right), (result, _fn, doc) in GEOMETRY.items():
         lines.append(f"| {left} `{op}` {right} | {result} | {doc} |")
     lines.append("| `-` position | position | the opposite vector |")
-    docs = {"inv": "the inverse: `a * inv(a)` is the identity",
+    docs = {"inv": "the inverse: `a * inv(a)` is the identity (of a pose: no configuration)",
             "distance": "the distance between the two points (mm; of poses, their positions)",
-            "tool_offset": "the pose moved by the position along its own (the tool's) axes, orientation unchanged"}
+            "tool_offset": "the pose moved by the position along its own (the tool's) axes, orientation and "
+                           "configuration unchanged"}
     for name, forms in GEOMETRIC_BUILTINS.items():
         for wanted, result in forms:
             lines.append(f"| `{name}`({', '.join(w.replace('|', ' or ') for w in wanted)}) | {result} | {docs[name]} |")
@@ -338,6 +342,12 @@ def make_pos(x, y, z) -> Position:
 
 def make_rpy(r, p, y) -> Rpy:
     return Rpy(float(r), float(p), float(y))
+
+
+def make_pose(position: Position, orientation, config: Config | None = None) -> Pose:
+    """``pose(position, orientation[, config])``: a configuration that names nothing
+    (``config()``) is no configuration, so such a pose is the pose without one."""
+    return Pose(position, orientation, None if config is None or config.free else config)
 
 
 def get_axis(joint: Joint, axis: int) -> float:

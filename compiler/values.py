@@ -10,6 +10,8 @@ import math
 from dataclasses import astuple, dataclass
 from typing import ClassVar
 
+from .configs import Config, value_problem
+
 
 @dataclass(frozen=True, slots=True)
 class MainJoint:
@@ -92,13 +94,17 @@ class Quat(_Numbers):
 
 @dataclass(frozen=True, slots=True)
 class Pose:
-    """The tool centre point in the robot's base frame."""
+    """The tool centre point in the robot's base frame; ``config``: the arm's
+    configuration it names (compiler.configs), None when it names none."""
 
     position: Position
     orientation: Rpy | Quat
+    config: Config | None = None
 
     def __str__(self) -> str:
-        return f"pose({self.position}, {self.orientation})"
+        if self.config is None:
+            return f"pose({self.position}, {self.orientation})"
+        return f"pose({self.position}, {self.orientation}, {self.config})"
 
 
 def format_number(value: float | int) -> str:
@@ -141,7 +147,14 @@ def to_plain(value):
     if isinstance(value, Quat):
         return ["quat", value.w, value.x, value.y, value.z]
     if isinstance(value, Pose):
-        return ["pose", to_plain(value.position), to_plain(value.orientation)]
+        plain = ["pose", to_plain(value.position), to_plain(value.orientation)]
+        return plain if value.config is None else plain + [to_plain(value.config)]
+    if isinstance(value, Config):
+        problem = value_problem(value)  # (one made in memory, not decoded: checked here)
+        if problem is not None:
+            raise TypeError(f"not an L-IRL configuration: {problem}")
+        return ["config", value.shoulder, value.elbow, value.wrist,
+                list(value.turns) if value.turns is not None else None]
     raise TypeError(f"not an L-IRL constant: {value!r}")
 
 
@@ -165,6 +178,21 @@ def _shape(data) -> str:
 
 
 _INT_MIN, _INT_MAX = -(2 ** 63), 2 ** 63 - 1
+
+
+def _config(rest: list) -> Config:
+    """``["config", shoulder, elbow, wrist, turns]``: each group 0, 1 or nil, the turns
+    three integers or nil."""
+    if len(rest) != 4:
+        raise ValueError("config: expected [shoulder, elbow, wrist, turns]")
+    turns = rest[3]
+    if turns is not None and (not isinstance(turns, list) or len(turns) != 3):
+        raise ValueError(f"config: turns must be three integers or nil, not {_shape(turns)}")
+    config = Config(*rest[:3], turns=tuple(turns) if turns is not None else None)
+    problem = value_problem(config)
+    if problem is not None:
+        raise ValueError(f"config: {problem}")
+    return config
 
 
 def from_plain(data, nested: bool = False):
@@ -196,10 +224,15 @@ def from_plain(data, nested: bool = False):
     if kind == "quat":
         return Quat(*_floats(rest, 4, "quat"))
     if kind == "pose":
-        if len(rest) != 2:
-            raise ValueError("pose: expected [position, orientation]")
+        if len(rest) not in (2, 3):
+            raise ValueError("pose: expected [position, orientation] or [position, orientation, configuration]")
         position, orientation = from_plain(rest[0], nested=True), from_plain(rest[1], nested=True)
         if not isinstance(position, Position) or not isinstance(orientation, (Rpy, Quat)):
             raise ValueError("pose: expected a position and an orientation")
-        return Pose(position, orientation)
+        config = from_plain(rest[2], nested=True) if len(rest) == 3 else None
+        if len(rest) == 3 and not isinstance(config, Config):
+            raise ValueError("pose: its third item must be a configuration")
+        return Pose(position, orientation, None if config is None or config.free else config)
+    if kind == "config":
+        return _config(rest)
     raise ValueError(f"unknown constant kind {kind!r:.30}")

@@ -128,6 +128,7 @@ def test_every_operand_kind_is_described():
 _OPERAND_VALUE = {
     "const": 0, "global": 0, "local": 0, "target": 0, "proc": 0, "count": 1, "int": 1,
     "builtin": 0, "field": 0, "clauses": 0b100001, "flag": 1, "name": 2, "interrupt": 0, "place": 1, "unit": 0,
+    "config": 0b1100001,
 }
 
 
@@ -156,7 +157,7 @@ def test_every_instruction_has_a_disassembly_form():
         assert record.offset == d.code
         assert isinstance(record.argrepr, str)
         assert len(record.operands) == len(d.operands)
-        if any(kind in ("const", "global", "proc", "builtin", "field", "clauses", "target", "name", "interrupt", "place", "unit")
+        if any(kind in ("const", "global", "proc", "builtin", "field", "clauses", "target", "name", "interrupt", "place", "unit", "config")
                for _, kind in d.operands):
             assert record.argrepr, f"{d.name}: operands are not resolved in the disassembly"
 

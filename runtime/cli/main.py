@@ -490,6 +490,11 @@ def build_parser(command: str | None = None) -> argparse.ArgumentParser:
         _plot_arguments(p)
     if (p := declare("fsm", help="print the supervisor's state machine as a diagram")) is not None:
         _fsm_arguments(p)
+    if (p := declare("pose", help="the pose literal, with its configuration, that reaches given joint values (or "
+                                  "the robot's current ones): teach a point")) is not None:
+        from runtime.cli.teach import add_arguments as pose_arguments
+
+        pose_arguments(p)
     if command is None or command not in sub.choices:  # (naming the network commands imports their module)
         from runtime.cli.netcli import add_commands  # light: ZeroMQ is imported when a command runs
 

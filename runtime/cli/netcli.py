@@ -373,6 +373,21 @@ def cmd_status(args, env) -> int:
     return common.EXIT_OK
 
 
+def current_position(args) -> tuple[str, list]:
+    """(the specification hash, the axis positions) of the robot the server at
+    ``args.endpoint`` drives: hello's ``spec_hash`` and status's ``position`` (irl pose).
+    Unreachable: a usage error (exit 2); refused: a ValueError (exit 1)."""
+    client = _client(args)
+    try:
+        hello = _call(client, "hello")
+        status = _call(client, "status")
+    except _Refused as exc:
+        raise ValueError(f"the server at {args.endpoint} refused: {exc}") from None
+    finally:
+        client.close()
+    return hello.get("spec_hash", ""), list(status.get("position") or [])
+
+
 def _job_line(job: dict) -> str:
     from runtime.wire.protocol import JobState
 

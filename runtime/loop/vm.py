@@ -67,8 +67,9 @@ from time import perf_counter
 from compiler.clauses import Motion
 from compiler.objcode import BUILTIN_NAMES, FIELDS, INSTRUCTIONS, MAX_ARRAY_ELEMENTS, OP, Program, clause_names
 from compiler.semantics import (INT_MAX, INT_MIN, MAX_STRING_LENGTH, EvalError, binary, call_builtin,
-                                check_index, get_axis, get_field, make_joint, make_pos, make_quat, make_rpy,
-                                set_axis, unary)
+                                check_index, get_axis, get_field, make_joint, make_pos, make_pose, make_quat,
+                                make_rpy, set_axis, unary)
+from compiler.configs import TURNS_FLAG, from_operand
 from compiler.values import Pose, format_number, format_value
 
 #: Deepest nesting of procedure calls before the program is stopped with an error.
@@ -394,6 +395,23 @@ class Memory:
         stack = self.stack
         orientation = stack.pop()
         stack[-1] = Pose(stack[-1], orientation)
+        return pc + 1
+
+    def op_make_config(self, words, pc):
+        turns = None
+        if words & TURNS_FLAG:
+            turns = tuple(self.pop_n(3))
+            for k in turns:
+                if type(k) is not int:  # (the verifier saw integers: hand-made code is checked again)
+                    raise EvalError(f"a turn number must be an integer, not {format_value(k)}")
+        self.stack.append(from_operand(words, turns))
+        return pc + 1
+
+    def op_make_pose_config(self, _, pc):
+        stack = self.stack
+        config = stack.pop()
+        orientation = stack.pop()
+        stack[-1] = make_pose(stack[-1], orientation, config)
         return pc + 1
 
     def op_make_array(self, n, pc):

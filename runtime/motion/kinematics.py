@@ -54,16 +54,28 @@ Conventions
                          one of x1, -x1 that points towards the wrist centre (a world-
                          geometric notion: in the "back" configuration too, "up" is the
                          base's up); clear = "up"
-      WRIST_FLIP    = 4  sin(theta5) < 0, theta5 = A5 + theta_offset5 (for the Lola 15:
-                         A5 < 0); clear: sin(theta5) > 0
+      WRIST_FLIP    = 4  sin(theta5) < 0, theta5 = direction5 A5 + theta_offset5 (for
+                         the Lola 15: A5 < 0); clear: sin(theta5) > 0
 
+  The bits, and the words a program names them with (``front`` | ``back``, ``elbow_up`` |
+  ``elbow_down``, ``noflip`` | ``flip``), are declared in :mod:`compiler.configs`.
   :meth:`Kinematics.configuration` gives the id of given joint values;
   :func:`configuration_name` a text ("back, elbow up, wrist flipped").
 * **Choice**: :meth:`Kinematics.inverse` returns the solution nearest ``near`` (default:
   the axes' home positions) in the Euclidean joint-space distance (degrees), every
   angle taking the representation ``q + k 360`` that is nearest ``near`` among those
   within the axis limits (axis 6 of the Lola 15, -350..350, has two for most angles);
-  with ``configuration=`` only that configuration.
+  with ``configuration=`` only that configuration. :meth:`Kinematics.inverse_config`
+  takes what a pose target's ``config(...)`` names: some groups (the nearest solution of
+  the configurations that have them) and the turns of A1, A4, A6 (each of these axes in
+  its turn ``k``: ``-180 + 360 k <= q < 180 + 360 k``)::
+
+      >>> from compiler.configs import Config
+      >>> pose = kin.forward((0, 0, 0, 0, 30, 10))
+      >>> [round(v, 9) + 0.0 for v in kin.inverse_config(pose, Config(wrist=1))]
+      [0.0, 0.0, 0.0, 180.0, -30.0, -170.0]
+      >>> [round(v, 9) + 0.0 for v in kin.inverse_config(pose, Config(turns=(0, 0, -1)))]
+      [0.0, 0.0, 0.0, 0.0, 30.0, -350.0]
 
 Singularities and tolerances (where the closed form has no unique answer)
 ---------------------------------------------------------------------------
@@ -108,6 +120,8 @@ from __future__ import annotations
 from math import atan2, ceil, cos, inf, isfinite, pi, sin, sqrt
 from typing import Sequence
 
+from compiler.configs import ELBOW_DOWN, SHOULDER_BACK, TURN_AXES, WRIST_FLIP, Config, describe, in_turn, turn_of
+from compiler.configs import turn_problem, turn_range
 from compiler.geometry import normalise, rotation_to_rpy, rpy_to_matrix
 from compiler.spec import DH, Spec
 from compiler.values import Joint, Pose, Position, Quat, Rpy
@@ -127,9 +141,6 @@ __all__ = [
     "rpy_to_matrix",
 ]
 
-SHOULDER_BACK = 1
-ELBOW_DOWN = 2
-WRIST_FLIP = 4
 
 #: mm: the wrist centre this close to axis 1 (beyond a lateral shoulder offset) is singular
 SHOULDER_TOL = 1e-6
@@ -142,6 +153,10 @@ LIMIT_TOL = 1e-9
 #: deg: tolerance of the geometry checks on alpha (0 or +-90)
 _ALPHA_TOL = 1e-9
 
+#: deg: a named turn k seeds its axis at 360 k less this, so that the representation chosen
+#: is in (-180 + 360 k - bias, 180 + 360 k - bias]: a value on the turn's lower boundary
+#: (-180 + 360 k, in turn k) comes out there, not at the upper one (in turn k + 1)
+_TURN_BIAS = 1e-9
 _D2R = pi / 180.0
 _R2D = 180.0 / pi
 _OK, _SINGULAR, _LIMIT, _UNREACHABLE = 0, 1, 2, 3
@@ -152,11 +167,9 @@ class KinematicsError(ValueError):
 
 
 def configuration_name(configuration: int) -> str:
-    """``"front, elbow up, wrist not flipped"`` ... for a configuration id 0..7."""
-    return ", ".join((
-        "back" if configuration & SHOULDER_BACK else "front",
-        "elbow down" if configuration & ELBOW_DOWN else "elbow up",
-        "wrist flipped" if configuration & WRIST_FLIP else "wrist not flipped"))
+    """``"front, elbow up, wrist not flipped"`` ... for a configuration id 0..7
+    (compiler.configs, where the groups and their words are declared)."""
+    return describe(configuration)
 
 
 def matrix_to_rpy(matrix) -> tuple[float, float, float]:
@@ -621,6 +634,52 @@ class Kinematics:
             if best[2] == _OK:
                 return best[1]
             raise KinematicsError(best[3])
+        raise KinematicsError(self._failure(fails))
+
+    def inverse_config(self, pose, config: Config, near: Sequence[float] | None = None) -> tuple:
+        """Joint values (deg) that put the TCP at ``pose`` in the configuration ``config``
+        names (:class:`compiler.configs.Config`): of the solutions whose configuration has
+        every group ``config`` names, the one nearest ``near`` (default: the home position)
+        as :meth:`inverse` chooses; A1, A4 and A6 each in the turn ``config`` names (when it
+        names turns), every other angle in its representation nearest ``near``. Raises
+        :class:`KinematicsError` saying why there is none: a turn outside its axis's limits,
+        the pose unreachable or singular in those configurations, an axis outside its
+        limits. (Without a configuration, :meth:`inverse` is the fast path.)"""
+        near = self.home if near is None else _main(near)
+        problem = turn_problem(config, self.limits, self.names)
+        if problem is not None:
+            raise KinematicsError(problem)
+        seed = list(near)  # a named turn: its axis's representation nearest the turn's middle
+        for axis, k in zip(TURN_AXES, config.turns or ()):
+            seed[axis] = 360.0 * k - _TURN_BIAS
+        target = self._unmounted(_target(pose))
+        sols: list = []
+        fails: list = []
+        for cid in range(8):
+            if config.matches(cid):
+                found, failed = self._candidates(target, tuple(seed), cid)
+                sols += found
+                fails += failed
+        best = turned = None
+        for _cid, q, status, message, _d in sols:
+            wrong = [(axis, k) for axis, k in zip(TURN_AXES, config.turns or ()) if not in_turn(q[axis], k)]
+            if wrong and status == _OK:  # the limits kept the axis out of its turn
+                axis, k = wrong[0]
+                turned = turned or (axis, k, q[axis] + 360.0 * (k - turn_of(q[axis])))
+                continue
+            d = sum((a - b) * (a - b) for a, b in zip(q, near))
+            if best is None or d < best[0]:
+                best = (d, status, q, message)
+        if best is not None:
+            if best[1] == _OK:
+                return best[2]
+            raise KinematicsError(best[3])
+        if turned is not None:
+            axis, k, value = turned
+            lo, hi = self.limits[axis]
+            start, end = turn_range(k)
+            raise KinematicsError(f"{self.names[axis]} would be {value:.1f} deg in turn {k} ({start:g}..{end:g} "
+                                  f"deg), outside its limits {lo:g}..{hi:g}")
         raise KinematicsError(self._failure(fails))
 
     def solutions(self, pose, near: Sequence[float] | None = None) -> list[tuple[int, tuple]]:

@@ -6,13 +6,14 @@ trajectory (:class:`MovePlanner`), and what the timeline holds (:class:`Segment`
 previous segment's plan, and changes nothing), so it may run on the planning worker:
 
 * ``ptp`` -- to a joint value, to a pose (the inverse kinematics' configuration nearest
-  the start), or to the positions of every axis (the rest of an interrupted move), with
+  the start, or the one the pose names: its groups and turns, compiler.configs), or to the positions of every axis (the rest of an interrupted move), with
   the axes' limits times the move's ``speed_ptp`` / ``acc_ptp`` (and the jerk limits
   times ``acc_ptp`` for the jerk-limited profile): :func:`runtime.motion.jerk.plan_ptp_jerk`
   or :func:`runtime.motion.planner.plan_ptp`;
 * ``lin`` / ``circ`` -- to poses (joint values are turned into poses by the forward
   kinematics): :func:`runtime.motion.cartesian.plan_cartesian`, timed within every
-  joint's limits;
+  joint's limits; a target (or via pose) that names another configuration than the one
+  the move starts in is refused before it, and one that names turns must end in them;
 * a move after one with ``approx`` gets its blend offset
   (:func:`runtime.motion.blend.blend_offset`), checked within every axis's limits.
 
@@ -25,6 +26,7 @@ from dataclasses import dataclass
 from typing import NamedTuple
 
 from compiler.clauses import Motion
+from compiler.configs import TURN_AXES, format_config, group_problem, in_turn, turn_of
 from compiler.frames import IDENTITY
 from compiler.triggers import PLACES, UNITS
 from compiler.values import Joint, Pose
@@ -32,7 +34,7 @@ from compiler.values import Joint, Pose
 from runtime.motion.blend import Limits, blend_offset
 from runtime.motion.cartesian import CartesianInput, plan_cartesian
 from runtime.motion.jerk import plan_ptp_jerk
-from runtime.motion.kinematics import Kinematics, KinematicsError
+from runtime.motion.kinematics import Kinematics, KinematicsError, configuration_name
 from runtime.motion.pathcheck import JointLimits
 from runtime.motion.planner import PtpInput, plan_ptp, scaled_limits
 from runtime.motion.trajectory import Refusal, Trajectory
@@ -299,6 +301,9 @@ class MovePlanner:
             return None, self.kinematics_problem
         poses = tuple(kinematics.forward(t.axes[:self.main]) if isinstance(t, Joint) else t
                       for t in request.targets)
+        problem = self._keeps_configuration(request, kinematics, start)
+        if problem is not None:
+            return None, problem
         via, target = (None, poses[0]) if request.kind == Motion.LIN else poses
         result, stream, message = plan_cartesian(CartesianInput(
             kinematics, start, target, request.speed, request.acc, via=via,
@@ -306,17 +311,58 @@ class MovePlanner:
         if result < 0:
             prefix = f"move {request.kind} refused: "
             return None, message.prefixed(prefix) if isinstance(message, Refusal) else prefix + message
+        problem = self._ends_in_turns(request, kinematics, stream.target_position)
+        if problem is not None:
+            return None, problem
         return Segment(request, stream, stream.target_position, self.cartesian_limits), None
+
+    def _keeps_configuration(self, request: MoveRequest, kinematics: Kinematics, start: tuple) -> str | None:
+        """A lin or circ move keeps the configuration it starts in: the problem of a target
+        (or a via pose) that names another one (compiler.configs), else None."""
+        named = [(what, t.config) for what, t in zip(("via pose", "target") if request.kind == Motion.CIRC
+                                                       else ("target",), request.targets)
+                 if isinstance(t, Pose) and t.config is not None and t.config.mask]
+        if not named:
+            return None
+        cid = kinematics.configuration(tuple(start[:self.main]))
+        for what, config in named:
+            differs = group_problem(config, cid)
+            if differs is not None:
+                group, value = differs
+                return (f"move {request.kind} keeps the arm's configuration ({configuration_name(cid)}); its {what} "
+                        f"names {group.meanings[value]} ({format_config(config)}): change the configuration with a "
+                        "ptp move")
+        return None
+
+    def _ends_in_turns(self, request: MoveRequest, kinematics: Kinematics, end: tuple) -> str | None:
+        """A lin or circ move to a target that names turns (compiler.configs) must end with
+        A1, A4, A6 in them: the problem, else None."""
+        target = request.targets[-1]
+        config = target.config if isinstance(target, Pose) else None
+        if config is None or config.turns is None:
+            return None
+        for axis, k in zip(TURN_AXES, config.turns):
+            if not in_turn(end[axis], k):
+                return (f"move {request.kind} would end with {kinematics.names[axis]} in turn {turn_of(end[axis])} "
+                        f"({end[axis]:.1f} deg); its target names turn {k} ({format_config(config)}): reach that "
+                        "turn with a ptp move")
+        return None
 
     def joint_target(self, pose: Pose, near: tuple, frames: Frames | None = None) -> tuple[Joint | None, str | None]:
         """The joint values that put the tool (``frames``' tool) at ``pose``: the inverse
-        kinematics' configuration nearest the joints ``near`` (the additional axes stay)."""
+        kinematics' configuration nearest the joints ``near`` (the additional axes stay), or
+        the one ``pose`` names (its ``config``: compiler.configs)."""
         kinematics = self.kinematics_for(frames)
         if kinematics is None:
             return None, self.kinematics_problem
         main = self.main
+        config = pose.config
         try:
-            joints = kinematics.inverse(pose, near=near[:main])
+            if config is None or config.free:
+                joints = kinematics.inverse(pose, near=near[:main])
+            else:
+                joints = kinematics.inverse_config(pose, config, near=near[:main])
         except KinematicsError as exc:
-            return None, f"the target pose cannot be reached: {exc}"
+            where = "" if config is None or config.free else f" in {format_config(config)}"
+            return None, f"the target pose cannot be reached{where}: {exc}"
         return Joint(tuple(joints), tuple(near[main:])), None

@@ -6,30 +6,61 @@ them in side tables keyed by ``id(node)``.
 """
 from __future__ import annotations
 
-from dataclasses import MISSING, dataclass, fields
+from dataclasses import FrozenInstanceError
 from typing import NamedTuple, Union
 
 
 def node(cls):
-    """A frozen, slotted dataclass whose ``__init__`` is about twice as fast.
+    """A frozen record class with slots, made from ``cls``'s annotated fields (with their
+    defaults): what ``dataclass(frozen=True, slots=True)`` makes (an ``__init__`` with the
+    fields in order, ``__eq__`` and ``__hash__`` by value, ``__repr__``, ``__match_args__``,
+    assignment raising ``FrozenInstanceError``), built directly. A dataclass with slots
+    is made twice, and the AST's classes cost every ``irl`` command 30 ms of start-up that
+    way. The ``__init__`` stores each field through its slot's descriptor (a frozen
+    dataclass's goes through ``object.__setattr__``, twice as slow: a parse builds one node
+    per reduction)."""
+    names = tuple(cls.__dict__.get("__annotations__", {}))
+    defaults = {n: cls.__dict__[n] for n in names if n in cls.__dict__}
+    namespace = {k: v for k, v in cls.__dict__.items() if k not in names and k not in ("__dict__", "__weakref__")}
+    namespace.update(__slots__=names, __match_args__=names, __setattr__=_frozen, __delattr__=_frozen,
+                     __eq__=_equal, __hash__=_hash, __repr__=_repr)
+    made = type(cls.__name__, cls.__bases__, namespace)
+    scope = {f"_set_{n}": getattr(made, n).__set__ for n in names}
+    scope.update({f"_default_{n}": v for n, v in defaults.items()})
+    params = ", ".join(f"{n}=_default_{n}" if n in defaults else n for n in names)
+    body = "".join(f"    _set_{n}(self, {n})\n" for n in names) or "    pass\n"
+    exec(f"def __init__(self, {params}):\n{body}", scope)  # noqa: S102 - the class's own field names only
+    init = scope["__init__"]
+    init.__qualname__ = f"{made.__qualname__}.__init__"
+    made.__init__ = init
+    return made
 
-    A frozen dataclass's generated ``__init__`` stores each field through
-    ``object.__setattr__(self, "name", value)``; a parse builds one node per reduction,
-    so that cost shows. This ``__init__`` (same signature) stores through the slots'
-    descriptors instead. Instances stay frozen: assigning a field still raises
-    FrozenInstanceError.
-    """
-    cls = dataclass(frozen=True, slots=True)(cls)
-    names = [f.name for f in fields(cls)]
-    if any(f.default is not MISSING or f.default_factory is not MISSING for f in fields(cls)):
-        return cls  # keep dataclass's own __init__ where defaults are involved
-    namespace = {f"_set_{n}": getattr(cls, n).__set__ for n in names}
-    body = "".join(f"    _set_{n}(self, {n})\n" for n in names)
-    exec(f"def __init__(self, {', '.join(names)}):\n{body}", namespace)  # noqa: S102 - fixed names only
-    init = namespace["__init__"]
-    init.__qualname__ = f"{cls.__qualname__}.__init__"
-    cls.__init__ = init
-    return cls
+
+def _values(self) -> tuple:
+    return tuple([getattr(self, n) for n in self.__slots__])
+
+
+def _frozen(self, name, value=None):
+    raise FrozenInstanceError(f"cannot assign to field {name!r}")
+
+
+def _equal(self, other):
+    if other.__class__ is not self.__class__:
+        return NotImplemented
+    return _values(self) == _values(other)
+
+
+def _hash(self) -> int:
+    return hash((self.__class__.__name__,) + _values(self))
+
+
+def _repr(self) -> str:
+    return f"{self.__class__.__qualname__}({', '.join(f'{n}={getattr(self, n)!r}' for n in self.__slots__)})"
+
+
+def replace(record, **changes):
+    """A copy of a node with ``changes`` (field name: new value), as ``dataclasses.replace``."""
+    return record.__class__(**{n: changes.pop(n, getattr(record, n)) for n in record.__slots__}, **changes)
 
 
 class Span(NamedTuple):

@@ -9,7 +9,7 @@ import gc
 import sys
 from contextlib import contextmanager
 import os
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from pathlib import Path
 
 from .diagnostics import Diagnostic
@@ -122,7 +122,7 @@ def _compile_nested(source: str, file: str, spec_path, generate_code: bool) -> R
     if spec is None:
         return Result(file, source, None, syntax_errors + module_errors + diagnostics)
     decl_files = {id(decl): path for path, (_name, _text, module) in modules.items() for decl in module.decls}
-    merged = replace(tree, decls=tuple(d for _name, _text, m in modules.values() for d in m.decls) + tree.decls)
+    merged = ast.replace(tree, decls=tuple(d for _name, _text, m in modules.values() for d in m.decls) + tree.decls)
     checked, diagnostics = check(merged, spec, file, decl_files, sees)
     checked.modules = {path: name for path, (name, _text, _m) in modules.items()}
     texts = {name: text for name, text, _m in modules.values()}

@@ -78,14 +78,50 @@ def test_the_first_hours_five_refusals_are_found_at_their_lines_all_at_once():
     # each of the configuration and turn problems comes with the configuration that works
     hints = re.findall(r"^  hint: (.*)$", err, re.M)
     assert "make this motion a ptp move" in hints[0]
-    assert "in the configuration (front, elbow up, wrist flipped)" in hints[1] and "line 18" in hints[1]
-    assert "(front, elbow up, wrist not flipped) (it is in (front, elbow up, wrist not flipped, A6 turn 1))" \
-        in hints[2]
-    assert "wrist flipped" in hints[3]
+    assert ("in config(front, elbow_up, flip, 0, 0, 0) (it is in config(front, elbow_up, noflip, 0, 0, 0)): name "
+            "that configuration on the target of the ptp move that takes the robot there (line 18)") in hints[1]
+    assert "in config(front, elbow_up, noflip, 0, 0, 0) (it is in config(front, elbow_up, noflip, 0, 0, 1))" \
+        in hints[2] and "(line 22)" in hints[2]
+    assert "in config(front, elbow_up, flip, 0, 0, 0)" in hints[3] and "(line 28)" in hints[3]
     # the robot: refused at the first of them, as irl check said
     code, out, err = run_cli("run", FIRST_HOUR)
     assert code == 1 and "program error at line 16: move lin refused: the path passes through the wrist " \
                            "singularity" in out, out + err
+
+
+def test_the_first_hours_program_mended_as_the_hints_say_checks_and_runs():
+    """Each of the five mended in the program: a configuration (with its turn, for the press)
+    named on a ptp move, the path through the singularity as a ptp move, the walk in reach."""
+    mended = HERE / "first_hour_fixed.irl"
+    code, out, err = run_cli("check", "--json", mended)
+    assert code == 0 and json.loads(out)["diagnostics"] == [], err
+    cycle = json.loads(out)["motion"]["cycle_time"]
+    code, out, err = run_cli("run", "--json", mended)
+    assert code == 0, out + err
+    summary = json.loads(out)
+    [move] = [s for s in summary["states"] if s["name"] == "Move Robot"]
+    assert abs(cycle - (move["t_exit"] - move["t_enter"])) <= 0.005 * len(summary["moves"])
+
+
+def test_a_lin_move_whose_target_names_another_configuration_is_refused_by_check_and_run():
+    text = program_text(HOME + "  move ptp pose(pos(800, -200, 300), rpy(180, 30, 180), config(noflip));\n"
+                               "  move lin pose(pos(800, 200, 300), rpy(180, 30, 180), config(flip));\n")
+    [finding] = errors(checked(text))
+    assert finding.line == line_of(text, "move lin") and "keeps the arm's configuration" in finding.message
+    result = compile_source(text, "t.irl")
+    summary = RobotSystem(result.spec, RunOptions()).run(result.program)
+    assert summary["fault"] == f"Move Robot: program error at line {finding.line}: {finding.message}"
+
+
+def test_json_names_the_configuration_each_pose_target_resolves_to():
+    text = program_text(HOME + "  move ptp pose(pos(800, -200, 300), rpy(180, 30, 180), config(flip));\n"
+                               "  move lin pose(pos(800, 200, 300), rpy(180, 30, 180));\n")
+    outcome = checked(text)
+    assert outcome.findings == []
+    home, ptp, lin = outcome.moves
+    assert home.configuration is None  # (a joint target)
+    assert ptp.configuration == "config(front, elbow_up, flip, 0, 0, 0)"
+    assert lin.configuration == "config(front, elbow_up, flip, 0, 0, 1)"  # (A6 from 177.7 to 182.3 deg: turn 1)
 
 
 # ---- every kind of refusal, at its line ---------------------------------------------------------

@@ -44,6 +44,7 @@ from collections import deque
 from dataclasses import dataclass, field
 
 from compiler.clauses import Motion, validate_move_clauses
+from compiler.configs import config_of, format_config
 from compiler.frames import IDENTITY, pose_of
 from compiler.objcode import OP, Program
 from compiler.semantics import compose
@@ -55,7 +56,6 @@ from runtime.loop.components.io import IoComponent
 from runtime.loop.components.trajectory import TrajectoryGenerator
 from runtime.loop.executive import SimClock
 from runtime.loop.vm import DONE, ERROR
-from runtime.motion.kinematics import configuration_name
 from runtime.motion.moves import MoveRequest, Segment
 from runtime.motion.trajectory import Refusal
 from runtime.settings import Settings
@@ -369,13 +369,10 @@ def _wound(problem: str, axes, first: tuple, now: tuple) -> str:
     return Refusal(text, problem.fraction, problem.distance, problem.reason) if isinstance(problem, Refusal) else text
 
 
-def describe_configuration(kinematics, joints) -> str:
-    """The configuration of joint values in words, with the turn of A1, A4 and A6 (the
-    turn k of an axis value q: -180 + 360 k <= q < 180 + 360 k)."""
-    turns = [int((q + 180.0) // 360.0) for q in (joints[0], joints[3], joints[5])]
-    text = configuration_name(kinematics.configuration(joints))
-    turned = [f"{name} turn {k}" for name, k in zip(("A1", "A4", "A6"), turns) if k]
-    return f"({text}{', ' + ', '.join(turned) if turned else ''})"
+def configuration_text(kinematics, joints) -> str:
+    """The configuration of joint values as a program names it: ``config(front, elbow_up,
+    noflip, 0, 0, 1)`` (compiler.configs: every group, and the turns of A1, A4, A6)."""
+    return format_config(config_of(kinematics.configuration(joints), joints))
 
 
 class OfflineHost(TrajectoryGenerator):
@@ -498,10 +495,9 @@ class OfflineHost(TrajectoryGenerator):
         for joints in candidates[:OTHER_STARTS]:
             segment, _problem = self.planner.plan(request, joints + extra, None, self.period)
             if segment is not None:
-                return (f"from the same start pose the arm can follow this path in the configuration "
-                        f"{describe_configuration(kinematics, joints)} (it is in "
-                        f"{describe_configuration(kinematics, here)}): name it on the target of the ptp move "
-                        f"that takes the robot there{self._last_ptp()}")
+                return (f"from the same start pose the arm can follow this path in {configuration_text(kinematics, joints)}"
+                        f" (it is in {configuration_text(kinematics, here)}): name that configuration on the target "
+                        f"of the ptp move that takes the robot there{self._last_ptp()}")
         return None
 
     def _last_ptp(self) -> str:
@@ -725,7 +721,7 @@ def _planned_moves(run: _Run) -> list[PlannedMove]:
         configuration = None
         target = segment.request.targets[-1]
         if isinstance(target, Pose) and kinematics is not None:
-            configuration = configuration_name(kinematics.configuration(segment.end[:6]))
+            configuration = configuration_text(kinematics, segment.end[:6])
         moves.append(PlannedMove(offset, program.file_at(offset), line, column, str(segment.kind), record.t_start,
                                  record.planned_duration, record.blended, tuple(segment.end), configuration))
     return moves

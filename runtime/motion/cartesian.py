@@ -30,7 +30,6 @@ from math import ceil
 from typing import Mapping, Sequence
 
 import numpy as np
-import numpy.ma  # noqa: F401  (np.unique imports it on its first call: in a tick, that is file I/O)
 
 from compiler.clauses import Motion
 from compiler.values import Joint
@@ -415,7 +414,8 @@ def setpoint_ratios(checked: CheckedPath, limits: Sequence[Sequence[float]], per
         return [0.0, 0.0, 0.0]
     if hot_times is not None:
         steps = set()
-        for step in np.unique((np.asarray(hot_times) / period).astype(int)).tolist():
+        # (sorted(set(...)), not np.unique: its first call imports numpy.ma, in a tick file I/O)
+        for step in sorted(set((np.asarray(hot_times) / period).astype(int).tolist())):
             steps.update(range(max(step - 4, -3), min(step + 6, n + 4)))
         return _solved_ratios(checked, limits, period, n, steps)
     q = np.asarray(joints, dtype=float)

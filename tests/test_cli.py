@@ -49,7 +49,7 @@ def test_check_ok(work):
     code, out, err = run("check", work / "valid.irl")
     assert code == 0
     assert out.splitlines()[0] == f"{work / 'valid.irl'}: ok"
-    assert out.splitlines()[1].startswith("motion: 0 moves planned, cycle time ")  # (the motion check: no move)
+    assert out.splitlines()[1].startswith("motion: 0 moves, cycle time ")  # (the motion check: no move)
     assert err == ""
     code, out, err = run("check", "--no-motion", work / "valid.irl")
     assert (code, out.strip(), err) == (0, f"{work / 'valid.irl'}: ok", "")
@@ -449,7 +449,7 @@ def test_console_script_entry_point():
                           timeout=60)
     assert proc.returncode == 0, proc.stderr
     assert proc.stdout.splitlines()[0] == "programs/test.irl: ok"
-    assert proc.stdout.splitlines()[1] == "motion: 3 moves planned, cycle time 15.896 s"
+    assert proc.stdout.splitlines()[1] == "motion: 3 moves, cycle time 15.896 s"
     assert proc.stderr == ""
 
 

@@ -322,7 +322,7 @@ DOC_PROGRAMS = _doc_programs()
 
 
 @pytest.mark.parametrize("page, line, text", DOC_PROGRAMS, ids=[f"{p}:{n}" for p, n, _ in DOC_PROGRAMS])
-def test_every_program_in_the_docs_compiles_and_runs_to_completion(tmp_path, page, line, text):
+def test_every_program_in_the_docs_runs_to_completion_and_checks_clean(tmp_path, page, line, text):
     import shutil
 
     from runtime.cli.main import Environment, main
@@ -334,6 +334,10 @@ def test_every_program_in_the_docs_compiles_and_runs_to_completion(tmp_path, pag
     out, err = io.StringIO(), io.StringIO()
     code = main(["run", str(source)], Environment(stdout=out, stderr=err))
     assert code == 0, f"docs/{page}:{line}: the example does not run:\n{out.getvalue()[:600]}{err.getvalue()}"
+    # and irl check (its motion check too) has nothing to say about it: no false alarm
+    out, err = io.StringIO(), io.StringIO()
+    code = main(["check", str(source)], Environment(stdout=out, stderr=err))
+    assert code == 0 and err.getvalue() == "", f"docs/{page}:{line}: irl check finds:\n{err.getvalue()}"
 
 
 def test_the_docs_hold_programs_to_run():

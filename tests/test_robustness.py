@@ -195,7 +195,7 @@ def check_source_text(workdir: Path, text: str) -> int:
     src.write_bytes(text.encode("utf-8", "surrogateescape"))
     out.unlink(missing_ok=True)
     codes = {}
-    for command in (["check", src], ["compile", src, "-o", out], ["dis", src]):
+    for command in (["check", "--no-motion", src], ["compile", src, "-o", out], ["dis", src]):
         code, stdout, stderr = run_cli(*command)
         assert_no_crash(code, stderr)
         if code == 1:
@@ -212,6 +212,12 @@ def check_source_text(workdir: Path, text: str) -> int:
             assert stdout.startswith("program ")
         codes[command[0]] = code
     assert len(set(codes.values())) == 1, f"check, compile and dis disagree: {codes}"
+    if codes["check"] == 0:  # the motion check runs what compiles (bounded: its first 8 moves)
+        code, stdout, stderr = run_cli("check", "--max-moves", "8", src)
+        assert_no_crash(code, stderr)
+        assert code in (0, 1) and stdout.splitlines()[-1].startswith(("motion: ", "note: ", "assumed: ")), stdout
+        if code == 1:
+            assert DIAG_LINE.search(stderr), f"check: exit 1 without a diagnostic:\n{stderr}"
     return codes["check"]
 
 

@@ -92,7 +92,6 @@ class MotionCheck:
     def summary(self) -> list[str]:
         """The lines ``irl check`` prints after the diagnostics."""
         o = self.outcome
-        runs = f" in {o.paths} runs of the program" if o.paths > 1 else ""
         moves = f"{len(o.moves)} move{'s' if len(o.moves) != 1 else ''}"
         if o.cycle_time is not None:
             cycle = f"cycle time {o.cycle_time:.3f} s"
@@ -100,7 +99,11 @@ class MotionCheck:
                 cycle += " (the refused moves taken as reaching their targets)"
         else:
             cycle = f"no cycle time: {ENDED.get(o.ended, o.ended)}"
-        lines = [f"motion: {moves} planned, {cycle}{runs}"]
+        lines = [f"motion: {moves}, {cycle}"]
+        if o.branches:
+            shown = "; ".join(o.branches[:5]) + (f"; and {len(o.branches) - 5} more" if len(o.branches) > 5 else "")
+            lines.append(f"branches: {len(o.branches)} more run{'s' if len(o.branches) != 1 else ''} of the program, "
+                         f"each another way at one choice: {shown}")
         lines += [f"assumed: {text}" for text in self.assumed()]
         lines += [f"note: {note}" for note in o.notes]
         return lines
@@ -113,6 +116,7 @@ class MotionCheck:
             "ended": o.ended,
             "runs": o.paths,
             "assumed": self.assumed(),
+            "branches": list(o.branches),
             "notes": list(o.notes),
             "moves": [{"file": result.path_of(m.file), "line": m.line, "column": m.column, "kind": m.kind,
                        "start": m.start, "duration": m.duration, "blended": m.blended, "joints": list(m.joints),

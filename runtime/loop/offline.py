@@ -150,6 +150,7 @@ class Outcome:
     findings: list[Finding] = field(default_factory=list)
     moves: list[PlannedMove] = field(default_factory=list)
     assumed: list[str] = field(default_factory=list)  # what was assumed of the cell (none: nothing was)
+    branches: list[str] = field(default_factory=list)  # the other runs, each by the choice it took otherwise
     cycle_time: float | None = None
     ended: str = "completed"  # the main run: "completed", "stopped" (a run-time error), "bounded"
     notes: list[str] = field(default_factory=list)
@@ -689,20 +690,17 @@ def _lines(program: Program, offsets) -> str:
     return f"line{'s' if len(places) > 1 else ''} {text}" + (f" and {len(places) - 8} more" if len(places) > 8 else "")
 
 
-def _assumptions(program: Program, worlds: list, explored: list[str]) -> list[str]:
+def _assumptions(program: Program, worlds: list) -> list[str]:
     """What the runs assumed of the cell (nothing, when the program neither reads an input
     nor waits for one)."""
     waited = set().union(*(w.waited for w in worlds))
     read = {c.offset for w in worlds for c in w.choices if c.options[0].startswith("in[")}
     if not waited and not read:
         return []
-    said = ["no cell scenario: the inputs are false until the program waits for them"]
+    said = "no cell scenario: the inputs are false until the program waits for them"
     if waited:
-        said.append(f"each wait for ends at once where inputs can make it hold ({_lines(program, waited)})")
-    if explored:
-        shown = "; ".join(explored[:6]) + (f"; and {len(explored) - 6} more" if len(explored) > 6 else "")
-        said.append(f"also run with the other way of each choice: {shown}")
-    return said
+        said += f"; each wait for ends at once where inputs can make it hold ({_lines(program, waited)})"
+    return [said]
 
 
 def _ordinal(n: int) -> str:
@@ -832,7 +830,8 @@ def check_motion(program: Program, spec, scenario=None, *, max_moves: int = MAX_
     outcome = Outcome(cycle_time=main.end_time, ended=main.ended, moves=_planned_moves(main), notes=list(main.notes))
     if scenario is None:
         outcome.notes += check.explore(max_paths)
-        outcome.assumed = _assumptions(program, check.worlds, check.flips)
+        outcome.assumed = _assumptions(program, check.worlds)
+        outcome.branches = list(check.flips)
     outcome.paths = check.runs
     outcome.findings = check.sorted_findings()
     return outcome

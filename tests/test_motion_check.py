@@ -436,3 +436,48 @@ def test_no_motion_skips_the_motion_check():
     code, out, err = run_cli("check", "--no-motion", FIRST_HOUR)
     assert (code, out.strip(), err) == (0, f"{FIRST_HOUR}: ok", "")
     assert run_cli("check", "--no-motion", "--cell-scenario", "x.toml", FIRST_HOUR)[0] == 2
+
+
+# ---- the offline shortcuts change nothing ------------------------------------------------------
+
+STOP_IN_A_BLEND = """\
+program stop_in_a_blend;
+system_specification "{spec}";
+interrupt curtain when in[5] stop then resume;
+seq
+  wait for not in[5];
+endseq
+endinterrupt;
+seq
+  enable curtain;
+  move ptp joint(mainjoint(60, -30, 30, 0, 60, 0)) approx := 1;
+  move ptp joint(mainjoint(-60, -20, 40, 30, 50, 90)) approx := 1;
+  move lin pose(pos(800, 0, 400), rpy(180, 0, 180)) approx := 50;
+  move lin pose(pos(800, 300, 400), rpy(180, 0, 180)) speed := 500 approx := 50;
+  move lin pose(pos(700, 300, 600), rpy(180, 0, 180)) speed := 500;
+  disable curtain;
+endseq
+endprogram;
+"""
+
+
+@pytest.mark.parametrize("at", [0.8, 1.4, 2.05, 3.3, 5.0, 7.6])
+def test_setpoints_off_and_the_plan_cache_give_the_timeline_of_a_full_run(tmp_path, at):
+    """An interrupt's stop at various moments (in ptp and lin blends, in a lin of its own):
+    computing a setpoint only where needed, and reusing planned moves, leave every move's
+    start, end and planned duration, and the cycle time, as computing every period's."""
+    result = compile_source(STOP_IN_A_BLEND.format(spec=SPEC_PATH), "t.irl")
+    assert result.ok, result.diagnostics
+    scenario = tmp_path / "cell.toml"
+    scenario.write_text(f"[[timeline]]\ninput = 5\nat = [{at}, {at + 0.4}]\n", encoding="utf-8")
+    cell = load_scenario(scenario, result.spec)
+    fast = check_motion(result.program, result.spec, cell)
+    full = check_motion(result.program, result.spec, cell, setpoints=True)
+    assert fast.findings == full.findings == []
+    assert [(m.line, m.start, m.duration, m.blended, m.joints) for m in fast.moves] == \
+        [(m.line, m.start, m.duration, m.blended, m.joints) for m in full.moves]
+    assert fast.cycle_time == full.cycle_time
+    summary = RobotSystem(result.spec, RunOptions(cell=cell)).run(result.program)
+    assert summary["fault"] is None and any("interrupt curtain fired" in line["text"] for line in summary["log"])
+    [move] = [s for s in summary["states"] if s["name"] == "Move Robot"]
+    assert abs(fast.cycle_time - (move["t_exit"] - move["t_enter"])) <= 0.005 * len(summary["moves"])

@@ -28,9 +28,15 @@ goes on from where the robot would then be:
 Without a scenario (the documented rule, :class:`AssumedWorld`): inputs start false; every
 ``wait for`` is satisfied at once (its inputs are set so that the condition holds, if
 setting them can make it hold); where the program reads an input elsewhere, or a ``wait
-for`` with a time-out could also time out, both ways are explored (:func:`check_motion`
-runs the program again with the other value), each choice once per place in the program
-and position of the robot; ``pause`` resumes at once (as ``irl run`` does off a terminal).
+for`` with a time-out could also time out (or other values of its inputs end it), each
+other way is explored (:func:`check_motion` runs the program again with the other
+option), once per place in the program and the inputs chosen just before at the same
+instant; a run that polls for ever without moving, or waits for what nothing changes,
+stops there; ``pause`` resumes at once (as ``irl run`` does off a terminal).
+
+Fast, and the same timeline: the motion queue computes a setpoint only where something
+needs one (``MotionQueue.setpoints`` off), and the planner keeps the moves and blends it
+planned (``MovePlanner.cache``, shared by every run of a check).
 
 Bounded: at most :data:`MAX_MOVES` moves and :data:`MAX_PATHS` runs in all, and per run
 :data:`MAX_TIME` simulated seconds and :data:`MAX_INSTRUCTIONS` instructions; the outcome
@@ -88,8 +94,8 @@ class Finding:
     """Something the runtime would refuse or fault on, at an instruction of the program
     (``offset``; ``file`` is the object code's: "" for the program's own source).
     ``kind``: ``"move"`` (a move refused), ``"trigger"``, ``"frame"``, ``"blend"`` (a
-    warning: a corner not blended), ``"error"`` (a run-time error: the program stops),
-    ``"bound"``. ``fraction`` and ``distance`` (mm): where along the move's path, when it
+    warning: a corner never blended), ``"wait"`` (a warning: a wait nothing ends),
+    ``"error"`` (a run-time error: the program stops). ``fraction`` and ``distance`` (mm): where along the move's path, when it
     is a path's problem. ``count``: how often (all runs); ``first``: which time the
     instruction ran when it first happened; ``assumed``: the choices of the run it was
     found in (empty: the main run)."""
@@ -730,9 +736,11 @@ class _Check:
     how often), the corners with ``approx`` (blended or not), the moves planned so far (the
     bound), and, in the assumed cell, the branches still to explore."""
 
-    def __init__(self, program: Program, spec, scenario, limits: _Limits, start: tuple | None):
+    def __init__(self, program: Program, spec, scenario, limits: _Limits, start: tuple | None, setpoints: bool):
         self.program, self.spec, self.scenario, self.limits, self.start = program, spec, scenario, limits, start
-        self.cache: dict = {}  # the moves planned, shared by every run (a branch repeats most of the main run)
+        self.setpoints = setpoints
+        # the moves planned, shared by every run (a branch repeats most of the main run)
+        self.cache: dict | None = None if setpoints else {}
         self.findings: dict = {}
         self.corners: dict = {}  # a move with approx -> (times blended, times not, its approx, first run's choices)
         self.used = 0  # moves planned in all runs
@@ -744,7 +752,8 @@ class _Check:
         self.cut = 0  # branch runs stopped at their bound
 
     def run(self, decisions: tuple | None, assumed: tuple, moves: int) -> _Run:
-        run = _Run(self.program, self.spec, self.scenario, decisions, self.limits, cache=self.cache, start=self.start)
+        run = _Run(self.program, self.spec, self.scenario, decisions, self.limits, setpoints=self.setpoints,
+                   cache=self.cache, start=self.start)
         run.run(moves)
         self.runs += 1
         self.used += len(run.host.planned)
@@ -814,18 +823,21 @@ class _Check:
 
 
 def check_motion(program: Program, spec, scenario=None, *, max_moves: int = MAX_MOVES,
-                 max_paths: int = MAX_PATHS, max_time: float = MAX_TIME, start: tuple | None = None) -> Outcome:
+                 max_paths: int = MAX_PATHS, max_time: float = MAX_TIME, start: tuple | None = None,
+                 setpoints: bool = False) -> Outcome:
     """Run ``program`` offline (module docstring) from ``start`` (joint values; default:
     every axis at its home, where ``irl run`` starts a program): with the cell
     ``scenario`` (a runtime.hardware.sim.cell.Scenario) once, as ``irl run`` would;
     without one in the assumed cell, the main run and up to ``max_paths - 1`` runs that take
     the other option of a choice (each at most ``max_moves // 8`` moves). The findings of
-    all runs, each once (``count``: how often)."""
+    all runs, each once (``count``: how often). ``setpoints``: compute every period's
+    setpoint, as the runtime does, and plan every move anew (slower; the same outcome:
+    what the tests compare)."""
     if start is not None:
         start = tuple(float(v) for v in start)
         if len(start) != len(spec.axes):
             raise ValueError(f"start: expected {len(spec.axes)} joint values, got {len(start)}")
-    check = _Check(program, spec, scenario, _Limits(max_moves, max_time), start)
+    check = _Check(program, spec, scenario, _Limits(max_moves, max_time), start, setpoints)
     main = check.run(None if scenario is not None else (), (), max_moves)
     outcome = Outcome(cycle_time=main.end_time, ended=main.ended, moves=_planned_moves(main), notes=list(main.notes))
     if scenario is None:

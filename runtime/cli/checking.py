@@ -14,7 +14,7 @@ __all__ = ["MotionCheck", "report"]
 
 #: How a run of the main path ended, as the summary says it.
 ENDED = {"completed": "", "stopped": "the program stops with an error (above)",
-         "bounded": "the check stopped it (a bound: below)", "idles": "the program does not end (below)",
+         "bounded": "the check stopped it at a bound (below): what comes after is not checked", "idles": "the program does not end (below)",
          "waits": "the program does not end: it waits for ever (above)"}
 
 
@@ -156,7 +156,9 @@ def report(env: Environment, result, check: MotionCheck | None, as_json: bool) -
         counts = [f"{n} {word}{'s' if n != 1 else ''}" for n, word in ((errors, "error"), (warnings, "warning")) if n]
         warn(env, f"{' and '.join(counts)} in {result.file}")
     if not errors:
-        say(env, f"{result.file}: ok")
+        bounded = check is not None and check.outcome.ended == "bounded"
+        say(env, f"{result.file}: ok as far as the check went: it stopped at a bound (below)" if bounded else
+            f"{result.file}: ok")
     if check is not None:
         for line in check.summary():
             say(env, line)

@@ -660,7 +660,8 @@ class _Run:
 
     def _bound(self, moves_left: int, now: float) -> bool:
         if len(self.host.planned) > moves_left:
-            why = f"the check stopped after {moves_left} moves (the most it checks; --max-moves)"
+            why = (f"the check stopped after {moves_left} moves, the most it plans (--max-moves N plans more: about "
+                   "20 ms a move)")
         elif self.host.vm.instructions > self.limits.instructions:
             why = f"the check stopped after {self.limits.instructions:,} instructions of the program"
         elif now >= self.limits.time:

@@ -249,12 +249,14 @@ def test_an_input_forced_by_hand_releases_a_waiting_program_and_outputs_cannot_b
         server.close()
 
 
-def test_a_timeline_counts_from_the_start_of_each_programs_move_robot(tmp_path):
-    """``at`` counts from the program's start (the supervisor entering Move Robot), not
-    from power-up: the first cycle calibrates and homes (about 9 s) before its program
-    starts, the second (a served robot's next program) starts its program at once; in
-    both the input toggled at ``at = 0.5`` is in the 1 ms report 0.5 s after Move Robot
-    began, within a tick."""
+def test_a_timeline_counts_from_the_first_step_of_each_program(tmp_path):
+    """``at`` counts from the program's start (its first step, the trajectory generator's
+    first 5 ms update in Move Robot), not from power-up: the first cycle calibrates and homes
+    (about 9 s) before its program starts, the second (a served robot's next program)
+    starts its program at once; in both the input toggled at ``at = 0.5`` is in the 1 ms
+    report 0.5 s after the program's first step, within a tick, and that step is within a
+    5 ms period of Move Robot's start (irl check's offline run, which has no homing, sees
+    the same instants of the program's steps)."""
     from compiler.driver import compile_source
     from runtime.loop.supervisor import MOVE
     from runtime.loop.system import RobotSystem, RunOptions
@@ -265,6 +267,7 @@ def test_a_timeline_counts_from_the_start_of_each_programs_move_robot(tmp_path):
     assert result.ok, result.diagnostics
     system = RobotSystem(SPEC, RunOptions(cell=parse_scenario({"timeline": [{"input": 6, "at": [0.5]}]}, SPEC)))
     system.apply_settings({"report": {"period": TICK}})
+    started = []
     for k in range(2):
         report = tmp_path / f"r{k}.csv"
         system.begin(result.program, report)
@@ -273,7 +276,9 @@ def test_a_timeline_counts_from_the_start_of_each_programs_move_robot(tmp_path):
         summary = system.finish()
         assert summary["fault"] is None and [e["text"] for e in summary["log"]] == ["part"]
         moved = [t for t, _source, state in system.supervisor.fsm.history if state == MOVE]
+        started.append(system.trajectory.started_at)
         assert len(moved) == 1
+        assert moved[0] - 1e-9 <= started[k] < moved[0] + 0.005
         rows = list(csv.DictReader(report.open()))
         seen = next(float(r["time"]) for r in rows if r["in_6"] == "1")
-        assert moved[0] + 0.5 - 1e-9 <= seen <= moved[0] + 0.5 + TICK + 1e-9, (k, moved[0], seen)
+        assert started[k] + 0.5 - 1e-9 <= seen <= started[k] + 0.5 + TICK + 1e-9, (k, started[k], seen)

@@ -483,3 +483,44 @@ def test_setpoints_off_and_the_plan_cache_give_the_timeline_of_a_full_run(tmp_pa
     assert summary["fault"] is None and any("interrupt curtain fired" in line["text"] for line in summary["log"])
     [move] = [s for s in summary["states"] if s["name"] == "Move Robot"]
     assert abs(fast.cycle_time - (move["t_exit"] - move["t_enter"])) <= 0.005 * len(summary["moves"])
+
+
+EDGE = """\
+program edge;
+system_specification "{spec}";
+const
+  stop := pose(pos(400, 600, 300), rpy(180, 0, 180));
+var
+  far : pose := pose(pos(2500, 0, 400), rpy(180, 0, 180));
+seq
+  move ptp joint(mainjoint(0, -30, 30, 0, 60, 0));
+  move ptp stop + pos(0, 0, 100);
+  if in[1] then
+    move ptp far;
+  endif;
+endseq
+endprogram;
+"""
+
+
+def test_with_a_scenario_an_input_that_changes_as_the_program_reads_it_is_read_alike_by_check_and_run(tmp_path):
+    """The program reads in[1] where its second move ends; a part arriving (a timeline) a few
+    ms before or after that instant, at every 1 ms tick around it: irl check, following
+    the scenario, takes the branch irl run takes (a refused move in one, none in the other),
+    because a scenario's times count from the program's first step in both."""
+    result = compile_source(EDGE.format(spec=SPEC_PATH), "t.irl")
+    assert result.ok, result.diagnostics
+    arrives = checked(EDGE.format(spec=SPEC_PATH)).moves[1]
+    read = arrives.start + arrives.duration  # (about when the program reads the input)
+    taken = set()
+    for k in range(-6, 7):
+        at = round(read + 0.001 * k, 3)
+        scenario = tmp_path / "cell.toml"
+        scenario.write_text(f"[[timeline]]\ninput = 1\nat = [{at}]\n", encoding="utf-8")
+        cell = load_scenario(scenario, result.spec)
+        outcome = check_motion(result.program, result.spec, cell)
+        summary = RobotSystem(result.spec, RunOptions(cell=cell)).run(result.program)
+        refused = summary["fault"] is not None
+        assert bool(errors(outcome)) == refused, (at, summary["fault"], outcome.findings)
+        taken.add(refused)
+    assert taken == {True, False}  # (the sweep crossed the instant the program reads the input)

@@ -601,7 +601,7 @@ class _Run:
             cell.reset(0.0)
         io.start()
         if cell is not None:
-            cell.start_program(0.0)
+            host.on_program_start = cell.start_program  # (as irl run: its timelines from the first step)
         host.start()
         every = max(1, round(host.period / TICK))
         vm = host.vm

@@ -187,7 +187,6 @@ class Supervisor:
         self.trajectory, self.report, self.executive = trajectory, report, executive
         self.memory, self.state_file = memory, state_file
         self.reconfigure = lambda settings: None  # applies settings to the stopped components (set by the system)
-        self.on_move: Callable[[float], None] | None = None  # real-time: the program starts (Move Robot) at a tick
         self.n = robot.n
         self.fault: str | None = None
         self.operator_stop: str | None = None
@@ -378,8 +377,6 @@ class Supervisor:
             self._fault("Move Robot: the trajectory generator did not start (no program?)")
             return
         self.servo.set_mode("trajectory")
-        if self.on_move is not None:
-            self.on_move(self.clock.tick_time)
 
     def move_exit(self) -> None:
         self.trajectory.stop()

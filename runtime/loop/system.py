@@ -117,8 +117,8 @@ class RobotSystem:
         # what the robot remembers across restarts is known from the start (a server's status
         # says calibrated before its first program), not only when the first cycle begins
         self.supervisor.load_calibration()
-        if self.cell is not None:  # a scenario's timelines count from the program's start
-            self.supervisor.on_move = self.cell.start_program
+        if self.cell is not None:  # a scenario's timelines count from the program's first step
+            self.trajectory.on_program_start = self.cell.start_program
         ex, robot = self.executive, self.robot
         controller = spec.controller  # validated (compiler.params), every key present
         servo_policy = MissPolicy(options.deadline_policy or controller.servo_miss_policy,

@@ -21,7 +21,7 @@ behaves; ``irl run --cell-scenario FILE`` runs a program against it:
     delay = 0.1
 
     [[timeline]]        # parts arriving: in[6] toggles at these times (s since the
-    input = 6           # program started: Move Robot's start), the list repeating every 10 s
+    input = 6           # program started: its first step), the list repeating every 10 s
     at = [2.0, 2.5]
     every = 10.0
 
@@ -80,7 +80,7 @@ RULES: dict[str, tuple[str, dict[str, Field]]] = {
     }),
     "timeline": ("an input toggled at given times since the program started (parts arriving)", {
         "input": Field("input", "the input toggled"),
-        "at": Field("times", "when it toggles (s since the program started: since the supervisor entered Move "
+        "at": Field("times", "when it toggles (s since the program started: its first 5 ms step in Move "
                              "Robot, after any calibration and homing)"),
         "every": Field("seconds", "repeat the list with this period (0: once)", 0.0),
     }),
@@ -219,7 +219,7 @@ class Cell:
     def __init__(self, scenario: Scenario, backend):
         self.scenario = scenario
         self.backend = backend
-        self._t0 = math.inf  # when the program started (Move Robot): the timelines count from it
+        self._t0 = math.inf  # when the program started (its first step): the timelines count from it
         self._last: tuple = ()
         self._events: list[tuple[float, int, int, bool]] = []  # (time, order, input, value), sorted
         self._order = 0
@@ -240,9 +240,11 @@ class Cell:
         self._timeline = [[rule, 0, 0] for rule in self.scenario.rules if rule.kind == "timeline"]
 
     def start_program(self, now: float) -> None:
-        """Real-time: the program starts (the supervisor enters Move Robot at tick ``now``,
-        after calibration and homing, which take a varying time): the timelines' times
-        count from here."""
+        """Real-time: the program starts (its first step in Move Robot, the trajectory
+        generator's first 5 ms update at tick ``now``, after calibration and homing, which
+        take a varying time): the timelines' times count from here. From the program's own
+        first step, not from the tick Move Robot was entered: a time is the same instant of
+        the program's 5 ms steps after any homing, and in irl check's offline run."""
         self._t0 = now
 
     def _schedule(self, at: float, n: int, value: bool) -> None:

@@ -22,6 +22,7 @@ error, as if there were no look-ahead.
 from __future__ import annotations
 
 import time
+from typing import Callable
 
 from compiler.clauses import Motion, MoveClauses, validate_move_clauses
 from compiler.frames import BY_KEYWORD as FRAME_BY_KEYWORD
@@ -41,7 +42,7 @@ from runtime.motion.motionqueue import MotionQueue, PlanningWorker
 from runtime.motion.moves import Frames, MoveRecord, MovePlanner, MoveRequest
 from runtime.settings import Settings
 from runtime.timing import SETPOINT_PERIOD
-from runtime.loop.vm import DONE, ERROR, VM
+from runtime.loop.vm import DONE, ERROR, READY, VM
 
 __all__ = ["LOOKAHEAD", "MAX_LOG_LINES", "MoveRecord", "TIME_SLICE", "TrajectoryGenerator"]
 
@@ -101,6 +102,9 @@ class TrajectoryGenerator(Component):
         self.start_position: tuple | None = None  # the commanded position to plan from (else sens_pos)
         self.safety = None  # the safety supervisor: told when the motion is at rest, and of stops on the path
         self.io = None  # the io component (runtime.loop.components.io): the program's inputs and outputs
+        # real-time: told the time of the program's first step (a simulated cell's timelines count from it)
+        self.on_program_start: Callable[[float], None] | None = None
+        self.started_at: float | None = None  # the time of the program's first step (None: not yet)
         # the robot's kinematics, built here (never in a tick), or why poses cannot be used
         kinematics, problem = _build_kinematics(spec)
         self.planner = MovePlanner(spec.axes, spec.main_axes, motion_profile(spec), kinematics, problem)
@@ -122,6 +126,7 @@ class TrajectoryGenerator(Component):
 
     def _forget(self) -> None:
         self.vm = None
+        self.started_at = None
         self.triggers: list = []  # handed over by the program, for its next move
         self.frames = self.default_frames  # the active base and tool (use base, use tool)
         self.log_lines = []
@@ -220,6 +225,10 @@ class TrajectoryGenerator(Component):
             safety.expect_standstill(motion.at_rest())
         vm = self.vm
         if vm is not None and vm.status < DONE:
+            if vm.status is READY:
+                self.started_at = now
+                if self.on_program_start is not None:
+                    self.on_program_start(now)
             vm.step(None if self.clock.simulated else time.perf_counter() + TIME_SLICE)
         failed = motion.plan_waiting()
         if failed is not None:

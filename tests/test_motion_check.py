@@ -78,11 +78,13 @@ def test_the_first_hours_five_refusals_are_found_at_their_lines_all_at_once():
     # each of the configuration and turn problems comes with the configuration that works
     hints = re.findall(r"^  hint: (.*)$", err, re.M)
     assert "make this motion a ptp move" in hints[0]
-    assert ("in config(front, elbow_up, flip, 0, 0, 0) (it is in config(front, elbow_up, noflip, 0, 0, 0)): name "
-            "that configuration on the target of the ptp move that takes the robot there (line 18)") in hints[1]
-    assert "in config(front, elbow_up, noflip, 0, 0, 0) (it is in config(front, elbow_up, noflip, 0, 0, 1))" \
-        in hints[2] and "(line 22)" in hints[2]
-    assert "in config(front, elbow_up, flip, 0, 0, 0)" in hints[3] and "(line 28)" in hints[3]
+    assert hints[1] == ("name config(front, elbow_up, flip, 0, 0, 0) on the target of the ptp move at line 18 (it "
+                        "takes the arm to config(front, elbow_up, noflip, 0, 0, 0)): from there the arm can follow "
+                        "this path")
+    assert hints[2] == ("name config(front, elbow_up, noflip, 0, 0, 0) on the target of the ptp move at line 22 (it "
+                        "takes the arm to config(front, elbow_up, noflip, 0, 0, 1)): from there the arm can follow "
+                        "this path")
+    assert "name config(front, elbow_up, flip, 0, 0, 0) on the target of the ptp move at line 28" in hints[3]
     # the robot: refused at the first of them, as irl check said
     code, out, err = run_cli("run", FIRST_HOUR)
     assert code == 1 and "program error at line 16: move lin refused: the path passes through the wrist " \
@@ -427,8 +429,9 @@ def test_json_gives_the_cycle_time_each_move_and_where_along_a_path():
     motion = data["motion"]
     assert motion["cycle_time"] > 0 and motion["runs"] == 1 and motion["assumed"] == []
     moves = motion["moves"]
-    assert [m["line"] for m in moves][:3] == [15, 18, 22]
-    assert all(m["duration"] > 0 and len(m["joints"]) == 6 for m in moves)
+    assert [(m["line"], m["refused"]) for m in moves][:4] == [(15, False), (16, True), (18, False), (19, True)]
+    assert all(m["duration"] > 0 and len(m["joints"]) == 6 for m in moves if not m["refused"])
+    assert all(m["duration"] is None and m["joints"] is None for m in moves if m["refused"])
     assert moves[0]["configuration"] and moves[0]["kind"] == "ptp"
     code, out, _ = run_cli("check", "--json", PROGRAMS / "test.irl")
     assert json.loads(out)["motion"]["cycle_time"] == pytest.approx(15.896, abs=0.005)

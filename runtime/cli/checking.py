@@ -92,7 +92,8 @@ class MotionCheck:
     def summary(self) -> list[str]:
         """The lines ``irl check`` prints after the diagnostics."""
         o = self.outcome
-        moves = f"{len(o.moves)} move{'s' if len(o.moves) != 1 else ''}"
+        refused = sum(m.refused for m in o.moves)
+        moves = f"{len(o.moves)} move{'s' if len(o.moves) != 1 else ''}" + (f" ({refused} refused)" if refused else "")
         if o.cycle_time is not None:
             cycle = f"cycle time {o.cycle_time:.3f} s"
             if any(f.kind == "move" and not f.assumed for f in o.findings):
@@ -119,7 +120,8 @@ class MotionCheck:
             "branches": list(o.branches),
             "notes": list(o.notes),
             "moves": [{"file": result.path_of(m.file), "line": m.line, "column": m.column, "kind": m.kind,
-                       "start": m.start, "duration": m.duration, "blended": m.blended, "joints": list(m.joints),
+                       "refused": m.refused, "start": m.start, "duration": m.duration, "blended": m.blended,
+                       "joints": list(m.joints) if m.joints is not None else None,
                        "configuration": m.configuration} for m in o.moves],
         }
 

@@ -119,18 +119,20 @@ class Finding:
 class PlannedMove:
     """A move of the main run as planned: where it is in the program, when it starts (s
     after the program started), its planned duration (s), whether it blends into the
-    next, the joints it ends at and, for a pose target, the configuration they are in."""
+    next, the joints it ends at and, for a pose target, the configuration they are in; or
+    ``refused`` (then none of these: None)."""
 
     offset: int
     file: str
     line: int
     column: int
     kind: str
-    start: float
-    duration: float
+    start: float | None
+    duration: float | None
     blended: bool
-    joints: tuple
+    joints: tuple | None
     configuration: str | None
+    refused: bool = False
 
 
 @dataclass
@@ -180,19 +182,17 @@ class AssumedWorld:
     end it). Choices are taken in order from ``decisions`` (a run that explores a branch:
     the index of the option), else the first option. ``choices`` lists those taken."""
 
-    def __init__(self, backend: IoBackend, io: IoComponent, decisions: tuple = ()):
+    def __init__(self, backend: IoBackend, io: IoComponent, decisions: tuple = (), runs: dict | None = None):
         self.backend, self.io = backend, io
         self.decisions = decisions
         self.choices: list[Choice] = []
         self.decided: dict[int, float] = {}  # input -> when a choice or a wait last set it
-        self.runs: dict[int, int] = {}  # instruction -> how many times it ran
+        self.runs: dict[int, int] = runs if runs is not None else {}  # instruction -> how many times it ran
         self.waits: list[_Wait] = []  # the waits under way (a handler's above the program's)
         self.visits: dict[tuple, int] = {}  # (read, robot position) -> moves handed over then
         self.idle: str | None = None  # why the run idles for ever (a poll that comes back unchanged)
-        self.waited: set[int] = set()  # the waits for that ran (their WAIT_BEGIN)
-
-    def ran(self, offset: int) -> None:
-        self.runs[offset] = self.runs.get(offset, 0) + 1
+        self.waited: set[int] = set()  # the waits for whose inputs it set so that they end at once (WAIT_TEST)
+        self.hangs: set[int] = set()  # ... of them, those with no time-out: irl run without a cell waits for ever
 
     def _choose(self, offset: int, options: tuple[str, ...], now: float, time: int | None = None) -> int:
         k = len(self.choices)
@@ -225,7 +225,6 @@ class AssumedWorld:
 
     def begin_wait(self, timeout: bool, offset: int) -> None:
         self.waits.append(_Wait(timeout, self.runs.get(offset, 1)))
-        self.waited.add(offset)
 
     def tested(self, holds: bool, offset: int, now: float) -> bool:
         """A ``wait for``'s condition was evaluated: whether it may end the wait (False: the
@@ -275,6 +274,10 @@ class AssumedWorld:
             return
         chosen = options[self._choose(wait.offset, tuple(label for label, _values in options), now, wait.time)][1]
         wait.phase = "commit" if chosen is not None else "times out"
+        if chosen is not None:
+            self.waited.add(wait.offset)
+            if not wait.timeout:
+                self.hangs.add(wait.offset)
         self._set(chosen if chosen is not None else wait.start, now)
 
     def stuck(self) -> bool:
@@ -351,8 +354,17 @@ PATH_HINTS = {
              "orientation along the path",
 }
 
-#: The other start joints tried for a hint when a lin or circ move is refused (nearest first).
+#: What to do about an axis that winds up over the program's cycles.
+WOUND_HINT = ("the axis turns on each cycle and comes back further round: turn it back every cycle (a ptp move to a "
+              "pose with its turn named, e.g. config(..., 0, 0, 0), or move ptp home), or turn the other way every "
+              "other cycle")
+
+#: The other configurations (and turns) tried for a hint when a lin or circ move is refused
+#: (the same configuration at another turn first, then the nearest).
 OTHER_STARTS = 12
+#: A singularity margin (kinematics.singularity_margins: |sin| of the wrist's or the elbow's
+#: angle) below this names the singularity a corner that never blends lies next to.
+NEAR_SINGULAR = 0.05
 
 
 def _turns(joints: tuple, limits) -> list[tuple]:
@@ -382,21 +394,74 @@ def configuration_text(kinematics, joints) -> str:
     return format_config(config_of(kinematics.configuration(joints), joints))
 
 
+def configuration_hint(host, kind: Motion, targets: tuple, clauses: dict, line: int) -> str | None:
+    """A lin or circ move the arm cannot follow from the configuration it is in: the
+    configuration (or the turn of A1, A4, A6) to name on the ptp move that chose it (the last
+    ptp move, to a pose), in which the arm can follow every lin and circ move from there up
+    to and including this one; without such a ptp move, the configuration of this move's
+    start pose in which it can. None: none helps (or its clauses are wrong)."""
+    checked = validate_move_clauses(kind, clauses, host.spec)
+    if isinstance(checked, str) or not all(isinstance(t, (Pose, Joint)) for t in targets):
+        return None
+    request = MoveRequest(kind, host.in_world(targets), checked.speed, checked.acc, 0.0, line, frames=host.frames)
+    planner, program = host.planner, host.program
+    k = next((i for i in range(len(host.planned) - 1, -1, -1) if host.planned[i][1].kind == Motion.PTP), None)
+    ptp = host.planned[k][1] if k is not None else None
+    if ptp is not None and isinstance(ptp.request.targets[0], Pose):
+        chain = [segment.request for _offset, segment in host.planned[k + 1:]] + [request]
+        reached, pose, frames = tuple(ptp.end), ptp.request.targets[0], ptp.request.frames
+    else:  # (no ptp to a pose before it: the configurations of its own start)
+        chain, reached, frames = [request], tuple(host.motion.planning_start()), host.frames
+        pose = None
+    kinematics = planner.kinematics_for(frames)
+    if kinematics is None:
+        return None
+    here, extra = reached[:6], reached[6:]
+    same = kinematics.configuration(here)
+    candidates = [q for _cid, joints in kinematics.solutions(pose or kinematics.forward(here), near=here)
+                  for q in _turns(joints, kinematics.limits) if max(abs(a - b) for a, b in zip(q, here)) > 1e-6]
+    candidates.sort(key=lambda q: (kinematics.configuration(q) != same, sum((a - b) ** 2 for a, b in zip(q, here))))
+    for q in candidates[:OTHER_STARTS]:
+        joints = q + extra
+        for step in chain:
+            segment, _problem = planner.plan(step, joints, None, host.period)
+            if segment is None:
+                break
+            joints = segment.end
+        else:
+            named, now = configuration_text(kinematics, q), configuration_text(kinematics, here)
+            if pose is None:
+                return (f"the arm can follow this path from the same start pose in {named} (it is in {now}): take the "
+                        "robot there with a ptp move to that pose in that configuration")
+            where = program.line_at(host.planned[k][0])[0]
+            file = program.file_at(host.planned[k][0])
+            then = " and the lin and circ moves before it" if len(chain) > 1 else ""
+            return (f"name {named} on the target of the ptp move at line {where}{f' of {file}' if file else ''} (it "
+                    f"takes the arm to {now}): from there the arm can follow this path{then}")
+    return None
+
+
 class OfflineHost(TrajectoryGenerator):
     """The trajectory generator, run offline (module docstring): what the runtime would
     refuse is recorded (``findings``) and the run goes on; every move accepted is kept
     with its place in the code (``planned``)."""
 
     def __init__(self, spec, settings: Settings, clock: SimClock, world_io: IoComponent,
-                 world: AssumedWorld | None):
+                 world: AssumedWorld | None, runs: dict[int, int], hints: dict[int, str | None]):
         super().__init__(spec, None, DataPort("desi_pos"), DataPort("sens_pos"), clock, settings.trajectory.period,
                          settings)
         self.io = world_io
         self.world = world
+        self.runs = runs  # a located instruction -> how many times it ran (the world's too)
+        self.hints = hints  # a refused lin or circ move -> its configuration hint (once per check)
         self.findings: list[Finding] = []
         self.planned: list[tuple[int, Segment]] = []  # (offset, segment) of every move accepted
-        self.corners: dict[int, tuple] = {}  # a move with approx -> (times blended, times not, its approx)
+        self.refused: list[tuple[int, int, str]] = []  # (moves accepted before it, offset, kind) of each refused
+        self.corners: dict[int, tuple] = {}  # a move with approx -> (times blended, times not, its approx, why)
         self.starts: dict[int, tuple] = {}  # a move -> the joints it started from the first time
+        self.lost: int | None = None  # the line of a refused move no joint values reach: where the robot is is unknown
+        self.skipped = 0  # lin and circ moves not checked since (their start is unknown)
+        self.lost_at: set[int] = set()  # the lines of such moves
         self.at = 0  # the offset of the located instruction executing
         self.reading = False  # the program (not an interrupt's condition) reads an input
 
@@ -410,10 +475,10 @@ class OfflineHost(TrajectoryGenerator):
     def _located(self, handler):
         def run(operand, pc):
             self.at = pc
+            self.runs[pc] = self.runs.get(pc, 0) + 1
             world = self.world
             if world is None:
                 return handler(operand, pc)
-            world.ran(pc)
             op = self.program.code[pc][0]
             if op == OP.IN_GET:
                 self.reading = True
@@ -452,11 +517,15 @@ class OfflineHost(TrajectoryGenerator):
         fraction = distance = None
         if isinstance(message, Refusal):
             fraction, distance = message.fraction, message.distance
-        runs = self.world.runs.get(offset, 1) if self.world is not None else 1
+        runs = self.runs.get(offset, 1)
         self.findings.append(Finding(offset, program.file_at(offset), line, column, kind, str(message), severity,
                                      hint, fraction, distance, 1, runs))
 
     def move(self, kind: Motion, targets: tuple, clauses: dict, line: int) -> str | None:
+        if self.lost is not None and kind != Motion.PTP:  # from where? (after a target no joints reach)
+            self.skipped += 1
+            self.triggers = []
+            return None
         before = self.motion.last_planned
         start = tuple(self.motion.planning_start())
         first = self.starts.setdefault(self.at, start)
@@ -465,16 +534,26 @@ class OfflineHost(TrajectoryGenerator):
             segment = self.motion.last_planned
             if segment is not None and segment is not before:
                 self._accepted(segment)
+                if kind == Motion.PTP:
+                    self.lost = None
             return None
         self.triggers = []  # (a refused move's triggers go with it)
-        hint = self._other_start(kind, targets, clauses, line) if kind != Motion.PTP else None
-        if hint is None and isinstance(problem, Refusal):
-            hint = PATH_HINTS.get(problem.reason)
-        self.record("move", _wound(problem, self.axes, first, start), hint=hint)
-        self._stand_in(kind, targets, line)
+        self.refused.append((len(self.planned), self.at, str(kind)))
+        hint = None
+        said = _wound(problem, self.axes, first, start)
+        if isinstance(problem, Refusal):  # (a path the arm cannot follow: another configuration may help)
+            if self.at not in self.hints:
+                self.hints[self.at] = configuration_hint(self, kind, targets, clauses, line)
+            hint = self.hints[self.at] or (WOUND_HINT if said is not problem else PATH_HINTS.get(problem.reason))
+        elif said is not problem:
+            hint = WOUND_HINT
+        self.record("move", said, hint=hint)
+        if not self._stand_in(kind, targets, line):
+            self.lost = line
+            self.lost_at.add(line)
         return None
 
-    def _in_world(self, targets: tuple) -> tuple:
+    def in_world(self, targets: tuple) -> tuple:
         """Pose targets in the world frame (they are given in the active base)."""
         base = self.frames.base
         if base == IDENTITY:
@@ -482,69 +561,51 @@ class OfflineHost(TrajectoryGenerator):
         frame = pose_of(base)
         return tuple(compose(frame, t) if isinstance(t, Pose) else t for t in targets)
 
-    def _other_start(self, kind: Motion, targets: tuple, clauses: dict, line: int) -> str | None:
-        """A lin or circ move refused from where it starts: is there another configuration,
-        or another turn of an axis, of the same start pose from which the arm can follow
-        it? Then a hint that says so (None: there is none)."""
-        kinematics = self.planner.kinematics_for(self.frames)
-        checked = validate_move_clauses(kind, clauses, self.spec)
-        if kinematics is None or isinstance(checked, str) or not all(isinstance(t, (Pose, Joint)) for t in targets):
-            return None
-        start = tuple(self.motion.planning_start())
-        here, extra = start[:6], start[6:]
-        request = MoveRequest(kind, self._in_world(targets), checked.speed, checked.acc, 0.0, line,
-                              frames=self.frames)
-        candidates = [q for _cid, joints in kinematics.solutions(kinematics.forward(here), near=here)
-                      for q in _turns(joints, kinematics.limits)
-                      if max(abs(a - b) for a, b in zip(q, here)) > 1e-6]
-        same = kinematics.configuration(here)  # the same configuration at another turn first: the least change
-        candidates.sort(key=lambda q: (kinematics.configuration(q) != same, sum((a - b) ** 2 for a, b in zip(q, here))))
-        for joints in candidates[:OTHER_STARTS]:
-            segment, _problem = self.planner.plan(request, joints + extra, None, self.period)
-            if segment is not None:
-                return (f"from the same start pose the arm can follow this path in {configuration_text(kinematics, joints)}"
-                        f" (it is in {configuration_text(kinematics, here)}): name that configuration on the target "
-                        f"of the ptp move that takes the robot there{self._last_ptp()}")
-        return None
-
-    def _last_ptp(self) -> str:
-        for offset, segment in reversed(self.planned):
-            if segment.kind == Motion.PTP:
-                line = self.program.line_at(offset)[0]
-                file = self.program.file_at(offset)
-                return f" (line {line}{f' of {file}' if file else ''})"
-        return ""
-
     def _accepted(self, segment: Segment) -> None:
         self.planned.append((self.at, segment))
         previous = segment.previous
         if previous is not None and previous.blendable:  # a corner with approx: blended, or not
             offset = next((o for o, s in reversed(self.planned) if s is previous), None)
             if offset is not None:
-                blended, refused, _approx = self.corners.get(offset, (0, 0, 0.0))
+                blended, refused, _approx, why = self.corners.get(offset, (0, 0, 0.0, None))
                 approx = previous.request.approx
-                self.corners[offset] = ((blended + 1, refused, approx) if segment.offset is not None else
-                                        (blended, refused + 1, approx))
+                if segment.offset is None and why is None:
+                    why = self._near_singular(previous)
+                self.corners[offset] = ((blended + 1, refused, approx, why) if segment.offset is not None else
+                                        (blended, refused + 1, approx, why))
 
-    def _stand_in(self, kind: Motion, targets: tuple, line: int) -> None:
+    def _near_singular(self, segment: Segment) -> str | None:
+        """Why a corner at the end of ``segment`` may not blend: it lies next to a singularity."""
+        kinematics = self.planner.kinematics_for(segment.request.frames)
+        if kinematics is None:
+            return None
+        shoulder, elbow, wrist = kinematics.singularity_margins(segment.end[:6])
+        if wrist < NEAR_SINGULAR:
+            return (f"the corner lies next to the wrist singularity ({kinematics.names[4]} at "
+                    f"{segment.end[4]:.1f} deg), where the axes would have to turn fast to blend: tilt the tool, or "
+                    "move the corner")
+        if elbow < NEAR_SINGULAR:
+            return "the corner lies next to the elbow singularity (the arm nearly stretched): move the corner"
+        return None
+
+    def _stand_in(self, kind: Motion, targets: tuple, line: int) -> bool:
         """A refused move: go on as if it had reached its target (a PTP move there, at the
-        specification's default speed), or stay where the robot is when its target has no
-        joint values."""
+        specification's default speed); False when its target has no joint values."""
         target = targets[-1] if targets else None
         frames = self.frames
         joints = None
         if isinstance(target, Pose) and self.planner.kinematics is not None:
-            target = self._in_world((target,))[0]
+            target = self.in_world((target,))[0]
             joints, _problem = self.planner.joint_target(target, self.motion.planning_start(), frames)
         elif isinstance(target, Joint) and len(target.axes) == self.n:
             if all(axis.target_problem(v) is None for axis, v in zip(self.axes, target.axes)):
                 joints = target
-        if joints is None:
-            return
         defaults = validate_move_clauses(Motion.PTP, {}, self.spec)
-        if isinstance(defaults, str):
-            return
-        self.motion.add(MoveRequest(Motion.PTP, (joints,), defaults.speed, defaults.acc, 0.0, line, frames=frames))
+        if joints is None or isinstance(defaults, str):
+            return False
+        problem = self.motion.add(MoveRequest(Motion.PTP, (joints,), defaults.speed, defaults.acc, 0.0, line,
+                                              frames=frames))
+        return problem is None
 
     def trigger(self, place: int, unit: int, amount: object, action: tuple) -> str | None:
         problem = super().trigger(place, unit, amount, action)
@@ -571,7 +632,8 @@ class _Run:
     cell ``scenario``)."""
 
     def __init__(self, program: Program, spec, scenario, decisions: tuple | None, limits: _Limits,
-                 setpoints: bool = False, cache: dict | None = None, start: tuple | None = None):
+                 setpoints: bool = False, cache: dict | None = None, start: tuple | None = None,
+                 hints: dict | None = None):
         self.spec, self.limits = spec, limits
         self.clock = SimClock(TICK)
         settings = Settings(spec)
@@ -584,8 +646,9 @@ class _Run:
         self.cell = cell
         self.io = IoComponent(self.backend, cell)
         self.io.configure()
-        self.world = AssumedWorld(self.backend, self.io, decisions or ()) if scenario is None else None
-        self.host = OfflineHost(spec, settings, self.clock, self.io, self.world)
+        runs: dict[int, int] = {}
+        self.world = AssumedWorld(self.backend, self.io, decisions or (), runs) if scenario is None else None
+        self.host = OfflineHost(spec, settings, self.clock, self.io, self.world, runs, hints if hints is not None else {})
         self.host.motion.setpoints = setpoints
         self.host.planner.cache = cache
         self.host.start_position = tuple(float(axis.home) for axis in spec.axes) if start is None else start
@@ -715,11 +778,17 @@ def _ordinal(n: int) -> str:
 
 
 def _planned_moves(run: _Run) -> list[PlannedMove]:
+    """The main run's moves in the order the program handed them over, the refused ones too."""
     host = run.host
     program, kinematics = host.program, host.planner.kinematics
     moves = []
-    for offset, segment in host.planned:
-        record = segment.record
+    refused = list(host.refused)
+    for i, (offset, segment) in enumerate(host.planned + [(None, None)]):
+        while refused and refused[0][0] == i:
+            _i, at, kind = refused.pop(0)
+            line, column = program.line_at(at)
+            moves.append(PlannedMove(at, program.file_at(at), line, column, kind, None, None, False, None, None, True))
+        record = segment.record if segment is not None else None
         if record is None:
             continue
         line, column = program.line_at(offset)
@@ -743,7 +812,8 @@ class _Check:
         # the moves planned, shared by every run (a branch repeats most of the main run)
         self.cache: dict | None = None if setpoints else {}
         self.findings: dict = {}
-        self.corners: dict = {}  # a move with approx -> (times blended, times not, its approx, first run's choices)
+        self.hints: dict = {}  # a refused lin or circ move -> its configuration hint (computed once)
+        self.corners: dict = {}  # a move with approx -> (times blended, times not, approx, why, first run's choices)
         self.used = 0  # moves planned in all runs
         self.runs = 0
         self.worlds: list[AssumedWorld] = []
@@ -754,20 +824,24 @@ class _Check:
 
     def run(self, decisions: tuple | None, assumed: tuple, moves: int) -> _Run:
         run = _Run(self.program, self.spec, self.scenario, decisions, self.limits, setpoints=self.setpoints,
-                   cache=self.cache, start=self.start)
+                   cache=self.cache, start=self.start, hints=self.hints)
         run.run(moves)
         self.runs += 1
         self.used += len(run.host.planned)
-        for offset, (blended, refused, approx) in run.host.corners.items():
-            was = self.corners.get(offset, (0, 0, approx, assumed))
-            self.corners[offset] = (was[0] + blended, was[1] + refused, approx, was[3])
+        for offset, (blended, refused, approx, why) in run.host.corners.items():
+            was = self.corners.get(offset, (0, 0, approx, why, assumed))
+            self.corners[offset] = (was[0] + blended, was[1] + refused, approx, was[3] or why, was[4])
+        new: dict = {}  # (each finding as the first run that has it found it: how often in that run)
         for f in run.host.findings:
-            known = self.findings.get((f.offset, f.kind))
-            if known is None:
-                f.assumed = assumed
-                self.findings[f.offset, f.kind] = f
+            key = (f.offset, f.kind)
+            if key in self.findings:
+                continue
+            if key in new:
+                new[key].count += 1
             else:
-                known.count += 1
+                f.assumed = assumed
+                new[key] = f
+        self.findings.update(new)
         if run.world is not None:
             self.worlds.append(run.world)
             self._offer(run, len(decisions or ()), assumed)
@@ -812,14 +886,15 @@ class _Check:
         blended sometimes is the program's choice: it may move on before the robot is
         there)."""
         program = self.program
-        for offset, (blended, refused, approx, assumed) in self.corners.items():
+        for offset, (blended, refused, approx, why, assumed) in self.corners.items():
             if refused and not blended:
                 line, column = program.line_at(offset)
                 self.findings[offset, "blend"] = Finding(
                     offset, program.file_at(offset), line, column, "blend",
                     f"approx := {approx:g} has no effect: no blend into the next move keeps every axis within its "
                     "velocity, acceleration and jerk limits, so the robot stops at the target", "warning",
-                    "a smaller approx, or lower speeds around the corner, may blend", count=refused, assumed=assumed)
+                    why or "a smaller approx, or lower speeds around the corner, may blend", count=refused,
+                    assumed=assumed)
         return sorted(self.findings.values(), key=lambda f: (f.file, f.line, f.column, f.kind))
 
 
@@ -841,10 +916,20 @@ def check_motion(program: Program, spec, scenario=None, *, max_moves: int = MAX_
     check = _Check(program, spec, scenario, _Limits(max_moves, max_time), start, setpoints)
     main = check.run(None if scenario is not None else (), (), max_moves)
     outcome = Outcome(cycle_time=main.end_time, ended=main.ended, moves=_planned_moves(main), notes=list(main.notes))
+    if main.host.skipped:
+        lines = ", ".join(str(line) for line in sorted(main.host.lost_at))
+        outcome.notes.append(f"{main.host.skipped} lin or circ move{'s' if main.host.skipped != 1 else ''} after a refused "
+                             f"move whose target no joint values reach (line {lines}) were not checked: where they "
+                             "start is not known, up to the next ptp move")
     if scenario is None:
         outcome.notes += check.explore(max_paths)
         outcome.assumed = _assumptions(program, check.worlds)
         outcome.branches = list(check.flips)
+        hangs = set().union(*(w.hangs for w in check.worlds))
+        if hangs:
+            outcome.notes.append(f"irl run and irl serve on the simulated robot leave every input false without a cell "
+                                 f"scenario: the program would wait there for ever at the wait for with no time-out at "
+                                 f"{_lines(program, hangs)} (give them --cell-scenario FILE.toml)")
     outcome.paths = check.runs
     outcome.findings = check.sorted_findings()
     return outcome

@@ -310,7 +310,9 @@ class MovePlanner:
             axis_limits=self.joint_limits, period=period))
         if result < 0:
             prefix = f"move {request.kind} refused: "
-            return None, message.prefixed(prefix) if isinstance(message, Refusal) else prefix + message
+            if isinstance(message, Refusal):
+                return None, message.prefixed(prefix)
+            return None, prefix + message.removeprefix(f"move {request.kind}: ")
         problem = self._ends_in_turns(request, kinematics, stream.target_position)
         if problem is not None:
             return None, problem

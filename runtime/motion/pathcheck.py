@@ -104,10 +104,10 @@ def percent(fraction: float) -> str:
 
 def where(fraction: float, length: float = 0.0, of: str = "its length") -> str:
     """Where along a path (``fraction`` 0..1 of it) as a message says it: ``"37 % of its
-    length"``, and with the tool's path ``length`` (mm) how far from its start: ``"37 % of
-    its length, 185.2 mm from its start"``."""
+    length"``, and with the tool's path ``length`` (mm, 1 or more) how far from its start:
+    ``"37 % of its length, 185.2 mm from its start"``."""
     text = f"{percent(fraction)} of {of}"
-    if length > 0.0:
+    if length >= 1.0:  # (a turn in place has no mm to speak of)
         text += f", {fraction * length:.1f} mm from its start"
     return text
 

@@ -253,7 +253,7 @@ class CircPath(_Path):
             if dist < POINT_TOL:
                 hint = ("; a circle needs three distinct points: split a full circle into two "
                         "moves" if dist is lw else "")
-                raise ValueError(f"move circ: {what} ({dist:.3g} mm apart){hint}")
+                raise ValueError(f"move circ: {what} ({dist:.3f} mm apart){hint}")
         n = _cross(u, w)
         area2 = _norm(n)  # twice the triangle's area
         longest = max(lu, lw, lv)

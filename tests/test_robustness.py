@@ -212,7 +212,8 @@ def check_source_text(workdir: Path, text: str) -> int:
             assert stdout.startswith("program ")
         codes[command[0]] = code
     assert len(set(codes.values())) == 1, f"check, compile and dis disagree: {codes}"
-    if codes["check"] == 0:  # the motion check runs what compiles (bounded: its first 8 moves)
+    if codes["check"] == 0 and zlib.crc32(text.encode("utf-8", "surrogateescape")) % 2 == 0:
+        # the motion check runs what compiles (half the cases, chosen by their text; its first 8 moves)
         code, stdout, stderr = run_cli("check", "--max-moves", "8", src)
         assert_no_crash(code, stderr)
         assert code in (0, 1) and stdout.splitlines()[-1].startswith(("motion: ", "note: ", "assumed: ")), stdout

@@ -495,6 +495,12 @@ def build_parser(command: str | None = None) -> argparse.ArgumentParser:
         from runtime.cli.teach import add_arguments as pose_arguments
 
         pose_arguments(p)
+    if (p := declare("view", help="the robot in 3D in the browser: a program's paths, a report or recording "
+                                  "replayed, or a served robot live")) is not None:
+        from runtime.cli.viewing import add_arguments as view_arguments, cmd_view
+
+        view_arguments(p)
+        p.set_defaults(run=cmd_view)
     if command is None or command not in sub.choices:  # (naming the network commands imports their module)
         from runtime.cli.netcli import add_commands  # light: ZeroMQ is imported when a command runs
 

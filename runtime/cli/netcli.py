@@ -199,9 +199,10 @@ def cmd_serve(args, env) -> int:
 
 
 # ---- submit ---------------------------------------------------------------------------------
-def _object_code(args, env) -> tuple[bytes, str, tuple, str | None] | None:
-    """(bytes, name, robots, the specification file it was compiled for where known) of
-    FILE.irlo (as is: the server verifies) or FILE.irl (compiled)."""
+def _object_code(args, env) -> tuple[bytes, str, tuple, str | None, str | None] | None:
+    """(bytes, name, robots, the specification file it was compiled for where known, the
+    source text where known) of FILE.irlo (as is: the server verifies; its source file
+    when it is there) or FILE.irl (compiled)."""
     from compiler.objcode import ObjectCodeError, decode, encode
 
     if args.file.endswith(".irlo"):
@@ -211,12 +212,25 @@ def _object_code(args, env) -> tuple[bytes, str, tuple, str | None] | None:
         except ObjectCodeError as exc:
             common.warn(env, f"{args.file}: invalid object code: {exc}")
             return None
-        return data, Path(args.file).name, program.robots, common.spec_compiled_for(program, Path(args.file))[0]
+        return (data, Path(args.file).name, program.robots, common.spec_compiled_for(program, Path(args.file))[0],
+                _source_text(Path(args.file).parent / program.source))
     result = common.compile_source(args.file, args.spec)
     common.report_diagnostics(env, result, False)
     if not result.ok:
         return None
-    return encode(result.program), Path(args.file).name, result.program.robots, result.spec.file
+    return (encode(result.program), Path(args.file).name, result.program.robots, result.spec.file,
+            _source_text(Path(args.file)))
+
+
+def _source_text(path: Path) -> str | None:
+    """A program's source to send with it (for viewers), when it is readable and not too large."""
+    from runtime.wire.protocol import MAX_REQUEST_BYTES
+
+    try:
+        text = path.read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError, ValueError):
+        return None
+    return text if len(text.encode()) <= MAX_REQUEST_BYTES // 4 else None
 
 
 @_guard
@@ -226,14 +240,15 @@ def cmd_submit(args, env) -> int:
     compiled = _object_code(args, env)
     if compiled is None:
         return common.EXIT_INVALID
-    data, name, robots, compiled_for = compiled
+    data, name, robots, compiled_for, source = compiled
     hints = {"wrong_robot": f"{name} was compiled here for {compiled_for}"} if compiled_for else None
     if args.cell:
         args.endpoint = _cell_endpoint(args.cell, robots)
     client = _client(args)
     try:
         since = _call(client, "telemetry")["seq"] if args.wait else 0  # the program's print output: after this
-        reply = _call(client, "submit", {"object": data, "name": name}, hints=hints)
+        request = {"object": data, "name": name, **({"source": source} if source is not None else {})}
+        reply = _call(client, "submit", request, hints=hints)
         job = reply["program"]
         if not args.json:
             common.say(env, f"program {job} queued on {args.endpoint} ({name})")

@@ -68,7 +68,7 @@ from runtime.settings import Settings
 from runtime.timing import TICK
 
 __all__ = ["AssumedWorld", "BRANCH_MOVES", "Finding", "MAX_INSTRUCTIONS", "MAX_MOVES", "MAX_PATHS", "MAX_SEARCH_INPUTS",
-           "MAX_TIME", "OfflineHost", "Outcome", "PlannedMove", "check_motion"]
+           "MAX_TIME", "OfflineHost", "Outcome", "PlannedMove", "Trace", "check_motion"]
 
 #: Moves handed over in all runs of one check before it stops (a note says so).
 MAX_MOVES = 2000
@@ -150,6 +150,22 @@ class Choice:
 
 
 @dataclass
+class Trace:
+    """The main run's setpoints, every 5 ms (what ``irl view`` draws): ``times`` (s after
+    the program started), ``joints`` (the setpoint's joint values), ``move`` (per sample,
+    the number of the move under way or last started, from 1; 0 before the first: an index
+    into ``records`` plus one); ``records``: the moves as they ran (their line, kind and
+    frames), ``stand_in``: the numbers of those that stand in for a refused move (a PTP
+    move to its target)."""
+
+    times: list = field(default_factory=list)
+    joints: list = field(default_factory=list)
+    move: list = field(default_factory=list)
+    records: list = field(default_factory=list)
+    stand_in: set = field(default_factory=set)
+
+
+@dataclass
 class Outcome:
     """The check of one program: its findings, the main run's moves and cycle time (the
     time ``irl run`` spends in Move Robot; None when the main run did not end), what was
@@ -163,6 +179,7 @@ class Outcome:
     ended: str = "completed"  # the main run: "completed", "stopped" (a run-time error), "bounded"
     notes: list[str] = field(default_factory=list)
     paths: int = 1
+    trace: Trace | None = None  # the main run's setpoints (check_motion(trace=True))
 
 
 class _OfflineIo(DigitalIo):
@@ -656,6 +673,7 @@ class _Run:
         self.ended = "completed"
         self.end_time: float | None = None
         self.notes: list[str] = []
+        self.trace: Trace | None = None  # set: every update's setpoint is kept (needs setpoints)
 
     def run(self, moves_left: int) -> None:
         """Run from the program's start to its end, an error, or a bound."""
@@ -675,6 +693,8 @@ class _Run:
                 io.update(now)
                 outputs = io.outputs.value
             host.update(now)
+            if self.trace is not None:
+                self._sample(now)
             while world is not None and world.searching() and vm.status < DONE:
                 world.next_try(now)
                 vm.step()  # (the same instant: the wait for is satisfied at once if it can be)
@@ -703,6 +723,20 @@ class _Run:
                     outputs = io.outputs.value
                 host.fire_triggers(t)
             clock.ticks += every - k + 1
+
+    def _sample(self, now: float) -> None:
+        trace, motion = self.trace, self.host.motion
+        trace.times.append(now)
+        trace.joints.append(motion.positions)
+        trace.move.append(len(motion.moves))
+
+    def traced(self) -> Trace:
+        """The trace with the moves as they ran (after :meth:`run`)."""
+        trace, host = self.trace, self.host
+        trace.records = list(host.motion.moves)
+        accepted = {id(segment.record) for _offset, segment in host.planned if segment.record is not None}
+        trace.stand_in = {i + 1 for i, record in enumerate(trace.records) if id(record) not in accepted}
+        return trace
 
     def _endless(self, world: AssumedWorld) -> bool:
         """The run can never end in the assumed cell: it polls an input for ever, or waits
@@ -822,9 +856,11 @@ class _Check:
         self.flips: list[str] = []  # the branches run, each by its last choice
         self.cut = 0  # branch runs stopped at their bound
 
-    def run(self, decisions: tuple | None, assumed: tuple, moves: int) -> _Run:
+    def run(self, decisions: tuple | None, assumed: tuple, moves: int, trace: bool = False) -> _Run:
         run = _Run(self.program, self.spec, self.scenario, decisions, self.limits, setpoints=self.setpoints,
                    cache=self.cache, start=self.start, hints=self.hints)
+        if trace:
+            run.trace = Trace()
         run.run(moves)
         self.runs += 1
         self.used += len(run.host.planned)
@@ -900,7 +936,7 @@ class _Check:
 
 def check_motion(program: Program, spec, scenario=None, *, max_moves: int = MAX_MOVES,
                  max_paths: int = MAX_PATHS, max_time: float = MAX_TIME, start: tuple | None = None,
-                 setpoints: bool = False) -> Outcome:
+                 setpoints: bool = False, trace: bool = False) -> Outcome:
     """Run ``program`` offline (module docstring) from ``start`` (joint values; default:
     every axis at its home, where ``irl run`` starts a program): with the cell
     ``scenario`` (a runtime.hardware.sim.cell.Scenario) once, as ``irl run`` would;
@@ -908,14 +944,16 @@ def check_motion(program: Program, spec, scenario=None, *, max_moves: int = MAX_
     the other option of a choice (each at most ``max_moves // 8`` moves). The findings of
     all runs, each once (``count``: how often). ``setpoints``: compute every period's
     setpoint, as the runtime does, and plan every move anew (slower; the same outcome:
-    what the tests compare)."""
+    what the tests compare). ``trace``: keep the main run's setpoints (``Outcome.trace``;
+    implies ``setpoints``)."""
     if start is not None:
         start = tuple(float(v) for v in start)
         if len(start) != len(spec.axes):
             raise ValueError(f"start: expected {len(spec.axes)} joint values, got {len(start)}")
-    check = _Check(program, spec, scenario, _Limits(max_moves, max_time), start, setpoints)
-    main = check.run(None if scenario is not None else (), (), max_moves)
-    outcome = Outcome(cycle_time=main.end_time, ended=main.ended, moves=_planned_moves(main), notes=list(main.notes))
+    check = _Check(program, spec, scenario, _Limits(max_moves, max_time), start, setpoints or trace)
+    main = check.run(None if scenario is not None else (), (), max_moves, trace)
+    outcome = Outcome(cycle_time=main.end_time, ended=main.ended, moves=_planned_moves(main), notes=list(main.notes),
+                      trace=main.traced() if trace else None)
     if main.host.skipped:
         lines = ", ".join(str(line) for line in sorted(main.host.lost_at))
         outcome.notes.append(f"{main.host.skipped} lin or circ move{'s' if main.host.skipped != 1 else ''} after a refused "

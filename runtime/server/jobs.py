@@ -42,6 +42,7 @@ class Job:
         self.summary: dict | None = None
         self.moves_total = moves_total(program) if program is not None else 0
         self.object: bytes | None = None  # the verified object code, for the loop
+        self.source: str | None = None  # the source text it was submitted with (the source op)
 
     def as_dict(self, summary: bool = True) -> dict:
         d = {"id": self.id, "name": self.name, "state": self.state, "fault": self.fault,

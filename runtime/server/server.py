@@ -426,7 +426,7 @@ class Server:
     # ---- operations (a LoopCommand result is carried out by the loop) ----------------------------
     def op_hello(self, args: dict) -> dict:
         return {"protocol": protocol.VERSION, "protocols": list(protocol.VERSIONS), "robot": self.spec.name,
-                "spec_hash": self.spec.hash,
+                "spec_hash": self.spec.hash, "spec_file": self.spec_file,
                 "axes": [a.name for a in self.spec.axes],
                 "clock": "simulated" if self.options.sim_clock else "wall",
                 "configuration": self.configuration,
@@ -476,7 +476,14 @@ class Server:
         self._check_accepting()
         name = str(args.get("name") or program.name or "program")[:200]
         job = self.jobs.submit(name, program, bytes(data))
+        job.source = args.get("source")
         return {"program": job.id, "queued": len(self.jobs.queue)}
+
+    def op_source(self, args: dict) -> dict:
+        job = self.jobs.get(args["program"])
+        if job is None:
+            raise ProtocolError("not_found", f"no program {args['program']} on this server")
+        return {"program": job.id, "name": job.name, "source": job.source}
 
     def op_pause(self, args: dict) -> LoopCommand:
         return LoopCommand(messages.Pause(args.get("program")))

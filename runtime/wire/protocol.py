@@ -99,7 +99,8 @@ OPS: dict[str, tuple[dict[str, tuple[tuple, bool, str]], str]] = {
     "status": ({"program": (_INT, False, "a program id: that program only")},
                "the robot's state, the running program, the queue and recent programs"),
     "submit": ({"object": (_BIN, True, "the object code (an .irlo file's bytes)"),
-                "name": (_STR, False, "a name to show for the program (e.g. its file name)")},
+                "name": (_STR, False, "a name to show for the program (e.g. its file name)"),
+                "source": (_STR, False, "the program's source text, kept for viewers (`source`, irl view)")},
                "verify the object code and queue it; returns its id"),
     "pause": ({"program": (_INT, False, "the program meant (refused if another one runs)")},
               "hold the running program; a move under way comes to a controlled stop"),
@@ -133,6 +134,8 @@ OPS: dict[str, tuple[dict[str, tuple[tuple, bool, str]], str]] = {
                                          "sample only)")},
                   f"the latest telemetry sample, and the messages after ``since`` from a history of the last "
                   f"{TELEMETRY_HISTORY} (a subscriber that joined late or lost messages catches up)"),
+    "source": ({"program": (_INT, True, "a program id")},
+               "the source text a program was submitted with (nil when it came without), to show its lines"),
     "feed": ({"fields": (_LIST, True, "the sample fields wanted (an array of names, see the sample table)"),
               "rate": (_NUM, False, f"samples per second, {MIN_FEED_RATE:g} to {MAX_FEED_RATE:g} (default "
                                     f"{MAX_FEED_RATE:g}: every sample)"),
@@ -142,7 +145,7 @@ OPS: dict[str, tuple[dict[str, tuple[tuple, bool, str]], str]] = {
 }
 
 #: The ops a protocol version brought (every other op is in every version).
-SINCE = {"wait": 2, "telemetry": 2, "control": 2, "feed": 2}
+SINCE = {"wait": 2, "telemetry": 2, "control": 2, "feed": 2, "source": 2}
 #: The ops that control the robot: refused to every client but the holder while one holds
 #: control (``estop`` never is: an emergency stop is open to every client).
 CONTROLLING = frozenset({"submit", "pause", "resume", "abort", "override", "call", "reconfigure"})

@@ -1,0 +1,165 @@
+"""``irl view --endpoint E``: a served robot, live, read-only.
+
+Attached to ``irl serve`` over the protocol (docs/protocol.md): it subscribes to the
+telemetry and asks for nothing that needs control. Each time round it takes every message
+that has come (so it never falls behind: the arm shows the latest sample, the events are
+all shown), and poses the arm, marks the running program's line in its source (the
+``source`` operation: the text the program was submitted with), and shows the phase, the
+override, the I/O as lamps, the prints and faults. A server sends a message at least every
+0.5 s: after :data:`SILENCE` seconds without one the page says the connection is lost (and
+goes on as soon as messages come again).
+"""
+from __future__ import annotations
+
+import html
+import threading
+import time
+
+from runtime.client.client import Client, ClientError, Subscriber
+from runtime.view.stage import Stage, lamps_html, log_html, source_html
+
+#: Seconds without a telemetry message before the page says the connection is lost.
+SILENCE = 2.0
+#: The most times a second the arm is posed anew (a screen's frames: the page draws no
+#: faster, and a browser sent more falls behind), and the text is rewritten.
+POSES, TEXTS = 30.0, 5.0
+#: The most messages taken in one round (then the arm is posed and the page updated).
+BATCH = 2000
+
+
+class LiveView:
+    """The robot served at ``endpoint`` (telemetry at ``telemetry``) on ``stage``."""
+
+    def __init__(self, stage: Stage, endpoint: str, telemetry: str, keys=None):
+        self.stage, self.endpoint, self.telemetry, self.keys = stage, endpoint, telemetry, keys
+        gui = stage.server.gui
+        self.status = gui.add_markdown(f"connecting to {html.escape(endpoint)} ...")
+        self.now = gui.add_markdown("")
+        self.lamps = gui.add_html(lamps_html([False] * stage.spec.inputs, [False] * stage.spec.outputs))
+        self.log_box = gui.add_html(log_html([]))
+        self.source_box = gui.add_html(source_html([], None))
+        self.logs: list[tuple[float, str, str]] = []
+        self.program: int | None = None
+        self.lines: list[str] = []
+        self.line = 0
+        self.samples = 0  # samples shown
+        self.missed = 0  # telemetry messages the subscriber missed (sequence gaps)
+        self.pending: dict | None = None  # the latest sample, not shown yet
+        self.next_pose = 0.0  # (monotonic s) the arm is posed again from then on
+        self.next_text = 0.0  # the text rewritten from then on
+        self.io: tuple = ()  # the I/O the lamps show
+        self.rate = 0.0  # samples shown per second, over the last second
+        self._stop = threading.Event()
+        self.thread = threading.Thread(target=self._run, name="view-live", daemon=True)
+
+    def start(self) -> None:
+        self.thread.start()
+
+    def _run(self) -> None:
+        try:
+            sub = Subscriber(self.telemetry, keys=self.keys)
+            client = Client(self.endpoint, keys=self.keys, timeout=2.0)
+        except ClientError as exc:
+            self.status.content = f"**cannot connect**: {html.escape(exc.message)}"
+            return
+        try:
+            self._follow(sub, client)
+        finally:
+            sub.close()
+            client.close()
+
+    def _follow(self, sub: Subscriber, client: Client) -> None:
+        heard = time.monotonic()
+        lost = False
+        counted, since = 0, time.monotonic()
+        while not self._stop.is_set():
+            wait = 0.1 if self.pending is None else min(0.1, max(0.0, self.next_pose - time.monotonic()))
+            message = sub.receive(wait)
+            latest = None
+            taken = 0
+            while message is not None and taken < BATCH:
+                taken += 1
+                if message.get("kind") == "sample":
+                    latest = message
+                elif message.get("kind") == "event":
+                    self._event(message)
+                message = sub.receive(0.0)
+            now = time.monotonic()
+            if taken:
+                heard = now
+                if lost:
+                    lost = False
+            elif now - heard > SILENCE and not lost:
+                self.next_text = now + SILENCE  # (the notice stays until messages come again)
+                lost = True
+                self.status.content = (f"**connection lost**: no telemetry from {html.escape(self.telemetry)} for "
+                                       f"{SILENCE:g} s (is irl serve running?); waiting for it")
+            if latest is not None:
+                self.missed = sub.missed
+                self.pending = latest
+            if self.pending is not None and now >= self.next_pose:
+                self._sample(self.pending, client, now)
+                self.pending = None
+                self.next_pose = now + 1.0 / POSES
+                counted += 1
+            if now - since >= 1.0:
+                self.rate, counted, since = counted / (now - since), 0, now
+
+    def _event(self, message: dict) -> None:
+        t = float(message.get("t", 0.0))
+        event = message.get("event")
+        if event == "log":
+            self.logs.append((t, "INFO", f"line {message.get('line')}: {message.get('text', '')}"))
+        elif event == "program" and message.get("fault"):
+            self.logs.append((t, "ERROR", f"program {message.get('program')}: {message.get('fault')}"))
+        elif event == "program":
+            self.logs.append((t, "INFO", f"program {message.get('program')} {message.get('state')}"))
+        elif event == "shutdown":
+            self.logs.append((t, "WARNING", f"the server is shutting down: {message.get('reason', '')}"))
+        else:
+            return
+        self.log_box.content = log_html(self.logs)
+
+    def _sample(self, sample: dict, client: Client, now: float) -> None:
+        position = sample.get("position")
+        if isinstance(position, list) and len(position) >= 6:
+            self.stage.show(position, tcp=sample.get("tcp"))
+        self.samples += 1
+        program = sample.get("program")
+        if program != self.program:
+            self.program = program
+            self.lines = self._source(client, program)
+            self.line = -1
+        line = sample.get("line") or 0
+        if line != self.line:
+            self.line = line
+            title = f"program {program}" if program is not None else "no program running"
+            self.source_box.content = source_html(self.lines, line or None, title)
+        inputs, outputs = sample.get("inputs"), sample.get("outputs")
+        if isinstance(inputs, list) and isinstance(outputs, list) and (inputs, outputs) != self.io:
+            self.io = (inputs, outputs)
+            self.lamps.content = lamps_html(inputs, outputs)
+        if now < self.next_text:
+            return
+        self.next_text = now + 1.0 / TEXTS
+        self.status.content = (f"**live** from {html.escape(self.endpoint)}: the arm posed {self.rate:.0f} times/s"
+                               + (f", {self.missed} telemetry messages missed" if self.missed else ""))
+        paused = " (paused)" if sample.get("paused") else ""
+        self.now.content = (f"**{float(sample.get('t', 0.0)):.3f} s** · {html.escape(str(sample.get('state')))}{paused}"
+                            f" · override {float(sample.get('override', 100.0)):g} %"
+                            f" · tool {html.escape(str(sample.get('tool', '')))}"
+                            + (f" · line {line}" if line else ""))
+
+    def _source(self, client: Client, program) -> list[str]:
+        if program is None:
+            return []
+        try:
+            reply = client.request("source", {"program": program})
+        except ClientError:
+            return []
+        text = reply.get("source") if isinstance(reply, dict) else None
+        return text.splitlines() if isinstance(text, str) else []
+
+    def close(self) -> None:
+        self._stop.set()
+        self.thread.join(timeout=2.0)

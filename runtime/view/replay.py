@@ -1,0 +1,161 @@
+"""``irl view REPORT.csv | FILE.mcap``: what the robot did, replayed.
+
+A report (the 10 ms rows of ``irl run --report`` or a served program's report, with its
+``.states.csv`` beside it when there is one) or a recording (``--record``, MCAP) is read
+into a :class:`Recorded`: the measured joints over time, the phases, the program's line,
+the tool, the I/O and the log where the file has them. The view replays it: a time slider,
+play and pause at 0.25x to 20x, the tool centre point's trace over the whole run, the
+phases on a time line, the current phase, line and I/O.
+"""
+from __future__ import annotations
+
+import csv
+import html
+from bisect import bisect_right
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from runtime.motion.moves import Frames
+from runtime.view.stage import Player, Stage, lamps_html, log_html, source_html, timeline_html
+
+
+#: The colour of the tool centre point's trace (RGB).
+TRACE_COLOUR = (0, 150, 170)
+
+
+class ReplayError(ValueError):
+    """A file that cannot be replayed: the message says what is wrong, and where."""
+
+
+@dataclass
+class Recorded:
+    """A run as read from its file: per sample ``times`` (s, the robot's clock), ``joints``
+    (deg), and, where the file has them, ``lines`` (the source line under way, 0: none),
+    ``tools`` (the active tool's name), ``inputs``/``outputs``; ``phases``: ``(from time,
+    state path)``; ``logs``: ``(time, level, text)``."""
+
+    times: list = field(default_factory=list)
+    joints: list = field(default_factory=list)
+    lines: list | None = None
+    tools: list | None = None
+    inputs: list | None = None
+    outputs: list | None = None
+    phases: list = field(default_factory=list)
+    logs: list = field(default_factory=list)
+    source: str | None = None  # the program's text, when the file carries it
+
+
+def read_report(path: Path, axes: list[str]) -> Recorded:
+    """A report CSV (runtime.loop.components.report) of a robot with the axes ``axes``."""
+    try:
+        with open(path, encoding="utf-8", newline="") as f:
+            rows = csv.reader(f)
+            header = next(rows, None)
+            if header is None:
+                raise ReplayError(f"{path}: empty: no header row")
+            column = {name: i for i, name in enumerate(header)}
+            need = ["time", "state"] + [f"sens_pos_{a}" for a in axes]
+            missing = [n for n in need if n not in column]
+            if missing:
+                raise ReplayError(f"{path}: not a report of this robot: no column {', '.join(missing[:3])} (the "
+                                  f"header has {', '.join(header[:6])}{', ...' if len(header) > 6 else ''})")
+            return _rows(path, rows, column, axes)
+    except OSError as exc:
+        raise ReplayError(f"cannot read {path}: {exc.strerror or exc}") from None
+    except UnicodeDecodeError:
+        raise ReplayError(f"{path}: not a UTF-8 text file") from None
+
+
+def _rows(path: Path, rows, column: dict, axes: list[str]) -> Recorded:
+    rec = Recorded()
+    pos = [column[f"sens_pos_{a}"] for a in axes]
+    t_i, state_i = column["time"], column["state"]
+    line_i, tool_i = column.get("line"), column.get("tool")
+    ins = sorted((int(n[3:]), i) for n, i in column.items() if n.startswith("in_") and n[3:].isdigit())
+    outs = sorted((int(n[4:]), i) for n, i in column.items() if n.startswith("out_") and n[4:].isdigit())
+    rec.lines = [] if line_i is not None else None
+    rec.tools = [] if tool_i is not None else None
+    rec.inputs, rec.outputs = ([], []) if ins or outs else (None, None)
+    state = None
+    for number, row in enumerate(rows, start=2):
+        if not row:
+            continue
+        try:
+            t = float(row[t_i])
+            rec.joints.append(tuple(float(row[i]) for i in pos))
+            if rec.lines is not None:
+                rec.lines.append(int(row[line_i]))
+            if rec.tools is not None:
+                rec.tools.append(row[tool_i])
+            if rec.inputs is not None:
+                rec.inputs.append(tuple(row[i] == "1" for _n, i in ins))
+                rec.outputs.append(tuple(row[i] == "1" for _n, i in outs))
+        except (ValueError, IndexError):
+            raise ReplayError(f"{path}, line {number}: not a row of numbers that fits the header") from None
+        rec.times.append(t)
+        if row[state_i] != state:
+            state = row[state_i]
+            rec.phases.append((t, state))
+    if not rec.times:
+        raise ReplayError(f"{path}: no rows: nothing to replay")
+    return rec
+
+
+def read_recorded(path: Path, spec) -> Recorded:
+    """A report (``.csv``) or a recording (``.mcap``) of ``spec``'s robot."""
+    axes = [a.name for a in spec.axes]
+    if path.suffix.lower() == ".mcap":
+        from runtime.view.recorded import read_mcap
+
+        return read_mcap(path, axes)
+    return read_report(path, axes)
+
+
+class ReplayView:
+    """``recorded`` replayed on ``stage``."""
+
+    def __init__(self, stage: Stage, name: str, recorded: Recorded, source: str | None = None):
+        self.stage, self.rec, self.name = stage, recorded, name
+        spec = stage.spec
+        default = Frames.default(spec)
+        tools = {n: Frames("world", default.base, n, tuple(v)) for t, n, v in spec.named_frames if t == "tool"}
+        self.frames = ([tools.get(n, default) for n in recorded.tools] if recorded.tools is not None
+                       else [default] * len(recorded.times))
+        self.lines = (source if source is not None else recorded.source or "").splitlines()
+        self.start, self.end = recorded.times[0], recorded.times[-1]
+        points = stage.tcp_points(recorded.joints, self.frames)
+        if len(points) >= 2:  # the TCP's trace over the whole run
+            step = max(1, len(points) // 5000)
+            trace = points[::step] + [points[-1]]
+            stage.server.scene.add_line_segments("/trace", points=[(a, b) for a, b in zip(trace, trace[1:])],
+                                                 colors=TRACE_COLOUR, line_width=1.5)
+        gui = stage.server.gui
+        gui.add_markdown(f"**{html.escape(name)}**: {self.end - self.start:.2f} s of the robot's clock, "
+                         f"{len(recorded.times)} samples")
+        self.timeline = gui.add_html(timeline_html(recorded.phases, self.start, self.end, self.start))
+        self.now = gui.add_markdown("")
+        self.lamps = gui.add_html(lamps_html(recorded.inputs[0], recorded.outputs[0])) \
+            if recorded.inputs else None
+        self.log = gui.add_html(log_html([])) if recorded.logs else None
+        self.source = gui.add_html(source_html(self.lines, None, "program")) if self.lines else None
+        self.player = Player(gui, self.start, self.end, self.show_time)
+        self.show_time(self.start)
+
+    def show_time(self, t: float) -> None:
+        rec = self.rec
+        i = max(bisect_right(rec.times, t) - 1, 0)
+        self.stage.show(rec.joints[i], self.frames[i])
+        phase = rec.phases[max(bisect_right([p[0] for p in rec.phases], rec.times[i]) - 1, 0)][1]
+        line = rec.lines[i] if rec.lines is not None else 0
+        self.now.content = (f"**{rec.times[i]:.3f} s** · {html.escape(phase)}"
+                            + (f" · line {line}" if line else ""))
+        self.timeline.content = timeline_html(rec.phases, self.start, self.end, rec.times[i])
+        if self.lamps is not None:
+            self.lamps.content = lamps_html(rec.inputs[i], rec.outputs[i])
+        if self.log is not None:
+            self.log.content = log_html([e for e in rec.logs if e[0] <= rec.times[i]])
+        if self.source is not None and line:
+            self.source.content = source_html(self.lines, line, "program")
+
+    def close(self) -> None:
+        self.player.close()

@@ -1,0 +1,136 @@
+"""``irl view`` without a browser (tests/test_view_browser.py opens the page): what it is
+given to draw (a program's trace from the offline planners, a report read back), its
+usage errors, and the protocol's ``source`` operation it reads a served program's lines from."""
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from compiler.driver import compile_file
+from runtime.loop.offline import check_motion
+from runtime.view.replay import ReplayError, read_report
+from runtime.view.stage import source_html, timeline_html
+from tests.conftest import ROOT, SPEC_PATH, no_traceback, objcode, run_irl
+
+FIRST_HOUR = ROOT / "tests" / "motion_check" / "first_hour.irl"
+
+
+def test_the_trace_is_the_planned_motion_and_marks_refused_moves():
+    """The paths drawn are the setpoints of irl check's run: every 5 ms, within the axis
+    limits, each sample of a move; a refused move is the PTP move standing in for it, on
+    the refused move's line."""
+    result = compile_file(FIRST_HOUR)
+    outcome = check_motion(result.program, result.spec, trace=True)
+    trace = outcome.trace
+    assert len(trace.times) == len(trace.joints) == len(trace.move) > 100
+    steps = {round(b - a, 6) for a, b in zip(trace.times, trace.times[1:])}
+    assert steps == {0.005}
+    for joints in trace.joints[::25]:
+        for axis, v in zip(result.spec.axes, joints):
+            assert axis.min - 1e-9 <= v <= axis.max + 1e-9
+    assert trace.move == sorted(trace.move) and trace.move[-1] == len(trace.records)
+    refused_lines = {f.line for f in outcome.findings if f.kind == "move"}
+    assert trace.stand_in and {trace.records[k - 1].line for k in trace.stand_in} <= refused_lines
+    assert all(trace.records[k - 1].kind == "ptp" for k in trace.stand_in)
+    # the same outcome as irl check's own run (the trace only adds what it saw)
+    plain = check_motion(result.program, result.spec)
+    assert [(f.line, f.message) for f in plain.findings] == [(f.line, f.message) for f in outcome.findings]
+    assert plain.cycle_time == pytest.approx(outcome.cycle_time, abs=1e-9)
+
+
+def test_a_report_read_back_for_replay(tmp_path):
+    report = tmp_path / "test.csv"
+    done = run_irl("run", "programs/test.irl", "--report", report, "--report-columns", "+move,io")
+    assert done.returncode == 0, done.stderr
+    spec_axes = ["A1", "A2", "A3", "A4", "A5", "A6"]
+    rec = read_report(report, spec_axes)
+    assert len(rec.times) == len(rec.joints) == len(rec.lines) > 1000
+    assert [p[1].split("/")[0] for p in rec.phases][:2] == ["Calibrate Offsets", "Initialization Sequence"]
+    assert rec.phases[-1][1].startswith("Stop Robot")
+    assert {4, 5, 6} <= set(rec.lines)
+    assert rec.joints[-1] == pytest.approx((45.0, -45.0, 45.0, 0.0, 0.0, 0.0), abs=1e-3)
+    assert rec.inputs is not None and len(rec.inputs[0]) == 16
+
+
+@pytest.mark.parametrize("text, said", [
+    ("", "empty"),
+    ("time,state,sens_pos_A1\n", "no column sens_pos_A2"),
+    ("time,state," + ",".join(f"sens_pos_A{i}" for i in range(1, 7)) + "\n", "no rows"),
+    ("time,state," + ",".join(f"sens_pos_A{i}" for i in range(1, 7)) + "\n0.01,Move Robot,1,2,x,4,5,6\n",
+     "line 2"),
+])
+def test_a_bad_report_is_said(tmp_path, text, said):
+    path = tmp_path / "bad.csv"
+    path.write_text(text)
+    with pytest.raises(ReplayError, match=said):
+        read_report(path, ["A1", "A2", "A3", "A4", "A5", "A6"])
+
+
+@pytest.mark.parametrize("args, said", [
+    ([], "give a file"),
+    (["programs/test.irl", "--endpoint", "tcp://127.0.0.1:1"], "one of the two"),
+    (["README.md"], "expected a program"),
+    (["nothing.irl"], "no such file"),
+    (["programs/lola15.toml"], "expected a program"),
+    (["--endpoint", "tcp://127.0.0.1:1", "--cell-scenario", "programs/cell.toml"], "not a live view"),
+    (["programs/test.irl", "--port", "0"], "--port 0"),
+])
+def test_usage_errors(args, said):
+    done = run_irl("view", *args)
+    no_traceback(done)
+    assert done.returncode == 2, done
+    assert said in done.stderr
+
+
+def test_a_report_needs_its_robot_and_a_bad_one_is_said(tmp_path):
+    bad = tmp_path / "r.csv"
+    bad.write_text("time,state\n")
+    done = run_irl("view", bad)
+    assert done.returncode == 2 and "--spec" in done.stderr
+    done = run_irl("view", bad, "--spec", SPEC_PATH)
+    no_traceback(done)
+    assert done.returncode == 2 and "not a report of this robot" in done.stderr
+
+
+def test_no_server_there_is_said():
+    done = run_irl("view", "--endpoint", "tcp://127.0.0.1:9", "--telemetry", "tcp://127.0.0.1:10")
+    no_traceback(done)
+    assert done.returncode == 2 and "no reply" in done.stderr
+
+
+def test_the_source_a_program_was_submitted_with(start_server):
+    """The ``source`` operation (protocol 2): the text sent with ``submit``, or nil."""
+    server = start_server()
+    client = server.client()
+    text = (ROOT / "programs" / "test.irl").read_text(encoding="utf-8")
+    with_text = client.request("submit", {"object": objcode(ROOT / "programs" / "test.irl"), "source": text})
+    without = client.request("submit", {"object": objcode(ROOT / "programs" / "test.irl")})
+    assert client.request("source", {"program": with_text["program"]})["source"] == text
+    assert client.request("source", {"program": without["program"]})["source"] is None
+    from runtime.client.client import ClientError
+
+    with pytest.raises(ClientError) as err:
+        client.request("source", {"program": 99})
+    assert err.value.code == "not_found"
+    hello = client.request("hello")
+    assert Path(hello["spec_file"]).resolve() == SPEC_PATH.resolve()
+
+
+def test_irl_submit_sends_the_source(start_server, tmp_path):
+    server = start_server()
+    done = run_irl("submit", "programs/test.irl", "--endpoint", server.endpoint)
+    assert done.returncode == 0, done.stderr
+    client = server.client()
+    assert "move ptp" in client.request("source", {"program": 1})["source"]
+
+
+def test_the_panel_pieces():
+    lines = [f"line {n}" for n in range(1, 41)]
+    page = source_html(lines, 30, "p.irl", {12: "#fcc"})
+    assert 'id="current-line"' in page and 'data-line="30"' in page and "line 30" in page
+    assert 'data-line="12"' not in page  # (out of the window around line 30)
+    assert "&lt;b&gt;" in source_html(["<b>"], 1)  # the program's text is escaped
+    bands = timeline_html([(0.0, "Start Robot"), (0.05, "Calibrate Offsets"), (0.35, "Initialization Sequence/Home"),
+                           (1.0, "Initialization Sequence/Check"), (9.0, "Move Robot")], 0.0, 20.0, 10.0)
+    assert bands.count('class="phase"') == 4  # the top-level phases, each once

@@ -1,0 +1,213 @@
+"""``irl view`` in a real browser: Debian's headless Chromium, driven by Playwright.
+
+Each test starts ``irl view`` as a user does (a process of its own, the URL it prints), opens
+the page, and judges it from screenshots of the 3D canvas and from the page's DOM: the arm
+is drawn (coloured pixels in the canvas), it moves when the slider moves (replay) and when
+the robot moves (live), and the marked source line follows the program. Without Chromium
+the tests are skipped, except where ``IRL_REQUIRE_BROWSER=1`` (CI, whose .ci/run installs
+it): there they fail.
+"""
+from __future__ import annotations
+
+import io
+import os
+import re
+import shutil
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+from tests.conftest import IRL, ROOT, SPEC_PATH, ServerProcess, free_port, objcode, run_irl, soft_deadline_spec
+
+CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser")
+if CHROMIUM is None:
+    if os.environ.get("IRL_REQUIRE_BROWSER") == "1":
+        pytest.fail("Chromium is needed here (IRL_REQUIRE_BROWSER=1): apt-get install chromium", pytrace=False)
+    pytest.skip("Chromium is not installed (apt-get install chromium)", allow_module_level=True)
+
+playwright = pytest.importorskip("playwright.sync_api")
+
+#: Chromium's flags for a headless run on a machine with no GPU and a closed network.
+FLAGS = ["--no-sandbox", "--disable-gpu", "--enable-unsafe-swiftshader", "--disable-background-networking",
+         "--disable-component-update", "--disable-sync", "--no-first-run", "--disable-dev-shm-usage"]
+LOAD = 60.0  # s: a page that takes longer has hung (not a timing assertion)
+
+
+@pytest.fixture(scope="module")
+def browser():
+    with playwright.sync_playwright() as p:
+        b = p.chromium.launch(executable_path=CHROMIUM, args=FLAGS)
+        yield b
+        b.close()
+
+
+class View:
+    """``irl view ARGS`` as a process, with the URL it printed."""
+
+    def __init__(self, *args):
+        self.proc = subprocess.Popen([*IRL, "view", *map(str, args), "--port", str(free_port())], cwd=ROOT,
+                                     stdin=subprocess.DEVNULL, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
+                                     text=True)
+        self.output = []
+        deadline = time.monotonic() + LOAD
+        self.url = None
+        while self.url is None:
+            line = self.proc.stdout.readline()
+            if not line:
+                pytest.fail(f"irl view ended ({self.proc.wait()}) before serving:\n{''.join(self.output)}")
+            self.output.append(line)
+            found = re.search(r"irl view: (http://127\.0\.0\.1:\d+/)", line)
+            if found:
+                self.url = found.group(1)
+            assert time.monotonic() < deadline, "".join(self.output)
+
+    def stop(self) -> int:
+        self.proc.send_signal(signal.SIGTERM)
+        try:
+            return self.proc.wait(15)
+        finally:
+            if self.proc.poll() is None:
+                self.proc.kill()
+
+
+#: A program that moves the arm for a few seconds, a line for each of its moves (run on
+#: the wall clock: live is the robot's own pace).
+MOVING = """program moving;
+system_specification "lola15_soft.spc";
+seq
+  move ptp joint(mainjoint(40, 0, -40, 0, 30, 0)) speed_ptp := 0.25;
+  move ptp joint(mainjoint(-40, 20, 20, 0, -30, 0)) speed_ptp := 0.25;
+  move ptp joint(mainjoint(0, -20, 40, 30, 45, 0)) speed_ptp := 0.25;
+endseq
+endprogram;
+"""
+
+
+def _open(browser, url: str):
+    page = browser.new_page(viewport={"width": 960, "height": 640})
+    page.goto(url)
+    page.wait_for_selector("text=Connected", timeout=LOAD * 1000)
+    # (the page's notices, e.g. that WebGL runs in software here, are drawn over the canvas)
+    page.add_style_tag(content="[role=alert], .mantine-Notifications-root, .mantine-Notification-root "
+                               "{ display: none !important; }")
+    return page
+
+
+def _canvas(page) -> "np.ndarray":
+    """The 3D canvas as RGB pixels."""
+    import numpy as np
+    from matplotlib.image import imread
+
+    png = page.locator("canvas").first.screenshot()
+    return (imread(io.BytesIO(png), format="png")[..., :3] * 255).astype(np.int16)
+
+
+def _arm_pixels(img) -> int:
+    """Pixels of the arm's colours (orange links, dark joints), not of the white ground and grey grid."""
+    r, g, b = img[..., 0], img[..., 1], img[..., 2]
+    orange = (r > 150) & (r - b > 60) & (g > 60)
+    return int(orange.sum())
+
+
+def _settle(page, seconds: float = 1.0) -> None:
+    page.wait_for_timeout(seconds * 1000)
+
+
+def _current_line(page) -> int | None:
+    found = page.query_selector("#current-line")
+    return int(found.get_attribute("data-line")) if found else None
+
+
+def _set_time(page, t: float) -> None:
+    box = page.get_by_role("textbox").or_(page.locator("input[type=number]")).last
+    box.fill(f"{t:g}")
+    box.press("Enter")
+
+
+def test_program_paths_and_the_arm(browser, tmp_path):
+    """A program: the arm drawn, its moves listed, picking a move marks its line; the slider moves the arm."""
+    view = View("programs/test.irl")
+    try:
+        page = _open(browser, view.url)
+        page.wait_for_selector(".irl-source", timeout=LOAD * 1000)
+        _settle(page, 2.0)
+        first = _canvas(page)
+        assert _arm_pixels(first) > 500, "no arm in the canvas"
+        assert "3 moves" in page.inner_text("body")
+        _set_time(page, 6.0)
+        _settle(page)
+        later = _canvas(page)
+        assert abs(later - first).sum(axis=2).astype(bool).sum() > 500, "the arm did not move with the slider"
+        assert _current_line(page) is not None
+    finally:
+        assert view.stop() == 0
+
+
+def test_replay_follows_the_slider(browser, tmp_path):
+    report = tmp_path / "test.csv"
+    done = run_irl("run", "programs/test.irl", "--report", report, "--report-columns", "+move")
+    assert done.returncode == 0, done.stderr
+    view = View(report, "--spec", SPEC_PATH)
+    try:
+        page = _open(browser, view.url)
+        page.wait_for_selector(".irl-timeline", timeout=LOAD * 1000)
+        _settle(page, 2.0)
+        shots, lines = [], []
+        for t in (0.5, 12.0, 20.0):
+            _set_time(page, t)
+            _settle(page)
+            shots.append(_canvas(page))
+            lines.append(page.inner_text("body"))
+        assert _arm_pixels(shots[0]) > 500
+        assert abs(shots[1] - shots[0]).sum(axis=2).astype(bool).sum() > 500, "the arm did not follow the slider"
+        assert "Calibrate" in lines[0] or "Start" in lines[0]
+        assert "Move Robot" in lines[1]
+    finally:
+        assert view.stop() == 0
+
+
+def test_live_follows_the_robot(browser, tmp_path):
+    spec = soft_deadline_spec(tmp_path)
+    server = ServerProcess(tmp_path / "server", tmp_path / "state", sim_clock=False, spec=spec).start()
+    view = None
+    try:
+        view = View("--endpoint", server.endpoint, "--telemetry", server.telemetry)
+        page = _open(browser, view.url)
+        page.wait_for_selector("text=live", timeout=LOAD * 1000)
+        _settle(page, 1.5)
+        before = _canvas(page)
+        assert _arm_pixels(before) > 500
+        client = server.client()
+        program = tmp_path / "moving.irl"
+        program.write_text(MOVING, encoding="utf-8")
+        source = MOVING
+        job = client.request("submit", {"object": objcode(program), "name": "moving.irl",
+                                        "source": source})["program"]
+        lines, moved = set(), 0
+        deadline = time.monotonic() + LOAD
+        shot = time.monotonic()
+        while time.monotonic() < deadline:
+            line = _current_line(page)
+            if line:
+                lines.add(line)
+            if time.monotonic() > shot:
+                now = _canvas(page)
+                moved = max(moved, int(abs(now - before).sum(axis=2).astype(bool).sum()))
+                shot = time.monotonic() + 1.0
+            if client.request("status", {"program": job})["state"] not in ("queued", "running"):
+                break
+            _settle(page, 0.1)
+        assert moved > 500, "the arm did not move with the robot"
+        assert len(lines) >= 2, f"the marked line did not follow the program: {lines}\n{page.inner_text('body')}"
+        program_lines = source.splitlines()
+        assert all(program_lines[n - 1].strip().startswith("move") for n in lines), lines
+        server.stop()
+        page.wait_for_selector("text=connection lost", timeout=LOAD * 1000)
+    finally:
+        if view is not None:
+            assert view.stop() == 0
+        server.stop()

@@ -129,20 +129,27 @@ def _set_time(page, t: float) -> None:
 
 
 def test_program_paths_and_the_arm(browser, tmp_path):
-    """A program: the arm drawn, its moves listed, picking a move marks its line; the slider moves the arm."""
-    view = View("programs/test.irl")
+    """A program (a new user's first one, with moves the robot would refuse): the arm drawn,
+    the refused moves listed with their lines, a move picked from the list marks its line
+    and says why it is refused, and the slider moves the arm along the program."""
+    view = View("tests/motion_check/first_hour.irl")
     try:
         page = _open(browser, view.url)
         page.wait_for_selector(".irl-source", timeout=LOAD * 1000)
         _settle(page, 2.0)
         first = _canvas(page)
         assert _arm_pixels(first) > 500, "no arm in the canvas"
-        assert "3 moves" in page.inner_text("body")
-        _set_time(page, 6.0)
+        assert "20 moves" in page.inner_text("body") and "5 refused" in page.inner_text("body")
+        refused = {int(e.get_attribute("data-line")) for e in page.query_selector_all(".irl-refused [data-line]")}
+        assert refused == {16, 19, 23, 29, 33}
+        page.get_by_role("textbox", name="move").or_(page.get_by_label("move")).first.click()
+        page.get_by_role("option", name="2: line 16, ptp (refused)").click()
+        page.wait_for_selector("#current-line[data-line='16']", timeout=LOAD * 1000)
+        assert "refused" in page.inner_text("body")
+        _set_time(page, 8.0)
         _settle(page)
         later = _canvas(page)
         assert abs(later - first).sum(axis=2).astype(bool).sum() > 500, "the arm did not move with the slider"
-        assert _current_line(page) is not None
     finally:
         assert view.stop() == 0
 

@@ -19,6 +19,7 @@ from compiler.geometry import rpy_to_quat
 from runtime.loop.components.report import tcp_of
 from runtime.motion.moves import Frames
 from runtime.motion.urdf import urdf_text
+from runtime.timing import SETPOINT_PERIOD  # the slider's step: a setpoint of a program's trace
 
 #: The address the page is served on: this machine only (docs/runtime.md says how to reach
 #: it from another one).
@@ -28,7 +29,7 @@ DEFAULT_PORT = 8765
 #: Lines of source the panel shows around the current line.
 SOURCE_WINDOW = 15
 
-MM = 0.001  # the scene's metres per mm
+MM = 1 / 1000  # the scene's metres per mm
 
 
 class Stage:
@@ -193,8 +194,8 @@ class Player:
     FRAME = 1.0 / 30.0  # s between the frames shown while playing
 
     def __init__(self, gui, start: float, end: float, on_time):
-        self.start, self.end, self.on_time = start, max(end, start + 1e-3), on_time
-        self.slider = gui.add_slider("time (s)", min=round(start, 3), max=round(self.end, 3), step=0.005,
+        self.start, self.end, self.on_time = start, max(end, start + SETPOINT_PERIOD), on_time
+        self.slider = gui.add_slider("time (s)", min=round(start, 3), max=round(self.end, 3), step=SETPOINT_PERIOD,
                                      initial_value=round(start, 3))
         self.button = gui.add_button("Play", hint="play from the slider's time at the chosen speed")
         self.rate = gui.add_dropdown("speed", self.RATES, initial_value="1x")

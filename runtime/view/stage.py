@@ -46,8 +46,8 @@ class Stage:
                                         show_share_button=False, brand_color=(230, 120, 20))
         self.server.scene.set_up_direction("+z")
         reach = sum(abs(a.dh.a) + abs(a.dh.d) for a in spec.main_axes if a.dh is not None) * MM or 1.0
-        self.server.initial_camera.position = (1.3 * reach, -1.3 * reach, 0.9 * reach)
-        self.server.initial_camera.look_at = (0.25 * reach, 0.0, 0.3 * reach)
+        self.server.initial_camera.position = (0.95 * reach, -0.95 * reach, 0.7 * reach)
+        self.server.initial_camera.look_at = (0.3 * reach, 0.0, 0.3 * reach)
         self.title = title
         self.lock = threading.Lock()  # the views' threads and viser's callbacks pose the arm one at a time
         urdf = yourdfpy.URDF.load(io.StringIO(urdf_text(spec)))

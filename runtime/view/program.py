@@ -45,8 +45,8 @@ class ProgramView:
         self.points = stage.tcp_points(self.joints, self.frames)
         self.selected: int | None = None
         self.reasons = self._reasons()
-        self.markers: list = []
-        self.labels: list = []
+        self.marked: list[int] = []  # the moves with a marker, in the markers' order
+        self.labels: list = []  # per move, its label (None: not made)
         self._draw()
         self._panel()
         self.show_time(self.times[0] if self.times else 0.0)
@@ -70,24 +70,51 @@ class ProgramView:
         return range(max(first - 1, 0), last + 1)
 
     def _draw(self) -> None:
+        """Every move's path as one set of line segments, every target as one batch of
+        markers (a software renderer draws hundreds of moves this way: one object each)."""
+        import numpy as np
+        import trimesh
+
         scene = self.stage.server.scene
-        self.spans = []
-        many = len(self.records) > LABELLED_MOVES
-        for k, record in enumerate(self.records, start=1):
-            samples = self._samples(k)
-            self.spans.append(samples)
+        self.spans = [self._samples(k) for k in range(1, len(self.records) + 1)]
+        self.labels = [None] * len(self.records)
+        segments, colours, ends, self.marked = [], [], [], []
+        for k, samples in enumerate(self.spans, start=1):
             if len(samples) < 2 or not self.points:
                 continue
-            colour = REFUSED_COLOUR if k in self.refused else KIND_COLOURS.get(record.kind, (90, 90, 90))
-            pts = [self.points[i] for i in samples]
-            scene.add_line_segments(f"/paths/move_{k}", points=[(a, b) for a, b in zip(pts, pts[1:])],
-                                    colors=colour, line_width=3.0 if k in self.refused else 2.0)
-            marker = scene.add_icosphere(f"/targets/move_{k}", radius=0.007, color=colour, position=pts[-1])
-            marker.on_click(lambda _event, k=k: self.select(k))
-            self.markers.append(marker)
-            text = f"{'refused: ' if k in self.refused else ''}line {record.line}"
-            self.labels.append(scene.add_label(f"/targets/move_{k}/label", text, font_screen_scale=0.7,
-                                               visible=not many or k in self.refused))
+            colour = self._colour(k)
+            pts = _thinned([self.points[i] for i in samples])
+            segments += zip(pts, pts[1:])
+            colours += [(colour, colour)] * (len(pts) - 1)
+            ends.append(pts[-1])
+            self.marked.append(k)
+        if not segments:
+            return
+        scene.add_line_segments("/paths", points=np.array(segments), colors=np.array(colours, dtype=np.uint8),
+                                line_width=2.5)
+        ball = trimesh.creation.icosphere(subdivisions=1, radius=0.008)
+        markers = scene.add_batched_meshes_simple(
+            "/targets", ball.vertices, ball.faces, batched_wxyzs=np.tile((1.0, 0.0, 0.0, 0.0), (len(ends), 1)),
+            batched_positions=np.array(ends), batched_colors=np.array([self._colour(k) for k in self.marked],
+                                                                      dtype=np.uint8), cast_shadow=False)
+        markers.on_click(lambda event: self._picked(event.instance_index))
+        many = len(self.records) > LABELLED_MOVES
+        for i, k in enumerate(self.marked):
+            if not many or k in self.refused:  # (a label is a page element: made only when shown)
+                self._label(k, ends[i])
+
+    def _colour(self, k: int) -> tuple:
+        return REFUSED_COLOUR if k in self.refused else KIND_COLOURS.get(self.records[k - 1].kind, (90, 90, 90))
+
+    def _picked(self, instance: int | None) -> None:
+        if instance is not None and 0 <= instance < len(self.marked):
+            self.select(self.marked[instance])
+
+    def _label(self, k: int, position) -> None:
+        """Label move ``k``'s target with its line."""
+        text = f"{'refused: ' if k in self.refused else ''}line {self.records[k - 1].line}"
+        self.labels[k - 1] = self.stage.server.scene.add_label(f"/labels/move_{k}", text, font_screen_scale=0.7,
+                                                               position=position)
 
     def _panel(self) -> None:
         gui = self.stage.server.gui
@@ -123,7 +150,10 @@ class ProgramView:
     def _labels(self) -> None:
         on = self.label_box.value
         for k, label in enumerate(self.labels, start=1):
-            label.visible = on or k in self.refused
+            if label is None and on and k in self.marked:
+                self._label(k, self.points[self.spans[k - 1][-1]])
+            elif label is not None:
+                label.visible = on or k in self.refused
 
     def select(self, k: int, from_list: bool = False) -> None:
         """Name move ``k`` (from 1), mark its path and line, and put the arm at its end."""
@@ -164,3 +194,37 @@ class ProgramView:
 
     def close(self) -> None:
         self.player.close()
+
+
+#: The most a drawn path departs from the planned one (m): the drawing keeps a sample only
+#: where leaving it out would move the path further (a software renderer draws a program of
+#: hundreds of moves from a few thousand segments instead of tens of thousands).
+DRAWN_TOLERANCE = 0.5 / 1000
+
+
+def _thinned(points: list) -> list:
+    """``points`` (a path) without the ones within :data:`DRAWN_TOLERANCE` of the path drawn
+    through the others (Ramer-Douglas-Peucker); the first and the last kept."""
+    import numpy as np
+
+    if len(points) <= 2:
+        return points
+    p = np.asarray(points, dtype=float)
+    keep = np.zeros(len(p), dtype=bool)
+    keep[0] = keep[-1] = True
+    stack = [(0, len(p) - 1)]
+    while stack:
+        a, b = stack.pop()
+        if b - a < 2:
+            continue
+        ab = p[b] - p[a]
+        ap = p[a + 1:b] - p[a]
+        length2 = float(ab @ ab)
+        t = np.clip(ap @ ab / length2, 0.0, 1.0) if length2 > 0.0 else np.zeros(len(ap))
+        d2 = ((ap - t[:, None] * ab) ** 2).sum(axis=1)
+        worst = int(d2.argmax())
+        if d2[worst] > DRAWN_TOLERANCE ** 2:
+            m = a + 1 + worst
+            keep[m] = True
+            stack += [(a, m), (m, b)]
+    return [points[i] for i in np.flatnonzero(keep)]

@@ -152,5 +152,5 @@ class IdleHost:
     def motion_done(self) -> bool:
         return True
 
-    def log(self, text: str, line: int) -> None:
+    def log(self, text: str, line: int, kind: str = "print") -> None:
         pass

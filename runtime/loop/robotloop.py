@@ -232,10 +232,10 @@ class RobotLoop:
             self.send({"kind": "event", "event": "state", "from": source, "to": target, "at": at, "t": t})
         lines = system.trajectory.log_lines
         while self._seen_log < len(lines):
-            at, line, text = lines[self._seen_log]
+            at, line, text, kind = lines[self._seen_log]
             self._seen_log += 1
-            self.send({"kind": "event", "event": "log", "program": self.job, "line": line, "text": text, "at": at,
-                       "t": t})
+            self.send({"kind": "event", "event": "log", "program": self.job, "line": line, "text": text,
+                       "log_kind": kind, "at": at, "t": t})
         self.send(self.snapshot().to_wire(), True)
 
     def snapshot(self) -> Snapshot:

@@ -14,6 +14,7 @@ from pathlib import Path
 from compiler.objcode import Program
 
 from runtime import accel
+from runtime.loop.batches import Events
 from runtime.loop.component import DataPort
 from runtime.loop.components.initialization import Initialization
 from runtime.loop.components.io import IoComponent, backend_of
@@ -98,7 +99,8 @@ class RobotSystem:
         self.trajectory.io = self.io
         self.report = Report(spec, p["sens_pos"], p["drive_cmd"], self.servo, lambda: self.supervisor.fsm.path(),
                              settings.report.period, history=lambda: self.supervisor.fsm.history,
-                             io=(self.io.inputs, self.io.outputs), settings=settings)
+                             io=(self.io.inputs, self.io.outputs), settings=settings,
+                             events=Events(self.trajectory, lambda: self.supervisor, self.safety))
         self.report.motion = self.trajectory.motion  # the move columns: the program's moves as they run
         self.report.frames_now = self.trajectory.frames_now  # the TCP of the move's tool, in its base
         if (options.cell is not None or options.fieldbus is not None) and "io" not in self.report.columns:
@@ -334,7 +336,8 @@ class RobotSystem:
             "fault": sup.fault,
             "stop": ({"category": self.safety.category, "reason": self.safety.stop_reason}
                      if self.safety.category is not None else None),
-            "log": [{"time": t, "line": line, "text": text} for t, line, text in self.trajectory.log_lines],
+            "log": [{"time": t, "line": line, "text": text, "kind": kind}
+                    for t, line, text, kind in self.trajectory.log_lines],
             "sim_time": round(end, 6),
             "wall_time": wall_time,
             "kernels": accel.DESCRIPTION,
@@ -379,7 +382,7 @@ class LogFeed:
                 return
             lines = self.trajectory.log_lines  # (load() makes a new list: read it each time)
             while self.seen < len(lines):
-                at, line, text = lines[self.seen]
+                at, line, text, _kind = lines[self.seen]
                 self.seen += 1
                 self.on_log(at, line, text)
 

@@ -195,6 +195,13 @@ TOPICS: tuple[Topic, ...] = (
 )
 
 
+def missing() -> str | None:
+    """What ``--record`` lacks (the mcap library), said with how to install it; None: nothing."""
+    from importlib.util import find_spec
+
+    return INSTALL if find_spec("mcap") is None else None
+
+
 def schema_text(name: str) -> bytes:
     """A schema as the bytes of its MCAP schema record."""
     return json.dumps(SCHEMAS[name], separators=(",", ":")).encode("utf-8")

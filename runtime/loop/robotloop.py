@@ -101,7 +101,7 @@ class RobotLoop:
         except ObjectCodeError as exc:
             raise ProtocolError("invalid_program", f"the object code is invalid: {exc}") from None
         try:
-            system.begin(program, m.report, settings=m.settings)
+            system.begin(program, m.report, settings=m.settings, record=m.record, job=m.job)
         except (ValueError, OSError) as exc:
             raise ProtocolError("refused", str(exc)) from None
         system.trajectory.override = m.override

@@ -79,6 +79,8 @@ class ServeOptions:
     cell: str | Path | None = None
     #: The file of the I/O on a PLC (--fieldbus), or None: read by the loop.
     fieldbus: str | Path | None = None
+    #: The directory of the programs' recordings (--record DIR: one MCAP file per program), or None.
+    record: str | Path | None = None
 
 
 INSECURE_FLAG = "--insecure-allow-remote-without-encryption"
@@ -154,7 +156,8 @@ class Server:
         self.controls = Controls()  # control's holder (protocol 2)
         self.link = LoopLink(self._on_loop)
         self.telemetry = Telemetry(self.link)
-        self.jobs = Jobs(state_dir / "reports" / session, self.link, self.telemetry.publish, self._reply)
+        self.jobs = Jobs(state_dir / "reports" / session, self.link, self.telemetry.publish, self._reply,
+                         Path(options.record) if options.record else None, session)
         self.router = self.connections = None
         loop_options = LoopOptions(seed=options.seed, realtime=not options.sim_clock, state_dir=state_dir,
                                    deadline_policy=options.deadline_policy, cell=options.cell,

@@ -143,6 +143,10 @@ class TcpOf:
         """x, y, z, roll, pitch, yaw of the TCP in the world frame (the spec's tool: None)."""
         return self._arm(self.kinematics.tool if frames is None else frames.tool).forward(joints)
 
+    def world_matrix(self, joints, frames) -> tuple:
+        """The same as a 4x4 homogeneous matrix (nested tuples, mm)."""
+        return self._arm(self.kinematics.tool if frames is None else frames.tool).forward_matrix(joints)
+
     def in_base(self, joints, frames, world: tuple | None = None) -> tuple:
         """The same in the move's base (``world``: :meth:`world` of the same joints and
         frames, when the caller has it already)."""

@@ -248,11 +248,12 @@ def cmd_submit(args, env) -> int:
                 common.say(env, json.dumps({"program": job, "queued": reply["queued"], "endpoint": args.endpoint}))
             return common.EXIT_OK
         final, shown = _wait(client, job, env, since, quiet=args.json)
-        from runtime.wire.protocol import JobState
+        from runtime.wire.protocol import REPORT_FILES, JobState
         if args.report:
             out = Path(args.report)
             client.download(job, "report", out)
-            client.download(job, "states", out.with_suffix(".states.csv"))
+            for which in REPORT_FILES[1:]:  # (OUT.states.csv, OUT.events.csv: irl plot reads them)
+                client.download(job, which, out.with_suffix(f".{which}.csv"))
             common.warn(env, f"report written to {out}")
         if args.json:
             common.say(env, json.dumps(final, default=str))

@@ -562,11 +562,12 @@ class Server:
         if job is None:
             raise ProtocolError("not_found", f"no program {args['program']}")
         which = args.get("file", "report")
-        if which not in ("report", "states"):
-            raise ProtocolError("bad_request", "report: file must be \"report\" or \"states\"")
+        if which not in protocol.REPORT_FILES:
+            raise ProtocolError("bad_request", "report: file must be " + " or ".join(f'"{f}"' for f in
+                                                                                  protocol.REPORT_FILES))
         if job.report is None:
             raise ProtocolError("not_found", f"program {job.id} is a reconfiguration: it has no {which} file")
-        path = job.report if which == "report" else job.report.with_suffix(".states.csv")
+        path = job.report if which == "report" else job.report.with_suffix(f".{which}.csv")
         offset = args.get("offset", 0)  # an int (not a bool): protocol.decode_request checked the type
         try:
             with open(path, "rb") as f:

@@ -144,7 +144,7 @@ class RobotSystem:
         ex.add("robot.write", robot.write, TICK, "act", component=robot)
         ex.add("report", self.report.update, self.report.period, "record", component=self.report)
         recorder = self.recorder
-        ex.add("record", recorder.update, RECORD_PERIOD, "record", enabled=lambda: recorder.recording,
+        ex.add("recording", recorder.update, RECORD_PERIOD, "record", enabled=lambda: recorder.recording,
                component=self.report)
         for component in (self.trajectory, self.init, self.report):  # a period is the executive's schedule
             settings.watch(component.name, "period", lambda period, c=component: self._set_period(c, period))

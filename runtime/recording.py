@@ -210,8 +210,10 @@ def schema_text(name: str) -> bytes:
 def recording_name(session: str, job: int, program: str) -> str:
     """The file name of a served program's recording (``irl serve --record DIR``): the
     server's session (its start time and process id, as its reports' directory), the
-    program's id and its name: ``20250101-120000-4242-program-3-pick_place.mcap``."""
-    safe = re.sub(r"[^A-Za-z0-9_.-]+", "_", program).strip("._")[:60] or "program"
+    program's id and its name (a file's name, as ``irl submit`` sends it, without its
+    ``.irl`` or ``.irlo``): ``20250101-120000-4242-program-3-pick_place.mcap``."""
+    stem = re.sub(r"\.irlo?$", "", program)
+    safe = re.sub(r"[^A-Za-z0-9_.-]+", "_", stem).strip("._")[:60] or "program"
     return f"{session}-program-{job}-{safe}.mcap"
 
 

@@ -353,5 +353,7 @@ def test_the_tables_name_every_schema_and_every_event_kind_a_level():
     assert all(level in LEVELS for level, _what in EVENTS.values())
     assert recording.recording_name("20250101-120000-42", 3, "pick place/ü") == \
         "20250101-120000-42-program-3-pick_place.mcap"
+    assert recording.recording_name("s", 4, "cell.irl").endswith("-program-4-cell.mcap")
+    assert recording.recording_name("s", 5, "../..").endswith("-program-5-program.mcap")
     markdown = recording.topics_markdown()
     assert all(f"`{t.name}`" in markdown for t in TOPICS)

@@ -157,7 +157,7 @@ class Server:
         self.link = LoopLink(self._on_loop)
         self.telemetry = Telemetry(self.link)
         self.jobs = Jobs(state_dir / "reports" / session, self.link, self.telemetry.publish, self._reply,
-                         Path(options.record) if options.record else None, session)
+                         Path(os.path.abspath(options.record)) if options.record else None, session)
         self.router = self.connections = None
         loop_options = LoopOptions(seed=options.seed, realtime=not options.sim_clock, state_dir=state_dir,
                                    deadline_policy=options.deadline_policy, cell=options.cell,

@@ -125,7 +125,7 @@ class RecordWriter(BatchWriter):
         from contextlib import ExitStack
 
         stack = ExitStack()
-        stream = self.stream = stack.enter_context(open(self.path, "wb"))
+        stream = self.stream = stack.enter_context(open(self.path, "wb"))  # (closed after _finish: pushed later)
         try:
             mcap = self.mcap = Writer(stream, chunk_size=CHUNK_SIZE, compression=CompressionType.ZSTD)
             mcap.start(profile=PROFILE, library=f"irl {_version()}")
@@ -141,15 +141,21 @@ class RecordWriter(BatchWriter):
         except BaseException:
             stack.close()
             raise
-        stack.callback(self._finish, stream)
+        stack.push(self._finish)
         return stack
 
-    def _finish(self, stream) -> None:
-        """The last chunk, the summary and the footer (an error of the batches leaves the
-        file without them: still readable to its last whole chunk)."""
-        if self.error is None:
+    def _finish(self, kind, _exc, _tb) -> bool:
+        """The last chunk, the summary and the footer, also after a batch that failed (the
+        file then opens whole, its messages up to the failure); when even that cannot be
+        written, the file is still read to its last whole chunk, and the first error is
+        the one said."""
+        try:
             self.mcap.finish()
-            stream.flush()
+            self.stream.flush()
+        except Exception:  # noqa: BLE001 - (raised when nothing else was)
+            if kind is None:
+                raise
+        return False
 
     def write(self, rows: list, transitions=(), events=()) -> None:
         """A batch: its rows, transitions and events in time order (a transition before the

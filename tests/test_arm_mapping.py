@@ -127,9 +127,10 @@ def test_the_mounting_moves_every_pose_into_the_world():
 BASE = SPEC_PATH.read_text()
 
 
-def spec_with(axis_keys: dict | None = None, kinematics: str | None = None):
-    """The Lola 15 with keys added to axis n's table ({n: 'key = value'}) and a [kinematics]."""
-    text = BASE
+def spec_with(axis_keys: dict | None = None, kinematics: str | None = None, tables: str = ""):
+    """The Lola 15 with keys added to axis n's table ({n: 'key = value'}), a [kinematics]
+    and more tables at the end (``tables``: [[tool]], [[frame]])."""
+    text = BASE + tables
     parts = text.split("[[axis]]")
     for n, line in (axis_keys or {}).items():
         parts[n] = parts[n].replace('kind = "revolute"', f'kind = "revolute"\n{line}', 1)

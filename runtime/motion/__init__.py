@@ -14,7 +14,8 @@
   joint-space ones (a lin or circ move's, :class:`runtime.motion.cartesian.PathStop`,
   is beside the move's stream).
 * :mod:`runtime.motion.kinematics` -- forward and inverse kinematics of the
-  specification's DH arm (spherical wrist, eight configurations).
+  specification's DH arm (spherical wrist, eight configurations); :mod:`runtime.motion.urdf`
+  -- the arm as URDF (``irl urdf``) and its links' transforms at given joint values.
 * :mod:`runtime.motion.rotation`, :mod:`runtime.motion.paths`,
   :mod:`runtime.motion.pathcheck`, :mod:`runtime.motion.cartesian` -- lin and circ moves:
   quaternions and slerp, the paths and their timing, the whole-path check, and
@@ -47,6 +48,7 @@ MODULES = (
     "planner",  # PtpInput, the trapezoidal PTP planner
     "jerk",  # jerk-limited profiles and the jerk-limited PTP planner
     "kinematics",  # forward and inverse kinematics
+    "urdf",  # the arm as URDF, and its links' transforms
     "rotation",  # quaternions, slerp
     "pathtiming",  # a path's timing within the joints' limits
     "interpolator",  # 5 ms setpoints to 1 ms references

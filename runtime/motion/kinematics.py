@@ -137,7 +137,9 @@ __all__ = [
     "WRIST_FLIP",
     "WRIST_TOL",
     "configuration_name",
+    "cos_sin_deg",
     "matrix_to_rpy",
+    "mul34",
     "rpy_to_matrix",
 ]
 
@@ -234,8 +236,9 @@ def _sign90(alpha: float) -> float:
     return 0.0
 
 
-def _cos_sin(alpha_deg: float) -> tuple[float, float]:
-    """cos and sin of an angle in degrees, exact for multiples of 90."""
+def cos_sin_deg(alpha_deg: float) -> tuple[float, float]:
+    """cos and sin of an angle in degrees, exact for multiples of 90 (a DH row's alpha;
+    the URDF's constant rotations, :mod:`runtime.motion.urdf`)."""
     a = alpha_deg % 360.0
     for m, cs in ((0.0, (1.0, 0.0)), (90.0, (0.0, 1.0)), (180.0, (-1.0, 0.0)), (270.0, (0.0, -1.0)),
                   (360.0, (1.0, 0.0))):
@@ -316,14 +319,14 @@ class Kinematics:
         (a1, al1, d1, o1), (a2, al2, d2, o2), (a3, al3, d3, o3), \
             (a4, al4, d4, o4), (a5, al5, d5, o5), (a6, al6, d6, o6) = self.dh
         # forward: per link (theta_offset rad, cos alpha, sin alpha, a, d)
-        self._links = tuple((off * _D2R, *_cos_sin(al), a, d) for a, al, d, off in self.dh)
+        self._links = tuple((off * _D2R, *cos_sin_deg(al), a, d) for a, al, d, off in self.dh)
         # the constant transform after Rz(theta6): Tz(d6) Tx(a6) Rx(alpha6) * tool
-        ca6, sa6 = _cos_sin(al6)
+        ca6, sa6 = cos_sin_deg(al6)
         flange = ((1.0, 0.0, 0.0, a6), (0.0, ca6, -sa6, 0.0), (0.0, sa6, ca6, d6))
         x, y, z, roll, pitch, yaw = tool
         rt = rpy_to_matrix(roll, pitch, yaw)
         tool_m = tuple(rt[i] + ((x, y, z)[i],) for i in range(3))
-        c = _mul34(flange, tool_m)
+        c = mul34(flange, tool_m)
         self._tool_m = tool_m
         self._tool_identity = tool == (0.0,) * 6
         self._tool_rot_identity = tool[3:] == (0.0,) * 3
@@ -538,9 +541,9 @@ class Kinematics:
         for (off, ca, sa, a, d), q in zip(self._links, self._angles(joints)):
             t = q * _D2R + off
             ct, st = cos(t), sin(t)
-            m = _mul34(m, ((ct, -st * ca, st * sa, a * ct), (st, ct * ca, -ct * sa, a * st), (0.0, sa, ca, d)))
+            m = mul34(m, ((ct, -st * ca, st * sa, a * ct), (st, ct * ca, -ct * sa, a * st), (0.0, sa, ca, d)))
             out.append(m + ((0.0, 0.0, 0.0, 1.0),))
-        out.append(_mul34(m, self._tool_m) + ((0.0, 0.0, 0.0, 1.0),))
+        out.append(mul34(m, self._tool_m) + ((0.0, 0.0, 0.0, 1.0),))
         return out
 
     def jacobian(self, joints: Sequence[float]) -> tuple:
@@ -969,12 +972,16 @@ class Kinematics:
         sols.extend((c, (q1, q2, q3, q4, q5, q6), _SINGULAR, msg, dist) for c in ids)
 
 
-def _mul34(a, b) -> tuple:
-    """Product of two 3x4 homogeneous matrices (the implicit last row 0 0 0 1)."""
-    return tuple(
-        tuple(a[i][0] * b[0][j] + a[i][1] * b[1][j] + a[i][2] * b[2][j] + (a[i][3] if j == 3 else 0.0)
-              for j in range(4))
-        for i in range(3))
+def mul34(a, b) -> tuple:
+    """Product of two 3x4 homogeneous matrices, nested tuples (the implicit last row 0 0 0
+    1); a 4x4 ``a`` gives the same 3x4."""
+    (b00, b01, b02, b03), (b10, b11, b12, b13), (b20, b21, b22, b23) = b[0], b[1], b[2]
+    out = []
+    for i in range(3):
+        a0, a1, a2, a3 = a[i]
+        out.append((a0 * b00 + a1 * b10 + a2 * b20 + 0.0, a0 * b01 + a1 * b11 + a2 * b21 + 0.0,
+                    a0 * b02 + a1 * b12 + a2 * b22 + 0.0, a0 * b03 + a1 * b13 + a2 * b23 + a3))
+    return tuple(out)
 
 
 def _main(joints) -> tuple:

@@ -5,8 +5,9 @@ A recording is an `MCAP <https://mcap.dev>`_ file of JSON messages, each channel
 Schema, so that Foxglove and Lichtblick open it without ROS. :data:`TOPICS` is the table of
 its topics (the schema, the rate, what each message holds, in which units); :data:`SCHEMAS`
 holds the schemas: Foxglove's own where one exists (``foxglove.FrameTransforms``,
-``foxglove.PoseInFrame``, ``foxglove.Log``: their fields and units, meters and unit
-quaternions, as Foxglove's SDK declares them), ours (``irl.*``) for the rest.
+``foxglove.PoseInFrame``, ``foxglove.Log``, ``foxglove.RobotDescription``: their fields and
+units, meters and unit quaternions, as Foxglove's SDK declares them), ours (``irl.*``) for
+the rest.
 :data:`EVENTS` is the table of the events the loop records (in a recording's ``/log``, in the
 report's events file): each kind and its level. The loop's writer
 (:mod:`runtime.loop.components.recorder`) writes by these tables, docs/runtime.md's tables are
@@ -130,6 +131,12 @@ SCHEMAS: dict[str, dict] = {
          "name": _string("the event's kind (print, interrupt, fault, ...: docs/runtime.md)"),
          "file": _string("the program's source file of the line (empty when not known)"),
          "line": {"type": "integer", "minimum": 0, "description": "the program's source line (0: none)"}}),
+    "foxglove.RobotDescription": _object(
+        "foxglove.RobotDescription", "the arm as a robot description (its links posed by /tf)",
+        {"url": _string("where the description is (empty: it is embedded in data)"),
+         "format": _string("the description's format: urdf"),
+         "data": {"type": "string", "contentEncoding": "base64",
+                  "description": "the URDF of irl urdf, embedded (base64)"}}),
     "irl.JointState": _object(
         "irl.JointState", "the measured position and velocity of every axis, in the units of the report and the "
                           "language: deg and deg/s (mm and mm/s for a prismatic axis), not radians",
@@ -184,6 +191,8 @@ TOPICS: tuple[Topic, ...] = (
     Topic("/tf", "foxglove.FrameTransforms", "every 10 ms",
           "every link of the arm in its parent link, frame ids the link names of irl urdf's URDF (world, base_link, "
           "link_1 ... link_6, flange, the tools and frames), m and unit quaternions"),
+    Topic("/robot_description", "foxglove.RobotDescription", "once, at the start",
+          "the arm's URDF (irl urdf's, embedded): a 3D panel that reads it shows the arm without a file"),
     Topic("/frames", "irl.Frames", "at the start and on a change",
           "the active tool's and base's names and poses (use tool, use base)"),
     Topic("/io", "irl.DigitalIO", "at the start and on a change", "every digital input and output"),

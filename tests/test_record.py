@@ -170,6 +170,38 @@ def test_a_print_is_an_info_log_at_its_line_and_time_and_the_lines_are_the_progr
     assert len(io) == 1 and io[0]["inputs"] == [False] * SPEC.inputs and len(io[0]["outputs"]) == SPEC.outputs
 
 
+def test_the_links_are_the_urdfs_and_compose_to_the_forward_kinematics(configurations):
+    """/tf: every link of irl urdf's URDF in its parent, every row; composed from world they
+    give the kinematics' flange and TCP at the recorded joints; /robot_description embeds
+    that URDF."""
+    import base64
+    import xml.etree.ElementTree as ET
+
+    from runtime.motion.kinematics import Kinematics
+    from runtime.motion.urdf import urdf_text
+
+    urdf = urdf_text(SPEC)
+    (_l, _p, description), = configurations["topics"]["/robot_description"]
+    assert description["format"] == "urdf" and base64.b64decode(description["data"]).decode() == urdf
+    links = {link.get("name") for link in ET.fromstring(urdf).iter("link")}
+    joints = {(j.find("parent").get("link"), j.find("child").get("link")) for j in ET.fromstring(urdf).iter("joint")}
+    tf = configurations["topics"]["/tf"]
+    assert len(tf) == len(configurations["topics"]["/joint_states"])
+    for _l, _p, m in tf[:3]:
+        assert {(t["parent_frame_id"], t["child_frame_id"]) for t in m["transforms"]} == joints
+    r = read_recording(configurations["record"], links=True)
+    assert set(r["links"]) | {"world"} == links
+    kinematics = Kinematics(SPEC)
+    for k in (0, len(r["times"]) // 2, len(r["times"]) - 1):
+        def world(link: str) -> np.ndarray:
+            parent, m = r["links"][link]
+            return m[k] if parent == "world" else world(parent) @ m[k]
+        frames = kinematics.frames(r["joints"][k])
+        assert np.allclose(world("flange"), np.array(frames[5]), atol=1e-5)
+        assert np.allclose(world("tcp"), np.array(kinematics.forward_matrix(r["joints"][k])), atol=1e-5)
+        assert np.allclose(world("tcp")[:3, 3], r["tcp"][k], atol=1e-5)
+
+
 def test_read_recording_gives_arrays_in_the_languages_units(configurations):
     r = read_recording(configurations["record"])
     assert r["complete"] and r["metadata"]["program"] == "configurations" and r["metadata"]["robot"] == SPEC.name

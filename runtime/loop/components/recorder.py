@@ -9,8 +9,9 @@ the measured positions and velocities, the move's tool and base, the digital inp
 outputs, the source line. Every 100 ms the batch goes, with the supervisor's transitions and
 the cycle's events, to the writer thread (:class:`RecordWriter`) as the report's rows do
 (:mod:`runtime.loop.batches`: one mechanism); the thread computes the tool centre point and
-every link's transform (forward kinematics), formats the JSON messages and writes them in
-compressed chunks. The loop does no I/O, no JSON and no kinematics for it.
+every link's transform (forward kinematics; the links of the arm's URDF,
+:mod:`runtime.motion.urdf`), formats the JSON messages and writes them in compressed
+chunks. The loop does no I/O, no JSON and no kinematics for it.
 
 A crash loses at most the chunk being filled (:data:`CHUNK_SIZE` bytes of messages, about
 a second of robot time): an MCAP file without its footer is still read, to its last whole
@@ -18,6 +19,7 @@ chunk, by mcap's non-seeking reader and by :func:`runtime.recording.read_recordi
 """
 from __future__ import annotations
 
+import base64
 import heapq
 import json
 import time
@@ -28,6 +30,7 @@ from compiler.geometry import rpy_to_quat
 
 from runtime.loop.batches import Batches, BatchWriter, Events
 from runtime.motion.rotation import matrix_to_quat
+from runtime.motion.urdf import link_frames, urdf_text
 from runtime.recording import (FORMAT, INSTALL, MESSAGE_ENCODING, METADATA, PROFILE, SCHEMA_ENCODING, TOPICS,
                                level_of, schema_text)
 from runtime.timing import RECORD_PERIOD
@@ -99,11 +102,15 @@ class RecordWriter(BatchWriter):
         self.program = program
         self.main = len(spec.main_axes)
         self.names = [a.name for a in spec.axes]
+        self.named_frames = tuple(spec.named_frames)  # the URDF's tool_ and frame_ links
+        self.urdf, links = self._urdf(spec)  # (the URDF: sent once, then None)
+        self.links = self.urdf is not None  # /tf: every link of the URDF
         self.metadata = {"format": str(FORMAT), "program": program.name if program is not None else "",
                          "source": program.source if program is not None else "", "robot": spec.name,
                          "spec_hash": spec.hash, "job": "" if job is None else str(job), "clock": clock,
                          "axes": json.dumps(self.names), "units": json.dumps([a.unit for a in spec.axes]),
-                         "period": repr(RECORD_PERIOD), "recorded": time.strftime("%Y-%m-%dT%H:%M:%S%z")}
+                         "period": repr(RECORD_PERIOD), "recorded": time.strftime("%Y-%m-%dT%H:%M:%S%z"),
+                         "links": links}
         self.mcap = self.stream = None
         self.channels: dict[str, int] = {}
         self.last: dict[str, object] = {}  # per change-only topic: what it last said
@@ -113,6 +120,19 @@ class RecordWriter(BatchWriter):
         self.joint_format = ('{"timestamp":{"sec":%d,"nsec":%d},"name":' + json.dumps(self.names)
                              + ',"position":[' + numbers + '],"velocity":[' + numbers + ']}')
         self.tcp_format = ('{"timestamp":{"sec":%d,"nsec":%d},"frame_id":"world","pose":' + _POSE_FORMAT + '}')
+        self.link_formats: dict[tuple[str, str], str] = {}  # per (parent, child): its transform's format
+
+    def _urdf(self, spec) -> tuple[str | None, str]:
+        """The arm's URDF (None when it has none) and what the recording's links are: the
+        URDF's, or why there are none (the metadata's ``links``)."""
+        if self.tcp is None:
+            return None, "none: this robot's kinematics give no links"
+        try:
+            text = urdf_text(spec)
+            link_frames(self.tcp.kinematics, [0.0] * self.main, self.named_frames)
+        except ValueError as exc:  # (names a URDF cannot carry): the rest is recorded
+            return None, f"none: {exc}"
+        return text, "the links of irl urdf's URDF"
 
     # ---- the file ---------------------------------------------------------------------------
     def opened(self):
@@ -167,6 +187,11 @@ class RecordWriter(BatchWriter):
         add = self.mcap.add_message
         channels = self.channels
         for at, kind, item in items:
+            if self.urdf is not None:  # once, with the first item
+                ns = round(at * 1e9)
+                add(channels["/robot_description"], ns, _json({"url": "", "format": "urdf", "data": base64.b64encode(
+                    self.urdf.encode()).decode()}), ns)
+                self.urdf = None
             try:
                 messages = (self._transition if kind == 0 else self._row if kind == 1 else self._event)(item)
             except Exception:  # noqa: BLE001 - a bad item is left out, counted; the others are written
@@ -203,6 +228,8 @@ class RecordWriter(BatchWriter):
             w, x, y, z = self._continuous("/tcp", matrix_to_quat(m))
             out.append(("/tcp", (self.tcp_format % (sec, nsec, m[0][3] / 1000.0, m[1][3] / 1000.0, m[2][3] / 1000.0,
                                                     x, y, z, w)).encode()))
+            if self.links:
+                out.append(("/tf", self._links(sec, nsec, positions[:self.main])))
         out += self._phase(t, state)
         if frames != self.last.get("/frames"):
             self.last["/frames"] = frames
@@ -219,7 +246,22 @@ class RecordWriter(BatchWriter):
             out.append(("/line", _json({"timestamp": _time(t), "line": line, "file": source[1]})))
         return out
 
-    def _continuous(self, key: str, q: tuple) -> tuple:
+    def _links(self, sec: int, nsec: int, joints) -> bytes:
+        """The /tf message: every link of the URDF in its parent (m, quaternions)."""
+        formats = self.link_formats
+        parts = []
+        for parent, child, m in link_frames(self.tcp.kinematics, joints, self.named_frames):
+            form = formats.get((parent, child))
+            if form is None:
+                form = formats[(parent, child)] = (
+                    '{"timestamp":{"sec":%d,"nsec":%d},"parent_frame_id":' + _escaped(parent) + ',"child_frame_id":'
+                    + _escaped(child) + ',"translation":{"x":%.9f,"y":%.9f,"z":%.9f},'
+                    '"rotation":{"x":%.9f,"y":%.9f,"z":%.9f,"w":%.9f}}')
+            w, x, y, z = self._continuous(("/tf", child), matrix_to_quat(m))
+            parts.append(form % (sec, nsec, m[0][3] / 1000.0, m[1][3] / 1000.0, m[2][3] / 1000.0, x, y, z, w))
+        return ('{"transforms":[' + ",".join(parts) + "]}").encode()
+
+    def _continuous(self, key, q: tuple) -> tuple:
         """``q`` or ``-q`` (the same rotation), whichever is nearer the last one of ``key``:
         consecutive messages never flip the sign (an interpolation between them takes the
         short way)."""
@@ -265,6 +307,11 @@ def _pose(values: tuple) -> dict:
     w, qx, qy, qz = rpy_to_quat(roll, pitch, yaw)
     return {"position": {"x": x / 1000.0, "y": y / 1000.0, "z": z / 1000.0},
             "orientation": {"x": qx, "y": qy, "z": qz, "w": w}}
+
+
+def _escaped(name: str) -> str:
+    """A name as a JSON string inside a %-format."""
+    return json.dumps(name).replace("%", "%%")
 
 
 def _json(message: dict) -> bytes:

@@ -19,7 +19,7 @@ from runtime.loop.component import DataPort
 from runtime.loop.components.initialization import Initialization
 from runtime.loop.components.io import IoComponent, backend_of
 from runtime.loop.components.recorder import Recorder
-from runtime.loop.components.report import Report
+from runtime.loop.components.report import Report, tcp_of
 from runtime.loop.components.robot_interface import RobotInterface
 from runtime.loop.components.safety import SafetySupervisor
 from runtime.loop.components.servo import ServoController
@@ -108,7 +108,7 @@ class RobotSystem:
         # the recording: its rows while the report records (its task runs only while a recording is open)
         self.recorder = Recorder(spec, p["sens_pos"], self.robot, self.trajectory, (self.io.inputs, self.io.outputs),
                                  lambda: self.supervisor.fsm.path(), lambda: self.supervisor.fsm.history,
-                                 Events(self.trajectory, lambda: self.supervisor, self.safety), self.report.tcp)
+                                 Events(self.trajectory, lambda: self.supervisor, self.safety), tcp_of(spec))
         if (options.cell is not None or options.fieldbus is not None) and "io" not in self.report.columns:
             self.report.columns = [*self.report.columns, "io"]  # the cell's I/O in every row
         self.executive = Executive(self.clock, TICK)

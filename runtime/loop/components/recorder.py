@@ -56,7 +56,7 @@ class Recorder:
         self.sens_pos, self.robot, self.trajectory = sens_pos, robot, trajectory
         self.inputs, self.outputs = io  # the io component's ports
         self.state_of = state_of  # callable -> the FSM's current state path
-        self.tcp = tcp  # runtime.loop.components.report.TcpOf, or None (kinematics not usable)
+        self.tcp = tcp  # runtime.loop.components.report.TcpOf (its writer's own), or None (kinematics not usable)
         self.period = RECORD_PERIOD
         self.batches = Batches(history, events)
         self._zeros = (0.0,) * len(spec.axes)
@@ -103,14 +103,14 @@ class RecordWriter(BatchWriter):
         self.main = len(spec.main_axes)
         self.names = [a.name for a in spec.axes]
         self.named_frames = tuple(spec.named_frames)  # the URDF's tool_ and frame_ links
-        self.urdf, links = self._urdf(spec)  # (the URDF: sent once, then None)
-        self.links = self.urdf is not None  # /tf: every link of the URDF
+        self.spec = spec
+        self.urdf: str | None = None  # the arm's URDF, until /robot_description has it (made by opened)
+        self.links = False  # /tf: every link of the URDF (when there is one)
         self.metadata = {"format": str(FORMAT), "program": program.name if program is not None else "",
                          "source": program.source if program is not None else "", "robot": spec.name,
                          "spec_hash": spec.hash, "job": "" if job is None else str(job), "clock": clock,
                          "axes": json.dumps(self.names), "units": json.dumps([a.unit for a in spec.axes]),
-                         "period": repr(RECORD_PERIOD), "recorded": time.strftime("%Y-%m-%dT%H:%M:%S%z"),
-                         "links": links}
+                         "period": repr(RECORD_PERIOD), "recorded": time.strftime("%Y-%m-%dT%H:%M:%S%z")}
         self.mcap = self.stream = None
         self.channels: dict[str, int] = {}
         self.last: dict[str, object] = {}  # per change-only topic: what it last said
@@ -122,17 +122,19 @@ class RecordWriter(BatchWriter):
         self.tcp_format = ('{"timestamp":{"sec":%d,"nsec":%d},"frame_id":"world","pose":' + _POSE_FORMAT + '}')
         self.link_formats: dict[tuple[str, str], str] = {}  # per (parent, child): its transform's format
 
-    def _urdf(self, spec) -> tuple[str | None, str]:
-        """The arm's URDF (None when it has none) and what the recording's links are: the
-        URDF's, or why there are none (the metadata's ``links``)."""
+    def _urdf(self) -> str:
+        """Make the arm's URDF (:attr:`urdf`, :attr:`links`); what the recording's links
+        are (the metadata's ``links``): the URDF's, or why there are none."""
         if self.tcp is None:
-            return None, "none: this robot's kinematics give no links"
+            return "none: this robot's kinematics give no links"
         try:
-            text = urdf_text(spec)
+            self.urdf = urdf_text(self.spec)
             link_frames(self.tcp.kinematics, [0.0] * self.main, self.named_frames)
         except ValueError as exc:  # (names a URDF cannot carry): the rest is recorded
-            return None, f"none: {exc}"
-        return text, "the links of irl urdf's URDF"
+            self.urdf = None
+            return f"none: {exc}"
+        self.links = True
+        return "the links of irl urdf's URDF"
 
     # ---- the file ---------------------------------------------------------------------------
     def opened(self):
@@ -145,7 +147,7 @@ class RecordWriter(BatchWriter):
         from contextlib import ExitStack
 
         stack = ExitStack()
-        stream = self.stream = stack.enter_context(open(self.path, "wb"))  # (closed after _finish: pushed later)
+        stream = self.stream = stack.enter_context(open(self.path, "wb"))  # (closed after _finish, pushed later)
         try:
             mcap = self.mcap = Writer(stream, chunk_size=CHUNK_SIZE, compression=CompressionType.ZSTD)
             mcap.start(profile=PROFILE, library=f"irl {_version()}")
@@ -156,6 +158,7 @@ class RecordWriter(BatchWriter):
                                                                  schema_text(topic.schema))
                 self.channels[topic.name] = mcap.register_channel(topic.name, MESSAGE_ENCODING,
                                                                   schemas[topic.schema])
+            self.metadata["links"] = self._urdf()
             mcap.add_metadata(METADATA, self.metadata)
             stream.flush()
         except BaseException:
@@ -181,9 +184,8 @@ class RecordWriter(BatchWriter):
         """A batch: its rows, transitions and events in time order (a transition before the
         row of its tick), each as its messages; an item that cannot be written is counted in
         ``bad_rows``, the others are written."""
-        key = _order
         items = heapq.merge(((t[0], 0, t) for t in transitions), ((r[0], 1, r) for r in rows),
-                            ((e[0], 2, e) for e in events), key=key)
+                            ((e[0], 2, e) for e in events), key=_order)
         add = self.mcap.add_message
         channels = self.channels
         for at, kind, item in items:

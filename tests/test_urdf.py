@@ -9,6 +9,8 @@
 * ``link_frames`` composed from ``world`` gives ``Kinematics.frames`` (every DH frame,
   the flange, the TCP), and it names the URDF's joints, parents before children.
 * Names: the axes name the joints, a collision is refused, the robot's name is escaped.
+* ``irl urdf``: to standard output or a file; a specification whose arm the kinematics
+  cannot take is exit 1 with the reason, a missing file exit 2.
 """
 from __future__ import annotations
 
@@ -28,7 +30,7 @@ from runtime.motion.kinematics import Kinematics
 from runtime.motion.urdf import EFFORT, joint_positions, link_frames, urdf_joints, urdf_text, world_frames
 from test_arm_mapping import spec_with
 
-from conftest import PROGRAMS, SPEC_PATH
+from conftest import PROGRAMS, SPEC_PATH, run_cli
 
 #: A named tool and a named frame, added to every specification tested.
 NAMED = """
@@ -219,3 +221,44 @@ def test_the_table_is_built_once_per_arm():
     assert urdf_joints(kin, spec.named_frames) is urdf_joints(kin, spec.named_frames)
     with pytest.raises(ValueError, match="six joint values"):
         link_frames(kin, (0.0,) * 5)
+
+
+# ---- irl urdf ------------------------------------------------------------------------------
+
+def test_irl_urdf_writes_the_file_or_standard_output(tmp_path):
+    out = tmp_path / "lola.urdf"
+    code, stdout, stderr = run_cli("urdf", SPEC_PATH, "-o", out)
+    assert (code, stderr) == (0, "") and f"-> {out}" in stdout
+    code, printed, stderr = run_cli("urdf", SPEC_PATH)
+    assert (code, stderr) == (0, "")
+    assert out.read_text(encoding="utf-8") == printed == urdf_text(parse_spec(SPEC_PATH.read_text(), str(SPEC_PATH)))
+    assert yourdfpy.URDF.load(str(out), load_meshes=False).actuated_joint_names == [f"A{i}" for i in range(1, 7)]
+
+
+@pytest.mark.parametrize("changes, message", [
+    ([('name = "A6"', 'name = "A6"\ngroup = "additional"')],
+     "no URDF of this arm: the kinematics needs six main axes, the specification has 5"),
+    ([('kind = "revolute"\nmin = -350.0', 'kind = "prismatic"\nmin = -350.0'), ("gear_ratio = 60.0", "gear_ratio = 1.0")],
+     "no URDF of this arm: axis A6: the arm's axes must be revolute"),
+    ([("dh = { a = 0.0, alpha = -90.0, d = 0.0 }", "")], "no URDF of this arm: axis A5: no dh parameters"),
+    ([("dh = { a = 0.0, alpha = -90.0, d = 0.0 }", "dh = { a = 10.0, alpha = -90.0, d = 0.0 }")],
+     "no URDF of this arm: axis A5: a must be 0 mm"),
+    ([('name = "A6"', 'name = "world-base_link"')], "no URDF of this arm: the URDF would have two joints named"),
+    ([('name = "lola_15"', "")], "robot.name: missing"),
+])
+def test_irl_urdf_refuses_an_arm_it_cannot_describe(tmp_path, changes, message):
+    text = SPEC_PATH.read_text()
+    for old, new in changes:
+        assert text.count(old) == 1
+        text = text.replace(old, new)
+    bad = tmp_path / "bad.spc"
+    bad.write_text(text, encoding="utf-8")
+    code, stdout, stderr = run_cli("urdf", bad, "-o", tmp_path / "bad.urdf")
+    assert (code, stdout) == (1, "")
+    assert stderr.startswith("irl urdf: ") and message in stderr and "Traceback" not in stderr, stderr
+    assert not (tmp_path / "bad.urdf").exists()
+
+
+def test_irl_urdf_without_the_file_is_a_usage_error(tmp_path):
+    code, stdout, stderr = run_cli("urdf", tmp_path / "none.spc")
+    assert (code, stdout) == (2, "") and "no such file" in stderr

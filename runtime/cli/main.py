@@ -428,6 +428,31 @@ def cmd_fsm(args, env: Environment) -> int:
     return EXIT_OK
 
 
+def cmd_urdf(args, env: Environment) -> int:
+    from compiler.spec import SpecError, load_spec
+    from runtime.motion.urdf import urdf_text
+
+    path = Path(args.spec)
+    if not path.is_file():
+        raise UsageError(f"cannot read {args.spec}: {'no such file' if not path.exists() else 'not a file'}")
+    try:
+        spec = load_spec(path)
+    except SpecError as exc:
+        warn(env, f"irl urdf: {exc}")
+        return EXIT_INVALID
+    try:
+        text = urdf_text(spec)
+    except ValueError as exc:  # no arm the kinematics can take, or names a URDF cannot carry
+        warn(env, f"irl urdf: {spec.file}: no URDF of this arm: {exc}")
+        return EXIT_INVALID
+    if args.output is None:
+        env.stdout.write(text)
+        return EXIT_OK
+    _write_atomically(Path(args.output), text.encode("utf-8"))
+    say(env, f"{spec.file} -> {args.output} (robot {spec.name}, joints {', '.join(a.name for a in spec.main_axes)})")
+    return EXIT_OK
+
+
 def version_text() -> str:
     """``irl --version``: the package, and the formats a peer must share with it."""
     from importlib import metadata
@@ -500,6 +525,9 @@ def build_parser(command: str | None = None) -> argparse.ArgumentParser:
         from runtime.cli.teach import add_arguments as pose_arguments
 
         pose_arguments(p)
+    if (p := declare("urdf", help="the arm as URDF (links, joints named after the axes, tools and frames): for 3D "
+                                  "viewers and ROS tools")) is not None:
+        _urdf_arguments(p)
     if command is None or command not in sub.choices:  # (naming the network commands imports their module)
         from runtime.cli.netcli import add_commands  # light: ZeroMQ is imported when a command runs
 
@@ -617,6 +645,12 @@ def _plot_arguments(p) -> None:
 def _fsm_arguments(p) -> None:
     p.add_argument("--format", choices=("mermaid", "dot"), default="mermaid", help="the diagram's language")
     p.set_defaults(run=cmd_fsm)
+
+
+def _urdf_arguments(p) -> None:
+    p.add_argument("spec", metavar="SPEC.spc", help="the robot's specification")
+    p.add_argument("-o", "--output", metavar="FILE.urdf", help="write it there (default: to standard output)")
+    p.set_defaults(run=cmd_urdf)
 
 
 def main(argv: list[str] | None = None, env: Environment | None = None) -> int:

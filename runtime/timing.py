@@ -12,8 +12,8 @@ from compiler.params import TICK, component_params
 
 #: TICK (s): the executive's tick: the robot interface, the supervisor, the servo and the
 #: safety run every tick (declared in compiler.params, which checks periods against it).
-__all__ = ["TICK", "SETPOINT_PERIOD", "REPORT_PERIOD", "FIELDBUS_POLL", "BRAKE_TIMEOUT", "STOP_SETTLE_TIMEOUT",
-           "START_SETTLE_TIMEOUT"]
+__all__ = ["TICK", "SETPOINT_PERIOD", "REPORT_PERIOD", "RECORD_PERIOD", "FLUSH_PERIOD", "FIELDBUS_POLL",
+           "BRAKE_TIMEOUT", "STOP_SETTLE_TIMEOUT", "START_SETTLE_TIMEOUT"]
 
 #: s: the trajectory generator's and the initialization's (homing) period: the servo
 #: interpolates their setpoints (the two must be equal).
@@ -21,6 +21,12 @@ SETPOINT_PERIOD: float = component_params("trajectory")["period"].default  # typ
 assert SETPOINT_PERIOD == component_params("initialization")["period"].default
 #: s: the report's period (one logged row).
 REPORT_PERIOD: float = component_params("report")["period"].default  # type: ignore[assignment]
+#: s: the recording's period (joint states, the TCP and the links: one row), the report's default
+#: whatever the report's own (report.period).
+RECORD_PERIOD = REPORT_PERIOD
+#: s of rows the report and the recording hand their writer threads at a time (runtime.loop.batches):
+#: what a crash may lose of the report.
+FLUSH_PERIOD = 0.1
 #: s: the default time between two exchanges with a PLC (runtime.hardware.fieldbus; off the loop,
 #: on the exchange's own thread; a fieldbus file may choose from TICK to 1 s).
 FIELDBUS_POLL = 0.01

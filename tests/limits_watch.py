@@ -129,10 +129,10 @@ def at_rest_and_safe(system) -> bool:
             and all(v == 0.0 for v in backend.true_velocities))
 
 
-def run_cycle(system, program, ticks: int = 400_000, during=None, report=None) -> dict:
+def run_cycle(system, program, ticks: int = 400_000, during=None, report=None, record=None) -> dict:
     """One cycle of ``system`` with ``program`` to its end (at most ``ticks``), calling
     ``during(system, k)`` after tick k; the summary."""
-    system.begin(program, report)
+    system.begin(program, report, record=record)
     k = 0
     while not system.supervisor.done and k < ticks:
         system.executive.step()
@@ -152,5 +152,5 @@ class IdleHost:
     def motion_done(self) -> bool:
         return True
 
-    def log(self, text: str, line: int) -> None:
+    def log(self, text: str, line: int, kind: str = "print") -> None:
         pass

@@ -692,7 +692,7 @@ class QueueHost:
     def write_output(self, n, value):
         self.outputs.append((n, value))
 
-    def log(self, text, line):
+    def log(self, text, line, kind="print"):
         self.log_lines.append((line, text))
 
 

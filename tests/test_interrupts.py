@@ -337,7 +337,7 @@ def test_an_interrupt_during_a_move_stops_the_robot_on_its_path_within_the_limit
     assert any(max(map(abs, v)) == 0.0 for t, _q, v in setpoints if t_break < t <= stopped.t_end + 1e-9)
     assert stopped.actual_duration > move.planned_duration
     event(f"{kind}: stopped and resumed")
-    assert f"interrupt curtain fired during the move at line {line}" in " ".join(text for _t, _l, text in
+    assert f"interrupt curtain fired during the move at line {line}" in " ".join(text for _t, _l, text, _k in
                                                                          system.trajectory.log_lines)
 
 
@@ -348,7 +348,7 @@ def test_then_halt_stops_on_the_path_and_drops_the_moves_not_made(tmp_path):
     summary, watch, _setpoints, system = run_with_curtain(tmp_path, body, decls, [0.8])
     line = line_of(program_text(body, decls), "speed_ptp := 0.3")
     assert summary["fault"] is None, summary["fault"]
-    texts = [text for _t, _l, text in system.trajectory.log_lines]
+    texts = [text for _t, _l, text, _k in system.trajectory.log_lines]
     assert "part lost" in texts and "not reached" not in texts
     assert texts[-1] == f"interrupt lost ended the program (it fired at line {line})"
     moves = {m["line"]: m for m in summary["moves"]}

@@ -5,7 +5,7 @@ robot's kinematics.
 A Python audit hook (sys.addaudithook; it cannot be removed, so it only records while a
 flag is set) watches every task the executive runs, through whole cycles of programs that
 exercise homing, PTP, lin, circ and blended moves, prints, pauses, aborts, emergency
-stops, faults, the report writer and the calibration file, on the simulated clock and on
+stops, faults, the report writer, the recording and the calibration file, on the simulated clock and on
 the wall clock (where moves are planned on the planner thread).
 """
 from __future__ import annotations
@@ -108,16 +108,19 @@ MOVES = program(
 
 
 def run_cycle(system: RobotSystem, prog, ticks: int, during=None) -> dict:
-    return limits_watch.run_cycle(system, prog, ticks, during, report=system.options.report)
+    return limits_watch.run_cycle(system, prog, ticks, during, report=system.options.report,
+                                  record=system.options.record)
 
 
 def test_no_io_threads_or_sleeps_in_a_tick_on_the_simulated_clock(tmp_path):
-    system = RobotSystem(SPEC, RunOptions(state_dir=tmp_path / "state", report=tmp_path / "r.csv"))
+    system = RobotSystem(SPEC, RunOptions(state_dir=tmp_path / "state", report=tmp_path / "r.csv",
+                                          record=tmp_path / "r.mcap"))
     seen = watch_tasks(system)
     summary = run_cycle(system, MOVES, 200_000)
-    assert summary["fault"] is None, summary["fault"]
+    assert summary["fault"] is None and summary["files_error"] is None, summary
     assert (tmp_path / "state" / "calibration.json").exists()  # written (off the loop) all the same
     assert (tmp_path / "r.csv").stat().st_size > 0 and (tmp_path / "r.states.csv").stat().st_size > 0
+    assert (tmp_path / "r.mcap").stat().st_size > 0  # (the recording's rows made in the ticks, written off them)
     assert seen == [], seen[:10]
 
     def operator(system, k):  # pause, resume, then an emergency stop in the middle of a move

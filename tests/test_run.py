@@ -454,7 +454,7 @@ def test_print_wait_and_output_in_process(work):
     assert system.backend.output(1) is False
     s = system.run(result.program)
     assert s["fault"] is None
-    assert s["log"] == [{"time": pytest.approx(s["log"][0]["time"]), "line": 6, "text": "hello 42"}]
+    assert s["log"] == [{"time": pytest.approx(s["log"][0]["time"]), "line": 6, "text": "hello 42", "kind": "print"}]
     move = state(s, "Move Robot")
     assert move["t_enter"] <= s["log"][0]["time"] <= move["t_exit"]
     assert system.backend.output(1) is True  # out[1] := true reached the robot

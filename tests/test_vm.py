@@ -96,7 +96,7 @@ class FakeHost:
         self.outputs[n] = value
         self.output_log.append((n, value))
 
-    def log(self, text, line):
+    def log(self, text, line, kind="print"):
         self.log_lines.append((line, text))
 
     @property

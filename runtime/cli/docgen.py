@@ -7,7 +7,8 @@ page of ``docs/``, and is rendered from its one declaration: the parameters from
 cell's rules from :data:`runtime.hardware.sim.cell.RULES`, the fieldbus file's fields from
 :data:`runtime.hardware.fieldbus.FIELDS`, the telemetry sample's fields from
 :data:`runtime.wire.protocol.SAMPLE_FIELDS`, pose arithmetic from :data:`compiler.semantics.GEOMETRY`, the bounds of frames and tools from
-:data:`compiler.frames.FRAME_KINDS`, the configuration's words from :data:`compiler.configs.GROUPS`.
+:data:`compiler.frames.FRAME_KINDS`, the configuration's words from :data:`compiler.configs.GROUPS`, a
+recording's topics and the events' kinds from :data:`runtime.recording.TOPICS` and :data:`runtime.recording.EVENTS`.
 A test fails while a page is stale. Not real-time; imports nothing the loop needs.
 """
 from __future__ import annotations
@@ -25,6 +26,7 @@ def tables() -> dict[str, str]:
     from compiler import clauses, configs, frames, semantics, triggers
     from compiler.params import COMPONENTS, markdown
 
+    from runtime import recording
     from runtime.hardware import fieldbus
     from runtime.wire import protocol
     from runtime.loop.components.safety import categories_markdown
@@ -34,7 +36,8 @@ def tables() -> dict[str, str]:
             "clauses": clauses.markdown(), "defaults": clauses.defaults_markdown(), "cell": cell.markdown(),
             "fieldbus": fieldbus.markdown(), "sample": protocol.sample_markdown(),
             "geometry": semantics.geometry_markdown(), "frames": frames.markdown(),
-            "triggers": triggers.markdown(), "configurations": configs.markdown()}
+            "triggers": triggers.markdown(), "configurations": configs.markdown(),
+            "recording": recording.topics_markdown(), "events": recording.events_markdown()}
 
 
 def render(text: str) -> str:

@@ -213,6 +213,11 @@ def cmd_run(args, env: Environment) -> int:
         raise UsageError("--plot needs --report (the plot is drawn from the report)")
     if args.report_columns is not None and not args.report:
         raise UsageError("--report-columns needs --report (it chooses the report's columns)")
+    if args.record:
+        from runtime.recording import missing
+
+        if missing():
+            raise UsageError(f"--record: {missing()}")
     loaded = _load_program(args.file, args.spec, env)
     if loaded is None:
         return EXIT_INVALID
@@ -253,8 +258,8 @@ def cmd_run(args, env: Environment) -> int:
         raise UsageError(str(exc)) from None
     columns = _report_columns(args.report_columns, spec) if args.report_columns is not None else None
     settings = _run_settings(args)
-    options = RunOptions(seed=args.seed, realtime=args.realtime, report=args.report, state_dir=args.state_dir,
-                         max_time=args.max_time, faults=faults, override=args.override,
+    options = RunOptions(seed=args.seed, realtime=args.realtime, report=args.report, record=args.record,
+                         state_dir=args.state_dir, max_time=args.max_time, faults=faults, override=args.override,
                          deadline_policy=args.deadline_policy, cell=cell, fieldbus=fieldbus)
     on_pause = _on_pause(args, env)
 
@@ -590,6 +595,9 @@ def _run_arguments(p) -> None:
                        "the robot's specification (needed for FILE.irlo)")
     p.add_argument("--report", metavar="OUT.csv", help="write the report (and OUT.states.csv)")
     p.add_argument("--plot", metavar="OUT.png", help="draw the report (needs --report and matplotlib)")
+    p.add_argument("--record", metavar="FILE.mcap",
+                   help="record the run: joints, TCP, every link, phases, lines, I/O, prints and faults, in an MCAP "
+                        "file that Foxglove opens (see docs/runtime.md)")
     p.add_argument("--report-columns", metavar="LIST",
                    help="the report's column groups, comma-separated, in order (default: sens_pos,desi_pos,out_vel,"
                         "following_error,tcp, and io with a cell or fieldbus); +LIST adds to them: +move records "

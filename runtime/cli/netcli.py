@@ -177,6 +177,12 @@ def cmd_serve(args, env) -> int:
         raise common.UsageError(problem)
     # (the cell scenario's and the PLC's files are read by the loop process: the server's imports no simulator)
     options.cell, options.fieldbus = args.cell_scenario, args.fieldbus
+    if args.record:
+        from runtime.recording import missing
+
+        if missing():
+            raise common.UsageError(f"--record: {missing()}")
+        options.record = args.record
     configurations = None
     if args.config:
         from runtime.config import ConfigError, load_configurations
@@ -257,11 +263,12 @@ def cmd_submit(args, env) -> int:
                 common.say(env, json.dumps({"program": job, "queued": reply["queued"], "endpoint": args.endpoint}))
             return common.EXIT_OK
         final, shown = _wait(client, job, env, since, quiet=args.json)
-        from runtime.wire.protocol import JobState
+        from runtime.wire.protocol import REPORT_FILES, JobState
         if args.report:
             out = Path(args.report)
             client.download(job, "report", out)
-            client.download(job, "states", out.with_suffix(".states.csv"))
+            for which in REPORT_FILES[1:]:  # (OUT.states.csv, OUT.events.csv: irl plot reads them)
+                client.download(job, which, out.with_suffix(f".{which}.csv"))
             common.warn(env, f"report written to {out}")
         if args.json:
             common.say(env, json.dumps(final, default=str))
@@ -684,6 +691,9 @@ def add_commands(declare) -> None:
                                     "the io columns")
         p.add_argument("--fieldbus", metavar="FILE.toml",
                        help="the digital I/O on a PLC over Modbus TCP (see docs/runtime.md; wall clock only)")
+        p.add_argument("--record", metavar="DIR",
+                       help="record every program in DIR: an MCAP file each, named by the server's start, the "
+                            "program's id and name (opens in Foxglove; see docs/runtime.md)")
         p.add_argument("--keys", metavar="DIR", help="require CURVE authentication with the keys in DIR")
         p.add_argument("--insecure-allow-remote-without-encryption", action="store_true",
                        help="allow endpoints other machines can reach without --keys: anyone on the network could "

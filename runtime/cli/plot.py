@@ -5,7 +5,12 @@ To Start) as a thin band along the top of the first panel, each named; when the 
 the ``move`` columns (``report.columns``, or ``irl run --report-columns +move``), a thin
 vertical line on every panel where each of the program's moves starts, labelled with its
 source line (``L12``) on the first panel. The labels (phases, homing steps, moves) are
-stacked in rows so that none overlaps another. When the report has the tool centre point
+stacked in rows so that none overlaps another. From the events file beside the report
+(``<report>.events.csv``: runtime.recording.EVENTS), a line across every panel where the
+cycle faulted (red, labelled FAULT, the fault's text in red under the title) and where an
+interrupt fired (orange, dashed, labelled with the interrupt's name), the labels at the
+top of the first panel. An axis is drawn when it moved or was commanded to (the reference
+moved): an axis whose drive did nothing is there. When the report has the tool centre point
 (the ``tcp`` columns), a path view beside them: the TCP during Move Robot seen from above
 (x-y) and from the side (x-z), so Cartesian programs show their lines and arcs; when it
 has the ``io`` columns, a lane per digital input (green) and output (red) that is ever on.
@@ -21,6 +26,8 @@ STEP_BAND = ("#b8c4d6", "#8a9bb5")  # the homing steps' band, alternating
 STEP_COLOR = "#4a5a78"  # the homing steps' labels
 MOVE_COLOR = "#7b1fa2"  # the moves' start lines and labels
 MARK_ROWS = 4  # rows of homing-step and move labels at most
+#: The events marked on every panel (runtime.recording.EVENTS kinds): colour and line style.
+MARKED = {"fault": ("#c62828", "-"), "interrupt": ("#ef6c00", "--")}
 
 
 class PlotError(Exception):
@@ -121,6 +128,51 @@ def read_transitions(report: str | Path) -> list[tuple[float, str, str]]:
         return []
 
 
+def read_events(report: str | Path) -> list[tuple[float, str, int, str]]:
+    """The report's events file (``<report>.events.csv``: time, kind, line, text), if it is
+    there and readable (a report written before it existed has none)."""
+    path = Path(report).with_suffix(".events.csv")
+    try:
+        with open(path, newline="", encoding="utf-8") as f:
+            rows = list(csv.reader(f))[1:]
+        return [(float(r[0]), r[1], int(r[2]), r[3]) for r in rows if len(r) == 4]
+    except (OSError, ValueError):
+        return []
+
+
+def event_marks(events) -> list[tuple[float, str, str]]:
+    """[(time, kind, label)] of the events a plot marks (:data:`MARKED`): the fault,
+    labelled FAULT, and each interrupt firing, labelled with its text up to "fired" (the
+    interrupt's name)."""
+    out = []
+    for t, kind, line, text in events:
+        if kind in MARKED:
+            label = "FAULT" if kind == "fault" else text.split(" fired", 1)[0]
+            out.append((t, kind, f"{label} (L{line})" if line else label))
+    return out
+
+
+def _mark_events(panels, marks, first, end: float) -> None:
+    """A line across every panel at each marked event; the labels at the top of the
+    first panel, beside their lines (left of those in the last third), in rows that do not
+    overlap."""
+    for ax in panels:
+        for k, (t, kind, _label) in enumerate(marks):
+            color, style = MARKED[kind]
+            new = kind not in [m[1] for m in marks[:k]]
+            ax.axvline(t, color=color, ls=style, lw=1.4, zorder=3,
+                       label=("fault" if kind == "fault" else "interrupt fired") if ax is first and new else None)
+    # a label about len/130 of the axis wide (label_rows' measure), beside its line
+    sides = ["right" if end and t > 2 * end / 3 else "left" for t, _kind, _label in marks]
+    spans = [(t + (-1 if side == "right" else 1) * len(label) / 260 * end,) * 2 + (label,)
+             for (t, _kind, label), side in zip(marks, sides)]
+    for (t, kind, label), side, row in zip(marks, sides, label_rows(spans, end)):
+        first.text(t, 0.90 - 0.13 * row, f" {label} ",
+                   transform=first.get_xaxis_transform(), ha=side, va="top", fontsize=7,
+                   color=MARKED[kind][0], zorder=4, bbox={"facecolor": "white", "edgecolor": "none", "alpha": 0.8,
+                                                          "pad": 0.5})
+
+
 def label_rows(spans, total: float, chars_per_axis: float = 130.0) -> list[int]:
     """A row (0, 1, 2...) for each phase label so that no two labels overlap: a label
     about ``len(name)`` characters wide, of ``chars_per_axis`` across the axis."""
@@ -210,7 +262,8 @@ def figure(report: str | Path):
 
     times, states, cols = read_report(report)
     axes_names = [c[len("sens_pos_"):] for c in cols if c.startswith("sens_pos_")]
-    moving = [a for a in axes_names if np.ptp(cols[f"sens_pos_{a}"]) > 1e-6] or axes_names[:1]
+    moving = [a for a in axes_names if any(np.ptp(cols[f"{kind}_{a}"]) > 1e-6 for kind in ("sens_pos", "desi_pos")
+                                           if f"{kind}_{a}" in cols)] or axes_names[:1]
     has_tcp = all(f"tcp_{c}" in cols for c in ("x", "y", "z"))
     lanes = io_lanes(cols)
     rows = max(len(moving) + (1 if lanes else 0), 2 if has_tcp else 1)
@@ -233,6 +286,7 @@ def figure(report: str | Path):
                        label="move start (its line)" if k == 0 and ax is first else None)
     if lanes:
         _io_panel(panels[-1, 0], times, cols, lanes)
+    events = read_events(report)
     for ax, name in zip(panels[:, 0], moving):
         ax.plot(times, cols[f"sens_pos_{name}"], lw=2.2, color="#1f4e99", alpha=0.55, label="encoder")
         ax.plot(times, cols[f"desi_pos_{name}"], lw=0.9, ls="--", color="#d35400", label="reference")
@@ -241,6 +295,7 @@ def figure(report: str | Path):
     top = panels[0, 0]
     end = max(float(times[-1]) if len(times) else 0.0, spans[-1][1] if spans else 0.0)
     top.set_xlim(0.0, end)
+    _mark_events(panels[:, 0], event_marks(events), first, end)
     for k, (t0, t1, _step) in enumerate(steps):  # the homing steps: a thin band along the top
         top.axvspan(t0, t1, ymin=0.94, ymax=1.0, color=STEP_BAND[k % len(STEP_BAND)], lw=0)
     # just above the first panel: the homing steps' and the moves' labels, then the phases'
@@ -261,5 +316,9 @@ def figure(report: str | Path):
         ax.tick_params(labelbottom=False)
     panels[-1, 0].set_xlabel("time (s)")
     fig.suptitle(f"{Path(report).name}: positions read from the encoders, by FSM phase", y=0.995)
-    fig.tight_layout()
+    faults = [(t, text) for t, kind, _line, text in events if kind == "fault"]
+    for t, text in faults[:1]:  # (a cycle has one fault)
+        fig.text(0.5, 0.975, f"FAULT at {t:.3f} s: {text}", ha="center", va="top", fontsize=8.5,
+                 color=MARKED["fault"][0], wrap=True)
+    fig.tight_layout(rect=(0, 0, 1, 0.965 if faults else 1))
     return fig

@@ -70,7 +70,7 @@ class Client:
             raise ClientError(str(err.get("code", "internal")), str(err.get("message", "unknown error")))
 
     def download(self, program: int, which: str, out: Path) -> int:
-        """Write a program's report (``which`` = "report" or "states") to ``out``; returns bytes."""
+        """Write a program's report (``which``: one of protocol.REPORT_FILES) to ``out``; returns bytes."""
         offset = 0
         tmp = out.with_name(f".{out.name}.part")
         out.parent.mkdir(parents=True, exist_ok=True)

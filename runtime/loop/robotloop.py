@@ -101,7 +101,7 @@ class RobotLoop:
         except ObjectCodeError as exc:
             raise ProtocolError("invalid_program", f"the object code is invalid: {exc}") from None
         try:
-            system.begin(program, m.report, settings=m.settings)
+            system.begin(program, m.report, settings=m.settings, record=m.record, job=m.job)
         except (ValueError, OSError) as exc:
             raise ProtocolError("refused", str(exc)) from None
         system.trajectory.override = m.override
@@ -232,10 +232,10 @@ class RobotLoop:
             self.send({"kind": "event", "event": "state", "from": source, "to": target, "at": at, "t": t})
         lines = system.trajectory.log_lines
         while self._seen_log < len(lines):
-            at, line, text = lines[self._seen_log]
+            at, line, text, kind = lines[self._seen_log]
             self._seen_log += 1
-            self.send({"kind": "event", "event": "log", "program": self.job, "line": line, "text": text, "at": at,
-                       "t": t})
+            self.send({"kind": "event", "event": "log", "program": self.job, "line": line, "text": text,
+                       "log_kind": kind, "at": at, "t": t})
         self.send(self.snapshot().to_wire(), True)
 
     def snapshot(self) -> Snapshot:

@@ -197,6 +197,7 @@ class Supervisor:
         """Not real-time: a fresh cycle (the machine before Start Robot); what the robot
         remembers (``memory``) stays."""
         self.fault = None
+        self.fault_at: tuple[float, int] | None = None  # (time, the program's line) of the fault
         self.operator_stop = None
         self.t_state = 0.0
         self.calibration_sums = [0.0] * self.n
@@ -231,6 +232,7 @@ class Supervisor:
         trusted (whatever ended the cycle early may have moved the robot unobserved)."""
         if self.fault is None:
             self.fault = message
+            self.fault_at = (self.clock.tick_time, self.trajectory.line)
             why = f"the cycle at {self.clock.tick_time:.3f} s ended early: {message}"
             self.memory.forget_initialization(why)
             if self.provisional is not None:  # measured, never confirmed: measured again next time

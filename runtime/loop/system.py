@@ -14,10 +14,12 @@ from pathlib import Path
 from compiler.objcode import Program
 
 from runtime import accel
+from runtime.loop.batches import Events
 from runtime.loop.component import DataPort
 from runtime.loop.components.initialization import Initialization
 from runtime.loop.components.io import IoComponent, backend_of
-from runtime.loop.components.report import Report
+from runtime.loop.components.recorder import Recorder
+from runtime.loop.components.report import Report, tcp_of
 from runtime.loop.components.robot_interface import RobotInterface
 from runtime.loop.components.safety import SafetySupervisor
 from runtime.loop.components.servo import ServoController
@@ -29,7 +31,7 @@ from runtime.hardware.interface import RobotBackend
 from runtime.hardware.sim.estimator import AlphaBeta
 from runtime.loop.supervisor import RobotMemory, StateFile, Supervisor
 from runtime.settings import Settings
-from runtime.timing import TICK
+from runtime.timing import RECORD_PERIOD, TICK
 from runtime.wire.messages import io_sources_problem
 
 
@@ -38,6 +40,7 @@ class RunOptions:
     seed: int = 0
     realtime: bool = False
     report: str | Path | None = None
+    record: str | Path | None = None  # the recording (MCAP) of the run (runtime.loop.components.recorder)
     state_dir: str | Path | None = None
     max_time: float = 3600.0  # simulated (or wall) seconds before the run is stopped
     robot: str = DEFAULT_ROBOT  # the robot backend (a key of runtime.hardware.backends.ROBOTS)
@@ -98,9 +101,14 @@ class RobotSystem:
         self.trajectory.io = self.io
         self.report = Report(spec, p["sens_pos"], p["drive_cmd"], self.servo, lambda: self.supervisor.fsm.path(),
                              settings.report.period, history=lambda: self.supervisor.fsm.history,
-                             io=(self.io.inputs, self.io.outputs), settings=settings)
+                             io=(self.io.inputs, self.io.outputs), settings=settings,
+                             events=Events(self.trajectory, lambda: self.supervisor, self.safety))
         self.report.motion = self.trajectory.motion  # the move columns: the program's moves as they run
         self.report.frames_now = self.trajectory.frames_now  # the TCP of the move's tool, in its base
+        # the recording: its rows while the report records (its task runs only while a recording is open)
+        self.recorder = Recorder(spec, p["sens_pos"], self.robot, self.trajectory, (self.io.inputs, self.io.outputs),
+                                 lambda: self.supervisor.fsm.path(), lambda: self.supervisor.fsm.history,
+                                 Events(self.trajectory, lambda: self.supervisor, self.safety), tcp_of(spec))
         if (options.cell is not None or options.fieldbus is not None) and "io" not in self.report.columns:
             self.report.columns = [*self.report.columns, "io"]  # the cell's I/O in every row
         self.executive = Executive(self.clock, TICK)
@@ -135,6 +143,9 @@ class RobotSystem:
         ex.add("safety", self.safety.update, TICK, "guard", component=self.safety)
         ex.add("robot.write", robot.write, TICK, "act", component=robot)
         ex.add("report", self.report.update, self.report.period, "record", component=self.report)
+        recorder = self.recorder
+        ex.add("recording", recorder.update, RECORD_PERIOD, "record", enabled=lambda: recorder.recording,
+               component=self.report)
         for component in (self.trajectory, self.init, self.report):  # a period is the executive's schedule
             settings.watch(component.name, "period", lambda period, c=component: self._set_period(c, period))
 
@@ -143,9 +154,12 @@ class RobotSystem:
         self.executive.set_period(component.name, period)
         component.period = period
 
-    def begin(self, program: Program | None, report: str | Path | None = None, settings: dict | None = None) -> None:
+    def begin(self, program: Program | None, report: str | Path | None = None, settings: dict | None = None,
+              record: str | Path | None = None, job: int | None = None) -> None:
         """Not real-time: start one cycle of the supervisor (power-up to Stop Robot) with
-        ``program``; the executive's ticks then carry it out (until ``supervisor.done``).
+        ``program``, its report into ``report`` and its recording into ``record`` (``job``:
+        the server's id of the program, in the recording); the executive's ticks then carry
+        it out (until ``supervisor.done``).
         Calibration and initialization are remembered from earlier cycles. Raises
         ValueError if the program cannot run here (checked before anything moves).
         With ``settings`` instead of a program, the cycle is a reconfiguration: Start
@@ -168,6 +182,7 @@ class RobotSystem:
         self.trajectory.load(program)
         self.trajectory.override = self.options.override
         self.report.open(report)
+        self.recorder.open(record, program, job, "simulated" if self.clock.simulated else "wall")
         if self.cell is not None:
             self.cell.reset(self.clock.tick_time)
         self.io.start()  # the inputs as the cycle begins (the cell reset), its outputs; a loss taken anew
@@ -209,8 +224,8 @@ class RobotSystem:
 
     def finish(self) -> dict:
         """Not real-time: after a cycle ended, flush the report and the state transitions
-        beside it (both written as the cycle ran), and return the cycle's summary."""
-        error = self.report.close()
+        beside it and the recording (written as the cycle ran), and return the cycle's summary."""
+        error = "; ".join(e for e in (self.report.close(), self.recorder.close()) if e) or None
         self.io.stop()  # the cycle is over: no task reads the I/O until the next begins
         self.state_file.flush()
         summary = self.summary(time.perf_counter() - self._wall0)
@@ -234,7 +249,7 @@ class RobotSystem:
         feed = LogFeed(self.trajectory, on_log) if on_log is not None else None
         if feed is not None and not self.clock.simulated:
             feed.start()  # (before begin: ranked with the loop's other helper threads)
-        self.begin(program, self.options.report)
+        self.begin(program, self.options.report, record=self.options.record)
         max_ticks = int(self.options.max_time / TICK)
         sup = self.supervisor
         # The loop allocates small, cycle-free objects every tick; reference counting frees
@@ -334,7 +349,8 @@ class RobotSystem:
             "fault": sup.fault,
             "stop": ({"category": self.safety.category, "reason": self.safety.stop_reason}
                      if self.safety.category is not None else None),
-            "log": [{"time": t, "line": line, "text": text} for t, line, text in self.trajectory.log_lines],
+            "log": [{"time": t, "line": line, "text": text, "kind": kind}
+                    for t, line, text, kind in self.trajectory.log_lines],
             "sim_time": round(end, 6),
             "wall_time": wall_time,
             "kernels": accel.DESCRIPTION,
@@ -379,7 +395,7 @@ class LogFeed:
                 return
             lines = self.trajectory.log_lines  # (load() makes a new list: read it each time)
             while self.seen < len(lines):
-                at, line, text = lines[self.seen]
+                at, line, text, _kind = lines[self.seen]
                 self.seen += 1
                 self.on_log(at, line, text)
 

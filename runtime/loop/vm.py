@@ -72,6 +72,8 @@ from compiler.semantics import (INT_MAX, INT_MIN, MAX_STRING_LENGTH, EvalError, 
 from compiler.configs import TURNS_FLAG, from_operand
 from compiler.values import Pose, format_number, format_value
 
+from runtime.recording import HALT, INTERRUPT, PAUSE, PRINT, TIMEOUT
+
 #: Deepest nesting of procedure calls before the program is stopped with an error.
 MAX_CALL_DEPTH = 200
 
@@ -138,8 +140,9 @@ class MotionHost(Protocol):
     def write_output(self, n: int, value: bool) -> None:
         """Set digital output n (from 1). May raise EvalError for a number out of range."""
 
-    def log(self, text: str, line: int) -> None:
-        """The operator log: ``print`` statements and VM notices."""
+    def log(self, text: str, line: int, kind: str = PRINT) -> None:
+        """The operator log: ``print`` statements and VM notices, each of its ``kind``
+        (runtime.recording.EVENTS: print, pause, timeout, interrupt, halt)."""
 
     def trigger(self, place: int, unit: int, amount: object, action: tuple) -> str | None:
         """A path trigger of the next move (compiler.triggers): ``action`` is ``("out", n,
@@ -631,7 +634,7 @@ class Interrupts:
         if stop:
             self.host.interrupt_stop()
         self.host.log(f"interrupt {name} fired {'at' if moving is None else 'during the move at'} line {line}"
-                      f"{'' if stop else ' (the robot goes on)'}", line)
+                      f"{'' if stop else ' (the robot goes on)'}", line, INTERRUPT)
         self.handling = (i, saved, line)
         return handler
 
@@ -655,7 +658,7 @@ class Interrupts:
         self.handling = None
         name = self.table[i][0]
         self.host.interrupt_halt(f"ended by interrupt {name}")
-        self.host.log(f"interrupt {name} ended the program (it fired at line {line})", line)
+        self.host.log(f"interrupt {name} ended the program (it fired at line {line})", line, HALT)
         self.enabled = [False] * len(self.table)
         self.armed = 0
 
@@ -1122,7 +1125,7 @@ class VM:
             return pc + 1
         if waits.timed_out():
             self.host.log(f"wait for timed out after {format_number(waits.timeout)} s",
-                          self.program.line_at(pc)[0])
+                          self.program.line_at(pc)[0], TIMEOUT)
             return pc + 1
         self._block()  # test again next cycle
         return target
@@ -1143,7 +1146,7 @@ class VM:
 
     def op_pause(self, _, pc):
         self.paused = True
-        self.host.log("paused by the program: resume to continue", self.program.line_at(pc)[0])
+        self.host.log("paused by the program: resume to continue", self.program.line_at(pc)[0], PAUSE)
         self._block()
         return pc + 1
 

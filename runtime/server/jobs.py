@@ -14,6 +14,7 @@ from pathlib import Path
 
 from compiler.objcode import OP, Program
 
+from runtime.recording import recording_name
 from runtime.server.looplink import LoopCommand, LoopLink
 from runtime.wire import messages, protocol
 from runtime.wire.protocol import JobState, ProtocolError
@@ -27,11 +28,12 @@ class Job:
     """One submitted program and what became of it."""
 
     def __init__(self, job_id: int, name: str, program: Program | None, report: Path | None,
-                 settings: dict | None = None, configuration: str | None = None):
+                 settings: dict | None = None, configuration: str | None = None, record: Path | None = None):
         self.id = job_id
         self.name = name
         self.program = program
         self.report = report
+        self.record = record  # its recording (irl serve --record DIR), or None
         self.settings = settings  # a reconfiguration (no program): the settings to apply
         self.configuration = configuration
         self.state = JobState.QUEUED
@@ -47,7 +49,8 @@ class Job:
     def as_dict(self, summary: bool = True) -> dict:
         d = {"id": self.id, "name": self.name, "state": self.state, "fault": self.fault,
              "submitted": self.submitted, "started": self.started, "ended": self.ended,
-             "report": str(self.report) if self.report else None, "moves_total": self.moves_total,
+             "report": str(self.report) if self.report else None,
+             "record": str(self.record) if self.record else None, "moves_total": self.moves_total,
              "kind": "program" if self.settings is None else "reconfiguration"}
         if self.summary is not None:
             d.update(line=None, moves_done=sum(1 for m in self.summary["moves"] if m["actual_duration"] is not None))
@@ -83,9 +86,12 @@ class Jobs:
     """The programs and reconfigurations submitted, by id (``jobs[id]``, ``id in jobs``,
     iterating gives the ids kept), the queue of those waiting, the running one
     (``current``) and the ``wait`` requests. ``publish(message)`` says a job's changes on
-    telemetry, ``reply(identity, reply)`` answers a wait."""
+    telemetry, ``reply(identity, reply)`` answers a wait. With ``record_dir`` every program
+    is recorded there, its file named by ``session``, its id and its name
+    (runtime.recording.recording_name)."""
 
-    def __init__(self, report_dir: Path, link: LoopLink, publish, reply):
+    def __init__(self, report_dir: Path, link: LoopLink, publish, reply, record_dir: Path | None = None,
+                 session: str = ""):
         self.table: dict[int, Job] = {}
         self.queue: collections.deque[Job] = collections.deque()
         self.finished: collections.deque[int] = collections.deque()
@@ -93,6 +99,8 @@ class Jobs:
         self.next_id = 1
         self.waiters: list = []  # (Wait, identity, request id, version) of unanswered waits
         self.report_dir = report_dir
+        self.record_dir = record_dir
+        self.session = session
         self.link = link
         self.publish = publish
         self.reply = reply
@@ -125,7 +133,8 @@ class Jobs:
 
     def submit(self, name: str, program: Program, data: bytes) -> Job:
         """Queue a verified program (``data``: its object code)."""
-        job = Job(self.next_id, name, program, self.report_dir / f"program-{self.next_id}.csv")
+        record = self.record_dir / recording_name(self.session, self.next_id, name) if self.record_dir else None
+        job = Job(self.next_id, name, program, self.report_dir / f"program-{self.next_id}.csv", record=record)
         job.object = data
         self._queue(job)
         log.info("program %d (%s) queued", job.id, name)
@@ -146,11 +155,13 @@ class Jobs:
     def start_next(self, override: float) -> None:
         """Start the first job of the queue on the loop, at ``override`` percent."""
         job = self.queue.popleft()
-        try:
-            self.report_dir.mkdir(parents=True, exist_ok=True)
-        except OSError as exc:
-            self.end(job, JobState.FAULTED, f"cannot make {self.report_dir}: {exc.strerror or exc}")
-            return
+        for directory in (self.report_dir, job.record.parent if job.record else None):
+            try:
+                if directory is not None:
+                    directory.mkdir(parents=True, exist_ok=True)
+            except OSError as exc:
+                self.end(job, JobState.FAULTED, f"cannot make {directory}: {exc.strerror or exc}")
+                return
         job.state, job.started = JobState.RUNNING, time.time()
         self.current = job
         log.info("program %d (%s) started", job.id, job.name)
@@ -164,7 +175,8 @@ class Jobs:
             self.end(job, JobState.FAULTED, reply["message"])
 
         self.link.send(LoopCommand(messages.Start(job.id, job.object, str(job.report) if job.report else None,
-                                                  job.settings, override), finish=started, failed=refused))
+                                                  job.settings, override, str(job.record) if job.record else None),
+                                   finish=started, failed=refused))
 
     def finish(self, message: dict, completed) -> None:
         """The loop's summary of the running job (``message``): it has ended;

@@ -79,6 +79,8 @@ class ServeOptions:
     cell: str | Path | None = None
     #: The file of the I/O on a PLC (--fieldbus), or None: read by the loop.
     fieldbus: str | Path | None = None
+    #: The directory of the programs' recordings (--record DIR: one MCAP file per program), or None.
+    record: str | Path | None = None
 
 
 INSECURE_FLAG = "--insecure-allow-remote-without-encryption"
@@ -154,7 +156,8 @@ class Server:
         self.controls = Controls()  # control's holder (protocol 2)
         self.link = LoopLink(self._on_loop)
         self.telemetry = Telemetry(self.link)
-        self.jobs = Jobs(state_dir / "reports" / session, self.link, self.telemetry.publish, self._reply)
+        self.jobs = Jobs(state_dir / "reports" / session, self.link, self.telemetry.publish, self._reply,
+                         Path(os.path.abspath(options.record)) if options.record else None, session)
         self.router = self.connections = None
         loop_options = LoopOptions(seed=options.seed, realtime=not options.sim_clock, state_dir=state_dir,
                                    deadline_policy=options.deadline_policy, cell=options.cell,
@@ -566,11 +569,12 @@ class Server:
         if job is None:
             raise ProtocolError("not_found", f"no program {args['program']}")
         which = args.get("file", "report")
-        if which not in ("report", "states"):
-            raise ProtocolError("bad_request", "report: file must be \"report\" or \"states\"")
+        if which not in protocol.REPORT_FILES:
+            raise ProtocolError("bad_request", "report: file must be " + " or ".join(f'"{f}"' for f in
+                                                                                  protocol.REPORT_FILES))
         if job.report is None:
             raise ProtocolError("not_found", f"program {job.id} is a reconfiguration: it has no {which} file")
-        path = job.report if which == "report" else job.report.with_suffix(".states.csv")
+        path = job.report if which == "report" else job.report.with_suffix(f".{which}.csv")
         offset = args.get("offset", 0)  # an int (not a bool): protocol.decode_request checked the type
         try:
             with open(path, "rb") as f:

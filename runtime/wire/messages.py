@@ -80,7 +80,7 @@ class Command:
 @dataclass(frozen=True)
 class Start(Command):
     """Begin a cycle: a program (its verified object code; None: a reconfiguration, with
-    its ``settings``), its report file, the override."""
+    its ``settings``), its report file, the override, its recording (an MCAP file, or None)."""
 
     OP: ClassVar[str] = "start"
     job: int
@@ -88,6 +88,7 @@ class Start(Command):
     report: str | None = None
     settings: dict | None = None
     override: float = 100.0
+    record: str | None = None
 
 
 @dataclass(frozen=True)

@@ -37,6 +37,8 @@ MAX_REQUEST_BYTES = 1 << 20
 TRANSPORT_MAX_BYTES = 8 << 20
 #: Largest chunk of a report file in one ``report`` reply.
 MAX_CHUNK_BYTES = 256 << 10
+#: The files of a program's report that ``report`` reads (``file``): the CSV, its states and its events files.
+REPORT_FILES = ("report", "states", "events")
 #: Most programs (and reconfigurations) waiting in a server's queue, the running one not
 #: counted; a ``submit`` or ``reconfigure`` beyond it gets a ``queue_full`` error.
 MAX_QUEUED = 100
@@ -116,7 +118,7 @@ OPS: dict[str, tuple[dict[str, tuple[tuple, bool, str]], str]] = {
     "reconfigure": ({"name": (_STR, True, "a configuration of the server's configuration file")},
                     "switch configuration between programs (in the Robot Reconfiguration state)"),
     "report": ({"program": (_INT, True, "a program id"),
-                "file": (_STR, False, "\"report\" (default) or \"states\""),
+                "file": (_STR, False, "\"report\" (default), \"states\" or \"events\""),
                 "offset": (_INT, False, "byte offset to read from (default 0)")},
                f"a chunk (at most {MAX_CHUNK_BYTES} bytes) of a program's report CSV"),
     "wait": ({"program": (_INT, True, "a program id"),

@@ -8,16 +8,17 @@ started, from 1, 0 before the first, and ``line``, the source line of the move u
 when none is: ``irl plot`` marks each move's start with them). The report
 records from Calibrate Offsets to the end of Stop Robot (the robot at rest, brakes
 applied). The real-time side only appends a tuple of numbers; every 100 ms (ten rows)
-it hands the batch, with the state transitions since the last one, to a writer thread
-through a bounded queue, and the thread formats, writes and flushes both the CSV and
-``<report>.states.csv``, whole lines only: a crash (kill -9) loses at most the last
-100 ms of either, and the loop never does I/O. The bytes written depend only on the rows:
-with the simulated clock the same program and seed give the same files.
+it hands the batch, with the state transitions and the cycle's events since the last one,
+to a writer thread through a bounded queue (:mod:`runtime.loop.batches`, shared with the
+recording), and the thread formats, writes and flushes the CSV, ``<report>.states.csv``
+and ``<report>.events.csv`` (the events of runtime.recording.EVENTS: print output,
+interrupt firings, the fault, the stop), whole lines only: a crash (kill -9) loses at most
+the last 100 ms of each, and the loop never does I/O. The bytes written depend only on the
+rows: with the simulated clock the same program and seed give the same files.
 """
 from __future__ import annotations
 
-import queue
-import threading
+from contextlib import ExitStack
 from operator import sub as _sub
 from pathlib import Path
 
@@ -25,12 +26,13 @@ from compiler.frames import IDENTITY, pose_of, values_of
 from compiler.params import component_params
 from compiler.semantics import compose, inverse
 
+from runtime.loop.batches import Batches, BatchWriter, Events
 from runtime.loop.component import Component, DataPort
 from runtime.motion.moves import Frames
+from runtime.recording import EVENTS_HEADER
 from runtime.settings import Settings
 from runtime.timing import REPORT_PERIOD
 
-FLUSH_PERIOD = 0.1  # s of rows per batch handed to the writer (10 rows at the default 10 ms)
 COLUMNS = ["sens_pos", "desi_pos", "out_vel", "following_error"]  # the per-axis quantities
 TCP = "tcp"  # the tool centre point: x, y, z (mm), roll, pitch, yaw (deg), from the measured joints
 TCP_FIELDS = ("x", "y", "z", "roll", "pitch", "yaw")
@@ -62,81 +64,59 @@ def is_integer(name: str) -> bool:
     return name in MOVE_FIELDS or is_io(name)
 
 
-class ReportWriter(threading.Thread):
-    """Formats and writes batches of rows; not real-time (its own thread)."""
+class ReportWriter(BatchWriter):
+    """Formats and writes batches of rows (the CSV), transitions (``.states.csv``) and
+    events (``.events.csv``); not real-time (its own thread)."""
+
+    WHAT = "report"
 
     def __init__(self, path: Path, header: list[str], expand=None):
-        super().__init__(name="report-writer", daemon=True)
-        self.path = path
+        super().__init__(path, "report-writer")
         self.states_path = path.with_suffix(".states.csv")
-        self.queue: queue.Queue = queue.Queue(maxsize=1000)
+        self.events_path = path.with_suffix(".events.csv")
         self.header = header
         self.expand = expand  # when set: row -> the row written (joints -> the TCP, in the active tool and base)
-        self.error: str | None = None
-        self.rows_written = 0
-        self.bad_rows = 0  # rows (or transitions) that could not be formatted: left out, counted
+        self._files: tuple = ()
         # one C-level format per row (time to the ms, the state, every value to 1e-6, I/O 0 or 1,
         # the move's number and line as integers)
         self.row_format = "%.3f,%s," + ",".join(["%d" if is_integer(name) else "%s" if is_text(name) else "%.6f"
                                                  for name in header[2:]]) + "\n"
 
-    def run(self) -> None:
-        """Until the None that ends the report. The thread never dies of a row: a row it
-        cannot format (one that does not fit the header) is left out and counted
-        (``bad_rows``), every other row and transition is written; a write that fails is
-        said in ``error``. Either way :meth:`problem` says it, and the summary with it."""
+    def opened(self):
+        """The three files, each with its header."""
+        stack = ExitStack()
         try:
-            with open(self.path, "w", encoding="utf-8", newline="") as f, \
-                    open(self.states_path, "w", encoding="utf-8", newline="") as states:
-                f.write(",".join(self.header) + "\n")
+            self._files = tuple(stack.enter_context(open(p, "w", encoding="utf-8", newline=""))
+                                for p in (self.path, self.states_path, self.events_path))
+            for f, header in zip(self._files, (",".join(self.header) + "\n", STATES_HEADER, EVENTS_HEADER)):
+                f.write(header)
                 f.flush()
-                states.write(STATES_HEADER)
-                states.flush()
-                while True:
-                    item = self.queue.get()
-                    if item is None:
-                        break
-                    batch, transitions = item
-                    if transitions:
-                        states.write(self._lines(transitions, state_row)[0])
-                        states.flush()
-                    if not batch:
-                        continue
-                    text, written = self._lines(batch, self._row)
-                    f.write(text)
-                    f.flush()
-                    self.rows_written += written
-        except OSError as exc:
-            self.error = f"cannot write the report {self.path}: {exc.strerror or exc}"
-        except Exception:  # noqa: BLE001 - said, never a silent death (the rows so far are on disk)
-            self.error = f"the report writer of {self.path} stopped on an internal error: the rows after it are lost"
+        except BaseException:
+            stack.close()
+            raise
+        return stack
+
+    def write(self, rows: list, transitions=(), events=()) -> None:
+        """Whole lines of what can be formatted; the rest counted in ``bad_rows``."""
+        f, states, log = self._files
+        for items, line, out in ((transitions, state_row, states), (events, event_row, log)):
+            if items:
+                out.write("".join(self.each(items, line)))
+                out.flush()
+        if rows:
+            lines = self.each(rows, self._row)
+            f.write("".join(lines))
+            f.flush()
+            self.rows_written += len(lines)
 
     def _row(self, row: tuple) -> str:
         if self.expand is not None:
             row = self.expand(row)
         return self.row_format % row
 
-    def _lines(self, items, line) -> tuple[str, int]:
-        """Whole lines of the items that can be formatted, and how many; the others are
-        counted in ``bad_rows``."""
-        try:
-            return "".join([line(item) for item in items]), len(items)
-        except Exception:  # noqa: BLE001 - a row of another shape: each on its own, the bad ones left out
-            lines = []
-            for item in items:
-                try:
-                    lines.append(line(item))
-                except Exception:  # noqa: BLE001
-                    self.bad_rows += 1
-            return "".join(lines), len(lines)
-
-    def problem(self) -> str | None:
-        """What went wrong writing the files, in the operator's terms (None: nothing)."""
-        parts = [self.error] if self.error else []
-        if self.bad_rows:
-            parts.append(f"{self.bad_rows} rows of {self.path.name} were left out: they did not fit its "
-                         f"{len(self.header)} columns (every other row is kept)")
-        return "; ".join(parts) or None
+    def bad_rows_text(self) -> str:
+        return (f"{self.bad_rows} rows of {self.path.name} were left out: they did not fit its "
+                f"{len(self.header)} columns (every other row is kept)")
 
 
 class TcpOf:
@@ -163,6 +143,10 @@ class TcpOf:
         """x, y, z, roll, pitch, yaw of the TCP in the world frame (the spec's tool: None)."""
         return self._arm(self.kinematics.tool if frames is None else frames.tool).forward(joints)
 
+    def world_matrix(self, joints, frames) -> tuple:
+        """The same as a 4x4 homogeneous matrix (nested tuples, mm)."""
+        return self._arm(self.kinematics.tool if frames is None else frames.tool).forward_matrix(joints)
+
     def in_base(self, joints, frames, world: tuple | None = None) -> tuple:
         """The same in the move's base (``world``: :meth:`world` of the same joints and
         frames, when the caller has it already)."""
@@ -177,21 +161,17 @@ class Report(Component):
     PROPERTIES = component_params("report")
 
     def __init__(self, spec, sens_pos: DataPort, out_vel: DataPort, servo, state_of, period: float = REPORT_PERIOD,
-                 history=lambda: (), io: tuple = (), settings: Settings | None = None):
+                 history=lambda: (), io: tuple = (), settings: Settings | None = None, events: Events | None = None):
         super().__init__("report", period, settings if settings is not None else Settings(spec))
         self.spec = spec
         self.sens_pos, self.out_vel, self.servo = sens_pos, out_vel, servo
         self.state_of = state_of  # callable -> the FSM's current state path
-        self.history = history  # callable -> the FSM's transitions so far: (time, from, to)
         self.io = io  # the io component's ports (inputs, outputs): the io columns
         self.motion = None  # the trajectory generator's motion queue (the move columns; set by the supervisor)
-        self._transitions_sent = 0
+        # the rows, with the FSM's transitions ((time, from, to)) and the events, to the writer
+        self.batches = Batches(history, events)
         self.names = [a.name for a in spec.axes]
         self._zeros = (0.0,) * len(self.names)
-        self.path: Path | None = None
-        self.writer: ReportWriter | None = None
-        self.batch: list = []
-        self.dropped = 0
         self.main = len(spec.main_axes)
         self.tcp = tcp_of(spec)  # None when the spec's kinematics are not usable
         # the base and tool of the move under way (the trajectory generator's; set by the system)
@@ -230,18 +210,15 @@ class Report(Component):
 
     def open(self, path: str | Path | None) -> None:
         """Not real-time: where to write (None: rows are made but not kept)."""
-        self.path = Path(path) if path else None
-        self.writer = None
-        self.batch = []
-        self.dropped = 0
-        self._transitions_sent = 0
-        if self.path is not None:
+        writer = None
+        if path:
+            path = Path(path)
             try:
-                self.path.parent.mkdir(parents=True, exist_ok=True)
+                path.parent.mkdir(parents=True, exist_ok=True)
             except OSError:
                 pass  # the writer reports the problem when it cannot open the file
-            self.writer = ReportWriter(self.path, self.header(), self._expander())
-            self.writer.start()
+            writer = ReportWriter(path, self.header(), self._expander())
+        self.batches.open(writer, self.period)
 
     def _expander(self):
         """Not real-time: the writer's row -> written row, when the rows hold joints for the
@@ -291,9 +268,7 @@ class Report(Component):
         row = (now, self.state_of())
         for kind in self.columns:
             row += values[kind]
-        self.batch.append(row)
-        if len(self.batch) * self.period >= FLUSH_PERIOD - 1e-9:
-            self._hand_over()
+        self.batches.append(row)
 
     def _move(self) -> tuple[int, int]:
         """Real-time: (the number of the move under way or last started, from 1: 0 before
@@ -306,39 +281,12 @@ class Report(Component):
         started = len(moves)
         return (started, moves[-1].line if started and motion.line is not None else 0)
 
-    def _hand_over(self) -> None:
-        if self.writer is not None:
-            history = self.history()
-            transitions = history[self._transitions_sent:] if len(history) > self._transitions_sent else ()
-            if self.batch or transitions:
-                try:
-                    self.writer.queue.put_nowait((self.batch, transitions))
-                    self._transitions_sent += len(transitions)
-                except queue.Full:
-                    self.dropped += len(self.batch)
-        self.batch = []
-
     def on_stop(self) -> None:
-        self._hand_over()
+        self.batches.hand_over()
 
     def close(self) -> str | None:
-        """Not real-time: flush and close the file; returns an error message or None."""
-        self._hand_over()
-        if self.writer is not None:
-            writer, self.writer = self.writer, None
-            try:
-                writer.queue.put(None, timeout=10)  # (a writer that ended on an error no longer empties it)
-            except queue.Full:
-                pass
-            writer.join(timeout=10)
-            problems = [writer.problem()]
-            if writer.is_alive():
-                problems.append(f"the report writer did not finish {writer.path.name} within 10 s: its last rows "
-                                "may be missing")
-            if self.dropped:
-                problems.append(f"{self.dropped} rows were not written: the report writer fell behind")
-            return "; ".join(p for p in problems if p) or None
-        return None
+        """Not real-time: flush and close the files; returns an error message or None."""
+        return self.batches.close("report")
 
 
 def tcp_of(spec) -> TcpOf | None:
@@ -359,3 +307,9 @@ def state_row(transition) -> str:
     """One line of ``<report>.states.csv``: a transition (time, from, to)."""
     t, source, target = transition
     return f"{t:.3f},{source or ''},{target}\n"
+
+
+def event_row(event) -> str:
+    """One line of ``<report>.events.csv``: an event (time, kind, line, text)."""
+    t, kind, line, text = event
+    return f"{t:.3f},{_csv_text(kind)},{int(line)},{_csv_text(text)}\n"

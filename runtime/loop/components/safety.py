@@ -85,6 +85,18 @@ _KINDS = {kernels.OVER_VELOCITY: "velocity", kernels.OVER_ACCELERATION: "acceler
           kernels.NOT_STILL: "standstill", kernels.NOT_IN_POSITION: "in position"}
 
 
+#: What each stop category does (the module docstring; docs/safety.md).
+CATEGORY_TEXT = {0: "torque off and brakes at once",
+                 1: "every axis ramped to rest at its max_acceleration, then brakes, then torque off",
+                 2: "a stop on the path, drives powered"}
+
+
+def stop_text(category: int, cause: str) -> str:
+    """A stop as the recording and the report's events file say it: its category, cause
+    (a key of :data:`CATEGORIES`) and what it does."""
+    return f"safety stop of category {category} ({cause}): {CATEGORY_TEXT.get(category, 'a stop')}"
+
+
 def categories_markdown() -> str:
     lines = ["| cause | category | what |", "|---|---|---|"]
     for cause, (category, what) in CATEGORIES.items():
@@ -389,6 +401,7 @@ class SafetySupervisor(Component):
     def reset(self) -> None:
         """Not real-time: a new cycle (the drives are enabled again by Start Robot)."""
         self.fault = None
+        self.stops: list[tuple[float, int, str]] = []  # (time, category, cause) of each stop begun or made stricter
         self.ramp.reset()
         self.encoders.reset()
         self.standstill.reset()
@@ -531,5 +544,7 @@ class SafetySupervisor(Component):
         :class:`StopRamp`."""
         now = self.clock.tick_time if now is None else now
         category = CATEGORIES[cause][0]
-        if self.ramp.start(category, reason, now, self.previous) and category == 0:
-            self.previous = self._zeros
+        if self.ramp.start(category, reason, now, self.previous):
+            self.stops.append((now, category, cause))  # (the recording's and the events file's stop)
+            if category == 0:
+                self.previous = self._zeros

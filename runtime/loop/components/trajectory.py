@@ -38,6 +38,7 @@ from compiler.values import Joint, Pose
 
 from runtime.loop.component import Component, DataPort
 from runtime.motion.kinematics import Kinematics
+from runtime.recording import LOG_FULL, PRINT
 from runtime.motion.motionqueue import MotionQueue, PlanningWorker
 from runtime.motion.moves import Frames, MoveRecord, MovePlanner, MoveRequest
 from runtime.settings import Settings
@@ -97,7 +98,7 @@ class TrajectoryGenerator(Component):
         self.lookahead = lookahead_depth(spec)
         self.program: Program | None = None
         self.vm: VM | None = None
-        self.log_lines: list[tuple[float, int, str]] = []
+        self.log_lines: list[tuple[float, int, str, str]] = []
         self.fault: str | None = None
         self.start_position: tuple | None = None  # the commanded position to plan from (else sens_pos)
         self.safety = None  # the safety supervisor: told when the motion is at rest, and of stops on the path
@@ -198,8 +199,16 @@ class TrajectoryGenerator(Component):
     def line(self) -> int:
         """The source line of the move the robot is executing (stopping on, or waiting to
         resume); else of the instruction the program is at."""
+        return self.source()[0]
+
+    def source(self) -> tuple[int, int | None]:
+        """Real-time: :attr:`line`, and the code offset of the program's instruction it is
+        the line of (None: the line of a move under way, or no program)."""
         line = self.motion.line
-        return self._program_line() if line is None else line
+        if line is not None:
+            return line, None
+        vm = self.vm
+        return (vm.line, vm.offset) if vm is not None else (0, None)
 
     @property
     def paused(self) -> bool:
@@ -429,13 +438,14 @@ class TrajectoryGenerator(Component):
             raise EvalError(f"digital output {n} does not exist (1..{self.spec.outputs})")
         self.io.set_output(n, value)
 
-    def log(self, text: str, line: int) -> None:
-        """The operator log: at most MAX_LOG_LINES lines per program (then one line that
-        says how many more were not kept)."""
+    def log(self, text: str, line: int, kind: str = PRINT) -> None:
+        """The operator log: ``(time, line, text, kind)`` (its kind of
+        runtime.recording.EVENTS), at most MAX_LOG_LINES lines per program (then one line
+        that says how many more were not kept)."""
         if len(self.log_lines) < MAX_LOG_LINES:
-            self.log_lines.append((self.clock.tick_time, line, text))
+            self.log_lines.append((self.clock.tick_time, line, text, kind))
         else:
             self.log_dropped += 1
             if self.log_dropped == 1:
                 self.log_lines.append((self.clock.tick_time, line, f"(more than {MAX_LOG_LINES} lines: the rest of "
-                                                              "the log is not kept)"))
+                                                                   "the log is not kept)", LOG_FULL))

@@ -9,7 +9,8 @@ import pytest
 
 from compiler.driver import compile_file
 from runtime.loop.offline import check_motion
-from runtime.view.replay import ReplayError, read_report
+from compiler.spec import load_spec
+from runtime.view.replay import ReplayError, read_recorded, read_report
 from runtime.view.stage import source_html, timeline_html
 from tests.conftest import ROOT, SPEC_PATH, no_traceback, objcode, run_irl
 
@@ -39,12 +40,28 @@ def test_the_trace_is_the_planned_motion_and_marks_refused_moves():
     assert plain.cycle_time == pytest.approx(outcome.cycle_time, abs=1e-9)
 
 
-def test_a_report_read_back_for_replay(tmp_path):
-    report = tmp_path / "test.csv"
-    done = run_irl("run", "programs/test.irl", "--report", report, "--report-columns", "+move,io")
+def test_a_report_and_a_recording_read_back_for_replay(tmp_path):
+    """The same run replayed from its report and from its recording: the same joints at
+    the same times, the same phases and lines."""
+    report, recording = tmp_path / "test.csv", tmp_path / "test.mcap"
+    done = run_irl("run", "programs/test.irl", "--report", report, "--report-columns", "+move,io",
+                   "--record", recording)
     assert done.returncode == 0, done.stderr
     spec_axes = ["A1", "A2", "A3", "A4", "A5", "A6"]
     rec = read_report(report, spec_axes)
+    spec = load_spec(SPEC_PATH)
+    recorded = read_recorded(recording, spec)
+    at = {round(t, 3): (j, line) for t, j, line in zip(recorded.times, recorded.joints, recorded.lines)}
+    same = [(at[round(t, 3)], (j, line)) for t, j, line in zip(rec.times, rec.joints, rec.lines) if round(t, 3) in at]
+    assert len(same) >= len(rec.times) - 1
+    for (j1, line1), (j2, line2) in same:
+        assert j1 == pytest.approx(j2, abs=1e-6)
+        assert line1 == line2 or line2 == 0  # (the report's is the line of a move under way: 0 between moves)
+    assert [p[1] for p in recorded.phases if "/" not in p[1]][1:3] == ["Calibrate Offsets", "Initialization Sequence"]
+    other = tmp_path / "other.spc"
+    other.write_text(SPEC_PATH.read_text(encoding="utf-8").replace("max_speed = 2000.0", "max_speed = 1999.0"))
+    with pytest.raises(ReplayError, match="give its --spec"):
+        read_recorded(recording, load_spec(other))
     assert len(rec.times) == len(rec.joints) == len(rec.lines) > 1000
     assert [p[1].split("/")[0] for p in rec.phases][:2] == ["Calibrate Offsets", "Initialization Sequence"]
     assert rec.phases[-1][1].startswith("Stop Robot")

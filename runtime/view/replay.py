@@ -102,13 +102,85 @@ def _rows(path: Path, rows, column: dict, axes: list[str]) -> Recorded:
 
 
 def read_recorded(path: Path, spec) -> Recorded:
-    """A report (``.csv``) or a recording (``.mcap``) of ``spec``'s robot."""
+    """A report (``.csv``, with the prints and faults of its ``.events.csv`` when it is
+    there) or a recording (``.mcap``) of ``spec``'s robot."""
     axes = [a.name for a in spec.axes]
     if path.suffix.lower() == ".mcap":
-        from runtime.view.recorded import read_mcap
+        return read_mcap(path, spec)
+    rec = read_report(path, axes)
+    rec.logs = read_events(path.with_suffix(".events.csv"))
+    return rec
 
-        return read_mcap(path, axes)
-    return read_report(path, axes)
+
+def read_events(path: Path) -> list:
+    """The events file beside a report (runtime.recording.EVENTS), as ``(time, level,
+    text)``; none when it is not there or not readable."""
+    from runtime.recording import EVENTS
+
+    try:
+        with open(path, encoding="utf-8", newline="") as f:
+            rows = list(csv.DictReader(f))
+    except (OSError, UnicodeDecodeError, csv.Error):
+        return []
+    logs = []
+    for row in rows:
+        try:
+            t = float(row["time"])
+        except (KeyError, TypeError, ValueError):
+            continue
+        kind = row.get("kind") or ""
+        line = f"line {row['line']}: " if (row.get("line") or "0") != "0" else ""
+        logs.append((t, EVENTS.get(kind, ("INFO", ""))[0], f"{line}{kind}: {row.get('text') or ''}"))
+    return logs
+
+
+def read_mcap(path: Path, spec) -> Recorded:
+    """A recording (runtime.recording) of ``spec``'s robot (refused when its robot's
+    specification has another hash), as a :class:`Recorded`: the joint states' samples,
+    and per sample the line, the tool and the I/O as they last changed."""
+    from runtime.recording import RecordingError, read_recording
+
+    try:
+        data = read_recording(path)
+    except RecordingError as exc:
+        raise ReplayError(f"{path}: {exc}") from None
+    except OSError as exc:
+        raise ReplayError(f"cannot read {path}: {exc.strerror or exc}") from None
+    meta = data["metadata"]
+    if meta.get("spec_hash") and meta["spec_hash"] != spec.hash:
+        raise ReplayError(f"{path} is a recording of {meta.get('robot')} (specification {meta['spec_hash'][:12]}), not "
+                          f"of {spec.file} ({spec.hash[:12]}): give its --spec")
+    times = [float(t) for t in data["times"]]
+    if not times:
+        raise ReplayError(f"{path}: no joint states: nothing to replay")
+    rec = Recorded(times=times, joints=[tuple(map(float, j)) for j in data["joints"]])
+    rec.lines = _held(times, [(t, line) for t, line, _file in data["lines"]], 0)
+    rec.tools = _held(times, [(t, tool) for t, tool, _base in data["frames"]], "default_tool")
+    io = data["io"]
+    if len(io["times"]):
+        changes = list(zip(io["times"], map(tuple, io["inputs"]), map(tuple, io["outputs"])))
+        rec.inputs = _held(times, [(t, i) for t, i, _o in changes], changes[0][1])
+        rec.outputs = _held(times, [(t, o) for t, _i, o in changes], changes[0][2])
+    rec.phases = [(float(t), state) for t, state in data["phases"]]
+    rec.logs = [(float(e["time"]), e["level"], (f"line {e['line']}: " if e.get("line") else "") + f"{e['kind']}: "
+                 f"{e['text']}") for e in data["logs"]]
+    try:
+        rec.source = Path(meta.get("source") or "").read_text(encoding="utf-8") if meta.get("source") else None
+    except (OSError, UnicodeDecodeError):
+        rec.source = None
+    return rec
+
+
+def _held(times: list, changes: list, initial) -> list:
+    """Per time of ``times``, the value of the last of ``changes`` (``(time, value)``, in
+    time order) at or before it (``initial`` before the first)."""
+    out, value, i = [], initial, 0
+    for t in times:
+        while i < len(changes) and changes[i][0] <= t + 1e-9:
+            value = changes[i][1]
+            i += 1
+        out.append(value)
+    return out
 
 
 class ReplayView:

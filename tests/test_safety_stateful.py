@@ -118,7 +118,7 @@ STOP_TOLERANCE = 0.5
 ACCELERATION_LIMIT = SPEC.safety.acceleration_factor
 
 #: Examples (sequences of rules): about 1.3 s each on this 2-core machine (50: about 66 s).
-EXAMPLES = int(os.environ.get("IRL_STATEFUL_EXAMPLES", "36"))
+EXAMPLES = int(os.environ.get("IRL_STATEFUL_EXAMPLES", "28"))
 #: Rules per example.
 STEPS = 20
 #: The fault kinds injected (all of them unless narrowed).

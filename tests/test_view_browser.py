@@ -16,7 +16,6 @@ import shutil
 import signal
 import subprocess
 import time
-from pathlib import Path
 
 import pytest
 
@@ -109,7 +108,7 @@ def _open(browser, url: str):
     return page
 
 
-def _canvas(page) -> "np.ndarray":
+def _canvas(page):
     """The 3D canvas as RGB pixels."""
     import numpy as np
     from matplotlib.image import imread

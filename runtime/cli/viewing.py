@@ -3,6 +3,7 @@ report or recording replayed, or a served robot live. It serves the page on 127.
 prints its URL, and serves until interrupted (Ctrl-C, SIGTERM: exit 0)."""
 from __future__ import annotations
 
+import importlib.util
 import os
 import signal
 import threading
@@ -46,10 +47,8 @@ def cmd_view(args, env: common.Environment) -> int:
             raise common.UsageError(f"cannot read {args.file}: no such file")
     elif args.cell_scenario:
         raise common.UsageError("--cell-scenario is for a program's paths, not a live view")
-    try:
-        import viser  # noqa: F401 - said here, before any work, when missing
-    except ImportError:
-        raise common.UsageError("irl view needs viser: pip install -e '.[view]'") from None
+    if importlib.util.find_spec("viser") is None or importlib.util.find_spec("yourdfpy") is None:
+        raise common.UsageError("irl view needs viser and yourdfpy: pip install -e '.[view]'")
     if args.endpoint is not None:
         view, stage = _live(args, env)
     elif kind == "program":

@@ -26,6 +26,20 @@ from runtime.timing import FLUSH_PERIOD
 QUEUE_SIZE = 1000
 
 
+def file_to_write(path: str | Path | None) -> Path | None:
+    """Not real-time: ``path`` as a Path with its directory made (None: nothing to write).
+    A directory that cannot be made is left to the writer, which says so when it cannot
+    open the file."""
+    if not path:
+        return None
+    path = Path(path)
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+    except OSError:
+        pass
+    return path
+
+
 class Events:
     """Real-time: the cycle's events as they come, ``(time, kind, line, text)`` with a kind
     of runtime.recording.EVENTS: the program's log lines (the trajectory generator's

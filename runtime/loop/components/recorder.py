@@ -28,7 +28,7 @@ from pathlib import Path
 
 from compiler.geometry import rpy_to_quat
 
-from runtime.loop.batches import Batches, BatchWriter, Events
+from runtime.loop.batches import Batches, BatchWriter, Events, file_to_write
 from runtime.motion.rotation import matrix_to_quat
 from runtime.motion.urdf import link_frames, urdf_text
 from runtime.recording import (FORMAT, INSTALL, MESSAGE_ENCODING, METADATA, PROFILE, SCHEMA_ENCODING, TOPICS,
@@ -72,14 +72,8 @@ class Recorder:
     def open(self, path: str | Path | None, program=None, job: int | None = None, clock: str = "simulated") -> None:
         """Not real-time: record this cycle into ``path`` (None: no recording); ``program``
         names the source files of its lines, ``job`` the server's program id."""
-        writer = None
-        if path:
-            path = Path(path)
-            try:
-                path.parent.mkdir(parents=True, exist_ok=True)
-            except OSError:
-                pass  # the writer says the problem when it cannot open the file
-            writer = RecordWriter(path, self.spec, self.tcp, program, job, clock)
+        path = file_to_write(path)
+        writer = RecordWriter(path, self.spec, self.tcp, program, job, clock) if path is not None else None
         self.batches.open(writer, self.period)
 
     def update(self, now: float) -> None:

@@ -26,7 +26,7 @@ from compiler.frames import IDENTITY, pose_of, values_of
 from compiler.params import component_params
 from compiler.semantics import compose, inverse
 
-from runtime.loop.batches import Batches, BatchWriter, Events
+from runtime.loop.batches import Batches, BatchWriter, Events, file_to_write
 from runtime.loop.component import Component, DataPort
 from runtime.motion.moves import Frames
 from runtime.recording import EVENTS_HEADER
@@ -210,14 +210,8 @@ class Report(Component):
 
     def open(self, path: str | Path | None) -> None:
         """Not real-time: where to write (None: rows are made but not kept)."""
-        writer = None
-        if path:
-            path = Path(path)
-            try:
-                path.parent.mkdir(parents=True, exist_ok=True)
-            except OSError:
-                pass  # the writer reports the problem when it cannot open the file
-            writer = ReportWriter(path, self.header(), self._expander())
+        path = file_to_write(path)
+        writer = ReportWriter(path, self.header(), self._expander()) if path is not None else None
         self.batches.open(writer, self.period)
 
     def _expander(self):

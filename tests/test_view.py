@@ -58,6 +58,9 @@ def test_a_report_and_a_recording_read_back_for_replay(tmp_path):
         assert j1 == pytest.approx(j2, abs=1e-6)
         assert line1 == line2 or line2 == 0  # (the report's is the line of a move under way: 0 between moves)
     assert [p[1] for p in recorded.phases if "/" not in p[1]][1:3] == ["Calibrate Offsets", "Initialization Sequence"]
+    from runtime.cli.viewing import recorded_spec  # (irl view FILE.mcap needs no --spec where the file is)
+
+    assert Path(recorded_spec(recording)).resolve() == SPEC_PATH.resolve()
     other = tmp_path / "other.spc"
     other.write_text(SPEC_PATH.read_text(encoding="utf-8").replace("max_speed = 2000.0", "max_speed = 1999.0"))
     with pytest.raises(ReplayError, match="give its --spec"):

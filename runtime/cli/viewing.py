@@ -12,7 +12,7 @@ from pathlib import Path
 from runtime.cli import common
 
 #: The files ``irl view`` shows, by suffix.
-KINDS = {".irl": "program", ".irlo": "program", ".csv": "report", ".mcap": "recording"}
+KINDS = {".irl": "program", ".csv": "report", ".mcap": "recording"}
 
 
 def add_arguments(p) -> None:
@@ -34,14 +34,15 @@ def add_arguments(p) -> None:
 
 def cmd_view(args, env: common.Environment) -> int:
     if (args.file is None) == (args.endpoint is None):
-        raise common.UsageError("irl view: give a file (PROG.irl, REPORT.csv, FILE.mcap) or --endpoint E (live), "
+        raise common.UsageError("give a file (PROG.irl, REPORT.csv, FILE.mcap) or --endpoint E (live), "
                                 "one of the two")
     if not 1 <= args.port <= 65535:
         raise common.UsageError(f"--port {args.port}: expected 1 to 65535")
     if args.file is not None:
         kind = KINDS.get(Path(args.file).suffix.lower())
         if kind is None:
-            raise common.UsageError(f"irl view {args.file}: expected a program (.irl, .irlo), a report (.csv) or a "
+            also = " (the program's source: its lines are shown with its paths)" if args.file.endswith(".irlo") else ""
+            raise common.UsageError(f"irl view {args.file}: expected a program (.irl){also}, a report (.csv) or a "
                                     "recording (.mcap)")
         if not Path(args.file).is_file():
             raise common.UsageError(f"cannot read {args.file}: no such file")
@@ -82,9 +83,9 @@ def _stage(spec, args, title: str):
     try:
         return Stage(spec, args.port, title)
     except OSError as exc:
-        raise common.UsageError(f"irl view: cannot serve on 127.0.0.1:{args.port}: {exc.strerror or exc}") from None
+        raise common.UsageError(f"cannot serve on 127.0.0.1:{args.port}: {exc.strerror or exc}") from None
     except ValueError as exc:  # (the specification's kinematics: no URDF of it)
-        raise common.UsageError(f"irl view: {spec.file}: {exc}") from None
+        raise common.UsageError(f"{spec.file}: {exc}") from None
 
 
 def _load_spec(path: str):
@@ -127,15 +128,31 @@ def _program(args, env):
 def _replay(args, env):
     from runtime.view.replay import ReplayError, ReplayView, read_recorded
 
-    if not args.spec:
-        raise common.UsageError(f"irl view {args.file}: a report does not name its robot: give --spec FILE.spc")
-    spec = _load_spec(args.spec)
+    spec_path = args.spec or recorded_spec(Path(args.file))
+    if not spec_path:
+        raise common.UsageError(f"irl view {args.file}: a report does not name its robot's specification: give "
+                                "--spec FILE.spc")
+    spec = _load_spec(spec_path)
     try:
         recorded = read_recorded(Path(args.file), spec)
     except ReplayError as exc:
         raise common.UsageError(str(exc)) from None
     stage = _stage(spec, args, args.file)
     return ReplayView(stage, args.file, recorded), stage
+
+
+def recorded_spec(path: Path) -> str | None:
+    """The specification file a recording was made with, when it is readable here."""
+    if path.suffix.lower() != ".mcap":
+        return None
+    from runtime.recording import RecordingError, read_messages
+
+    try:
+        metadata, _messages, _complete = read_messages(path, set())
+    except (RecordingError, OSError):
+        return None  # (said when the file is read for its messages)
+    spec_file = metadata.get("spec_file")
+    return spec_file if spec_file and os.path.isfile(spec_file) else None
 
 
 def _live(args, env):
@@ -150,14 +167,14 @@ def _live(args, env):
         finally:
             client.close()
     except ClientError as exc:
-        raise common.UsageError(f"irl view: {exc.message}") from None
+        raise common.UsageError(f"{exc.message}") from None
     spec_path = args.spec or hello.get("spec_file")
     if not spec_path or not os.path.isfile(spec_path):
-        raise common.UsageError(f"irl view: the server's specification ({hello.get('robot')}) is not readable here: "
+        raise common.UsageError(f"the server's specification ({hello.get('robot')}) is not readable here: "
                                 "give --spec FILE.spc")
     spec = _load_spec(spec_path)
     if spec.hash != hello.get("spec_hash"):
-        raise common.UsageError(f"irl view: {spec_path} is not the served robot's specification ({hello.get('robot')},"
+        raise common.UsageError(f"{spec_path} is not the served robot's specification ({hello.get('robot')},"
                                 f" hash {str(hello.get('spec_hash'))[:12]}): give the one it was started with")
     stage = _stage(spec, args, f"live: {args.endpoint}")
     view = LiveView(stage, args.endpoint, telemetry, args.keys)
@@ -171,4 +188,4 @@ def _telemetry_of(endpoint: str) -> str:
     head, sep, port = endpoint.rpartition(":")
     if sep and port.isdigit():
         return f"{head}:{int(port) + 1}"
-    raise common.UsageError(f"irl view: --endpoint {endpoint}: give --telemetry E too (no port to count from)")
+    raise common.UsageError(f"--endpoint {endpoint}: give --telemetry E too (no port to count from)")

@@ -22,6 +22,7 @@ from __future__ import annotations
 import base64
 import heapq
 import json
+import os
 import time
 from math import isfinite
 from pathlib import Path
@@ -105,7 +106,8 @@ class RecordWriter(BatchWriter):
         self.links = False  # /tf: every link of the URDF (when there is one)
         self.metadata = {"format": str(FORMAT), "program": program.name if program is not None else "",
                          "source": program.source if program is not None else "", "robot": spec.name,
-                         "spec_hash": spec.hash, "job": "" if job is None else str(job), "clock": clock,
+                         "spec_hash": spec.hash, "spec_file": os.path.abspath(spec.file) if spec.file else "",
+                         "job": "" if job is None else str(job), "clock": clock,
                          "axes": json.dumps(self.names), "units": json.dumps([a.unit for a in spec.axes]),
                          "period": repr(RECORD_PERIOD), "recorded": time.strftime("%Y-%m-%dT%H:%M:%S%z")}
         self.mcap = self.stream = None

@@ -58,12 +58,19 @@ def cmd_view(args, env: common.Environment) -> int:
             return common.EXIT_INVALID
     else:
         view, stage = _replay(args, env)
-    common.say(env, f"irl view: {stage.url}")
-    env.stdout.flush()
+    if not stage.announced:
+        _announce(env, stage)
     _serve_until_stopped()
     view.close()
     stage.close()
     return common.EXIT_OK
+
+
+def _announce(env, stage) -> None:
+    """Say where the page is (as soon as it serves the arm)."""
+    common.say(env, f"irl view: {stage.url}")
+    env.stdout.flush()
+    stage.announced = True
 
 
 def _serve_until_stopped() -> None:
@@ -116,8 +123,11 @@ def _program(args, env):
         except ValueError as exc:
             raise common.UsageError(str(exc)) from None
     started = time.perf_counter()
-    outcome = check_motion(result.program, result.spec, scenario, trace=True)
     stage = _stage(result.spec, args, args.file)
+    _announce(env, stage)  # (the arm is there at once; its paths come when they are planned)
+    waiting = stage.server.gui.add_markdown(f"planning the moves of {args.file} ...")
+    outcome = check_motion(result.program, result.spec, scenario, trace=True)
+    waiting.remove()
     view = ProgramView(stage, args.file, Path(args.file).read_text(encoding="utf-8"), outcome)
     refused = len(view.reasons)
     common.say(env, f"irl view: {args.file}: {len(view.records)} moves, {refused} refused, shown in "

@@ -15,7 +15,11 @@ import html
 import threading
 import time
 
+from compiler.frames import pose_of, values_of
+from compiler.semantics import compose, inverse
+
 from runtime.client.client import Client, ClientError, Subscriber
+from runtime.motion.moves import Frames
 from runtime.view.stage import Stage, lamps_html, log_html, source_html
 
 #: Seconds without a telemetry message before the page says the connection is lost.
@@ -41,6 +45,7 @@ class LiveView:
         self.logs: list[tuple[float, str, str]] = []
         self.program: int | None = None
         self.lines: list[str] = []
+        self.name = ""  # the running program's name (as submitted)
         self.line = 0
         self.samples = 0  # samples shown
         self.missed = 0  # telemetry messages the subscriber missed (sequence gaps)
@@ -123,17 +128,17 @@ class LiveView:
     def _sample(self, sample: dict, client: Client, now: float) -> None:
         position = sample.get("position")
         if isinstance(position, list) and len(position) >= 6:
-            self.stage.show(position, tcp=sample.get("tcp"))
+            self.stage.show(position, self._frames(sample), tcp=sample.get("tcp"))
         self.samples += 1
         program = sample.get("program")
         if program != self.program:
             self.program = program
-            self.lines = self._source(client, program)
+            self.name, self.lines = self._source(client, program)
             self.line = -1
         line = sample.get("line") or 0
         if line != self.line:
             self.line = line
-            title = f"program {program}" if program is not None else "no program running"
+            title = f"program {program}: {self.name}" if program is not None else "no program running"
             self.source_box.content = source_html(self.lines, line or None, title)
         inputs, outputs = sample.get("inputs"), sample.get("outputs")
         if isinstance(inputs, list) and isinstance(outputs, list) and (inputs, outputs) != self.io:
@@ -150,15 +155,26 @@ class LiveView:
                             f" · tool {html.escape(str(sample.get('tool', '')))}"
                             + (f" · line {line}" if line else ""))
 
-    def _source(self, client: Client, program) -> list[str]:
+    def _frames(self, sample: dict) -> Frames | None:
+        """The active base (its name; its pose from the TCP in the world and in the base)."""
+        tcp, in_base = sample.get("tcp"), sample.get("tcp_base")
+        if not (isinstance(tcp, list) and isinstance(in_base, list) and len(tcp) == len(in_base) == 6):
+            return None
+        base = values_of(compose(pose_of(tuple(tcp)), inverse(pose_of(tuple(in_base)))))
+        return Frames(str(sample.get("base", "")), base, str(sample.get("tool", "")), tuple(self.stage.spec.tool))
+
+    def _source(self, client: Client, program) -> tuple[str, list[str]]:
+        """The program's name and the lines of its source (none: it came without)."""
         if program is None:
-            return []
+            return "", []
         try:
             reply = client.request("source", {"program": program})
         except ClientError:
-            return []
-        text = reply.get("source") if isinstance(reply, dict) else None
-        return text.splitlines() if isinstance(text, str) else []
+            return "", []
+        if not isinstance(reply, dict):
+            return "", []
+        text = reply.get("source")
+        return str(reply.get("name") or ""), text.splitlines() if isinstance(text, str) else []
 
     def close(self) -> None:
         self._stop.set()

@@ -74,6 +74,8 @@ class Stage:
         self.base = self.server.scene.add_frame("/base", axes_length=0.12, axes_radius=0.004)
         self.base_label = self.server.scene.add_label("/base/label", "world", font_screen_scale=0.8)
         self.joints: tuple | None = None  # what the arm shows (deg)
+        self.announced = False  # its URL said
+        self.show([a.home for a in spec.main_axes])
 
     @property
     def url(self) -> str:

@@ -3,9 +3,12 @@ given to draw (a program's trace from the offline planners, a report read back),
 usage errors, and the protocol's ``source`` operation it reads a served program's lines from."""
 from __future__ import annotations
 
+import math
 from pathlib import Path
 
 import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
 
 from compiler.driver import compile_file
 from runtime.loop.offline import check_motion
@@ -154,3 +157,52 @@ def test_the_panel_pieces():
     bands = timeline_html([(0.0, "Start Robot"), (0.05, "Calibrate Offsets"), (0.35, "Initialization Sequence/Home"),
                            (1.0, "Initialization Sequence/Check"), (9.0, "Move Robot")], 0.0, 20.0, 10.0)
     assert bands.count('class="phase"') == 4  # the top-level phases, each once
+
+
+def _small_report(tmp_path_factory) -> str:
+    """A real report's first rows, as text (made once)."""
+    global _REPORT
+    if _REPORT is None:
+        path = tmp_path_factory.mktemp("report") / "r.csv"
+        done = run_irl("run", "programs/test.irl", "--report", path, "--report-columns", "sens_pos,move,io")
+        assert done.returncode == 0, done.stderr
+        _REPORT = "".join(path.read_text(encoding="utf-8").splitlines(keepends=True)[:40])
+    return _REPORT
+
+
+_REPORT = None
+_EDITS = st.tuples(st.integers(0, 10_000), st.integers(0, 40), st.sampled_from(
+    ["", ",", "\n", "nan", "-inf", "1e999", "x", '"', "\r", "-", "9", ",,", "\x00", "é"]))
+
+
+@settings(max_examples=60, deadline=None, derandomize=True, database=None,
+          suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(edits=st.lists(_EDITS, min_size=1, max_size=4))
+def test_any_report_is_replayed_or_refused_with_the_reason(tmp_path_factory, edits):
+    """Every input is untrusted: a report cut, spliced and garbled anywhere is replayed
+    with finite joints at times that never go back, or refused with a ReplayError that
+    says where; nothing else (no traceback)."""
+    text = _small_report(tmp_path_factory)
+    for at, cut, put in edits:
+        at %= len(text) + 1
+        text = text[:at] + put + text[at + cut:]
+    path = tmp_path_factory.mktemp("bad") / "r.csv"
+    path.write_text(text, encoding="utf-8", errors="surrogatepass")
+    try:
+        rec = read_report(path, ["A1", "A2", "A3", "A4", "A5", "A6"])
+    except ReplayError as exc:
+        assert str(path) in str(exc)
+        return
+    assert rec.times == sorted(rec.times) and all(math.isfinite(t) for t in rec.times)
+    assert all(math.isfinite(v) for joints in rec.joints for v in joints)
+    assert len(rec.joints) == len(rec.times) and all(len(j) == 6 for j in rec.joints)
+
+
+@settings(max_examples=25, deadline=None, derandomize=True, database=None,
+          suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(data=st.binary(max_size=400))
+def test_any_file_named_mcap_is_refused_with_the_reason(tmp_path_factory, data):
+    path = tmp_path_factory.mktemp("bad") / "r.mcap"
+    path.write_bytes(b"\x89MCAP0\r\n" + data if data[:1] == b"M" else data)
+    with pytest.raises(ReplayError):
+        read_recorded(path, load_spec(SPEC_PATH))

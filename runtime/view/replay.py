@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import csv
 import html
+import math
 from bisect import bisect_right
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -98,6 +99,20 @@ def _rows(path: Path, rows, column: dict, axes: list[str]) -> Recorded:
             rec.phases.append((t, state))
     if not rec.times:
         raise ReplayError(f"{path}: no rows: nothing to replay")
+    return _checked(path, rec, lambda i: f"line {i + 2}")
+
+
+def _checked(path: Path, rec: Recorded, where) -> Recorded:
+    """``rec`` when its times are finite and never go back and its joints are finite; else
+    ReplayError naming the first sample (``where(i)``) that is not."""
+    last = -math.inf
+    for i, (t, joints) in enumerate(zip(rec.times, rec.joints)):
+        if not math.isfinite(t) or t < last:
+            raise ReplayError(f"{path}, {where(i)}: time {t!r}: a time must be a finite number of seconds, never "
+                              f"before the one before it ({last:g})")
+        if not all(map(math.isfinite, joints)):
+            raise ReplayError(f"{path}, {where(i)}: joint values {joints}: every one must be a finite number")
+        last = t
     return rec
 
 
@@ -153,7 +168,8 @@ def read_mcap(path: Path, spec) -> Recorded:
     times = [float(t) for t in data["times"]]
     if not times:
         raise ReplayError(f"{path}: no joint states: nothing to replay")
-    rec = Recorded(times=times, joints=[tuple(map(float, j)) for j in data["joints"]])
+    rec = _checked(path, Recorded(times=times, joints=[tuple(map(float, j)) for j in data["joints"]]),
+                   lambda i: f"joint state {i + 1}")
     rec.lines = _held(times, [(t, line) for t, line, _file in data["lines"]], 0)
     rec.tools = _held(times, [(t, tool) for t, tool, _base in data["frames"]], "default_tool")
     io = data["io"]

@@ -278,12 +278,12 @@ def read_messages(path: str | Path, topics: set[str] | None = None):
                     elif isinstance(record, Metadata) and record.name == METADATA:
                         metadata = dict(record.metadata)
                 complete = True
-            except Exception as exc:  # noqa: BLE001
+            except Exception:  # noqa: BLE001
                 # (the mcap library and its decompressors on an untrusted file fail in many ways:
                 # struct.error on a file of a few bytes, zstd's and lz4's own errors on a bad chunk;
                 # every one ends the file here, or says it is none)
                 if not channels and not metadata:
-                    raise RecordingError(f"{path} is not an MCAP recording ({type(exc).__name__})") from None
+                    raise RecordingError(f"{path} is not an MCAP recording: its records cannot be read") from None
     except OSError as exc:
         raise RecordingError(f"cannot read {path}: {exc.strerror or exc}") from None
     if metadata.get("format") != str(FORMAT):

@@ -60,6 +60,21 @@ EVENTS: dict[str, tuple[str, str]] = {
 EVENTS_HEADER = "time,kind,line,text\n"
 
 
+def read_events(report: str | Path) -> list[tuple[float, str, int, str]]:
+    """The report's events file (``<report>.events.csv``: time, kind, line, text), if it is
+    there and readable (a report written before it existed has none; a garbled one: none
+    either)."""
+    import csv
+
+    path = Path(report).with_suffix(".events.csv")
+    try:
+        with open(path, newline="", encoding="utf-8") as f:
+            rows = list(csv.reader(f))[1:]
+        return [(float(r[0]), r[1], int(r[2]), r[3]) for r in rows if len(r) == 4]
+    except (OSError, ValueError, csv.Error):
+        return []
+
+
 def level_of(kind: str) -> int:
     """The foxglove.LogLevel of an event's kind (UNKNOWN for a kind not in :data:`EVENTS`)."""
     entry = EVENTS.get(kind)

@@ -20,6 +20,8 @@ from __future__ import annotations
 import csv
 from pathlib import Path
 
+from runtime.recording import read_events
+
 
 HOMING = "Initialization Sequence"  # the phase whose sub-states are the homing steps
 STEP_BAND = ("#b8c4d6", "#8a9bb5")  # the homing steps' band, alternating
@@ -124,18 +126,6 @@ def read_transitions(report: str | Path) -> list[tuple[float, str, str]]:
         with open(path, newline="", encoding="utf-8") as f:
             rows = list(csv.reader(f))[1:]
         return [(float(r[0]), r[1], r[2]) for r in rows if len(r) == 3]
-    except (OSError, ValueError):
-        return []
-
-
-def read_events(report: str | Path) -> list[tuple[float, str, int, str]]:
-    """The report's events file (``<report>.events.csv``: time, kind, line, text), if it is
-    there and readable (a report written before it existed has none)."""
-    path = Path(report).with_suffix(".events.csv")
-    try:
-        with open(path, newline="", encoding="utf-8") as f:
-            rows = list(csv.reader(f))[1:]
-        return [(float(r[0]), r[1], int(r[2]), r[3]) for r in rows if len(r) == 4]
     except (OSError, ValueError):
         return []
 

@@ -17,6 +17,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from runtime.motion.moves import Frames
+from runtime.recording import read_events
 from runtime.view.stage import Player, Stage, lamps_html, log_html, source_html, timeline_html
 
 
@@ -123,30 +124,16 @@ def read_recorded(path: Path, spec) -> Recorded:
     if path.suffix.lower() == ".mcap":
         return read_mcap(path, spec)
     rec = read_report(path, axes)
-    rec.logs = read_events(path.with_suffix(".events.csv"))
+    rec.logs = _logs(read_events(path))
     return rec
 
 
-def read_events(path: Path) -> list:
-    """The events file beside a report (runtime.recording.EVENTS), as ``(time, level,
-    text)``; none when it is not there or not readable."""
+def _logs(events: list) -> list:
+    """The events of a report's events file as ``(time, level, text)``."""
     from runtime.recording import EVENTS
 
-    try:
-        with open(path, encoding="utf-8", newline="") as f:
-            rows = list(csv.DictReader(f))
-    except (OSError, UnicodeDecodeError, csv.Error):
-        return []
-    logs = []
-    for row in rows:
-        try:
-            t = float(row["time"])
-        except (KeyError, TypeError, ValueError):
-            continue
-        kind = row.get("kind") or ""
-        line = f"line {row['line']}: " if (row.get("line") or "0") != "0" else ""
-        logs.append((t, EVENTS.get(kind, ("INFO", ""))[0], f"{line}{kind}: {row.get('text') or ''}"))
-    return logs
+    return [(t, EVENTS.get(kind, ("INFO", ""))[0], (f"line {line}: " if line else "") + f"{kind}: {text}")
+            for t, kind, line, text in events]
 
 
 def read_mcap(path: Path, spec) -> Recorded:
@@ -211,6 +198,7 @@ class ReplayView:
                        else [default] * len(recorded.times))
         self.lines = (source if source is not None else recorded.source or "").splitlines()
         self.start, self.end = recorded.times[0], recorded.times[-1]
+        self.phase_times = [t for t, _state in recorded.phases]
         points = stage.tcp_points(recorded.joints, self.frames)
         if len(points) >= 2:  # the TCP's trace over the whole run
             step = max(1, len(points) // 5000)
@@ -233,7 +221,7 @@ class ReplayView:
         rec = self.rec
         i = max(bisect_right(rec.times, t) - 1, 0)
         self.stage.show(rec.joints[i], self.frames[i])
-        phase = rec.phases[max(bisect_right([p[0] for p in rec.phases], rec.times[i]) - 1, 0)][1]
+        phase = rec.phases[max(bisect_right(self.phase_times, rec.times[i]) - 1, 0)][1]
         line = rec.lines[i] if rec.lines is not None else 0
         self.now.content = (f"**{rec.times[i]:.3f} s** · {html.escape(phase)}"
                             + (f" · line {line}" if line else ""))

@@ -390,6 +390,13 @@ PARAMS: tuple[Param, ...] = (
     _p("safety", "stop_time_margin", "number", 0.5, "s", 0.05, 5.0, safety=True,
        doc="a controlled stop (pause, abort, a stop on the path) that has not brought the robot to rest this "
            "long after its planned duration is taken over by the safety's own ramp"),
+    _p("safety", "t1_speed", "number", 250.0, "mm/s", 10.0, 250.0, safety=True,
+       doc="operating mode T1 (manual reduced speed, ISO 10218-1): the tool centre point and the flange never "
+           "move faster; the safety supervisor checks every 1 ms reference and stops the robot (category 1) "
+           "beyond it; moves, jogs and homing are planned under it"),
+    _p("safety", "t1_velocity_factor", "number", 0.25, "x max_velocity", 0.01, 1.0, safety=True,
+       doc="operating mode T1: each axis's reduced speed, this fraction of its max_velocity (planned under and "
+           "enforced by the safety supervisor as its velocity limit)"),
     # ---- [robot]: the robot's name and its tool's limits (the specification's own keys:
     # a configuration's robot.* keys are the component's, below) ----
     _p("robot", "name", "text", None, doc="the robot's name (what a program's act_rob names)"),

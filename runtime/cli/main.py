@@ -260,7 +260,7 @@ def cmd_run(args, env: Environment) -> int:
     settings = _run_settings(args)
     options = RunOptions(seed=args.seed, realtime=args.realtime, report=args.report, record=args.record,
                          state_dir=args.state_dir, max_time=args.max_time, faults=faults, override=args.override,
-                         deadline_policy=args.deadline_policy, cell=cell, fieldbus=fieldbus)
+                         deadline_policy=args.deadline_policy, cell=cell, fieldbus=fieldbus, mode=args.mode)
     on_pause = _on_pause(args, env)
 
     def on_log(at: float, line: int, text: str) -> None:  # the program's print output, as it comes
@@ -536,8 +536,10 @@ def build_parser(command: str | None = None) -> argparse.ArgumentParser:
         _urdf_arguments(p)
     if command is None or command not in sub.choices:  # (naming the network commands imports their module)
         from runtime.cli.netcli import add_commands  # light: ZeroMQ is imported when a command runs
+        from runtime.cli.operate import add_commands as operator_commands
 
         add_commands(declare)
+        operator_commands(declare)
     helps = {choice.dest: choice.help for choice in sub._choices_actions}
     for name, command_parser in sub.choices.items():  # each command's own help starts with what it does
         command_parser.description = command_parser.description or helps.get(name)
@@ -623,6 +625,10 @@ def _run_arguments(p) -> None:
                    help="speed override, percent (1-100): velocities x p, accelerations x p^2")
     p.add_argument("--inject", action="append", metavar="FAULT:AXIS",
                    help=f"break the simulated robot: {', '.join(ROBOTS[DEFAULT_ROBOT].faults)} on an axis (e.g. sensor_dead:A3)")
+    p.add_argument("--mode", choices=("aut", "t1"), default="aut",
+                   help="the operating mode (docs/safety.md): aut (default), or t1, a test run at manual reduced "
+                        "speed: the tool centre point and the flange at most [safety] t1_speed (250 mm/s), checked "
+                        "every 1 ms")
     p.add_argument("--json", action="store_true", help="the summary as one JSON object")
     add_deadline_policy(p)
     add_arguments(p)

@@ -29,7 +29,7 @@ WATCH_SLACK = 0.01
 TOKEN_VARIABLE = "IRL_CONTROL_TOKEN"
 
 
-def _client(args, timeout: float | None = None):
+def client_for(args, timeout: float | None = None):
     from runtime.client.client import Client, ClientError
 
     try:
@@ -38,7 +38,7 @@ def _client(args, timeout: float | None = None):
         raise common.UsageError(exc.message) from None
 
 
-def _call(client, op: str, args: dict | None = None, env=None, hints: dict | None = None):
+def call_op(client, op: str, args: dict | None = None, env=None, hints: dict | None = None):
     """A request whose failure ends the command: unreachable -> exit 2, refused -> 1
     (``hints``: error code -> what this side knows to add to the server's message)."""
     from runtime.client.client import ClientError
@@ -49,18 +49,18 @@ def _call(client, op: str, args: dict | None = None, env=None, hints: dict | Non
         if exc.code == "unreachable":
             raise common.UsageError(exc.message) from None
         hint = (hints or {}).get(exc.code)
-        raise _Refused(f"{exc.message} ({exc.code})" + (f"; {hint}" if hint else "")) from None
+        raise Refused(f"{exc.message} ({exc.code})" + (f"; {hint}" if hint else "")) from None
 
 
-class _Refused(Exception):
+class Refused(Exception):
     """The server answered with an error: exit 1."""
 
 
-def _guard(fn):
+def guarded(fn):
     def run(args, env):
         try:
             return fn(args, env)
-        except _Refused as exc:
+        except Refused as exc:
             common.warn(env, f"irl {args.command}: {exc}")
             return common.EXIT_INVALID
     return run
@@ -110,15 +110,15 @@ def _store_token(endpoint: str, result: dict) -> Path:
     return path
 
 
-@_guard
+@guarded
 def cmd_control(args, env) -> int:
     """``irl control take|release``: take control of the robot (the token stored for the
     commands after it) or give it back."""
-    client = _client(args)
+    client = client_for(args)
     try:
         if args.action == "take":
             request = {"take": True, "lease": args.lease, **({"name": args.name} if args.name else {})}
-            result = _call(client, "control", request)
+            result = call_op(client, "control", request)
             try:
                 path = _store_token(args.endpoint, result)
             except OSError as exc:
@@ -135,7 +135,7 @@ def cmd_control(args, env) -> int:
             return common.EXIT_OK
         if args.name is not None:
             raise common.UsageError("--name is for 'irl control take'")
-        _call(client, "control", {"take": False})
+        call_op(client, "control", {"take": False})
         control_file(args.endpoint).unlink(missing_ok=True)
         if args.json:
             common.say(env, json.dumps({"control": False}))
@@ -161,7 +161,7 @@ def cmd_serve(args, env) -> int:
         raise common.UsageError(f"{' and '.join(given(args))} {'is' if len(given(args)) == 1 else 'are'} for the wall "
                              "clock: drop --sim-clock")
     options = ServeOptions(endpoint=args.endpoint, telemetry=args.telemetry, state_dir=args.state_dir,
-                           sim_clock=args.sim_clock, seed=args.seed, keys=args.keys,
+                           sim_clock=args.sim_clock, seed=args.seed, keys=args.keys, mode=args.mode,
                            allow_insecure_remote=args.insecure_allow_remote_without_encryption,
                            deadline_policy=args.deadline_policy, scheduling=wanted)
     try:
@@ -239,7 +239,7 @@ def _source_text(path: Path) -> str | None:
     return text if len(text.encode()) <= MAX_REQUEST_BYTES // 4 else None
 
 
-@_guard
+@guarded
 def cmd_submit(args, env) -> int:
     if args.report and not args.wait:
         raise common.UsageError("--report needs --wait (the report is fetched when the program has ended)")
@@ -250,11 +250,11 @@ def cmd_submit(args, env) -> int:
     hints = {"wrong_robot": f"{name} was compiled here for {compiled_for}"} if compiled_for else None
     if args.cell:
         args.endpoint = _cell_endpoint(args.cell, robots)
-    client = _client(args)
+    client = client_for(args)
     try:
-        since = _call(client, "telemetry")["seq"] if args.wait else 0  # the program's print output: after this
+        since = call_op(client, "telemetry")["seq"] if args.wait else 0  # the program's print output: after this
         request = {"object": data, "name": name, **({"source": source} if source is not None else {})}
-        reply = _call(client, "submit", request, hints=hints)
+        reply = call_op(client, "submit", request, hints=hints)
         job = reply["program"]
         if not args.json:
             common.say(env, f"program {job} queued on {args.endpoint} ({name})")
@@ -296,10 +296,10 @@ def _wait(client, job: int, env, since: int, quiet: bool = False) -> tuple[dict,
     last = None
     shown = 0
     while True:
-        status = _call(client, "status", {"program": job})
+        status = call_op(client, "status", {"program": job})
         more = not quiet
         while more:  # the print output so far (telemetry keeps it; a long gap loses the oldest)
-            replay = _call(client, "telemetry", {"since": since})
+            replay = call_op(client, "telemetry", {"since": since})
             more = replay.get("more", False)
             for m in replay["messages"]:
                 since = m["seq"]
@@ -364,11 +364,11 @@ def _cell_endpoint(path: str, robots: tuple) -> str:
 
 
 # ---- status and control ---------------------------------------------------------------------------
-@_guard
+@guarded
 def cmd_status(args, env) -> int:
-    client = _client(args)
+    client = client_for(args)
     try:
-        status = _call(client, "status", {"program": args.program} if args.program is not None else {})
+        status = call_op(client, "status", {"program": args.program} if args.program is not None else {})
     finally:
         client.close()
     if args.json:
@@ -379,7 +379,7 @@ def cmd_status(args, env) -> int:
         if status.get("fault"):
             common.say(env, f"  fault: {status['fault']}")
         return common.EXIT_OK
-    common.say(env, f"robot: {status['state']}  (override {status['override']:g} %, "
+    common.say(env, f"robot: {status['state']}  ({str(status.get('mode', 'aut')).upper()}, override {status['override']:g} %, "
                     f"{'calibrated' if status['calibrated'] else 'not calibrated'}, "
                     f"{'initialized' if status['initialized'] else 'not initialized'})")
     for key in ("calibration", "initialization"):  # why each is (or is not) remembered
@@ -399,11 +399,11 @@ def current_position(args) -> tuple[str, list]:
     """(the specification hash, the axis positions) of the robot the server at
     ``args.endpoint`` drives: hello's ``spec_hash`` and status's ``position`` (irl pose).
     Unreachable: a usage error (exit 2); refused: a ValueError (exit 1)."""
-    client = _client(args)
+    client = client_for(args)
     try:
-        hello = _call(client, "hello")
-        status = _call(client, "status")
-    except _Refused as exc:
+        hello = call_op(client, "hello")
+        status = call_op(client, "status")
+    except Refused as exc:
         raise ValueError(f"the server at {args.endpoint} refused: {exc}") from None
     finally:
         client.close()
@@ -427,11 +427,11 @@ def _job_line(job: dict) -> str:
 def _simple(op: str, describe, arguments=lambda args: {}):
     """A control command: one request built by ``arguments`` from the command line, one
     line of output made by ``describe`` from the result."""
-    @_guard
+    @guarded
     def run(args, env) -> int:
-        client = _client(args)
+        client = client_for(args)
         try:
-            result = _call(client, op, arguments(args))
+            result = call_op(client, op, arguments(args))
         finally:
             client.close()
         common.say(env, describe(result))
@@ -469,14 +469,14 @@ def cmd_watch(args, env) -> int:
     client = None
     try:
         if args.feed or args.since is not None:
-            client = _client(args, REPLY_TIMEOUT)
+            client = client_for(args, REPLY_TIMEOUT)
         if args.feed:
             request = {"fields": [f.strip() for f in args.feed.split(",") if f.strip()]}
             if args.rate is not None:
                 request["rate"] = args.rate
             if args.events:
                 request["events"] = True
-            feed = _call(client, "feed", request)
+            feed = call_op(client, "feed", request)
             topic, fields = feed["topic"].encode(), feed["fields"]
             silence += 1.0 / feed["rate"]
         try:
@@ -487,7 +487,7 @@ def cmd_watch(args, env) -> int:
             return _watch(args, env, sub, client, fields, silence)
         finally:
             sub.close()
-    except _Refused as exc:
+    except Refused as exc:
         common.warn(env, f"irl watch: {exc}")
         return common.EXIT_INVALID
     finally:
@@ -516,7 +516,7 @@ def _watch(args, env, sub, client, fields, silence: float) -> int:
     if args.since is not None:  # subscribed first: nothing between the replay and the live stream is lost
         since, more = args.since, True
         while more and (args.count is None or received < args.count):
-            replay = _call(client, "telemetry", {"since": since})
+            replay = call_op(client, "telemetry", {"since": since})
             if replay.get("missing"):
                 common.warn(env, f"irl watch: {replay['missing']} telemetry messages after {since} are no longer held "
                               "by the server")
@@ -594,11 +594,11 @@ def _telemetry_line(m: dict) -> str:
 #: ``irl call``'s help: its examples are sent to a server by tests/test_netcli.py (each is accepted).
 CALL_HELP = "one scripting command, e.g. 'servo.kp', 'trajectory.budget = 500' or 'help servo'"
 
-@_guard
+@guarded
 def cmd_call(args, env) -> int:
-    client = _client(args)
+    client = client_for(args)
     try:
-        result = _call(client, "call", {"text": args.text})
+        result = call_op(client, "call", {"text": args.text})
     finally:
         client.close()
     common.say(env, result["output"])
@@ -609,11 +609,11 @@ def cmd_console(args, env) -> int:
     """An interactive scripting session (reads lines from stdin until EOF or 'quit')."""
     from runtime.client.client import ClientError
 
-    client = _client(args)
+    client = client_for(args)
     stdin = env.stdin
     interactive = hasattr(stdin, "isatty") and stdin.isatty()
     try:
-        hello = _call(client, "hello")
+        hello = call_op(client, "hello")
         common.say(env, f"connected to {hello['robot']} at {args.endpoint}; 'help' lists the commands, "
                         "'quit' ends the session")
         while True:
@@ -634,7 +634,7 @@ def cmd_console(args, env) -> int:
                 if exc.code == "unreachable":
                     raise common.UsageError(exc.message) from None
                 common.say(env, f"error: {exc.message}")
-    except _Refused as exc:
+    except Refused as exc:
         common.warn(env, f"irl console: {exc}")
         return common.EXIT_INVALID
     finally:
@@ -656,26 +656,30 @@ def cmd_keys(args, env) -> int:
 
 
 # ---- the parsers ----------------------------------------------------------------------------------
+def add_connection(p, telemetry: bool = False, reply_timeout: bool = True) -> None:
+    """The arguments every network command has: --endpoint, --keys, --timeout (and
+    --telemetry), their defaults from $IRL_ENDPOINT and $IRL_TELEMETRY."""
+    endpoint = os.environ.get("IRL_ENDPOINT") or DEFAULT_ENDPOINT
+    telemetry_endpoint = os.environ.get("IRL_TELEMETRY") or DEFAULT_TELEMETRY
+    p.add_argument("--endpoint", default=endpoint, metavar="E",
+                   help=f"the server's request endpoint (default: $IRL_ENDPOINT, else {DEFAULT_ENDPOINT}; "
+                        f"now {endpoint})")
+    if telemetry:
+        p.add_argument("--telemetry", default=telemetry_endpoint, metavar="E",
+                       help=f"the server's telemetry endpoint (default: $IRL_TELEMETRY, else "
+                            f"{DEFAULT_TELEMETRY}; now {telemetry_endpoint})")
+    p.add_argument("--keys", metavar="DIR", help="CURVE keys (made by 'irl keys DIR')")
+    if reply_timeout:
+        p.add_argument("--timeout", type=float, default=REPLY_TIMEOUT, metavar="S",
+                       help="seconds to wait for a reply")
+
+
 def add_commands(declare) -> None:
     """Name the network commands and declare the arguments of those ``declare`` (a
     :class:`runtime.cli.main.Commands`) gives a parser for."""
     from runtime.wire import protocol
 
-    endpoint = os.environ.get("IRL_ENDPOINT") or DEFAULT_ENDPOINT
-    telemetry_endpoint = os.environ.get("IRL_TELEMETRY") or DEFAULT_TELEMETRY
-
-    def connection(p, telemetry: bool = False, reply_timeout: bool = True):
-        p.add_argument("--endpoint", default=endpoint, metavar="E",
-                       help=f"the server's request endpoint (default: $IRL_ENDPOINT, else {DEFAULT_ENDPOINT}; "
-                            f"now {endpoint})")
-        if telemetry:
-            p.add_argument("--telemetry", default=telemetry_endpoint, metavar="E",
-                           help=f"the server's telemetry endpoint (default: $IRL_TELEMETRY, else "
-                                f"{DEFAULT_TELEMETRY}; now {telemetry_endpoint})")
-        p.add_argument("--keys", metavar="DIR", help="CURVE keys (made by 'irl keys DIR')")
-        if reply_timeout:
-            p.add_argument("--timeout", type=float, default=REPLY_TIMEOUT, metavar="S",
-                           help="seconds to wait for a reply")
+    connection = add_connection
 
     if (p := declare("serve", help="serve a robot (the simulated one) on the network")) is not None:
         p.add_argument("--endpoint", default=DEFAULT_ENDPOINT, metavar="E", help="request endpoint to bind (default: "
@@ -694,6 +698,9 @@ def add_commands(declare) -> None:
         p.add_argument("--record", metavar="DIR",
                        help="record every program in DIR: an MCAP file each, named by the server's start, the "
                             "program's id and name (opens in Foxglove; see docs/runtime.md)")
+        p.add_argument("--mode", choices=tuple(protocol.MODES), default="aut",
+                       help="the operating mode the robot starts in (default: aut; t1: manual reduced speed, for "
+                            "jogging and test runs; docs/safety.md)")
         p.add_argument("--keys", metavar="DIR", help="require CURVE authentication with the keys in DIR")
         p.add_argument("--insecure-allow-remote-without-encryption", action="store_true",
                        help="allow endpoints other machines can reach without --keys: anyone on the network could "

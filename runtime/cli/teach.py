@@ -99,7 +99,7 @@ def pose_literal(kinematics: Kinematics, joints, base: tuple | None = None, exac
 
 # ---- the command ------------------------------------------------------------------------------
 
-def _frame_values(spec, kind: str, name: str | None, default: str) -> tuple[str, tuple | None]:
+def frame_values(spec, kind: str, name: str | None, default: str) -> tuple[str, tuple | None]:
     """(its name, its values) of the specification's ``[[kind]]`` named ``name`` (the
     default: None, or the specification's tool)."""
     if name is None or name.lower() == default:
@@ -140,8 +140,8 @@ def cmd_pose(args, env) -> int:
     if not args.joints and not args.endpoint:
         raise common.UsageError("give the six joint values A1 .. A6, or --endpoint E (or $IRL_ENDPOINT) to take "
                                 "the robot's current ones")
-    tool_name, tool = _frame_values(spec, "tool", args.tool, "default_tool")
-    base_name, base = _frame_values(spec, "frame", args.base, "world")
+    tool_name, tool = frame_values(spec, "tool", args.tool, "default_tool")
+    base_name, base = frame_values(spec, "frame", args.base, "world")
     try:
         kinematics = Kinematics(spec).with_tool(tool)
     except ValueError as exc:

@@ -40,7 +40,7 @@ from runtime.loop.supervisor import MOVE
 from runtime.loop.system import RobotSystem, RunOptions
 from runtime.wire import messages
 from runtime.wire.messages import EXIT_TIMEOUT, LoopOptions, Progress, Snapshot
-from runtime.wire.protocol import ProtocolError
+from runtime.wire.protocol import MODES, ProtocolError, jog_problem
 
 __all__ = ["COMMANDS", "COMMANDS_PER_TICK", "EXIT_TIMEOUT", "RobotLoop", "TELEMETRY_EVERY", "child"]
 
@@ -101,7 +101,7 @@ class RobotLoop:
         except ObjectCodeError as exc:
             raise ProtocolError("invalid_program", f"the object code is invalid: {exc}") from None
         try:
-            system.begin(program, m.report, settings=m.settings, record=m.record, job=m.job)
+            system.begin(program, m.report, settings=m.settings, record=m.record, job=m.job, jog=m.jog)
         except (ValueError, OSError) as exc:
             raise ProtocolError("refused", str(exc)) from None
         system.trajectory.override = m.override
@@ -169,6 +169,39 @@ class RobotLoop:
         self.front = dict(m.front or {})
         result = call(loop_targets(self), self.job, m.text)
         return result() if callable(result) else result
+
+    def _mode(self, m: messages.Mode) -> dict:
+        """Switch the operating mode: with no cycle running, or in a jog session at rest
+        (which then ends: jogging is T1's)."""
+        system = self.system
+        if m.mode not in MODES:
+            raise ProtocolError("bad_request", f"mode: no operating mode {str(m.mode)[:40]!r}; the modes are "
+                                               f"{', '.join(MODES)}")
+        if self.job is not None:
+            jogger = system.trajectory.jogger
+            idle = jogger is not None and jogger.active is None and jogger.pending is None and not jogger.stopping
+            if not idle:
+                raise ProtocolError("refused", f"the operating mode changes only with the robot at rest and no "
+                                               f"program running ({'a jog is under way' if jogger is not None else f'program {self.job} is running'})")
+            jogger.end(f"operating mode {m.mode.upper()}")
+        try:
+            system.set_mode(m.mode)
+        except ValueError as exc:
+            raise ProtocolError("refused", str(exc)) from None
+        return {"mode": system.mode}
+
+    def _jog(self, m: messages.Jog) -> dict:
+        """A jog request, to the running jog session (the server started it)."""
+        system = self.system
+        problem = jog_problem([a.name for a in system.spec.axes], m.axis, m.direction, m.frame, m.step)
+        if problem is not None:
+            raise ProtocolError("bad_request", problem)
+        if system.mode != "t1":
+            raise ProtocolError("refused", "jogging needs operating mode T1 (manual reduced speed): irl mode t1")
+        if self.job is None or not system.trajectory.jogging:
+            raise ProtocolError("refused", "no jog session is running" if self.job is None
+                                else f"program {self.job} is running")
+        return system.trajectory.jog(m, system.clock.tick_time)
 
     def _settings(self, m: messages.Settings) -> dict:
         if self.job is not None:
@@ -257,7 +290,8 @@ class RobotLoop:
         return Snapshot(system.clock.now(), self.job, system.supervisor.fsm.path() if self.job is not None else "Idle",
                         position, list(system.io.inputs.read()), list(system.io.outputs.read()),
                         frames.tool_name, frames.base_name, tcp, tcp_base, memory.calibrated, memory.initialized,
-                        memory.calibration_why, memory.initialization_why, progress)
+                        memory.calibration_why, memory.initialization_why, progress, system.mode,
+                        system.trajectory.jogger.state() if system.trajectory.jogger is not None else None)
 
     def finish(self) -> None:
         """Not real-time: the cycle ended; flush its files and send its summary."""
@@ -305,6 +339,8 @@ COMMANDS: dict[str, Callable[[RobotLoop, messages.Command], dict]] = {
     messages.Call.OP: RobotLoop._call,
     messages.Settings.OP: RobotLoop._settings,
     messages.Exit.OP: RobotLoop._exit,
+    messages.Mode.OP: RobotLoop._mode,
+    messages.Jog.OP: RobotLoop._jog,
 }
 
 
@@ -318,7 +354,7 @@ def run_options(spec, options: LoopOptions) -> RunOptions:
 
     cell, fieldbus = load_io_files(options.cell, options.fieldbus, spec)
     return RunOptions(seed=options.seed, realtime=options.realtime, state_dir=options.state_dir,
-                      deadline_policy=options.deadline_policy, cell=cell, fieldbus=fieldbus)
+                      deadline_policy=options.deadline_policy, cell=cell, fieldbus=fieldbus, mode=options.mode)
 
 
 def in_process(spec, options: LoopOptions, send) -> RobotLoop:

@@ -26,6 +26,7 @@ from runtime.loop.components.servo import ServoController
 from runtime.loop.components.trajectory import TrajectoryGenerator
 from runtime.loop.executive import Executive, MissPolicy, SimClock, WallClock
 from runtime.motion.interpolator import Interpolator
+from runtime.motion.reduced import Reduced, axis_speed_bounds
 from runtime.hardware.backends import DEFAULT_ROBOT, ROBOTS, make_io, make_robot
 from runtime.hardware.interface import RobotBackend
 from runtime.hardware.sim.estimator import AlphaBeta
@@ -33,6 +34,7 @@ from runtime.loop.supervisor import RobotMemory, StateFile, Supervisor
 from runtime.settings import Settings
 from runtime.timing import RECORD_PERIOD, TICK
 from runtime.wire.messages import io_sources_problem
+from runtime.wire.protocol import MODES
 
 
 @dataclass
@@ -49,6 +51,7 @@ class RunOptions:
     deadline_policy: str | None = None  # the servo's miss policy ("hard", "firm", "soft"); None: the spec's
     cell: object = None  # a runtime.hardware.sim.cell.Scenario: what the simulated cell does with the I/O
     fieldbus: object = None  # a runtime.hardware.backends.FieldbusConfig: the I/O on a PLC (wall clock only)
+    mode: str = "aut"  # the operating mode (a key of runtime.wire.protocol.MODES)
 
 
 class RobotSystem:
@@ -81,6 +84,9 @@ class RobotSystem:
         self.trajectory = TrajectoryGenerator(spec, self.robot, p["desi_pos"], p["sens_pos"], self.clock,
                                               settings.trajectory.period, settings)
         self.trajectory.safety = self.safety
+        self.safety.reduced.tool_of = lambda: self.trajectory.frames_now().tool  # T1: the move's tool centre point
+        self.mode = "aut"
+        self.set_mode(options.mode)
         io_backend = backend_of(self.backend)  # the digital I/O: the robot's own, or a PLC's over a fieldbus
         problem = io_sources_problem(options.fieldbus is not None, options.cell is not None, options.realtime)
         if problem is not None:
@@ -149,13 +155,28 @@ class RobotSystem:
         for component in (self.trajectory, self.init, self.report):  # a period is the executive's schedule
             settings.watch(component.name, "period", lambda period, c=component: self._set_period(c, period))
 
+    def set_mode(self, mode: str) -> None:
+        """Not real-time (between cycles): the operating mode (runtime.wire.protocol.MODES):
+        the safety supervisor's checks, the moves' planning and homing's speeds follow it.
+        ValueError: no such mode, or T1 on a robot whose kinematics give no tool centre point."""
+        if mode not in MODES:
+            raise ValueError(f"no operating mode {mode!r}: the modes are {', '.join(MODES)}")
+        t1 = mode == "t1"
+        if t1 and self.safety.reduced.kinematics is None:
+            raise ValueError("T1 needs the robot's kinematics (the tool centre point's speed is supervised): this "
+                             "robot's specification gives none")
+        self.mode = mode
+        self.safety.set_t1(t1)
+        self.trajectory.planner.reduced = Reduced.of(self.spec) if t1 else None
+        self.init.t1_bounds = axis_speed_bounds(self.safety.reduced.kinematics, self.spec) if t1 else None
+
     def _set_period(self, component, period: float) -> None:
         """Not real-time (told by the settings): ``component``'s period changed."""
         self.executive.set_period(component.name, period)
         component.period = period
 
     def begin(self, program: Program | None, report: str | Path | None = None, settings: dict | None = None,
-              record: str | Path | None = None, job: int | None = None) -> None:
+              record: str | Path | None = None, job: int | None = None, jog: bool = False) -> None:
         """Not real-time: start one cycle of the supervisor (power-up to Stop Robot) with
         ``program``, its report into ``report`` and its recording into ``record`` (``job``:
         the server's id of the program, in the recording); the executive's ticks then carry
@@ -163,7 +184,10 @@ class RobotSystem:
         Calibration and initialization are remembered from earlier cycles. Raises
         ValueError if the program cannot run here (checked before anything moves).
         With ``settings`` instead of a program, the cycle is a reconfiguration: Start
-        Robot -> Robot Reconfiguration -> Stop Robot, brakes kept on."""
+        Robot -> Robot Reconfiguration -> Stop Robot, brakes kept on. With ``jog`` instead,
+        a jog session (runtime.loop.jogging): Move Robot runs the jogs asked for, in T1."""
+        if jog and self.mode != "t1":
+            raise ValueError("jogging needs operating mode T1 (manual reduced speed): switch with irl mode t1")
         self._wall0 = time.perf_counter()
         if self.options.fieldbus is not None:  # a program does not start without its cell's PLC
             if not self.io.wait_connected(self.options.fieldbus.timeout + 1.0):
@@ -179,7 +203,7 @@ class RobotSystem:
         self.servo.max_following_error = 0.0
         self.supervisor.load_calibration()
         self.safety.set_referenced(None, self.memory.initialized)
-        self.trajectory.load(program)
+        self.trajectory.load(program, jog=jog)
         self.trajectory.override = self.options.override
         self.report.open(report)
         self.recorder.open(record, program, job, "simulated" if self.clock.simulated else "wall")
@@ -342,6 +366,8 @@ class RobotSystem:
         return {
             "program": self.trajectory.program.name if self.trajectory.program else None,
             "robot": self.spec.name,
+            "mode": self.mode,
+            "t1_peak_speed": round(self.safety.reduced.peak, 3) if self.mode == "t1" else None,
             "states": states,
             "moves": moves,
             "final_position": list(self.robot.positions),

@@ -21,6 +21,9 @@
   quaternions and slerp, the paths and their timing, the whole-path check, and
   ``plan_cartesian(CartesianInput)``: the move timed within every joint's limits and
   streamed as joints every 5 ms (:mod:`runtime.motion.pathtiming`: its timing).
+* :mod:`runtime.motion.reduced` -- operating mode T1 (manual reduced speed): the flange's
+  and the tool centre point's speed measured along a move, the reduced limits moves and
+  homing are planned under.
 * :mod:`runtime.motion.blend` -- blending a corner (``approx``): the overlap and its check.
 * :mod:`runtime.motion.moves`, :mod:`runtime.motion.motionqueue` -- a program's moves
   planned into segments, and the timeline that runs them (look-ahead, blending, the
@@ -49,6 +52,7 @@ MODULES = (
     "jerk",  # jerk-limited profiles and the jerk-limited PTP planner
     "kinematics",  # forward and inverse kinematics
     "urdf",  # the arm as URDF, and its links' transforms
+    "reduced",  # operating mode T1: the reduced speeds as the planners keep them
     "rotation",  # quaternions, slerp
     "pathtiming",  # a path's timing within the joints' limits
     "interpolator",  # 5 ms setpoints to 1 ms references

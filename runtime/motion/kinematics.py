@@ -467,6 +467,14 @@ class Kinematics:
 
     def _chain(self, joints) -> tuple:
         """Flat 3x4 of the TCP: the DH product by columns (X, Y, Z, p), then the tool."""
+        if self._mount is not None:
+            return self._mounted(self._flange_tool(*self.flange_columns(joints)))
+        return self._flange_tool(*self.flange_columns(joints))
+
+    def flange_columns(self, joints) -> tuple:
+        """The flange in the robot's own base frame (no mount, no tool): its axes' columns
+        X, Y, Z and its origin p, flat ``(x0, x1, x2, y0, y1, y2, z0, z1, z2, p0, p1, p2)``
+        (mm). Real-time safe (plain floats): the T1 speed check runs it every 1 ms."""
         if isinstance(joints, Joint):
             joints = joints.main
         if not self._plain:
@@ -509,9 +517,21 @@ class Kinematics:
                 p2 += a * x2
         if n != 6:
             raise ValueError(f"expected six joint values, got {n}")
-        if self._mount is not None:
-            return self._mounted(self._flange_tool(x0, x1, x2, y0, y1, y2, z0, z1, z2, p0, p1, p2))
-        return self._flange_tool(x0, x1, x2, y0, y1, y2, z0, z1, z2, p0, p1, p2)
+        return x0, x1, x2, y0, y1, y2, z0, z1, z2, p0, p1, p2
+
+    def lever_arms(self, tool: Sequence[float] | None = None) -> tuple[float, ...]:
+        """Per main axis, an upper bound (mm) on the distance of the flange and of the tool
+        centre point (of ``tool``: x, y, z in the flange, mm; None: this arm's tool) from
+        that axis's line, in any configuration: the lengths of the links after it, and
+        the tool's. An axis turning at w rad/s moves neither point faster than w times it
+        (what keeps homing under the T1 speed before the axes' positions are known)."""
+        tx, ty, tz = (self._tool_m[0][3], self._tool_m[1][3], self._tool_m[2][3]) if tool is None else tool[:3]
+        reach_tool = sqrt(tx * tx + ty * ty + tz * tz)
+        arms = []
+        for i in range(6):
+            after = sum(abs(a) + abs(d) for (_o, _c, _s, a, d) in self._links[i:])
+            arms.append(after + reach_tool)
+        return tuple(arms)
 
     def _flange_tool(self, x0, x1, x2, y0, y1, y2, z0, z1, z2, p0, p1, p2) -> tuple:
         """The flat 3x4 of the TCP from the flange's columns X, Y, Z and origin p."""

@@ -37,6 +37,7 @@ from runtime.motion.jerk import plan_ptp_jerk
 from runtime.motion.kinematics import Kinematics, KinematicsError, configuration_name
 from runtime.motion.pathcheck import JointLimits
 from runtime.motion.planner import PtpInput, plan_ptp, scaled_limits
+from runtime.motion.reduced import Reduced, cartesian_peak
 from runtime.motion.trajectory import Refusal, Trajectory
 
 __all__ = ["CACHE_SIZE", "Frames", "MovePlanner", "MoveRecord", "MoveRequest", "Segment"]
@@ -195,6 +196,8 @@ class MovePlanner:
         #: the moves planned so far, by what they are and where they start (None: none kept,
         #: as on the robot); an offline run keeps them, since a program's cycle repeats them
         self.cache: dict | None = None
+        #: operating mode T1's limits (runtime.motion.reduced), or None (AUT): set between programs
+        self.reduced: Reduced | None = None
 
     def plan(self, request: MoveRequest, start: tuple, previous: Segment | None,
              period: float) -> tuple[Segment | None, str | None]:
@@ -208,7 +211,7 @@ class MovePlanner:
             problem = place_triggers(segment)
             if problem is not None:
                 return None, problem
-        if previous is not None and previous.request.approx > 0.0 and previous.blendable:
+        if previous is not None and previous.request.approx > 0.0 and previous.blendable and self.reduced is None:
             overlap_before = (previous.previous.duration - previous.offset
                               if previous.offset is not None and previous.previous is not None else 0.0)
             cap = previous.duration - overlap_before
@@ -244,7 +247,7 @@ class MovePlanner:
         key = None
         if cache is not None and request.rest_of is None:
             key = ("move", request.kind, request.targets, request.speed, request.acc, request.frames, tuple(start),
-                   period)
+                   period, self.reduced)
             known = cache.get(key)
             if known is not None:
                 trajectory, end, limits, problem = known
@@ -286,14 +289,53 @@ class MovePlanner:
         speed, acc = request.speed, request.acc
         vmax, amax = scaled_limits(tuple(a.max_velocity for a in self.axes),
                                    tuple(a.max_acceleration for a in self.axes), speed, acc)
-        if self.profile == "jerk":  # the jerk limit scales with acc_ptp
-            jmax = tuple(a.max_jerk * acc for a in self.axes)
-            result, trajectory, message = plan_ptp_jerk(PtpInput(start, values, vmax, amax, max_jerk=jmax))
-        else:
-            result, trajectory, message = plan_ptp(PtpInput(start, values, vmax, amax))
+        jmax = tuple(a.max_jerk * acc for a in self.axes)  # (the jerk limit scales with acc_ptp)
+        reduced = self.reduced
+        if reduced is not None:
+            vmax = tuple(min(v, r) for v, r in zip(vmax, reduced.velocities))
+        result, trajectory, message = self._ptp(start, values, vmax, amax, jmax)
+        if reduced is not None and result >= 0:
+            result, trajectory, message = self._ptp_reduced(request, start, values, (vmax, amax, jmax), trajectory)
         if result < 0:
             return None, message
         return Segment(request, trajectory, values, self.limits), None
+
+    def _ptp(self, start: tuple, values: tuple, vmax: tuple, amax: tuple, jmax: tuple):
+        if self.profile == "jerk":
+            return plan_ptp_jerk(PtpInput(start, values, vmax, amax, max_jerk=jmax))
+        return plan_ptp(PtpInput(start, values, vmax, amax))
+
+    def _ptp_reduced(self, request: MoveRequest, start: tuple, values: tuple, limits: tuple, trajectory):
+        """T1 (runtime.motion.reduced): the ptp move planned again slower until its flange and
+        tool centre point keep the reduced speed: its axis speeds lowered (up to three times),
+        then, if that is not enough, the whole move timed slower (v x s, a x s^2, j x s^3)."""
+        kinematics, tool = self.kinematics, self._tool_point(request.frames)
+        if kinematics is None:
+            return 0, trajectory, None
+        cap = self.reduced.speed
+        vmax, amax, jmax = limits
+        for attempt in range(4):
+            peak = cartesian_peak(kinematics, trajectory, tool)
+            if peak <= cap:
+                return 0, trajectory, None
+            s = cap / peak * 0.98
+            if attempt < 3:
+                vmax = tuple(v * s for v in vmax)
+            else:
+                vmax = tuple(v * s for v in vmax)
+                amax = tuple(a * s * s for a in amax)
+                jmax = tuple(j * s * s * s for j in jmax)
+            result, trajectory, message = self._ptp(start, values, vmax, amax, jmax)
+            if result < 0:
+                return result, None, message
+        return 0, trajectory, None
+
+    def _tool_point(self, frames: Frames | None) -> tuple:
+        """The tool centre point's x, y, z in the flange (the move's tool, else the arm's)."""
+        if frames is not None:
+            return tuple(frames.tool[:3])
+        tool = self.kinematics.tool if self.kinematics is not None else (0.0, 0.0, 0.0)
+        return tuple(tool[:3])
 
     def _plan_cartesian(self, request: MoveRequest, start: tuple, period: float):
         kinematics = self.kinematics_for(request.frames)
@@ -305,9 +347,25 @@ class MovePlanner:
         if problem is not None:
             return None, problem
         via, target = (None, poses[0]) if request.kind == Motion.LIN else poses
-        result, stream, message = plan_cartesian(CartesianInput(
-            kinematics, start, target, request.speed, request.acc, via=via,
-            axis_limits=self.joint_limits, period=period))
+        speed, limits, reduced = request.speed, self.joint_limits, self.reduced
+        if reduced is not None:
+            speed = min(speed, reduced.speed)
+            limits = JointLimits(limits.positions, tuple(min(v, r) for v, r in zip(limits.velocity,
+                                                                                    reduced.velocities)),
+                                 limits.acceleration, limits.jerk)
+        for attempt in range(4):
+            result, stream, message = plan_cartesian(CartesianInput(
+                kinematics, start, target, speed, request.acc, via=via, axis_limits=limits, period=period))
+            if result < 0 or reduced is None:
+                break
+            peak = cartesian_peak(kinematics, stream, self._tool_point(request.frames))
+            if peak <= reduced.speed:
+                break
+            if attempt == 3:
+                return None, (f"move {request.kind} refused in T1: its flange or tool centre point would move at "
+                              f"{peak:.0f} mm/s, beyond the reduced speed, even planned at {speed:.1f} mm/s "
+                              "(a large reorientation on a short path: split the move)")
+            speed *= reduced.speed / peak * 0.98
         if result < 0:
             prefix = f"move {request.kind} refused: "
             if isinstance(message, Refusal):

@@ -45,13 +45,14 @@ class Job:
         self.moves_total = moves_total(program) if program is not None else 0
         self.object: bytes | None = None  # the verified object code, for the loop
         self.source: str | None = None  # the source text it was submitted with (the source op)
+        self.jog = False  # a jog session (runtime/loop/jogging.py), started by a jog request
 
     def as_dict(self, summary: bool = True) -> dict:
         d = {"id": self.id, "name": self.name, "state": self.state, "fault": self.fault,
              "submitted": self.submitted, "started": self.started, "ended": self.ended,
              "report": str(self.report) if self.report else None,
              "record": str(self.record) if self.record else None, "moves_total": self.moves_total,
-             "kind": "program" if self.settings is None else "reconfiguration"}
+             "kind": "jog" if self.jog else "program" if self.settings is None else "reconfiguration"}
         if self.summary is not None:
             d.update(line=None, moves_done=sum(1 for m in self.summary["moves"] if m["actual_duration"] is not None))
             if summary:
@@ -146,6 +147,15 @@ class Jobs:
         self._queue(job)
         return job
 
+    def start_jog(self, override: float) -> Job:
+        """Start a jog session on the loop at once (the robot idle, the queue empty)."""
+        job = Job(self.next_id, "jog", None, self.report_dir / f"program-{self.next_id}.csv")
+        job.jog = True
+        self.next_id += 1
+        self.table[job.id] = job
+        self._run(job, override)
+        return job
+
     def _queue(self, job: Job) -> None:
         self.next_id += 1
         self.table[job.id] = job
@@ -154,7 +164,10 @@ class Jobs:
     # ---- running ---------------------------------------------------------------------------
     def start_next(self, override: float) -> None:
         """Start the first job of the queue on the loop, at ``override`` percent."""
-        job = self.queue.popleft()
+        self._run(self.queue.popleft(), override)
+
+    def _run(self, job: Job, override: float) -> None:
+        """Start ``job`` on the loop, at ``override`` percent."""
         for directory in (self.report_dir, job.record.parent if job.record else None):
             try:
                 if directory is not None:
@@ -175,7 +188,8 @@ class Jobs:
             self.end(job, JobState.FAULTED, reply["message"])
 
         self.link.send(LoopCommand(messages.Start(job.id, job.object, str(job.report) if job.report else None,
-                                                  job.settings, override, str(job.record) if job.record else None),
+                                                  job.settings, override, str(job.record) if job.record else None,
+                                                  job.jog),
                                    finish=started, failed=refused))
 
     def finish(self, message: dict, completed) -> None:

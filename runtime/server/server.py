@@ -81,6 +81,8 @@ class ServeOptions:
     fieldbus: str | Path | None = None
     #: The directory of the programs' recordings (--record DIR: one MCAP file per program), or None.
     record: str | Path | None = None
+    #: The operating mode the robot starts in (runtime.wire.protocol.MODES; --mode).
+    mode: str = "aut"
 
 
 INSECURE_FLAG = "--insecure-allow-remote-without-encryption"
@@ -161,7 +163,7 @@ class Server:
         self.router = self.connections = None
         loop_options = LoopOptions(seed=options.seed, realtime=not options.sim_clock, state_dir=state_dir,
                                    deadline_policy=options.deadline_policy, cell=options.cell,
-                                   fieldbus=options.fieldbus, scheduling=options.scheduling)
+                                   fieldbus=options.fieldbus, scheduling=options.scheduling, mode=options.mode)
         # the loop first: the fork copies only this thread, before any ZeroMQ context exists
         ready = self.link.start(spec, loop_options, in_process=not options.loop_process)
         self.baseline = ready["baseline"]  # what a configuration's missing keys fall back to
@@ -446,7 +448,8 @@ class Server:
                 "running": running,
                 "queue": [job.id for job in self.jobs.queue],
                 "programs": self.jobs.recent(),
-                "override": self.override, "configuration": self.configuration,
+                "override": self.override, "configuration": self.configuration, "mode": snap.mode,
+                "jog": snap.jog if running and running.get("kind") == "jog" else None,
                 "calibrated": snap.calibrated, "initialized": snap.initialized,
                 "calibration": snap.calibration, "initialization": snap.initialization,
                 "position": snap.position, "inputs": snap.inputs, "outputs": snap.outputs,
@@ -493,6 +496,36 @@ class Server:
 
     def op_resume(self, args: dict) -> LoopCommand:
         return LoopCommand(messages.Resume(args.get("program")))
+
+    def op_mode(self, args: dict) -> LoopCommand:
+        mode = args["mode"]
+        if mode not in protocol.MODES:
+            raise ProtocolError("bad_request", f"mode: no operating mode {mode[:40]!r}; the modes are "
+                                               f"{', '.join(protocol.MODES)}")
+        return LoopCommand(messages.Mode(mode))
+
+    def op_jog(self, args: dict) -> LoopCommand:
+        """A jog: to the jog session under way, or one started for it (the robot idle, the
+        queue empty); refused while a program runs or waits."""
+        problem = protocol.jog_problem([a.name for a in self.spec.axes], args["axis"], args["direction"],
+                                       args.get("frame"), args.get("step"))
+        if problem is not None:
+            raise ProtocolError("bad_request", problem)
+        if self.link.snapshot.mode != "t1":
+            raise ProtocolError("refused", "jogging needs operating mode T1 (manual reduced speed): irl mode t1")
+        self._check_accepting()
+        current = self.jobs.current
+        if current is not None and not current.jog:
+            raise ProtocolError("refused", f"program {current.id} ({current.name}) is running: jog when it has ended "
+                                           "(or abort it)")
+        if current is None:
+            if self.jobs.queue:
+                raise ProtocolError("refused", f"programs are waiting to run ({', '.join(str(j.id) for j in self.jobs.queue)}): "
+                                               "jog when they have run (or abort them)")
+            if args["direction"] == 0:  # a release with nothing to release: nothing moves
+                return {"active": None, "stopping": False, "reason": None, "jogs": 0}
+            self.jobs.start_jog(self.override)
+        return LoopCommand(messages.Jog(args["axis"], args["direction"], args.get("frame", "world"), args.get("step")))
 
     def op_wait(self, args: dict) -> Wait:
         timeout = float(args.get("timeout", 60.0))

@@ -76,7 +76,8 @@ class Telemetry:
                   "program": job.id if running else None, "queued": queued,
                   "override": override, "position": snap.position, "inputs": snap.inputs,
                   "outputs": snap.outputs, "t": snap.t,
-                  "tool": snap.tool, "base": snap.base, "tcp": snap.tcp, "tcp_base": snap.tcp_base}
+                  "tool": snap.tool, "base": snap.base, "tcp": snap.tcp, "tcp_base": snap.tcp_base,
+                  "mode": snap.mode, "jog": snap.jog if running else None}
         progress = snap.progress
         if running and progress is not None:
             sample.update(line=progress.line, moves_done=progress.moves_done, moves_total=job.moves_total,

@@ -56,6 +56,7 @@ class LoopOptions:
     cell: str | Path | None = None
     fieldbus: str | Path | None = None
     scheduling: object = None
+    mode: str = "aut"  # the operating mode it starts in (runtime.wire.protocol.MODES)
 
     def problem(self) -> str | None:
         """What is wrong with these options (:func:`io_sources_problem`), or None."""
@@ -89,6 +90,7 @@ class Start(Command):
     settings: dict | None = None
     override: float = 100.0
     record: str | None = None
+    jog: bool = False  # a jog session (no program): runtime/loop/jogging.py
 
 
 @dataclass(frozen=True)
@@ -141,6 +143,27 @@ class Call(Command):
 
 
 @dataclass(frozen=True)
+class Mode(Command):
+    """Switch the operating mode (runtime.wire.protocol.MODES), only with no program running."""
+
+    OP: ClassVar[str] = "mode"
+    mode: str
+
+
+@dataclass(frozen=True)
+class Jog(Command):
+    """One jog request (runtime.wire.protocol.OPS ``jog``): ``axis`` (an axis's name, or one
+    of JOG_CARTESIAN), ``direction`` (+1, -1; 0 releases), ``frame`` (JOG_FRAMES) and
+    ``step`` (None: continuous)."""
+
+    OP: ClassVar[str] = "jog"
+    axis: str
+    direction: int
+    frame: str = "world"
+    step: float | None = None
+
+
+@dataclass(frozen=True)
 class Settings(Command):
     """Apply validated settings between programs."""
 
@@ -158,7 +181,7 @@ class Exit(Command):
 
 #: Every command, by its name on the channel.
 COMMANDS: dict[str, type[Command]] = {c.OP: c for c in (Start, Pause, Resume, Abort, Estop, Override, Call, Settings,
-                                                        Exit)}
+                                                        Exit, Mode, Jog)}
 
 
 def command_of(message: dict) -> tuple[object, Command]:
@@ -206,13 +229,15 @@ class Snapshot:
     calibration: str | None
     initialization: str | None
     progress: Progress | None = None
+    mode: str = "aut"
+    jog: dict | None = None
 
     def to_wire(self) -> dict:
         message = {"kind": self.KIND, "t": self.t, "job": self.job, "state": self.state, "position": self.position,
                    "inputs": self.inputs, "outputs": self.outputs, "tool": self.tool, "base": self.base,
                    "tcp": self.tcp, "tcp_base": self.tcp_base, "calibrated": self.calibrated,
                    "initialized": self.initialized, "calibration": self.calibration,
-                   "initialization": self.initialization, "progress": None}
+                   "initialization": self.initialization, "progress": None, "mode": self.mode, "jog": self.jog}
         p = self.progress
         if p is not None:
             message["progress"] = {"line": p.line, "moves_done": p.moves_done, "paused": p.paused,
@@ -225,4 +250,4 @@ class Snapshot:
         return cls(message["t"], message["job"], message["state"], message["position"], message["inputs"],
                    message["outputs"], message["tool"], message["base"], message["tcp"], message["tcp_base"],
                    message["calibrated"], message["initialized"], message["calibration"], message["initialization"],
-                   None if p is None else Progress(**p))
+                   None if p is None else Progress(**p), message["mode"], message["jog"])

@@ -74,7 +74,26 @@ SAMPLE_FIELDS: dict[str, tuple[str, str]] = {
                               "position: x, y, z (mm), roll, pitch, yaw (deg); nil when the robot's kinematics "
                               "give none"),
     "tcp_base": ("[float] or nil", "the same in that base"),
+    "mode": ("str", "the operating mode: \"aut\" or \"t1\""),
+    "jog": ("map or nil", "while jogging: the jog under way (`active`), whether it is stopping, why the last one "
+                          "ended (`reason`)"),
 }
+
+#: The operating modes: name -> what it is (the ``mode`` op, ``irl mode``, docs/safety.md;
+#: runtime/motion/reduced.py plans T1's moves, the safety supervisor enforces its speeds).
+MODES = {
+    "aut": "automatic: programs run at their programmed speeds; no jogging",
+    "t1": "manual reduced speed (ISO 10218-1): the tool centre point and the flange at most [safety] t1_speed "
+          "(250 mm/s), each axis at most [safety] t1_velocity_factor x max_velocity, checked by the safety "
+          "supervisor every 1 ms; programs run as a test at reduced speed; jogging",
+}
+
+#: Jogging (the ``jog`` op, ``irl jog``, the pendant): the Cartesian directions (besides the
+#: axes by name: translations along x, y, z in mm, rotations about them in deg), the frames
+#: they are in, and the largest increment (mm or deg).
+JOG_CARTESIAN = ("x", "y", "z", "rx", "ry", "rz")
+JOG_FRAMES = ("world", "base", "tool")
+MAX_JOG_STEP = 100.0
 
 ERRORS = {
     "bad_message": "the request is not a msgpack map (or is not valid msgpack)",
@@ -138,6 +157,17 @@ OPS: dict[str, tuple[dict[str, tuple[tuple, bool, str]], str]] = {
                   f"{TELEMETRY_HISTORY} (a subscriber that joined late or lost messages catches up)"),
     "source": ({"program": (_INT, True, "a program id")},
                "the source text a program was submitted with (nil when it came without), to show its lines"),
+    "mode": ({"mode": (_STR, True, "\"t1\" (manual reduced speed) or \"aut\" (automatic)")},
+             "switch the operating mode, only while no program runs and the robot is at rest (docs/safety.md)"),
+    "jog": ({"axis": (_STR, True, "an axis by name (A1 .. A6), or x, y, z, rx, ry, rz (along and about the frame's "
+                                  "axes, through the tool centre point)"),
+             "direction": (_INT, True, "+1 or -1; 0 releases (stops) a continuous jog"),
+             "frame": (_STR, False, "for x .. rz: \"world\" (default), \"base\" (the active base) or \"tool\""),
+             "step": (_NUM, False, f"an increment, mm or deg, more than 0 and at most {MAX_JOG_STEP:g} (default: "
+                                   "continuous: the robot moves while the same request is repeated, at least every "
+                                   "0.2 s)")},
+            "in T1, move the arm by hand: an axis or the tool centre point, continuously (hold-to-run: the same "
+            "request repeated is the heartbeat; silence stops the robot) or by one increment"),
     "feed": ({"fields": (_LIST, True, "the sample fields wanted (an array of names, see the sample table)"),
               "rate": (_NUM, False, f"samples per second, {MIN_FEED_RATE:g} to {MAX_FEED_RATE:g} (default "
                                     f"{MAX_FEED_RATE:g}: every sample)"),
@@ -147,10 +177,10 @@ OPS: dict[str, tuple[dict[str, tuple[tuple, bool, str]], str]] = {
 }
 
 #: The ops a protocol version brought (every other op is in every version).
-SINCE = {"wait": 2, "telemetry": 2, "control": 2, "feed": 2, "source": 2}
+SINCE = {"wait": 2, "telemetry": 2, "control": 2, "feed": 2, "source": 2, "mode": 2, "jog": 2}
 #: The ops that control the robot: refused to every client but the holder while one holds
 #: control (``estop`` never is: an emergency stop is open to every client).
-CONTROLLING = frozenset({"submit", "pause", "resume", "abort", "override", "call", "reconfigure"})
+CONTROLLING = frozenset({"submit", "pause", "resume", "abort", "override", "call", "reconfigure", "mode", "jog"})
 
 
 
@@ -174,6 +204,21 @@ class JobState(enum.StrEnum):
 
 #: The states a job ends in (it changes no more).
 TERMINAL = frozenset({JobState.COMPLETED, JobState.FAULTED, JobState.ABORTED, JobState.CANCELLED})
+
+def jog_problem(axes: list[str], axis: str, direction: int, frame: str | None, step) -> str | None:
+    """What is wrong with a ``jog`` request's arguments for a robot whose axes are named
+    ``axes`` (the server checks it, and the loop again), or None."""
+    names = [a.lower() for a in axes]
+    if axis.lower() not in names and axis not in JOG_CARTESIAN:
+        return f"jog: axis must be one of {', '.join(axes)}, {', '.join(JOG_CARTESIAN)}; got {axis[:40]!r}"
+    if direction not in (-1, 0, 1):
+        return f"jog: direction must be +1, -1 or 0 (release), got {direction}"
+    if frame is not None and frame not in JOG_FRAMES:
+        return f"jog: frame must be {', '.join(JOG_FRAMES)}, got {frame[:40]!r}"
+    if step is not None and not 0.0 < step <= MAX_JOG_STEP:
+        return f"jog: step must be more than 0 and at most {MAX_JOG_STEP:g} (mm or deg), got {step:g}"
+    return None
+
 
 def sample_markdown() -> str:
     """docs/protocol.md's table of the sample fields (:data:`SAMPLE_FIELDS`)."""

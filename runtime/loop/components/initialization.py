@@ -63,6 +63,9 @@ class Initialization(Component):
         self.completed = False  # the sequence itself reached Done: every axis referenced, at the start
         self.step_name = ""
         self.on_encoder_reset = None  # called with (axis, delta) after an encoder reset (the servo re-bases)
+        #: operating mode T1: each axis's speed that keeps the flange and the tool centre point
+        #: within the reduced speed in any configuration (runtime.motion.reduced.axis_speed_bounds); None: AUT
+        self.t1_bounds: tuple | None = None
 
     # ---- the setpoint generator (real-time, every 5 ms) ----
     def on_start(self) -> bool:
@@ -103,9 +106,11 @@ class Initialization(Component):
 
     # ---- commands from the sequence (between ticks) ----
     def search_velocity(self, axis: int) -> float:
-        """How fast ``axis`` searches: its search_velocity, within half the reduced speed."""
+        """How fast ``axis`` searches: its search_velocity, within half the reduced speed
+        (and, in T1, within the axis's T1 bound)."""
         a = self.axes[axis]
-        return min(a.search_velocity, 0.5 * self.robot_section.velocity_limit_scale * a.max_velocity)
+        speed = min(a.search_velocity, 0.5 * self.robot_section.velocity_limit_scale * a.max_velocity)
+        return speed if self.t1_bounds is None else min(speed, self.t1_bounds[axis])
 
     def ramp(self, axis: int, velocity: float) -> None:
         """Ramp ``axis`` to ``velocity`` (not a step: see :meth:`update`)."""
@@ -130,9 +135,12 @@ class Initialization(Component):
         start = tuple(self.positions)
         target = tuple(a.home for a in self.axes)
         f = min(self.own.home_speed, self.robot_section.velocity_limit_scale)
+        velocities = tuple(a.max_velocity * f for a in self.axes)
+        if self.t1_bounds is not None:  # every axis may move at once: their shares of the T1 speed add up
+            k = min(1.0, 1.0 / sum(v / b for v, b in zip(velocities, self.t1_bounds)))
+            velocities = tuple(v * k for v in velocities)
         result, trajectory, message = plan_ptp(PtpInput(
-            start, target, tuple(a.max_velocity * f for a in self.axes),
-            tuple(a.max_acceleration * f for a in self.axes)))
+            start, target, velocities, tuple(a.max_acceleration * f for a in self.axes)))
         if result < 0:
             return message
         self.trajectory, self.t_trajectory = trajectory, 0.0

@@ -24,7 +24,11 @@ trusts neither the planner, nor the servo law, nor the operator, nor the configu
   reference coming to rest; from then on that reference is fixed and the axis may not move
   more than ``standstill_tolerance`` counts from it;
 * **stops on the path** (pause, abort) that do not reach rest within their planned time
-  plus ``stop_time_margin``.
+  plus ``stop_time_margin``;
+* in operating mode **T1** (manual reduced speed, :class:`ReducedSpeedMonitor`): the flange
+  and the tool centre point of every 1 ms reference of the servo at most ``t1_speed``
+  (250 mm/s), and every axis's commanded velocity at most ``t1_velocity_factor x
+  max_velocity`` (its velocity limit in T1).
 
 A violation is a fault, never a silent clamp: the safety itself stops the robot, with
 the category of :data:`CATEGORIES` (IEC 60204-1): 0, torque off and brakes at once; 1, its
@@ -45,6 +49,8 @@ from compiler.params import settle_time
 
 from runtime.accel import kernels
 from runtime.loop.component import Component, DataPort
+from runtime.motion.kinematics import Kinematics
+from runtime.motion.reduced import point_speed
 from runtime.settings import Settings
 from runtime.timing import BRAKE_TIMEOUT, TICK
 
@@ -78,6 +84,9 @@ CATEGORIES: dict[str, tuple[int, str]] = {
                  "a shutdown"),
     "pause": (2, "the operator's pause or the program's: a stop on the path, drives powered, standstill "
                  "monitored"),
+    "t1 speed": (1, "in operating mode T1: the flange or the tool centre point of a 1 ms reference faster than "
+                    "[safety] t1_speed"),
+    "jog released": (2, "a jog's button released or its heartbeat lost: a stop on the path, drives powered"),
 }
 
 _KINDS = {kernels.OVER_VELOCITY: "velocity", kernels.OVER_ACCELERATION: "acceleration",
@@ -124,13 +133,25 @@ class SafetyLimits:
         self.homing_limits = tuple(safety.homing_velocity_factor * a.search_velocity for a in axes)
         self.referenced = [False] * len(axes)  # per axis: its encoder's zero is known (limits apply)
         self.servo_settings = settings.servo  # following_error_limit (the servo's; read every tick)
-        self.set_velocity_limit_scale(settings.robot.velocity_limit_scale)
+        self.t1_factor = spec.safety.t1_velocity_factor
+        self.t1 = False
+        self.scale = settings.robot.velocity_limit_scale
+        self.set_velocity_limit_scale(self.scale)
         settings.watch("robot", "velocity_limit_scale", self.set_velocity_limit_scale)
 
     def set_velocity_limit_scale(self, scale: float) -> None:
         """Not real-time (told by the settings): robot.velocity_limit_scale changed."""
+        self.scale = scale
+        if self.t1:
+            scale = min(scale, self.t1_factor)
         self.velocity_limits = tuple(a.max_velocity * scale for a in self.axes)
         self.refresh()
+
+    def set_t1(self, t1: bool) -> None:
+        """Not real-time (between cycles): operating mode T1 (each axis's velocity limit is
+        then its reduced speed) or not."""
+        self.t1 = t1
+        self.set_velocity_limit_scale(self.scale)
 
     def set_referenced(self, axis: int | None, referenced: bool = True) -> None:
         """Real-time safe: ``axis`` (None: every axis) is referenced (its limits apply and
@@ -300,6 +321,63 @@ class StandstillMonitor:
                 f"in_position_time, in_position_timeout)")
 
 
+class ReducedSpeedMonitor:
+    """Operating mode T1: the flange and the tool centre point (of the tool ``tool_of()``
+    gives: the move's) of every 1 ms reference of the servo at most ``[safety] t1_speed``;
+    a prismatic additional axis (a track) adds its own speed. Off in AUT. Real-time:
+    :meth:`check` (one flange frame per tick, plain floats)."""
+
+    def __init__(self, spec, tick: float):
+        self.limit = spec.safety.t1_speed
+        self.tick = tick
+        self.main = len(spec.main_axes)
+        try:
+            self.kinematics: Kinematics | None = Kinematics(spec)
+        except ValueError:
+            self.kinematics = None
+        self.tracks = tuple(i for i, a in enumerate(spec.axes) if i >= self.main and a.kind == "prismatic")
+        self.default_tool = tuple(float(v) for v in spec.tool[:3])
+        self.tool_of = None  # () -> the move's tool (x, y, z, roll, pitch, yaw in the flange), set by the system
+        self.on = False
+        self.epoch = -1
+        self.peak = 0.0  # the largest speed seen since the mode was set (mm/s)
+        self.speed = 0.0  # the last tick's
+        self.forget()
+
+    def forget(self) -> None:
+        """Real-time safe: the next reference is the first (the reference jumped: an
+        encoder reset by homing, a new cycle)."""
+        self.last = None
+        self.last_tool = None
+        self.last_tracks = None
+
+    def check(self, reference, epoch: int) -> float:
+        """Real-time: the speed (mm/s) of this reference against the last one (``epoch``: the
+        servo's count of the times its reference started anew, from where the robot is: a
+        new baseline then, as after :meth:`forget`)."""
+        kinematics = self.kinematics
+        if kinematics is None:
+            return 0.0
+        if epoch != self.epoch:
+            self.epoch = epoch
+            self.forget()
+        columns = kinematics.flange_columns(reference[:self.main])
+        tool = self.tool_of()[:3] if self.tool_of is not None else self.default_tool
+        tracks = tuple([reference[i] for i in self.tracks]) if self.tracks else ()
+        last, self.last = self.last, columns
+        last_tool, self.last_tool = self.last_tool, tool
+        last_tracks, self.last_tracks = self.last_tracks, tracks
+        if last is None or last_tool != tool:  # a tool changed (at rest): a new baseline
+            return 0.0
+        speed = point_speed(last, columns, tool, self.tick)
+        for a, b in zip(last_tracks, tracks):
+            speed += abs(b - a) / self.tick
+        self.speed = speed
+        if speed > self.peak:
+            self.peak = speed
+        return speed
+
+
 class StopRamp:
     """The safety's own stop (IEC 60204-1): category 1 ramps every axis's command from the
     last one passed to the drives to zero at the axis's max_acceleration, then applies the
@@ -387,6 +465,7 @@ class SafetySupervisor(Component):
         self.limits = SafetyLimits(spec, settings, tick)
         self.encoders = EncoderPlausibility(spec, tick)
         self.standstill = StandstillMonitor(spec, clock)
+        self.reduced = ReducedSpeedMonitor(spec, tick)
         self.ramp = StopRamp(spec, robot, drive_cmd, tick)
         self._zeros = (0.0,) * len(spec.axes)
         self.fault: str | None = None
@@ -395,14 +474,24 @@ class SafetySupervisor(Component):
     # -- set-up (not real-time) --
     def set_referenced(self, axis: int | None, referenced: bool = True) -> None:
         """Real-time safe: ``axis`` (None: every axis) is referenced (its limits apply and
-        it may move at full speed) or not."""
+        it may move at full speed) or not (its reference jumps: the T1 check starts anew)."""
         self.limits.set_referenced(axis, referenced)
+        self.reduced.forget()
+
+    def set_t1(self, t1: bool) -> None:
+        """Not real-time (between cycles): operating mode T1 (checked every tick) or AUT."""
+        self.reduced.on = t1
+        self.reduced.peak = 0.0
+        self.reduced.forget()
+        self.limits.set_t1(t1)
 
     def reset(self) -> None:
         """Not real-time: a new cycle (the drives are enabled again by Start Robot)."""
         self.fault = None
         self.stops: list[tuple[float, int, str]] = []  # (time, category, cause) of each stop begun or made stricter
         self.ramp.reset()
+        self.reduced.forget()
+        self.reduced.peak = 0.0
         self.encoders.reset()
         self.standstill.reset()
         self.previous = self._zeros  # the last command passed to the drives
@@ -488,6 +577,11 @@ class SafetySupervisor(Component):
             if code:
                 self._axis_violation(code, command, now)
                 return
+        reduced = self.reduced
+        if reduced.on and reduced.check(self.servo.reference, self.servo.epoch) > reduced.limit:
+            self._violation("t1 speed", f"in T1 the flange or the tool centre point moved at {reduced.speed:.1f} "
+                                        f"mm/s, beyond [safety] t1_speed {reduced.limit:g} mm/s", now)
+            return
         limit = limits.servo_settings.following_error_limit
         if self.servo.worst_error > limit:
             self._violation("following error", f"following error {self.servo.worst_error:.3f} beyond the limit "

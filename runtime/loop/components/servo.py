@@ -47,6 +47,7 @@ class ServoController(Component):
         self.measured_velocity = lambda: None  # the robot interface's velocity estimate, when wired
         self.interpolator = interpolator_factory((0.0,) * self.n, self.limits)
         self.mode = "zero"  # "zero", "hold", "trajectory", "initialization"
+        self.epoch = 0  # counts the times the reference started anew (a hold, a new mode, an encoder reset)
         self.source: DataPort | None = None
         self.last_stamp = -1.0
         self.integral = [0.0] * self.n
@@ -81,6 +82,7 @@ class ServoController(Component):
         self.worst_error = 0.0
 
     def _hold(self, position) -> None:
+        self.epoch += 1  # the reference starts anew here (the T1 speed check takes a new baseline)
         self.hold_position = tuple(position)
         self._held = (tuple([(float(p), 0.0, 0.0, 0.0, 0.0, 0.0, _NO_BREAK, 0.0, 0.0, _NO_BREAK, 0.0, 0.0)
                              for p in self.hold_position]), 0.0, 0.0)

@@ -37,12 +37,14 @@ from compiler.triggers import problem as trigger_problem
 from compiler.values import Joint, Pose
 
 from runtime.loop.component import Component, DataPort
+from runtime.loop.jogging import HEARTBEAT_TIMEOUT, Jogger
 from runtime.motion.kinematics import Kinematics
 from runtime.recording import LOG_FULL, PRINT
 from runtime.motion.motionqueue import MotionQueue, PlanningWorker
 from runtime.motion.moves import Frames, MoveRecord, MovePlanner, MoveRequest
 from runtime.settings import Settings
 from runtime.timing import SETPOINT_PERIOD
+from runtime.wire.protocol import ProtocolError
 from runtime.loop.vm import DONE, ERROR, READY, VM
 
 __all__ = ["LOOKAHEAD", "MAX_LOG_LINES", "MoveRecord", "TIME_SLICE", "TrajectoryGenerator"]
@@ -114,15 +116,25 @@ class TrajectoryGenerator(Component):
         self._set_velocity_limit_scale(settings.robot.velocity_limit_scale)
         settings.watch("robot", "velocity_limit_scale", self._set_velocity_limit_scale)
         self.default_frames = Frames.default(spec)
+        #: the base and tool jogs use: the last program's last move's (runtime.loop.jogging)
+        self.jog_frames = self.default_frames
+        self.jogging = False  # the cycle is a jog session (no program)
+        self.jogger: Jogger | None = None
+        self._jog_waiting: tuple | None = None  # (request, time) of a jog asked for before Move Robot
         self._forget()
 
-    def load(self, program: Program | None) -> None:
-        """Not real-time: the program to run at the next start; forgets the last one
-        (its moves and log, its fault, an abort). On the wall clock, starts the planning
-        worker the first time (never in a tick)."""
+    def load(self, program: Program | None, jog: bool = False) -> None:
+        """Not real-time: the program to run at the next start (or, with ``jog``, a jog
+        session: runtime.loop.jogging); forgets the last one (its moves and log, its fault,
+        an abort). On the wall clock, starts the planning worker the first time (never in
+        a tick)."""
         if not self.clock.simulated and self.motion.worker is None:
             self.motion.worker = PlanningWorker()
+        if self.motion.moves:
+            self.jog_frames = self.frames_now()
         self.program = program
+        self.jogging = jog
+        self._jog_waiting = None
         self._forget()
 
     def _forget(self) -> None:
@@ -133,16 +145,28 @@ class TrajectoryGenerator(Component):
         self.log_lines = []
         self.log_dropped = 0
         self.fault = None
+        self.jogger = None
         self.motion.reset()
 
     def on_start(self) -> bool:
-        """Run the loaded program from its beginning."""
-        if self.program is None:
+        """Run the loaded program from its beginning (or begin the jog session)."""
+        if self.program is None and not self.jogging:
             return False
         self._forget()
         position = self.start_position or self.sens_pos.read() or (0.0,) * self.n
         self.motion.start(position, self.period)
-        self.vm = VM(self.program, self, self.own.budget)
+        if self.jogging:
+            self.jogger = Jogger(self, self.clock.tick_time)
+            waiting, self._jog_waiting = self._jog_waiting, None
+            if waiting is not None:
+                jog, at = waiting
+                if jog.step is not None or self.clock.tick_time - at <= HEARTBEAT_TIMEOUT:
+                    try:
+                        self.jogger.request(jog, self.clock.tick_time)
+                    except ProtocolError as exc:
+                        self.jogger.reason = exc.message
+        else:
+            self.vm = VM(self.program, self, self.own.budget)
         # the first setpoint at this tick's time, as every later one (never the wall clock's
         # now: after a stall of the host that lies ahead of the ticks, and the servo would
         # interpolate from it to where the move is by then)
@@ -153,7 +177,7 @@ class TrajectoryGenerator(Component):
     def _holds(self) -> bool:
         """The motion queue starts no new move: no program, or it paused itself."""
         vm = self.vm
-        return vm is None or vm.paused
+        return (vm is None or vm.paused) and self.jogger is None
 
     def _program_line(self) -> int:
         return self.vm.line if self.vm is not None else 0
@@ -192,7 +216,9 @@ class TrajectoryGenerator(Component):
 
     @property
     def finished(self) -> bool:
-        """The program ended (DONE) and all its motion is complete."""
+        """The program ended (DONE) and all its motion is complete (a jog session: it is over)."""
+        if self.jogger is not None:
+            return self.jogger.finished
         return self.vm is not None and self.vm.status is DONE and self.fault is None and self.motion.done()
 
     @property
@@ -226,6 +252,8 @@ class TrajectoryGenerator(Component):
         motion = self.motion
         motion.sample(now)
         self._take_motion_events()
+        if self.jogger is not None:
+            self.jogger.update(now)
         accelerations = motion.accelerations
         self.desi_pos.write((now, motion.positions, motion.velocities) if accelerations is None
                             else (now, motion.positions, motion.velocities, accelerations), now)
@@ -255,11 +283,15 @@ class TrajectoryGenerator(Component):
         if motion.failed is not None:
             problem, line = motion.failed
             motion.failed = None
-            self.vm.fail(problem, line)
+            if self.jogger is not None:
+                self.jogger.failed(problem)
+            else:
+                self.vm.fail(problem, line)
         if motion.ended is not None:
-            self.fault = self.fault or motion.ended
-            motion.ended = None
-            self.vm.abort()
+            ended, motion.ended = motion.ended, None
+            if self.vm is not None:
+                self.fault = self.fault or ended
+                self.vm.abort()
 
     # ---- operator control (real-time safe) ----
     def pause(self) -> bool:
@@ -282,8 +314,20 @@ class TrajectoryGenerator(Component):
         self._take_motion_events()
         return True
 
+    def jog(self, jog, now: float) -> dict:
+        """A jog request of the jog session (runtime.loop.jogging.Jogger.request): kept
+        until Move Robot when the session is still starting (homing, brakes)."""
+        if self.jogger is None:
+            self._jog_waiting = (jog, now)
+            return {"active": None, "stopping": False, "reason": "the robot is starting", "jogs": 0}
+        return self.jogger.request(jog, now)
+
     def abort(self, reason: str = "aborted by the operator") -> bool:
-        """A controlled stop, then end the program with ``reason`` as its fault."""
+        """A controlled stop, then end the program with ``reason`` as its fault (a jog
+        session: the jog stops on its path and the session ends)."""
+        if self.jogger is not None:
+            self.jogger.end(reason)
+            return True
         if not self._busy():
             return False
         if self.motion.abort_reason is None:
@@ -319,6 +363,11 @@ class TrajectoryGenerator(Component):
     def _expect_rest(self, within: float | None) -> None:
         if within is not None and self.safety is not None:
             self.safety.expect_rest_within(within)
+
+    def expect_rest(self, within: float | None) -> None:
+        """Real-time safe: a stop on the path began, at rest within ``within`` s (None: it is
+        already): the safety supervisor watches it end in time."""
+        self._expect_rest(within)
 
     # ---- the VM's motion host ----
     def now(self) -> float:

@@ -1,0 +1,286 @@
+"""Operating modes (T1, AUT) and jogging: docs/safety.md, "Operating modes"; docs/protocol.md,
+``mode`` and ``jog``.
+
+The speeds are checked by a watch of the tests' own (:class:`SpeedWatch`): every 1 ms it
+takes the servo's reference and computes the tool centre point and the flange with the
+forward kinematics (``Kinematics.forward`` with the tool and without one: not the code the
+safety supervisor runs), so a supervisor that looked away would not hide a fast reference.
+"""
+from __future__ import annotations
+
+import math
+
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from compiler.driver import compile_source
+from compiler.spec import load_spec
+from runtime.loop.system import RobotSystem, RunOptions
+from runtime.motion.kinematics import Kinematics
+from runtime.server.server import Server, ServeOptions
+from runtime.timing import TICK
+from runtime.wire.protocol import ProtocolError
+
+SPEC = "programs/lola15.spc"
+#: How long after the last heartbeat a continuous jog must be at rest (docs/protocol.md, jog).
+AT_REST_WITHIN = 0.5
+#: Closest an axis comes past a software limit (docs/safety.md: the tests' STOP_TOLERANCE).
+STOP_TOLERANCE = 0.5
+
+
+class SpeedWatch:
+    """Every tick: the largest speed (mm/s) of the tool centre point and of the flange at the
+    servo's reference, while the robot is in T1 (``peak``) and in AUT (``aut_peak``); the
+    references kept for the last second; any axis beyond its limits."""
+
+    def __init__(self, system: RobotSystem):
+        self.system = system
+        spec = system.spec
+        self.arm = Kinematics(spec)
+        self.flange = Kinematics(spec).with_tool((0.0, 0.0, 0.0, 0.0, 0.0, 0.0))
+        self.axes = spec.axes
+        self.peak = self.aut_peak = 0.0
+        self.last = None
+        self.epoch = None
+        self.references: list[tuple[float, tuple]] = []
+        self.beyond: list[str] = []
+        system.executive.add("speed watch", self.update, TICK, "record")
+
+    def update(self, now: float) -> None:
+        system = self.system
+        servo = system.servo
+        reference = servo.reference
+        if servo.epoch != self.epoch or not servo.running:  # the reference restarted from where the arm is
+            self.epoch, self.last = servo.epoch, None
+        tool = system.trajectory.frames_now().tool
+        arm = self.arm if tuple(tool) == tuple(self.arm.tool) else self.arm.with_tool(tool)
+        points = (arm.forward(reference[:6])[:3], self.flange.forward(reference[:6])[:3], tuple(tool))
+        if self.last is not None and self.last[2] == points[2] and system.safety.category is None:
+            speed = max(math.dist(points[0], self.last[0]), math.dist(points[1], self.last[1])) / TICK
+            if system.mode == "t1":
+                self.peak = max(self.peak, speed)
+            else:
+                self.aut_peak = max(self.aut_peak, speed)
+        self.last = points
+        self.references.append((now, reference))
+        if len(self.references) > 1000:
+            del self.references[:500]
+        if system.memory.initialized:
+            for a, x in zip(self.axes, system.robot.positions):
+                if not a.min - STOP_TOLERANCE <= x <= a.max + STOP_TOLERANCE:
+                    self.beyond.append(f"{a.name} at {x:.3f} beyond {a.min:g}..{a.max:g}")
+
+    def still_since(self, t: float) -> bool:
+        """No reference changed from time ``t`` on."""
+        later = [r for at, r in self.references if at >= t - 1e-9]
+        return bool(later) and all(max(abs(a - b) for a, b in zip(r, later[0])) < 1e-9 for r in later)
+
+
+def _program(text: str):
+    if not text.startswith("program"):
+        text = f"program t1;\nseq\n{text}endseq\nendprogram;\n"
+    result = compile_source(text, "t1.irl", SPEC)
+    assert result.ok, [str(d) for d in result.diagnostics]
+    return result.program
+
+
+@pytest.fixture(scope="module")
+def spec():
+    return load_spec(SPEC)
+
+
+# ---- programs in T1 ------------------------------------------------------------------------------
+def test_a_program_in_t1_keeps_the_tool_and_the_flange_under_250_mm_per_s(spec):
+    program = _program(open("programs/test.irl").read())
+    t1 = RobotSystem(spec, RunOptions(mode="t1"))
+    watch = SpeedWatch(t1)
+    summary = t1.run(program)
+    assert summary["fault"] is None and summary["mode"] == "t1"
+    assert 150.0 < watch.peak <= 250.0, watch.peak  # planned to 225 mm/s: the reduced speed is used
+    assert summary["t1_peak_speed"] == pytest.approx(watch.peak, rel=0.05)
+    assert not watch.beyond
+    aut = RobotSystem(spec, RunOptions())
+    fast = SpeedWatch(aut)
+    at_speed = aut.run(program)
+    assert at_speed["fault"] is None and fast.aut_peak > 250.0  # the same program is faster in AUT
+    assert at_speed["sim_time"] < summary["sim_time"]
+
+
+def test_the_supervisor_stops_a_t1_move_planned_too_fast(spec):
+    system = RobotSystem(spec, RunOptions(mode="t1"))
+    system.trajectory.planner.reduced = None  # a planner that ignores T1: the supervisor has the last word
+    summary = system.run(_program("move ptp joint(mainjoint(0, 0, 0, 0, 30, 0));\n"
+                                  "move ptp joint(mainjoint(60, -20, 30, 0, 30, 0)) speed_ptp:=1.0;\n"))
+    assert summary["stop"]["category"] == 1
+    assert "in T1 the flange or the tool centre point moved at" in summary["fault"]
+    assert "beyond [safety] t1_speed 250 mm/s" in summary["fault"]
+
+
+@pytest.fixture(scope="module")
+def t1_robot(spec):
+    system = RobotSystem(spec, RunOptions(mode="t1"))
+    watch = SpeedWatch(system)
+    assert system.run(_program("move ptp joint(mainjoint(0, 0, 0, 0, 30, 0));\n"))["fault"] is None  # homed
+    return system, watch
+
+
+#: Joint targets about a pose in front of the arm (T1 moves are slow: a few seconds each).
+JOINT = st.tuples(st.floats(-25, 25), st.floats(-20, 20), st.floats(-20, 20), st.floats(-40, 40),
+                  st.floats(30, 70), st.floats(-60, 60))
+
+
+@settings(max_examples=8, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(moves=st.lists(st.tuples(st.sampled_from(["ptp", "lin"]), JOINT, st.floats(0.2, 1.0), st.booleans()),
+                      min_size=1, max_size=3))
+def test_random_moves_in_t1_never_pass_250_mm_per_s(t1_robot, moves):
+    """Random ptp and lin moves (joint targets, any speed, with approx) in T1: every 1 ms
+    reference keeps the tool centre point and the flange at most 250 mm/s, no limit is
+    passed, and nothing but a refused path ends a program early."""
+    system, watch = t1_robot
+    kinematics = system.trajectory.planner.kinematics
+    lines = []
+    for kind, q, speed, approx in moves:
+        target = "joint(mainjoint(" + ", ".join(f"{v:.2f}" for v in q) + "))"
+        if kind == "lin":
+            x, y, z, r, p, w = kinematics.forward(q)
+            target = f"pose(pos({x:.3f}, {y:.3f}, {z:.3f}), rpy({r:.3f}, {p:.3f}, {w:.3f}))"
+        clauses = f"speed_ptp:={speed:.2f}" if kind == "ptp" else f"speed:={speed * 2000:.0f}"
+        blend = (0.5 if kind == "ptp" else 50) if approx else 0
+        lines.append(f"move {kind} {target} {clauses} approx:={blend};")
+    summary = system.run(_program("\n".join(lines) + "\n"))
+    assert watch.peak <= 250.0, watch.peak
+    assert not watch.beyond, watch.beyond
+    fault = summary["fault"] or ""
+    assert "safety" not in fault, fault
+    assert not fault or "refused" in fault or "cannot be reached" in fault, fault
+
+
+# ---- jogging on a server ---------------------------------------------------------------------------
+class Cell:
+    """A server with its loop in this process on the simulated clock: one turn, one tick."""
+
+    def __init__(self, spec, tmp, mode="t1"):
+        self.server = Server(spec, ServeOptions(sim_clock=True, loop_process=False, state_dir=tmp, mode=mode))
+        self.system = self.server.system
+        self.watch = SpeedWatch(self.system)
+
+    def turns(self, n: int) -> None:
+        for _ in range(n):
+            self.server.turn()
+
+    def request(self, op: str, args: dict | None = None):
+        return self.server.request(op, args)
+
+    @property
+    def t(self) -> float:
+        return self.system.clock.tick_time
+
+    def jog(self, **args) -> dict:
+        return self.request("jog", args)
+
+    def settle(self, limit: int = 40_000) -> dict:
+        """Turns until no jog is under way (and the session has reached Move Robot)."""
+        for _ in range(limit):
+            self.server.turn()
+            jogger = self.system.trajectory.jogger
+            if jogger is not None and jogger.active is None and jogger.pending is None and not jogger.stopping:
+                return jogger.state()
+        raise AssertionError("the jog did not end")
+
+    def hold(self, seconds: float, **args) -> float:
+        """A continuous jog held ``seconds`` with a heartbeat every 0.1 s; the time of the last one."""
+        last = self.t
+        for _ in range(max(1, round(seconds / 0.1))):
+            self.jog(**args)
+            last = self.t
+            self.turns(100)
+        return last
+
+    def idle(self) -> None:
+        """Until the jog session (or program) has ended."""
+        for _ in range(200_000):
+            if self.server.jobs.current is None:
+                return
+            self.server.turn()
+        raise AssertionError("the session did not end")
+
+
+@pytest.fixture(scope="module")
+def cell(spec, tmp_path_factory):
+    cell = Cell(spec, tmp_path_factory.mktemp("jog"))
+    cell.jog(axis="A5", direction=1, step=30.0)  # homes first (in T1), then A5 off the wrist singularity
+    assert cell.settle()["reason"] == "jog A5+, 30 deg done"
+    return cell
+
+
+def test_an_increment_moves_one_axis_by_its_step(cell):
+    before = list(cell.system.trajectory.motion.positions)
+    cell.jog(axis="A1", direction=-1, step=1.5)
+    state = cell.settle()
+    after = cell.system.trajectory.motion.positions
+    assert state["reason"] == "jog A1-, 1.5 deg done"
+    assert after[0] == pytest.approx(before[0] - 1.5, abs=1e-9)
+    assert after[1:] == pytest.approx(before[1:], abs=1e-9)
+
+
+def test_an_increment_past_a_limit_is_refused_with_the_limit(cell):
+    with pytest.raises(ProtocolError) as refused:
+        cell.jog(axis="A2", direction=1, step=100.0)
+    assert "beyond its software limits" in refused.value.message and "A2" in refused.value.message
+
+
+def test_a_held_jog_stops_within_half_a_second_of_its_last_heartbeat(cell):
+    start = cell.system.trajectory.motion.positions[:6]
+    kinematics = cell.system.trajectory.planner.kinematics
+    before = kinematics.forward(start)
+    last = cell.hold(1.0, axis="z", direction=-1, frame="tool")
+    cell.turns(round(AT_REST_WITHIN / TICK) + 50)
+    assert cell.watch.still_since(last + AT_REST_WITHIN)
+    state = cell.system.trajectory.jogger.state()
+    assert "no heartbeat for 0.25 s" in state["reason"]
+    after = kinematics.forward(cell.system.trajectory.motion.positions[:6])
+    assert math.dist(before[:3], after[:3]) > 100.0  # it moved, along the tool's z
+    assert cell.watch.peak <= 250.0
+
+
+def test_a_released_jog_stops_at_once(cell):
+    cell.jog(axis="A1", direction=1)
+    cell.turns(300)
+    released = cell.t
+    cell.jog(axis="A1", direction=0)
+    cell.turns(400)
+    assert cell.watch.still_since(released + 0.3)
+    assert "released" in cell.system.trajectory.jogger.state()["reason"]
+
+
+def test_a_cartesian_jog_stops_before_the_arm_cannot_go_on_and_says_why(cell):
+    cell.hold(8.0, axis="x", direction=1, frame="world")  # outwards, held on after the end of the reach
+    state = cell.settle()
+    assert "before the arm cannot go on" in state["reason"] and "reach" in state["reason"], state["reason"]
+    assert cell.watch.peak <= 250.0 and not cell.watch.beyond
+    cell.hold(1.0, axis="x", direction=-1)  # and back
+    cell.settle()
+
+
+def test_jogging_and_switching_are_refused_where_they_must_be(cell, spec):
+    with pytest.raises(ProtocolError, match="axis must be one of"):
+        cell.jog(axis="A9", direction=1, step=1.0)
+    cell.idle()
+    assert cell.request("mode", {"mode": "aut"}) == {"mode": "aut"}
+    with pytest.raises(ProtocolError, match="jogging needs operating mode T1"):
+        cell.jog(axis="A1", direction=1, step=1.0)
+    cell.request("submit", {"object": _object("move ptp joint(mainjoint(10, 0, 0, 0, 30, 0));\n"
+                                               "move ptp joint(mainjoint(0, 0, 0, 0, 30, 0));\n")})
+    cell.turns(50)
+    with pytest.raises(ProtocolError, match="only with the robot at rest and no program running"):
+        cell.request("mode", {"mode": "t1"})
+    cell.idle()
+    assert cell.request("mode", {"mode": "t1"}) == {"mode": "t1"}
+    assert cell.request("status")["mode"] == "t1"
+
+
+def _object(text: str) -> bytes:
+    from compiler.objcode import encode
+
+    return encode(_program(text))

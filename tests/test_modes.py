@@ -284,3 +284,110 @@ def _object(text: str) -> bytes:
     from compiler.objcode import encode
 
     return encode(_program(text))
+
+
+# ---- a stateful search: modes, jogs, lost heartbeats, programs, pauses and e-stops ---------------
+from hypothesis.stateful import RuleBasedStateMachine, initialize, invariant, rule, run_state_machine_as_test  # noqa: E402
+
+AXES = ("A1", "A2", "A3", "A4", "A5", "A6", "x", "y", "z", "rx", "ry", "rz")
+PROGRAM = ("move ptp joint(mainjoint(10, -10, 15, 0, 40, 0)) speed_ptp:=0.6;\n"
+           "move lin pose(pos(1000, 100, 1300), rpy(180, -50, 0)) speed:=1500;\n"
+           "move ptp joint(mainjoint(-10, 0, 5, 20, 50, 10)) speed_ptp:=1.0 approx:=0.5;\n"
+           "move ptp joint(mainjoint(0, 0, 0, 0, 30, 0));\n")
+
+
+class Operator(RuleBasedStateMachine):
+    """An operator (and a client beside) doing anything in any order to a served robot."""
+
+    cell: Cell  # set by the test (one server for every example: the robot remembers its homing)
+
+    def _refused(self, op: str, args: dict | None = None) -> str | None:
+        try:
+            self.cell.request(op, args)
+        except ProtocolError as exc:
+            assert exc.code in ("refused", "not_found"), exc.message
+            return exc.message
+        return None
+
+    @initialize()
+    def at_rest_in_t1(self):
+        self.cell.idle()
+        self.cell.request("mode", {"mode": "t1"})
+
+    @rule(mode=st.sampled_from(["t1", "aut"]))
+    def switch(self, mode):
+        busy = self.cell.server.jobs.current is not None and not self.cell.server.jobs.current.jog
+        problem = self._refused("mode", {"mode": mode})
+        assert (problem is not None) == busy, problem
+        self.cell.turns(20)
+
+    @rule(axis=st.sampled_from(AXES), direction=st.sampled_from([1, -1]), frame=st.sampled_from(["world", "base", "tool"]),
+          step=st.sampled_from([0.1, 1.0, 10.0]))
+    def increment(self, axis, direction, frame, step):
+        problem = self._refused("jog", {"axis": axis, "direction": direction, "frame": frame, "step": step})
+        if self.cell.system.mode != "t1":
+            assert problem is not None and "T1" in problem
+            return
+        if problem is None:
+            self.cell.settle()
+
+    @rule(axis=st.sampled_from(AXES), direction=st.sampled_from([1, -1]), frame=st.sampled_from(["world", "tool"]),
+          beats=st.integers(1, 6), release=st.booleans())
+    def hold(self, axis, direction, frame, beats, release):
+        """Held for some heartbeats, then released or simply no more heartbeats (a lost
+        connection): at rest within 0.5 s of the last one."""
+        cell = self.cell
+        if cell.system.mode != "t1" or (cell.server.jobs.current is not None and not cell.server.jobs.current.jog):
+            return
+        last = None
+        for _ in range(beats):
+            if self._refused("jog", {"axis": axis, "direction": direction, "frame": frame}) is not None:
+                break
+            last = cell.t
+            cell.turns(100)
+        if last is None:
+            return
+        if release:
+            self._refused("jog", {"axis": axis, "direction": 0, "frame": frame})
+        while cell.system.trajectory.jogger is None and cell.server.jobs.current is not None:
+            cell.turns(100)  # (still homing: the jog waits for Move Robot)
+        cell.turns(max(0, round((last + AT_REST_WITHIN - cell.t) / TICK)) + 20)
+        if cell.system.trajectory.jogger is not None and cell.system.safety.category is None:
+            assert cell.watch.still_since(max(last + AT_REST_WITHIN, cell.t - 0.015)), \
+                f"still moving {cell.t - last:.3f} s after the last heartbeat"
+
+    @rule(pause=st.booleans(), estop=st.sampled_from([False, False, False, True]), ticks=st.integers(100, 3000))
+    def program(self, pause, estop, ticks):
+        cell = self.cell
+        if self._refused("submit", {"object": _object(PROGRAM)}) is not None:
+            return
+        cell.turns(ticks)
+        if pause and self._refused("pause") is None:
+            cell.turns(500)
+            self._refused("resume")
+        if estop:
+            self._refused("estop")
+        cell.idle()
+
+    @rule()
+    def idle(self):
+        self.cell.idle()
+
+    @invariant()
+    def kept(self):
+        watch = self.cell.watch
+        assert watch.peak <= 250.0, f"T1: {watch.peak:.1f} mm/s"
+        assert not watch.beyond, watch.beyond[:3]
+        for job_id in self.cell.server.jobs:
+            fault = self.cell.server.jobs[job_id].fault or ""
+            assert "t1 speed" not in fault and "t1_speed" not in fault, fault
+
+    def teardown(self):
+        self.cell.idle()
+
+
+def test_any_sequence_of_modes_jogs_programs_and_stops_keeps_t1_and_the_limits(spec, tmp_path):
+    Operator.cell = cell = Cell(spec, tmp_path, mode="t1")
+    cell.request("submit", {"object": _object("move ptp joint(mainjoint(0, 0, 0, 0, 30, 0));\n")})
+    cell.idle()  # homed (a lost homing, after an e-stop, is searched too: it homes again)
+    run_state_machine_as_test(Operator, settings=settings(max_examples=6, stateful_step_count=10, deadline=None))

@@ -13,7 +13,7 @@ import json
 import time
 
 from runtime.cli import common
-from runtime.cli.netcli import call_op, client_for, guarded
+from runtime.cli.netcli import Refused, call_op, client_for, guarded
 
 #: Seconds between the heartbeats of ``irl jog --hold`` (the loop stops a jog 0.25 s after
 #: the last one).
@@ -68,7 +68,7 @@ def cmd_jog(args, env) -> int:
         request["step"] = step
     client = client_for(args)
     try:
-        state = call_op(client, "jog", request)
+        state = _jog(client, request)
         if step is None:
             end = time.monotonic() + args.hold
             try:
@@ -92,6 +92,21 @@ def cmd_jog(args, env) -> int:
         names = axes or [f"A{i + 1}" for i in range(len(status["position"]))]
         common.say(env, "position: " + ", ".join(f"{n} {v:.3f}" for n, v in zip(names, status["position"])))
     return common.EXIT_OK
+
+
+def _jog(client, request: dict) -> dict:
+    """The first jog request: sent again while the jog session before it ends (its brakes
+    closing), a new session then starting."""
+    from runtime.wire.protocol import JOG_SESSION_ENDING
+
+    deadline = time.monotonic() + 5.0
+    while True:
+        try:
+            return call_op(client, "jog", request)
+        except Refused as exc:
+            if JOG_SESSION_ENDING not in str(exc) or time.monotonic() > deadline:
+                raise
+            time.sleep(0.1)
 
 
 def _wait_at_rest(client, state: dict | None) -> dict | None:

@@ -201,7 +201,7 @@ class RobotLoop:
         if self.job is None or not system.trajectory.jogging:
             raise ProtocolError("refused", "no jog session is running" if self.job is None
                                 else f"program {self.job} is running")
-        return system.trajectory.jog(m, system.clock.tick_time)
+        return {**system.trajectory.jog(m, system.clock.tick_time), "t": system.clock.tick_time}
 
     def _settings(self, m: messages.Settings) -> dict:
         if self.job is not None:
@@ -287,7 +287,10 @@ class RobotLoop:
             t = system.trajectory
             progress = Progress(t.line, t.motion.completed, t.paused,
                                 max((abs(e) for e in system.servo.following_error), default=0.0))
-        return Snapshot(system.clock.now(), self.job, system.supervisor.fsm.path() if self.job is not None else "Idle",
+        # while a cycle runs, the time of the tick the positions were measured at (a snapshot
+        # is made after its tick, late by the host's jitter); idle, the clock's now
+        t = system.clock.tick_time if self.job is not None else system.clock.now()
+        return Snapshot(t, self.job, system.supervisor.fsm.path() if self.job is not None else "Idle",
                         position, list(system.io.inputs.read()), list(system.io.outputs.read()),
                         frames.tool_name, frames.base_name, tcp, tcp_base, memory.calibrated, memory.initialized,
                         memory.calibration_why, memory.initialization_why, progress, system.mode,

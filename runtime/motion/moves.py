@@ -37,7 +37,7 @@ from runtime.motion.jerk import plan_ptp_jerk
 from runtime.motion.kinematics import Kinematics, KinematicsError, configuration_name
 from runtime.motion.pathcheck import JointLimits
 from runtime.motion.planner import PtpInput, plan_ptp, scaled_limits
-from runtime.motion.reduced import Reduced, cartesian_peak
+from runtime.motion.reduced import Reduced, cartesian_peak, path_speed
 from runtime.motion.trajectory import Refusal, Trajectory
 
 __all__ = ["CACHE_SIZE", "Frames", "MovePlanner", "MoveRecord", "MoveRequest", "Segment"]
@@ -348,24 +348,14 @@ class MovePlanner:
             return None, problem
         via, target = (None, poses[0]) if request.kind == Motion.LIN else poses
         speed, limits, reduced = request.speed, self.joint_limits, self.reduced
-        if reduced is not None:
-            speed = min(speed, reduced.speed)
+        if reduced is not None:  # T1: a path speed that keeps the flange and the tool centre point slow
+            speed = min(speed, path_speed(kinematics, start, target, via, self._tool_point(request.frames),
+                                          reduced.speed))
             limits = JointLimits(limits.positions, tuple(min(v, r) for v, r in zip(limits.velocity,
                                                                                     reduced.velocities)),
                                  limits.acceleration, limits.jerk)
-        for attempt in range(4):
-            result, stream, message = plan_cartesian(CartesianInput(
-                kinematics, start, target, speed, request.acc, via=via, axis_limits=limits, period=period))
-            if result < 0 or reduced is None:
-                break
-            peak = cartesian_peak(kinematics, stream, self._tool_point(request.frames))
-            if peak <= reduced.speed:
-                break
-            if attempt == 3:
-                return None, (f"move {request.kind} refused in T1: its flange or tool centre point would move at "
-                              f"{peak:.0f} mm/s, beyond the reduced speed, even planned at {speed:.1f} mm/s "
-                              "(a large reorientation on a short path: split the move)")
-            speed *= reduced.speed / peak * 0.98
+        result, stream, message = plan_cartesian(CartesianInput(
+            kinematics, start, target, speed, request.acc, via=via, axis_limits=limits, period=period))
         if result < 0:
             prefix = f"move {request.kind} refused: "
             if isinstance(message, Refusal):

@@ -94,6 +94,9 @@ MODES = {
 JOG_CARTESIAN = ("x", "y", "z", "rx", "ry", "rz")
 JOG_FRAMES = ("world", "base", "tool")
 MAX_JOG_STEP = 100.0
+#: A jog that reaches a jog session as it ends is refused with this text: the client sends it
+#: again (the next heartbeat does), and a new session starts.
+JOG_SESSION_ENDING = "the jog session is ending (its brakes are closing): send the jog again"
 
 ERRORS = {
     "bad_message": "the request is not a msgpack map (or is not valid msgpack)",

@@ -44,7 +44,7 @@ from runtime.motion.motionqueue import MotionQueue, PlanningWorker
 from runtime.motion.moves import Frames, MoveRecord, MovePlanner, MoveRequest
 from runtime.settings import Settings
 from runtime.timing import SETPOINT_PERIOD
-from runtime.wire.protocol import ProtocolError
+from runtime.wire.protocol import JOG_SESSION_ENDING, ProtocolError
 from runtime.loop.vm import DONE, ERROR, READY, VM
 
 __all__ = ["LOOKAHEAD", "MAX_LOG_LINES", "MoveRecord", "TIME_SLICE", "TrajectoryGenerator"]
@@ -320,6 +320,8 @@ class TrajectoryGenerator(Component):
         if self.jogger is None:
             self._jog_waiting = (jog, now)
             return {"active": None, "stopping": False, "reason": "the robot is starting", "jogs": 0}
+        if not self.running:
+            raise ProtocolError("refused", JOG_SESSION_ENDING)
         return self.jogger.request(jog, now)
 
     def abort(self, reason: str = "aborted by the operator") -> bool:

@@ -8,7 +8,9 @@ safety supervisor runs), so a supervisor that looked away would not hide a fast 
 """
 from __future__ import annotations
 
+import json
 import math
+from pathlib import Path
 
 import pytest
 from hypothesis import HealthCheck, given, settings
@@ -23,6 +25,7 @@ from runtime.timing import TICK
 from runtime.wire.protocol import ProtocolError
 
 SPEC = "programs/lola15.spc"
+SPEC_FILE = str(Path(SPEC).resolve())
 #: How long after the last heartbeat a continuous jog must be at rest (docs/protocol.md, jog).
 AT_REST_WITHIN = 0.5
 #: Closest an axis comes past a software limit (docs/safety.md: the tests' STOP_TOLERANCE).
@@ -391,3 +394,40 @@ def test_any_sequence_of_modes_jogs_programs_and_stops_keeps_t1_and_the_limits(s
     cell.request("submit", {"object": _object("move ptp joint(mainjoint(0, 0, 0, 0, 30, 0));\n")})
     cell.idle()  # homed (a lost homing, after an e-stop, is searched too: it homes again)
     run_state_machine_as_test(Operator, settings=settings(max_examples=6, stateful_step_count=10, deadline=None))
+
+
+# ---- the commands, against a served robot --------------------------------------------------------
+def test_an_operator_switches_jogs_and_teaches_from_the_command_line(tmp_path):
+    """irl mode, irl jog (an increment and a held jog), irl where, and the taught literals
+    pasted into a program that irl check accepts."""
+    from tests.conftest import ServerProcess, no_traceback, run_irl
+
+    server = ServerProcess(tmp_path / "serve", tmp_path / "state").start()
+    try:
+        at = ("--endpoint", server.endpoint)
+        refused = run_irl("jog", "A1", "+1", *at)
+        assert refused.returncode == 1 and "jogging needs operating mode T1" in refused.stderr
+        shown = run_irl("mode", "t1", *at)
+        assert shown.returncode == 0 and shown.stdout.startswith("operating mode T1: manual reduced speed")
+        stepped = run_irl("jog", "A5", "+30", *at)  # (homes first)
+        assert stepped.returncode == 0, stepped.stderr
+        assert "jog A5+, 30 deg done" in stepped.stdout and "A5 30.0" in stepped.stdout
+        moved = run_irl("jog", "z", "-", "--frame", "tool", "--hold", "0.5", "--json", *at)
+        assert moved.returncode == 0, moved.stderr
+        assert "stopped: released" in json.loads(moved.stdout)["jog"]["reason"]
+        bad = run_irl("jog", "A2", "+100", *at)
+        assert bad.returncode == 1 and "beyond its software limits" in bad.stderr
+        where = run_irl("where", *at)
+        assert where.returncode == 0, where.stderr
+        joint, pose = where.stdout.splitlines()[:2]
+        assert joint.startswith("joint(mainjoint(") and pose.startswith("pose(pos(") and "config(" in pose
+        program = tmp_path / "taught.irl"
+        program.write_text(f'program taught;\nsystem_specification "{SPEC_FILE}";\nseq\n  move ptp {joint};\n'
+                           f"  move ptp joint(mainjoint(0, 0, 0, 0, 30, 0));\n  move ptp {pose};\n"
+                           f"  move lin {pose.replace('pos(', 'pos(', 1)};\nendseq\nendprogram;\n")
+        checked = run_irl("check", program)
+        assert checked.returncode == 0, checked.stdout + checked.stderr
+        for proc in (refused, shown, stepped, moved, bad, where, checked):
+            no_traceback(proc)
+    finally:
+        server.stop()

@@ -111,13 +111,17 @@ def _jog(client, request: dict) -> dict:
 
 def _wait_at_rest(client, state: dict | None) -> dict | None:
     """Poll ``status`` until the jog session has no jog under way (or STEP_WAIT passed):
-    the jog's last state."""
+    the jog's last state (the session's summary's, when it has ended)."""
     deadline = time.monotonic() + STEP_WAIT
+    session = (state or {}).get("program")
     while time.monotonic() < deadline:
         status = call_op(client, "status")
         jog = status.get("jog")
         running = status.get("running")
-        if running is None or not running.get("kind") == "jog":
+        if running is None or not running.get("kind") == "jog" or running.get("id") != session:
+            if session is not None:
+                ended = call_op(client, "status", {"program": session})
+                return (ended.get("summary") or {}).get("jog") or state
             return state
         if jog is not None:
             state = jog

@@ -68,6 +68,7 @@ class RobotLoop:
         self._seen_log = 0
         self._last_idle_snapshot = -math.inf
         self._gc_was_enabled = True
+        self._paced: tuple[float, float] | None = None  # (robot clock, wall clock) a jog session's pace began at
 
     # ---- what the server asks ----------------------------------------------------------
     def ready(self, scheduling: str | None = None) -> dict:
@@ -201,7 +202,7 @@ class RobotLoop:
         if self.job is None or not system.trajectory.jogging:
             raise ProtocolError("refused", "no jog session is running" if self.job is None
                                 else f"program {self.job} is running")
-        return {**system.trajectory.jog(m, system.clock.tick_time), "t": system.clock.tick_time}
+        return {**system.trajectory.jog(m, system.clock.tick_time), "t": system.clock.tick_time, "program": self.job}
 
     def _settings(self, m: messages.Settings) -> dict:
         if self.job is not None:
@@ -308,6 +309,21 @@ class RobotLoop:
                    "aborted": self.abort_reason is not None, "t": self.system.clock.now()})
         self.send(self.snapshot().to_wire())
 
+    def _ahead_of_the_operator(self) -> float:
+        """On the simulated clock, a jog session in Move Robot runs at the pace of the wall
+        clock (a person holds the button: heartbeats and the session's end count in
+        seconds a person lives); how far (s, at most 0.05) the robot's clock is ahead of it.
+        Elsewhere (a program, homing) the simulated clock runs as fast as it can: 0."""
+        system = self.system
+        if not system.clock.simulated or system.trajectory.jogger is None:
+            self._paced = None
+            return 0.0
+        if self._paced is None:
+            self._paced = (system.clock.tick_time, time.monotonic())
+            return 0.0
+        ahead = (system.clock.tick_time - self._paced[0]) - (time.monotonic() - self._paced[1])
+        return min(ahead, 0.05) if ahead > 0.001 else 0.0
+
     def run(self, channel) -> None:
         """The loop process's main loop, until an ``exit`` has brought the robot to rest
         (or the server is gone: then the running cycle is stopped first)."""
@@ -319,6 +335,10 @@ class RobotLoop:
                     if self.exit_reason is not None:
                         break
                     channel.wait(0.05)  # idle: nothing moves, brakes on (not a real-time state)
+                elif not self.commands:
+                    ahead = self._ahead_of_the_operator()
+                    if ahead > 0.0:
+                        channel.wait(ahead)  # (a command wakes it at once)
                 self.commands.extend(channel.receive())
             except ChannelClosed:
                 if self.exit_reason is None:

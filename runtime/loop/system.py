@@ -367,6 +367,7 @@ class RobotSystem:
             "program": self.trajectory.program.name if self.trajectory.program else None,
             "robot": self.spec.name,
             "mode": self.mode,
+            "jog": self.trajectory.jogger.state() if self.trajectory.jogger is not None else None,
             "t1_peak_speed": round(self.safety.reduced.peak, 3) if self.mode == "t1" else None,
             "states": states,
             "moves": moves,

@@ -412,11 +412,11 @@ def test_an_operator_switches_jogs_and_teaches_from_the_command_line(tmp_path):
         stepped = run_irl("jog", "A5", "+30", *at)  # (homes first)
         assert stepped.returncode == 0, stepped.stderr
         assert "jog A5+, 30 deg done" in stepped.stdout and "A5 30.0" in stepped.stdout
+        bad = run_irl("jog", "A5", "+100", *at)  # (A5 at 30 deg: 130 is beyond its 120)
+        assert bad.returncode == 1 and "beyond its software limits -120..120 deg" in bad.stderr
         moved = run_irl("jog", "z", "-", "--frame", "tool", "--hold", "0.5", "--json", *at)
         assert moved.returncode == 0, moved.stderr
         assert "stopped: released" in json.loads(moved.stdout)["jog"]["reason"]
-        bad = run_irl("jog", "A2", "+100", *at)
-        assert bad.returncode == 1 and "beyond its software limits" in bad.stderr
         where = run_irl("where", *at)
         assert where.returncode == 0, where.stderr
         joint, pose = where.stdout.splitlines()[:2]

@@ -38,6 +38,7 @@ from compiler.objcode import ObjectCodeError, load
 from runtime.loop.components.report import tcp_of
 from runtime.loop.supervisor import MOVE
 from runtime.loop.system import RobotSystem, RunOptions
+from runtime.timing import PACE_WAIT, TICK
 from runtime.wire import messages
 from runtime.wire.messages import EXIT_TIMEOUT, LoopOptions, Progress, Snapshot
 from runtime.wire.protocol import MODES, ProtocolError, jog_problem
@@ -312,7 +313,7 @@ class RobotLoop:
     def _ahead_of_the_operator(self) -> float:
         """On the simulated clock, a jog session in Move Robot runs at the pace of the wall
         clock (a person holds the button: heartbeats and the session's end count in
-        seconds a person lives); how far (s, at most 0.05) the robot's clock is ahead of it.
+        seconds a person lives); how far (s, at most PACE_WAIT) the robot's clock is ahead of it.
         Elsewhere (a program, homing) the simulated clock runs as fast as it can: 0."""
         system = self.system
         if not system.clock.simulated or system.trajectory.jogger is None:
@@ -322,7 +323,7 @@ class RobotLoop:
             self._paced = (system.clock.tick_time, time.monotonic())
             return 0.0
         ahead = (system.clock.tick_time - self._paced[0]) - (time.monotonic() - self._paced[1])
-        return min(ahead, 0.05) if ahead > 0.001 else 0.0
+        return min(ahead, PACE_WAIT) if ahead > TICK else 0.0
 
     def run(self, channel) -> None:
         """The loop process's main loop, until an ``exit`` has brought the robot to rest

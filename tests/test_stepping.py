@@ -1,7 +1,8 @@
 """Step mode and starting a program from a line (issue 31, item 3; runtime/loop/stepping.py,
 docs/runtime.md "Step mode and starting from a line"): in-process on the simulated clock,
 with the robot already calibrated and homed (no Start Robot searches: each cycle costs
-only its moves); then ``irl run --step`` and ``--from-line`` driven in-process."""
+only its moves); then ``irl run --step`` and ``--from-line`` driven in-process, and a
+served robot stepped with ``irl step`` end to end."""
 from __future__ import annotations
 
 import io
@@ -15,7 +16,7 @@ from runtime.cli.main import Environment, main
 from runtime.loop.stepping import APPROACH_SPEED
 from runtime.loop.system import RobotSystem, RunOptions
 
-from conftest import SPEC, SPEC_PATH, run_irl, no_traceback
+from conftest import SPEC, SPEC_PATH, run_irl, no_traceback, status as program_status, wait_for, wait_end
 
 HOME = (0.0, -30.0, 30.0, 0.0, 60.0, 0.0)
 
@@ -211,10 +212,48 @@ def test_irl_run_step_without_a_terminal_goes_on_by_itself_and_a_start_from_a_li
                     "ask|resume|abort chooses)"], proc.stderr
 
 
-def test_a_from_line_without_a_move_is_a_usage_error_of_run(three_irl):
-    for command in (("run",),):
+def test_a_from_line_without_a_move_is_a_usage_error_of_run_and_submit(three_irl):
+    for command in (("run",), ("submit", "--endpoint", "tcp://127.0.0.1:1")):
         proc = run_irl(*command, three_irl, "--from-line", 5)
         no_traceback(proc)
         assert proc.returncode == 2
         assert proc.stderr.strip() == ("irl: --from-line 5: line 5 of three.irl has no move to start at; the lines "
                                        "with a move: 4, 6, 7"), proc.stderr
+
+
+# ---- a served robot, end to end -------------------------------------------------------------------------
+def test_a_served_program_in_step_mode_moves_one_move_per_irl_step(server, three_irl):
+    client = server.client()
+    submitted = run_irl("submit", three_irl, "--step", "--endpoint", server.endpoint)
+    assert submitted.returncode == 0, submitted.stderr
+    job = int(submitted.stdout.split()[1])
+    refused = run_irl("step", "--endpoint", server.endpoint)  # (homing: not waiting for a step yet)
+    assert refused.returncode == 1 and "refused" in refused.stderr, refused.stderr
+    lines = []
+    for done in range(3):
+        s = wait_for(client, job, lambda s: s.get("waiting_for_step"), f"waiting for step {done + 1}", server)
+        assert s["step"] and s["moves_done"] == done and s["fsm"] == "Move Robot" and not s["paused"]
+        lines.append(s["line"])
+        stepped = run_irl("step", "--endpoint", server.endpoint)
+        assert stepped.returncode == 0, stepped.stderr
+        assert stepped.stdout.strip() == f"program {job}: the move at line {s['line']} goes"
+    final = wait_end(client, job, server)
+    assert lines == [4, 6, 7]
+    assert final["state"] == "completed" and final["moves_done"] == 3 and final["step"] is True
+    assert [m["line"] for m in final["summary"]["moves"]] == [4, 6, 7]
+    # the same robot (homed), from line 7: the approach to line 6's target, then line 7's move alone
+    started = client.request("submit", {"object": _object(three_irl), "from_line": 7})["program"]
+    final = wait_end(client, started, server)
+    assert final["state"] == "completed", final["fault"]
+    assert [m["line"] for m in final["summary"]["moves"]] == [7] and final["from_line"] == 7
+    assert final["summary"]["from_line"]["approach"]["target"] == pytest.approx([10, 10, 0, 0, 0, 0])
+    with pytest.raises(Exception, match="line 5 of three.irl has no move"):
+        client.request("submit", {"object": _object(three_irl), "from_line": 5})
+    assert program_status(client, started)["moves_total"] == 1
+
+
+def _object(path) -> bytes:
+    from compiler.driver import compile_file
+    from compiler.objcode import encode
+
+    return encode(compile_file(path).program)

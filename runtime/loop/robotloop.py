@@ -103,7 +103,8 @@ class RobotLoop:
         except ObjectCodeError as exc:
             raise ProtocolError("invalid_program", f"the object code is invalid: {exc}") from None
         try:
-            system.begin(program, m.report, settings=m.settings, record=m.record, job=m.job, jog=m.jog)
+            system.begin(program, m.report, settings=m.settings, record=m.record, job=m.job, jog=m.jog, step=m.step,
+                         from_line=m.from_line)
         except (ValueError, OSError) as exc:
             raise ProtocolError("refused", str(exc)) from None
         system.trajectory.override = m.override
@@ -118,7 +119,7 @@ class RobotLoop:
         gc.disable()
         return {"t": system.clock.now()}
 
-    def _meant(self, m: messages.Pause | messages.Resume) -> None:
+    def _meant(self, m: messages.Pause | messages.Resume | messages.Step) -> None:
         """Refuse a command meant for another program than the running one."""
         wanted = m.program
         if wanted is not None and wanted != self.job:
@@ -141,6 +142,23 @@ class RobotLoop:
         if self.job is None or not self.system.trajectory.resume():
             raise ProtocolError("refused", "no program is paused")
         return {"program": self.job, "paused": False}
+
+    def _step(self, m: messages.Step) -> dict:
+        """Step mode: the move the program waits before goes (refused, with why, when it
+        does not wait for a step)."""
+        system = self.system
+        self._meant(m)
+        if self.job is None:
+            raise ProtocolError("refused", "no program is running")
+        trajectory = system.trajectory
+        if system.supervisor.fsm.state != MOVE:
+            why = ("it does not run in step mode (submit it with step, irl submit --step)" if not trajectory.stepping.step
+                   else f"it is starting ({system.supervisor.fsm.path()}): its first move waits for a step in Move Robot")
+        else:
+            why = trajectory.step()
+        if why is not None:
+            raise ProtocolError("refused", f"program {self.job}: {why}")
+        return {"program": self.job, "line": trajectory.line, "approach": trajectory.stepping.approach_next}
 
     def _abort(self, m: messages.Abort) -> dict:
         wanted = m.program
@@ -287,12 +305,14 @@ class RobotLoop:
         progress = None
         if self.job is not None:
             t = system.trajectory
-            progress = Progress(t.line, t.motion.completed, t.paused,
-                                max((abs(e) for e in system.servo.following_error), default=0.0))
+            stepping = t.stepping
+            progress = Progress(t.line, t.moves_done, t.paused,
+                                max((abs(e) for e in system.servo.following_error), default=0.0), stepping.step,
+                                t.waiting_for_step, stepping.approach_next)
         # while a cycle runs, the time of the tick the positions were measured at (a snapshot
         # is made after its tick, late by the host's jitter); idle, the clock's now
-        t = system.clock.tick_time if self.job is not None else system.clock.now()
-        return Snapshot(t, self.job, system.supervisor.fsm.path() if self.job is not None else "Idle",
+        at = system.clock.tick_time if self.job is not None else system.clock.now()
+        return Snapshot(at, self.job, system.supervisor.fsm.path() if self.job is not None else "Idle",
                         position, list(system.io.inputs.read()), list(system.io.outputs.read()),
                         frames.tool_name, frames.base_name, tcp, tcp_base, memory.calibrated, memory.initialized,
                         memory.calibration_why, memory.initialization_why, progress, system.mode,
@@ -365,6 +385,7 @@ COMMANDS: dict[str, Callable[[RobotLoop, messages.Command], dict]] = {
     messages.Exit.OP: RobotLoop._exit,
     messages.Mode.OP: RobotLoop._mode,
     messages.Jog.OP: RobotLoop._jog,
+    messages.Step.OP: RobotLoop._step,
 }
 
 

@@ -693,7 +693,7 @@ class MotionQueue:
         # it began (its time 0) between the last tick and this one: its first setpoint
         t_start = now - (self.t_move - segment.start) / rate
         segment.record = MoveRecord(request.line, request.kind, segment.end, segment.duration / rate, t_start,
-                                    frames=request.frames)
+                                    frames=request.frames, approach=request.approach)
         if segment.previous is not None and segment.offset is not None and segment.previous.record is not None:
             segment.previous.record.blended = True
         self.moves.append(segment.record)

@@ -82,6 +82,7 @@ class MoveRecord:
     t_end: float | None = None
     blended: bool = False  # the move blended into the next one (it did not stop at its target)
     frames: Frames | None = None  # its base and tool (None: the specification's tool in the world frame)
+    approach: bool = False  # the approach of a start from a line (runtime.loop.stepping), not a program's move
 
     @property
     def actual_duration(self) -> float | None:
@@ -94,15 +95,20 @@ class MoveRequest:
     ``acc`` (fractions for ptp, mm/s and mm/s^2 for lin/circ), ``approx``, the source
     ``line``; ``rest_of``: the interrupted segment whose rest this is (planned from where
     it stopped); ``frames``: its base and tool (:class:`Frames`; None: the
-    specification's tool; its pose targets are in the world frame either way)."""
+    specification's tool; its pose targets are in the world frame either way);
+    ``approach``: the approach of a start from a line (runtime.loop.stepping), which is
+    not one of the program's moves (its record says so)."""
 
-    __slots__ = ("kind", "targets", "speed", "acc", "approx", "line", "rest_of", "frames", "triggers", "carried")
+    __slots__ = ("kind", "targets", "speed", "acc", "approx", "line", "rest_of", "frames", "triggers", "carried",
+                 "approach")
 
     def __init__(self, kind: str, targets: tuple, speed: float, acc: float, approx: float, line: int,
-                 rest_of: "Segment | None" = None, frames: Frames | None = None, triggers: tuple = ()):
+                 rest_of: "Segment | None" = None, frames: Frames | None = None, triggers: tuple = (),
+                 approach: bool = False):
         self.kind, self.targets, self.speed, self.acc, self.approx, self.line = kind, targets, speed, acc, approx, line
         self.rest_of = rest_of
         self.frames = frames
+        self.approach = approach
         self.triggers = triggers  # (place, unit, amount, action) each: compiler.triggers
         self.carried: tuple = ()  # the triggers not reached when it was stopped on its path: the rest's
 

@@ -200,6 +200,18 @@ class Cell:
             self.turns(100)
         return last
 
+    def clear(self) -> None:
+        """Every program waiting cancelled, the one running aborted, until idle."""
+        jobs = self.server.jobs
+        for job in list(jobs.queue):
+            self.request("abort", {"program": job.id})
+        if jobs.current is not None:
+            try:
+                self.request("abort", {"program": jobs.current.id})
+            except ProtocolError:
+                pass  # (ending already)
+        self.idle()
+
     def idle(self) -> None:
         """Until the jog session (or program) has ended."""
         for _ in range(200_000):
@@ -314,7 +326,7 @@ class Operator(RuleBasedStateMachine):
 
     @initialize()
     def at_rest_in_t1(self):
-        self.cell.idle()
+        self.cell.clear()
         self.cell.request("mode", {"mode": "t1"})
 
     @rule(mode=st.sampled_from(["t1", "aut"]))
@@ -359,12 +371,23 @@ class Operator(RuleBasedStateMachine):
             assert cell.watch.still_since(max(last + AT_REST_WITHIN, cell.t - 0.015)), \
                 f"still moving {cell.t - last:.3f} s after the last heartbeat"
 
-    @rule(pause=st.booleans(), estop=st.sampled_from([False, False, False, True]), ticks=st.integers(100, 3000))
-    def program(self, pause, estop, ticks):
+    @rule(pause=st.booleans(), estop=st.sampled_from([False, False, False, True]), ticks=st.integers(100, 3000),
+          steps=st.sampled_from([None, 0, 2]))
+    def program(self, pause, estop, ticks, steps):
+        """A program (in step mode: some steps given, then the rest), paused, e-stopped."""
         cell = self.cell
-        if self._refused("submit", {"object": _object(PROGRAM)}) is not None:
+        try:
+            submitted = cell.request("submit", {"object": _object(PROGRAM),
+                                                **({"step": True} if steps is not None else {})})["program"]
+        except ProtocolError as exc:
+            assert exc.code == "refused", exc.message
             return
         cell.turns(ticks)
+        for _ in range(steps or 0):
+            self._refused("step")
+            cell.turns(ticks)
+        if steps is not None and not estop:
+            self._refused("abort", {"program": submitted})  # (it may still wait behind a jog session)
         if pause and self._refused("pause") is None:
             cell.turns(500)
             self._refused("resume")
@@ -386,7 +409,7 @@ class Operator(RuleBasedStateMachine):
             assert "t1 speed" not in fault and "t1_speed" not in fault, fault
 
     def teardown(self):
-        self.cell.idle()
+        self.cell.clear()
 
 
 def test_any_sequence_of_modes_jogs_programs_and_stops_keeps_t1_and_the_limits(spec, tmp_path):

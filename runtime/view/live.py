@@ -97,7 +97,11 @@ class LiveView:
         lost = False
         counted, since = 0, time.monotonic()
         while not self._stop.is_set():
-            wait = 0.1 if self.pending is None else min(0.1, max(0.0, self.next_pose - time.monotonic()))
+            # (nobody looks while no page is connected: the first sample after one comes shows
+            # everything, and the pendant alone costs no posing)
+            looking = bool(self.stage.server.get_clients())
+            wait = 0.1 if self.pending is None or not looking else \
+                min(0.1, max(0.0, self.next_pose - time.monotonic()))
             message = sub.receive(wait)
             latest = None
             taken = 0
@@ -122,7 +126,7 @@ class LiveView:
                 self.latest = latest
                 self.missed = sub.missed
                 self.pending = latest
-            if self.pending is not None and now >= self.next_pose:
+            if self.pending is not None and now >= self.next_pose and looking:
                 self._sample(self.pending, client, now)
                 self.pending = None
                 self.next_pose = now + 1.0 / POSES

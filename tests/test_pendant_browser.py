@@ -175,12 +175,16 @@ def test_homing_moves_only_while_a_jog_button_is_held(cell):
 def test_holding_a_jog_button_moves_the_robot_and_releasing_it_stops_it(cell, tmp_path):
     page = cell.open()
     _take(page)
+    pad = page.locator("#pad-axes").bounding_box()
     if not cell.status()["initialized"]:  # (held through homing: the jog goes on when it has ended)
         page.mouse.move(*_centre(page, A1_MINUS))
         page.mouse.down()
         cell.wait(lambda s: (s["jog"] or {}).get("active"), "homed and jogging")
         page.mouse.up()
     page.wait_for_selector("#jog-note:text('hold a button to move')", timeout=LOAD * 1000)
+    # (nothing above the pad changes its size with the robot's state: a button that moved from
+    # under the held pointer would be released)
+    assert page.locator("#pad-axes").bounding_box() == pad
     samples, released = _hold(cell, page, A1_PLUS, 1.0)
     held = [q for at, q in samples if at < released]
     assert held[-1][0] - held[0][0] > 1.0, "A1 did not move while its button was held"

@@ -295,6 +295,9 @@ class Session:
         now = _ms()
         self.gate.receive(seq, page_ms, now)
         release = request["direction"] == 0
+        held = self.held
+        if not release and held is not None and held.press == press:
+            held.last = now  # (the page is there: said on receipt, whatever the server's answer waits on)
         with self.jog_lock:
             dropped = self.gate.admit(seq, page_ms, release, _ms())
             if dropped is not None:
@@ -303,7 +306,7 @@ class Session:
             if release:
                 self.held = None
             elif held is not None and held.press == press:
-                held.last = now
+                held.last = max(held.last, now)
                 if request.get("step") is not None:
                     return {"holding": True}  # (an increment's hold: sent on, it would start it again)
             else:
@@ -321,13 +324,15 @@ class Session:
         note = self.stop_homing() if release else None
         return {"jog": reply, **({"note": note} if note else {})}
 
-    def release_jog(self, why: str) -> None:
-        """Release the jog button this page holds (the page is gone, silent, or gives control
-        back): the jog stops, and so does homing."""
+    def release_jog(self, why: str, silent_for: float | None = None) -> None:
+        """Release the jog button this page holds (the page is gone, or gives control back;
+        ``silent_for``: only if no message of it came for that long, ms): the jog stops, and
+        so does homing."""
         with self.jog_lock:
-            held, self.held = self.held, None
-            if held is None:
+            held = self.held
+            if held is None or (silent_for is not None and _ms() - held.last <= silent_for):
                 return
+            self.held = None
             try:
                 self.request("jog", {"axis": held.request["axis"], "direction": 0, "frame": held.request["frame"]})
             except Refused:
@@ -549,7 +554,7 @@ class Pendant:
             for session in list(self.sessions.values()):
                 held = session.held
                 if held is not None and now_ms - held.last > STALE * 1000.0:
-                    session.release_jog(f"no heartbeat from the page for {STALE:g} s")
+                    session.release_jog(f"no heartbeat from the page for {STALE:g} s", silent_for=STALE * 1000.0)
                 if now - session.seen > SESSION_IDLE:
                     with self.lock:
                         gone = self.sessions.pop(session.page, None)

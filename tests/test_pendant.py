@@ -169,7 +169,12 @@ def test_control_mode_programs_and_inputs_from_the_page(cell):
     assert page.state()["inputs"][2] is True
     assert page.act("input", input=17, value=True)["code"] == "bad_request"
     assert page.act("mode", mode="aut")["mode"] == "aut"
+    # a press refused starts nothing later by itself, held on as it may be: it is pressed again
+    jog = {"axis": "A1", "direction": 1, "frame": "world", "press": 7}
+    assert "needs operating mode T1" in page.act("jog", **jog, seq=100, t=0.0)["error"]
     assert page.act("mode", mode="t1")["mode"] == "t1"
+    assert page.act("jog", **jog, seq=101, t=100.0)["error"].endswith("release the button and press it again")
+    assert page.act("jog", **{**jog, "direction": 0}, seq=102, t=200.0)["ok"]  # (the release: nothing to stop)
     assert "control taken by anna (the pendant)" in [m["text"] for m in page.state()["messages"]]
     # the emergency stop needs no control; giving control back ends it for the page
     assert other.post("estop", {"page": other.page}) == (200, {"ok": True, "program": None, "cancelled": []})

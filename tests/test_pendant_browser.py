@@ -156,6 +156,9 @@ def test_homing_moves_only_while_a_jog_button_is_held(cell):
     released before homing has ended, the session is aborted (the arm comes to rest)."""
     assert not cell.status()["initialized"]
     page = cell.open()
+    # (the 3D view it embeds comes from another site, localhost: the browser gives it a process
+    # of its own, and its software-rendered WebGL cannot hold up this page's heartbeats)
+    assert page.evaluate("window.__pendant.cfg.view") == cell.view.url.replace("127.0.0.1", "localhost")
     _take(page)
     page.wait_for_selector("#jog-note:text('not homed')", timeout=LOAD * 1000)
     page.mouse.move(*_centre(page, A1_PLUS))

@@ -199,8 +199,12 @@ def _live(args, env):
     stage = _stage(spec, args, f"live: {args.endpoint}")
     view = LiveView(stage, args.endpoint, telemetry, args.keys)
     try:
+        # (the 3D view embedded from "localhost", another site than the pendant's 127.0.0.1: the
+        # browser renders it in a process of its own, and its WebGL cannot hold up the pendant's
+        # heartbeats)
         pendant = Pendant(args.endpoint, args.keys, spec, spec_path, hello,
-                          Path(args.programs) if args.programs else None, stage.url, stage.server.get_port() + 1,
+                          Path(args.programs) if args.programs else None,
+                          stage.url.replace("//127.0.0.1:", "//localhost:"), stage.server.get_port() + 1,
                           latest=lambda: view.latest)
     except (OSError, ClientError) as exc:
         stage.close()

@@ -206,6 +206,7 @@ class Session:
         self.gate = JogGate()
         self.jog_lock = threading.Lock()  # a jog message admitted and sent on before the next is looked at
         self.held: Held | None = None
+        self.spent: int | None = None  # a press refused, or released for its silent page: it starts nothing again
         self.seen = time.monotonic()
         self.timings: dict[str, deque] = {"press": deque(maxlen=50), "release": deque(maxlen=50)}
 
@@ -295,6 +296,9 @@ class Session:
         now = _ms()
         self.gate.receive(seq, page_ms, now)
         release = request["direction"] == 0
+        if not release and press == self.spent:  # (a jog never starts again by itself)
+            raise Refused("refused", "this press of the button was refused or stopped: release the button and "
+                                     "press it again")
         held = self.held
         if not release and held is not None and held.press == press:
             held.last = now  # (the page is there: said on receipt, whatever the server's answer waits on)
@@ -315,8 +319,10 @@ class Session:
             try:
                 reply = self.request("jog", request)
             except Refused as exc:
-                if exc.code != "unreachable" and not release and self.held is not None and self.held.press == press:
-                    self.held = None  # (nothing started)
+                if exc.code != "unreachable" and not release:  # (nothing started; nor will it by this press)
+                    if self.held is not None and self.held.press == press:
+                        self.held = None
+                    self.spent = press
                 raise
             if isinstance(event, (int, float)) and not isinstance(event, bool) and (release or held is None
                                                                                      or held.press != press):
@@ -332,7 +338,7 @@ class Session:
             held = self.held
             if held is None or (silent_for is not None and _ms() - held.last <= silent_for):
                 return
-            self.held = None
+            self.held, self.spent = None, held.press
             try:
                 self.request("jog", {"axis": held.request["axis"], "direction": 0, "frame": held.request["frame"]})
             except Refused:

@@ -20,7 +20,9 @@ server as its heartbeats; an increment's first message starts it (a repetition w
 it again: the others only say it is still held). The watch (:meth:`Pendant._watch`)
 releases a held jog whose page fell silent (a page that died, a lost connection) and, as
 the page's release does, aborts the jog session while it is still homing (the first jog
-homes the robot): so homing too moves only while a jog button is held.
+homes the robot): so homing too moves only while a jog button is held. A press that the
+server refused, or that the watch released, starts nothing again, however long the button
+stays held: the operator releases it and presses again.
 """
 from __future__ import annotations
 

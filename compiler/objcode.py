@@ -307,6 +307,8 @@ INSTRUCTIONS: tuple[InstrDef, ...] = tuple(
 BY_NAME: dict[str, InstrDef] = {d.name: d for d in INSTRUCTIONS}
 BY_CODE: dict[int, InstrDef] = {d.code: d for d in INSTRUCTIONS}
 OP = type("OP", (), {d.name: d.code for d in INSTRUCTIONS})  # OP.CONST == 1, ...
+#: The move instructions, one per motion (``MOVE_PTP``, ``MOVE_LIN``, ``MOVE_CIRC``).
+MOVE_CODES = frozenset(BY_NAME[f"MOVE_{motion.upper()}"].code for motion in _MOTIONS)
 
 
 # ---- the program ----------------------------------------------------------------------
@@ -378,6 +380,29 @@ class Program:
         i = bisect_right(self.lines, (offset, float("inf"), 0)) - 1
         k = self.line_files[i] if i >= 0 else 0
         return self.files[k - 1] if k else ""
+
+    def move_lines(self) -> tuple[int, ...]:
+        """The lines of the program's own source (not of a module it imports) that hold a
+        move instruction, ascending: where ``irl run --from-line`` may start."""
+        return tuple(sorted({self.line_at(offset)[0] for offset, instr in enumerate(self.code)
+                             if instr[0] in MOVE_CODES and not self.file_at(offset)}))
+
+    def starts_at(self, offset: int, line: int) -> bool:
+        """Whether ``offset`` is a move instruction on ``line`` of the program's own source."""
+        return self.code[offset][0] in MOVE_CODES and self.line_at(offset)[0] == line and not self.file_at(offset)
+
+
+def from_line_problem(program: Program, line: object) -> str | None:
+    """What is wrong with starting ``program`` at the move on ``line`` (``irl run
+    --from-line``, ``submit``'s ``from_line``), or None: the line must hold a move of the
+    program's own source; the message names the lines that do."""
+    lines = program.move_lines()
+    if isinstance(line, int) and not isinstance(line, bool) and line in lines:
+        return None
+    shown = ", ".join(map(str, lines[:40])) + (f" ... ({len(lines)} lines)" if len(lines) > 40 else "")
+    where = f"line {line}" if isinstance(line, int) and not isinstance(line, bool) and line > 0 else f"{line!r}"
+    has = (f"the lines with a move: {shown}" if lines else "the program has no move of its own to start at")
+    return f"{where} of {program.source or program.name} has no move to start at; {has}"
 
 
 # ---- encoding ---------------------------------------------------------------------------

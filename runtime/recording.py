@@ -39,11 +39,11 @@ INSTALL = "recordings need the mcap library: pip install 'irl[view]'"
 # ---- the events: the kinds of what happens in a cycle, and their levels (foxglove.LogLevel) -----
 LEVELS = {"UNKNOWN": 0, "DEBUG": 1, "INFO": 2, "WARNING": 3, "ERROR": 4, "FATAL": 5}
 
-PRINT, PAUSE, TIMEOUT, INTERRUPT, HALT, LOG_FULL, FAULT, STOP = (
-    "print", "pause", "timeout", "interrupt", "halt", "log full", "fault", "stop")
+PRINT, PAUSE, TIMEOUT, INTERRUPT, HALT, LOG_FULL, FROM_LINE, FAULT, STOP = (
+    "print", "pause", "timeout", "interrupt", "halt", "log full", "from line", "fault", "stop")
 
 #: Every kind of event the loop records: its level and what it is. The program's log lines
-#: (``runtime.loop.vm``: ``MotionHost.log``) are the first six; the supervisor's fault and the
+#: (``runtime.loop.vm``: ``MotionHost.log``) are the first seven; the supervisor's fault and the
 #: safety supervisor's stop the last two. ``irl plot`` marks faults and interrupt firings.
 EVENTS: dict[str, tuple[str, str]] = {
     PRINT: ("INFO", "a line of the program's print output"),
@@ -52,6 +52,8 @@ EVENTS: dict[str, tuple[str, str]] = {
     INTERRUPT: ("INFO", "an interrupt fired (its name, and where the program or the move under way was)"),
     HALT: ("WARNING", "an interrupt ended the program (then halt, or halt in its handler)"),
     LOG_FULL: ("WARNING", "the program's log is full: later lines are counted, not kept"),
+    FROM_LINE: ("INFO", "a start from a line (--from-line): what running to it without moving skipped, and the "
+                        "approach to its start"),
     FAULT: ("ERROR", "the cycle's fault: what ended it early, with the state it ended in"),
     STOP: ("WARNING", "the safety supervisor's stop: its category and its cause (docs/safety.md)"),
 }

@@ -12,7 +12,7 @@ from compiler.params import TICK, component_params
 
 #: TICK (s): the executive's tick: the robot interface, the supervisor, the servo and the
 #: safety run every tick (declared in compiler.params, which checks periods against it).
-__all__ = ["TICK", "SETPOINT_PERIOD", "REPORT_PERIOD", "RECORD_PERIOD", "FLUSH_PERIOD", "FIELDBUS_POLL",
+__all__ = ["PACE_WAIT", "TICK", "SETPOINT_PERIOD", "REPORT_PERIOD", "RECORD_PERIOD", "FLUSH_PERIOD", "FIELDBUS_POLL",
            "BRAKE_TIMEOUT", "STOP_SETTLE_TIMEOUT", "START_SETTLE_TIMEOUT"]
 
 #: s: the trajectory generator's and the initialization's (homing) period: the servo
@@ -27,6 +27,9 @@ RECORD_PERIOD = REPORT_PERIOD
 #: s of rows the report and the recording hand their writer threads at a time (runtime.loop.batches):
 #: what a crash may lose of the report.
 FLUSH_PERIOD = 0.1
+#: s: the longest a simulated-clock server's jog session waits at once for the wall clock to
+#: catch up with the robot's (runtime.loop.robotloop: a command wakes it sooner).
+PACE_WAIT = 0.05
 #: s: the default time between two exchanges with a PLC (runtime.hardware.fieldbus; off the loop,
 #: on the exchange's own thread; a fieldbus file may choose from TICK to 1 s).
 FIELDBUS_POLL = 0.01

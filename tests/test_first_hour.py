@@ -250,7 +250,7 @@ def test_on_the_wall_clock_print_output_is_handed_over_as_it_comes_and_never_by_
     def on_log(at, line, text):
         events.append(("log", line, text, threading.current_thread() is loop))
 
-    summary = system.run(result.program, lambda line: events.append(("pause", line)) or "resume", on_log)
+    summary = system.run(result.program, lambda line, kind: events.append(("pause", line)) or "resume", on_log)
     assert summary["fault"] is None, summary["fault"]
     assert [e[:3] for e in events] == [("log", 4, "before the pause"),
                                        ("log", 5, "paused by the program: resume to continue"),

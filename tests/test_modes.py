@@ -8,7 +8,9 @@ safety supervisor runs), so a supervisor that looked away would not hide a fast 
 """
 from __future__ import annotations
 
+import json
 import math
+from pathlib import Path
 
 import pytest
 from hypothesis import HealthCheck, given, settings
@@ -23,6 +25,7 @@ from runtime.timing import TICK
 from runtime.wire.protocol import ProtocolError
 
 SPEC = "programs/lola15.spc"
+SPEC_FILE = str(Path(SPEC).resolve())
 #: How long after the last heartbeat a continuous jog must be at rest (docs/protocol.md, jog).
 AT_REST_WITHIN = 0.5
 #: Closest an axis comes past a software limit (docs/safety.md: the tests' STOP_TOLERANCE).
@@ -284,3 +287,147 @@ def _object(text: str) -> bytes:
     from compiler.objcode import encode
 
     return encode(_program(text))
+
+
+# ---- a stateful search: modes, jogs, lost heartbeats, programs, pauses and e-stops ---------------
+from hypothesis.stateful import RuleBasedStateMachine, initialize, invariant, rule, run_state_machine_as_test  # noqa: E402
+
+AXES = ("A1", "A2", "A3", "A4", "A5", "A6", "x", "y", "z", "rx", "ry", "rz")
+PROGRAM = ("move ptp joint(mainjoint(10, -10, 15, 0, 40, 0)) speed_ptp:=0.6;\n"
+           "move lin pose(pos(1000, 100, 1300), rpy(180, -50, 0)) speed:=1500;\n"
+           "move ptp joint(mainjoint(-10, 0, 5, 20, 50, 10)) speed_ptp:=1.0 approx:=0.5;\n"
+           "move ptp joint(mainjoint(0, 0, 0, 0, 30, 0));\n")
+
+
+class Operator(RuleBasedStateMachine):
+    """An operator (and a client beside) doing anything in any order to a served robot."""
+
+    cell: Cell  # set by the test (one server for every example: the robot remembers its homing)
+
+    def _refused(self, op: str, args: dict | None = None) -> str | None:
+        try:
+            self.cell.request(op, args)
+        except ProtocolError as exc:
+            assert exc.code in ("refused", "not_found"), exc.message
+            return exc.message
+        return None
+
+    @initialize()
+    def at_rest_in_t1(self):
+        self.cell.idle()
+        self.cell.request("mode", {"mode": "t1"})
+
+    @rule(mode=st.sampled_from(["t1", "aut"]))
+    def switch(self, mode):
+        busy = self.cell.server.jobs.current is not None and not self.cell.server.jobs.current.jog
+        problem = self._refused("mode", {"mode": mode})
+        assert (problem is not None) == busy, problem
+        self.cell.turns(20)
+
+    @rule(axis=st.sampled_from(AXES), direction=st.sampled_from([1, -1]), frame=st.sampled_from(["world", "base", "tool"]),
+          step=st.sampled_from([0.1, 1.0, 10.0]))
+    def increment(self, axis, direction, frame, step):
+        problem = self._refused("jog", {"axis": axis, "direction": direction, "frame": frame, "step": step})
+        if self.cell.system.mode != "t1":
+            assert problem is not None and "T1" in problem
+            return
+        if problem is None:
+            self.cell.settle()
+
+    @rule(axis=st.sampled_from(AXES), direction=st.sampled_from([1, -1]), frame=st.sampled_from(["world", "tool"]),
+          beats=st.integers(1, 6), release=st.booleans())
+    def hold(self, axis, direction, frame, beats, release):
+        """Held for some heartbeats, then released or simply no more heartbeats (a lost
+        connection): at rest within 0.5 s of the last one."""
+        cell = self.cell
+        if cell.system.mode != "t1" or (cell.server.jobs.current is not None and not cell.server.jobs.current.jog):
+            return
+        last = None
+        for _ in range(beats):
+            if self._refused("jog", {"axis": axis, "direction": direction, "frame": frame}) is not None:
+                break
+            last = cell.t
+            cell.turns(100)
+        if last is None:
+            return
+        if release:
+            self._refused("jog", {"axis": axis, "direction": 0, "frame": frame})
+        while cell.system.trajectory.jogger is None and cell.server.jobs.current is not None:
+            cell.turns(100)  # (still homing: the jog waits for Move Robot)
+        cell.turns(max(0, round((last + AT_REST_WITHIN - cell.t) / TICK)) + 20)
+        if cell.system.trajectory.jogger is not None and cell.system.safety.category is None:
+            assert cell.watch.still_since(max(last + AT_REST_WITHIN, cell.t - 0.015)), \
+                f"still moving {cell.t - last:.3f} s after the last heartbeat"
+
+    @rule(pause=st.booleans(), estop=st.sampled_from([False, False, False, True]), ticks=st.integers(100, 3000))
+    def program(self, pause, estop, ticks):
+        cell = self.cell
+        if self._refused("submit", {"object": _object(PROGRAM)}) is not None:
+            return
+        cell.turns(ticks)
+        if pause and self._refused("pause") is None:
+            cell.turns(500)
+            self._refused("resume")
+        if estop:
+            self._refused("estop")
+        cell.idle()
+
+    @rule()
+    def idle(self):
+        self.cell.idle()
+
+    @invariant()
+    def kept(self):
+        watch = self.cell.watch
+        assert watch.peak <= 250.0, f"T1: {watch.peak:.1f} mm/s"
+        assert not watch.beyond, watch.beyond[:3]
+        for job_id in self.cell.server.jobs:
+            fault = self.cell.server.jobs[job_id].fault or ""
+            assert "t1 speed" not in fault and "t1_speed" not in fault, fault
+
+    def teardown(self):
+        self.cell.idle()
+
+
+def test_any_sequence_of_modes_jogs_programs_and_stops_keeps_t1_and_the_limits(spec, tmp_path):
+    Operator.cell = cell = Cell(spec, tmp_path, mode="t1")
+    cell.request("submit", {"object": _object("move ptp joint(mainjoint(0, 0, 0, 0, 30, 0));\n")})
+    cell.idle()  # homed (a lost homing, after an e-stop, is searched too: it homes again)
+    run_state_machine_as_test(Operator, settings=settings(max_examples=6, stateful_step_count=10, deadline=None))
+
+
+# ---- the commands, against a served robot --------------------------------------------------------
+def test_an_operator_switches_jogs_and_teaches_from_the_command_line(tmp_path):
+    """irl mode, irl jog (an increment and a held jog), irl where, and the taught literals
+    pasted into a program that irl check accepts."""
+    from tests.conftest import ServerProcess, no_traceback, run_irl
+
+    server = ServerProcess(tmp_path / "serve", tmp_path / "state").start()
+    try:
+        at = ("--endpoint", server.endpoint)
+        refused = run_irl("jog", "A1", "+1", *at)
+        assert refused.returncode == 1 and "jogging needs operating mode T1" in refused.stderr
+        shown = run_irl("mode", "t1", *at)
+        assert shown.returncode == 0 and shown.stdout.startswith("operating mode T1: manual reduced speed")
+        stepped = run_irl("jog", "A5", "+30", *at)  # (homes first)
+        assert stepped.returncode == 0, stepped.stderr
+        assert "jog A5+, 30 deg done" in stepped.stdout and "A5 30.0" in stepped.stdout
+        bad = run_irl("jog", "A5", "+100", *at)  # (A5 at 30 deg: 130 is beyond its 120)
+        assert bad.returncode == 1 and "beyond its software limits -120..120 deg" in bad.stderr
+        moved = run_irl("jog", "z", "-", "--frame", "tool", "--hold", "0.5", "--json", *at)
+        assert moved.returncode == 0, moved.stderr
+        assert "stopped: released" in json.loads(moved.stdout)["jog"]["reason"]
+        where = run_irl("where", *at)
+        assert where.returncode == 0, where.stderr
+        joint, pose = where.stdout.splitlines()[:2]
+        assert joint.startswith("joint(mainjoint(") and pose.startswith("pose(pos(") and "config(" in pose
+        program = tmp_path / "taught.irl"
+        program.write_text(f'program taught;\nsystem_specification "{SPEC_FILE}";\nseq\n  move ptp {joint};\n'
+                           f"  move ptp joint(mainjoint(0, 0, 0, 0, 30, 0));\n  move ptp {pose};\n"
+                           f"  move lin {pose.replace('pos(', 'pos(', 1)};\nendseq\nendprogram;\n")
+        checked = run_irl("check", program)
+        assert checked.returncode == 0, checked.stdout + checked.stderr
+        for proc in (refused, shown, stepped, moved, bad, where, checked):
+            no_traceback(proc)
+    finally:
+        server.stop()

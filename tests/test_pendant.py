@@ -5,6 +5,7 @@ served robot on the simulated clock, each a protocol-2 request under control.
 from __future__ import annotations
 
 import json
+import time
 import urllib.error
 import urllib.request
 
@@ -161,7 +162,17 @@ def test_control_mode_programs_and_inputs_from_the_page(cell):
     job = started["program"]
     assert client.request("source", {"program": job})["source"].startswith("program short;")
     assert client.request("wait", {"program": job, "timeout": 60})["state"] == "completed"
-    assert page.act("step")["code"] == "unknown_op"  # (until the step op exists: the server's error shown)
+    assert page.act("step")["error"] == "no program is running"  # (the server's words)
+    # in step mode, each move waits for Step
+    stepped = page.act("start", program="short.irl", step=True)["program"]
+    deadline = time.monotonic() + 60
+    while not (client.request("status")["running"] or {}).get("waiting_for_step"):
+        assert time.monotonic() < deadline, client.request("status")
+        time.sleep(0.05)
+    assert page.state()["running"]["waiting_for_step"] is True
+    assert page.act("step", program=stepped)["line"] == 4
+    assert client.request("wait", {"program": stepped, "timeout": 60})["state"] == "completed"
+    assert page.act("start", program="short.irl", step="yes")["code"] == "bad_request"
     assert page.act("pause")["error"]  # (nothing to pause)
     assert page.act("override", percent=0)["code"] == "bad_request"
     assert page.act("override", percent=35.5)["override"] == 35.5

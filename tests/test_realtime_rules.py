@@ -140,6 +140,30 @@ def test_no_io_threads_or_sleeps_in_a_tick_on_the_simulated_clock(tmp_path):
     assert seen == [], seen[:10]
 
 
+def test_no_io_threads_or_sleeps_in_a_tick_in_step_mode_from_a_line(tmp_path):
+    """Step mode and a start from a line (runtime/loop/stepping.py): the run to line 8 without
+    moving, the approach, and the moves held for steps given between ticks, as the loop's
+    step command does."""
+    system = RobotSystem(SPEC, RunOptions(state_dir=tmp_path / "state"))
+    memory = system.memory
+    memory.calibrated = memory.initialized = True  # homed already: only the moves
+    memory.compensation = [0.0] * len(SPEC.axes)
+    memory.encoder_offsets = [0.0] * len(SPEC.axes)
+    seen = watch_tasks(system)
+    system.begin(MOVES, step=True, from_line=8)  # (line 8: the second lin move)
+    steps = 0
+    for _ in range(100_000):
+        if system.supervisor.done:
+            break
+        system.executive.step()
+        if system.trajectory.waiting_for_step:
+            steps += system.trajectory.step() is None
+    summary = system.finish()
+    assert summary["fault"] is None and [m["line"] for m in summary["moves"]] == [8, 9], summary["fault"]
+    assert steps == 3  # the approach, then the two moves
+    assert seen == [], seen[:10]
+
+
 def test_no_io_threads_or_sleeps_in_a_tick_on_the_wall_clock(tmp_path):
     """On the wall clock moves are planned on the planner thread, made before the loop."""
     quick = program('  move ptp joint(mainjoint(2, 0, 0, 0, 0, 0)) speed_ptp := 1 acc_ptp := 1;\n'

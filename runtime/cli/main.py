@@ -172,6 +172,17 @@ def _print_summary(env: Environment, s: dict) -> None:
             blended = "  blended into the next" if m.get("blended") else ""
             say(env, f"  {i:4d}  {m['line']:4d}  {m['planned_duration']:7.3f} s {actual}{blended}")
     say(env, "")
+    if s.get("step"):
+        say(env, "  step mode: every move waited for a step")
+    start = s.get("from_line")
+    if start is not None:
+        skipped = ", ".join(f"{n} {what if n != 1 else what.rstrip('s')}" for what, n in start["skipped"].items() if n)
+        approach = start["approach"]
+        went = ("no approach (its move is the program's first)" if approach is None else
+                f"approach to the target of line {approach['to_line']}: " +
+                (f"{approach['actual_duration']:.3f} s" if approach["actual_duration"] is not None else "unfinished"))
+        say(env, f"  started from line {start['line']}" + ("" if start["reached"] else " (not reached)") +
+            f": skipped {skipped or 'nothing'}; {went}")
     if s.get("stop"):
         say(env, f"  stopped: category {s['stop']['category']} (docs/safety.md)")
     say(env, "  final position: " + joint_values(s["final_position"]))
@@ -189,19 +200,28 @@ def _flush(env: Environment) -> None:
         flush()
 
 
+#: What holds a program for the operator under irl run (RobotSystem.run's ``on_pause``
+#: kinds): what it is, the prompt's Enter, and what going on is called.
+_HOLDS = {"pause": ("paused by the program", "Enter resumes", "resumed"),
+          "step": ("step mode: the move waits", "Enter moves it", "it goes"),
+          "approach": ("step mode: the approach to this move's start waits", "Enter makes it", "it goes")}
+
+
 def _on_pause(args, env: Environment):
-    """What a ``pause;`` of the program leads to under irl run: on a terminal, ask (Enter
-    resumes, 'abort' aborts); else, or with --on-pause, resume or abort at once."""
+    """What a ``pause;`` of the program, and in step mode each move, leads to under irl
+    run: on a terminal, ask (Enter resumes or goes on, 'abort' aborts); else, or with
+    --on-pause, resume (go on) or abort at once, saying so."""
     stdin = env.stdin
     choice = args.on_pause or ("ask" if stdin is not None and stdin.isatty() else "resume")
 
     why = f"--on-pause {choice}" if args.on_pause else "not a terminal; --on-pause ask|resume|abort chooses"
 
-    def decide(line: int) -> str:
+    def decide(line: int, kind: str = "pause") -> str:
+        what, enter, went = _HOLDS[kind]
         if choice != "ask":
-            warn(env, f"irl run: line {line}: paused by the program: {choice.rstrip('e')}ed ({why})")
+            warn(env, f"irl run: line {line}: {what}: {went if choice == 'resume' else 'aborted'} ({why})")
             return choice
-        env.stderr.write(f"irl run: line {line}: paused by the program. Enter resumes, 'abort' Enter aborts: ")
+        env.stderr.write(f"irl run: line {line}: {what}. {enter}, 'abort' Enter aborts: ")
         env.stderr.flush()
         answer = stdin.readline()
         return "abort" if answer.strip().lower() == "abort" or not answer else "resume"
@@ -222,6 +242,12 @@ def cmd_run(args, env: Environment) -> int:
     if loaded is None:
         return EXIT_INVALID
     program, spec = loaded
+    if args.from_line is not None:
+        from compiler.objcode import from_line_problem
+
+        problem = from_line_problem(program, args.from_line)
+        if problem is not None:
+            raise UsageError(f"--from-line {args.from_line}: {problem}")
     from runtime.hardware.backends import DEFAULT_ROBOT, ROBOTS
     from runtime.loop.system import RobotSystem, RunOptions
     from runtime.wire.messages import io_sources_problem
@@ -282,7 +308,8 @@ def cmd_run(args, env: Environment) -> int:
                 add, names = columns
                 system.report.columns = [*system.report.columns,
                                          *(n for n in names if n not in system.report.columns)] if add else names
-            summary = system.run(program, on_pause, None if args.json else on_log)
+            summary = system.run(program, on_pause, None if args.json else on_log, step=args.step,
+                                 from_line=args.from_line)
         except ValueError as exc:  # refused at load time (e.g. a move kind not supported yet)
             warn(env, f"{args.file}: {exc}")
             return EXIT_INVALID
@@ -616,8 +643,15 @@ def _run_arguments(p) -> None:
     p.add_argument("--fieldbus", metavar="FILE.toml",
                    help="the digital I/O on a PLC over Modbus TCP (see docs/runtime.md); needs --realtime")
     p.add_argument("--on-pause", choices=("ask", "resume", "abort"),
-                   help="what the program's 'pause;' leads to (default: ask on a terminal: Enter resumes; "
-                        "else resume)")
+                   help="what the program's 'pause;' (and with --step each move) leads to (default: ask on a "
+                        "terminal: Enter resumes, or moves; else resume, or go on, saying so)")
+    p.add_argument("--step", action="store_true",
+                   help="step mode: the program stops before each of its moves, which goes when you press Enter "
+                        "(--on-pause); no look-ahead, no blending: the robot stops at every target")
+    p.add_argument("--from-line", type=int, metavar="N",
+                   help="start at the move on line N: the program runs to it without moving (no waits, outputs or "
+                        "prints), the robot goes to that move's start with a ptp move at 10 %% speed, then the program "
+                        "runs on from there (docs/runtime.md)")
     p.add_argument("--seed", type=int, default=0, help="the simulated robot's seed (power-up position, offsets)")
     p.add_argument("--state-dir", metavar="DIR", help="remember the calibration in DIR across runs")
     p.add_argument("--max-time", type=float, default=3600.0, metavar="S", help="stop the run after S seconds")

@@ -205,10 +205,10 @@ def cmd_serve(args, env) -> int:
 
 
 # ---- submit ---------------------------------------------------------------------------------
-def _object_code(args, env) -> tuple[bytes, str, tuple, str | None, str | None] | None:
+def _object_code(args, env) -> tuple[bytes, str, tuple, str | None, str | None, object] | None:
     """(bytes, name, robots, the specification file it was compiled for where known, the
-    source text where known) of FILE.irlo (as is: the server verifies; its source file
-    when it is there) or FILE.irl (compiled)."""
+    source text where known, the program) of FILE.irlo (as is: the server verifies; its
+    source file when it is there) or FILE.irl (compiled)."""
     from compiler.objcode import ObjectCodeError, decode, encode
     from runtime.client.client import source_text
 
@@ -220,13 +220,13 @@ def _object_code(args, env) -> tuple[bytes, str, tuple, str | None, str | None] 
             common.warn(env, f"{args.file}: invalid object code: {exc}")
             return None
         return (data, Path(args.file).name, program.robots, common.spec_compiled_for(program, Path(args.file))[0],
-                source_text(Path(args.file).parent / program.source))
+                source_text(Path(args.file).parent / program.source), program)
     result = common.compile_source(args.file, args.spec)
     common.report_diagnostics(env, result, False)
     if not result.ok:
         return None
     return (encode(result.program), Path(args.file).name, result.program.robots, result.spec.file,
-            source_text(Path(args.file)))
+            source_text(Path(args.file)), result.program)
 
 
 @guarded
@@ -236,14 +236,22 @@ def cmd_submit(args, env) -> int:
     compiled = _object_code(args, env)
     if compiled is None:
         return common.EXIT_INVALID
-    data, name, robots, compiled_for, source = compiled
+    data, name, robots, compiled_for, source, program = compiled
+    if args.from_line is not None:
+        from compiler.objcode import from_line_problem
+
+        problem = from_line_problem(program, args.from_line)
+        if problem is not None:
+            raise common.UsageError(f"--from-line {args.from_line}: {problem}")
     hints = {"wrong_robot": f"{name} was compiled here for {compiled_for}"} if compiled_for else None
     if args.cell:
         args.endpoint = _cell_endpoint(args.cell, robots)
     client = client_for(args)
     try:
         since = call_op(client, "telemetry")["seq"] if args.wait else 0  # the program's print output: after this
-        request = {"object": data, "name": name, **({"source": source} if source is not None else {})}
+        request = {"object": data, "name": name, **({"source": source} if source is not None else {}),
+                   **({"step": True} if args.step else {}),
+                   **({"from_line": args.from_line} if args.from_line is not None else {})}
         reply = call_op(client, "submit", request, hints=hints)
         job = reply["program"]
         if not args.json:
@@ -324,6 +332,10 @@ def _progress_line(job: int, status: dict) -> str:
     total = status.get("moves_total")
     moves = f"{status.get('moves_done') or 0}/{total if total is not None else '?'}"
     paused = " (paused)" if status.get("paused") else ""
+    if status.get("waiting_for_step"):
+        paused += " (waiting for a step: irl step)"
+    if status.get("approach"):
+        paused += " (approach)"
     at = f"  line {status['line']}" if status.get("line") is not None else ""
     return f"program {job}: {status.get('fsm') or ''}{at}  moves {moves}{paused}"
 
@@ -408,7 +420,10 @@ def _job_line(job: dict) -> str:
         total = job.get("moves_total")
         at = f", line {job['line']}" if job.get("line") is not None else ""
         text += (f", {job.get('fsm') or ''}{at}, moves {job.get('moves_done') or 0}/"
-                 f"{total if total is not None else '?'}" + (" (paused)" if job.get("paused") else ""))
+                 f"{total if total is not None else '?'}" + (" (paused)" if job.get("paused") else "")
+                 + ((" (step mode: waiting for a step)" if job.get("waiting_for_step") else " (step mode)")
+                    if job.get("step") else "")
+                 + (f" (approach to line {job.get('from_line')})" if job.get("approach") else ""))
     elif job.get("fault") and job["state"] != JobState.RUNNING:
         text += f": {job['fault']}"
     return text
@@ -431,6 +446,9 @@ def _simple(op: str, describe, arguments=lambda args: {}):
 
 cmd_pause = _simple("pause", lambda r: f"program {r['program']} paused")
 cmd_resume = _simple("resume", lambda r: f"program {r['program']} resumed")
+cmd_step = _simple("step", lambda r: f"program {r['program']}: " + (
+    f"the approach to the start of the move at line {r['line']} goes" if r.get("approach")
+    else f"the move at line {r['line']} goes"))
 cmd_abort = _simple("abort", lambda r: f"program {r['program']}: {r['state']}",
                     lambda a: {"program": a.program} if a.program is not None else {})
 cmd_estop = _simple("estop", lambda r: "emergency stop" + (f": program {r['program']} stopped" if r["program"] else "")
@@ -576,7 +594,9 @@ def _telemetry_line(m: dict) -> str:
         total = m.get("moves_total")
         at = f" line {m['line']}" if m.get("line") is not None else ""
         text += (f" program {m['program']}{at} moves {m.get('moves_done') or 0}/"
-                 f"{total if total is not None else '?'}" + (" paused" if m.get("paused") else ""))
+                 f"{total if total is not None else '?'}" + (" paused" if m.get("paused") else "")
+                 + (" waiting for a step" if m.get("waiting_for_step") else "")
+                 + (" approach" if m.get("approach") else ""))
     return f"{text} override {m.get('override', 100):g}% pos [{position}]"
 
 
@@ -709,6 +729,12 @@ def add_commands(declare) -> None:
                                                            "it completed")
         p.add_argument("--report", metavar="OUT.csv", help="with --wait: fetch the program's report")
         p.add_argument("--cell", metavar="CELL.toml", help="send to the robot the program's act_rob names")
+        p.add_argument("--step", action="store_true",
+                       help="step mode: the program stops before each of its moves; each goes with 'irl step' (no "
+                            "look-ahead, no blending)")
+        p.add_argument("--from-line", type=int, metavar="N",
+                       help="start at the move on line N, after an approach to its start at 10 %% speed (the "
+                            "program runs to it without moving; docs/runtime.md)")
         p.add_argument("--json", action="store_true",
                        help="print one JSON object: the queued program (with --wait: its final status and summary)")
         connection(p)
@@ -722,6 +748,7 @@ def add_commands(declare) -> None:
 
     for name, fn, text in (("pause", cmd_pause, "hold the running program (a move under way comes to a controlled stop)"),
                            ("resume", cmd_resume, "continue the paused program"),
+                           ("step", cmd_step, "step mode: the move the program waits before goes"),
                            ("estop", cmd_estop, "emergency stop: brakes on, drives off, queue cancelled")):
         if (p := declare(name, help=text)) is not None:
             connection(p)

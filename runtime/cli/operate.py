@@ -13,7 +13,7 @@ import json
 import time
 
 from runtime.cli import common
-from runtime.cli.netcli import call_op, client_for, guarded
+from runtime.cli.netcli import Refused, call_op, client_for, guarded
 
 #: Seconds ``irl jog`` waits at most for an increment to end.
 STEP_WAIT = 60.0
@@ -67,7 +67,7 @@ def cmd_jog(args, env) -> int:
         request["step"] = step
     client = client_for(args)
     try:
-        state = call_op(client, "jog", request)
+        state = _jog(client, request)
         if step is None:
             end = time.monotonic() + args.hold
             try:
@@ -93,15 +93,34 @@ def cmd_jog(args, env) -> int:
     return common.EXIT_OK
 
 
+def _jog(client, request: dict) -> dict:
+    """The first jog request: sent again while the jog session before it ends (its brakes
+    closing), a new session then starting."""
+    from runtime.wire.protocol import JOG_SESSION_ENDING
+
+    deadline = time.monotonic() + 5.0
+    while True:
+        try:
+            return call_op(client, "jog", request)
+        except Refused as exc:
+            if JOG_SESSION_ENDING not in str(exc) or time.monotonic() > deadline:
+                raise
+            time.sleep(0.1)
+
+
 def _wait_at_rest(client, state: dict | None) -> dict | None:
     """Poll ``status`` until the jog session has no jog under way (or STEP_WAIT passed):
-    the jog's last state."""
+    the jog's last state (the session's summary's, when it has ended)."""
     deadline = time.monotonic() + STEP_WAIT
+    session = (state or {}).get("program")
     while time.monotonic() < deadline:
         status = call_op(client, "status")
         jog = status.get("jog")
         running = status.get("running")
-        if running is None or not running.get("kind") == "jog":
+        if running is None or not running.get("kind") == "jog" or running.get("id") != session:
+            if session is not None:
+                ended = call_op(client, "status", {"program": session})
+                return (ended.get("summary") or {}).get("jog") or state
             return state
         if jog is not None:
             state = jog

@@ -54,6 +54,9 @@ SESSION_IDLE = 2.0
 REACH, TURN = 500.0, 90.0
 #: How far before a point the arm cannot pass (a singularity, a limit) a jog ends (mm; deg).
 MARGIN = 2.0
+#: s: a jog's stop on its path that would take longer is made in joint space instead, every
+#: axis at this share of its max_acceleration (Jogger._stop).
+STOP_TIME, STOP_DECELERATION = 0.2, 0.5
 #: The shortest jog planned (mm or deg): less is refused as "cannot move on".
 SHORTEST = 0.05
 
@@ -200,9 +203,18 @@ class Jogger:
 
     # ---- the moves ---------------------------------------------------------------------------
     def _stop(self, why: str) -> None:
+        """Stop the jog on its path (the motion's pause); a stop on a Cartesian path that
+        would take longer than STOP_TIME (it may run on to the move's end where no sooner
+        one keeps the joints' limits) is replaced by every axis ramped to rest at
+        STOP_DECELERATION of its max_acceleration: at T1's speeds the tool leaves its
+        line by a fraction of a millimetre."""
         self.stopping = True
         self.reason = f"jog {describe(self.active)} stopped: {why}" if self.active is not None else why
-        self.host.expect_rest(self.motion.pause())
+        within = self.motion.pause()
+        if within is not None and within > STOP_TIME:
+            within = self.motion.stop_in_joint_space(tuple(a.max_acceleration * STOP_DECELERATION
+                                                           for a in self.axes))
+        self.host.expect_rest(within)
 
     def _ended(self) -> None:
         """The jog's move reached its end: an increment is done; a continuous jog ends at a

@@ -38,6 +38,7 @@ from compiler.objcode import ObjectCodeError, load
 from runtime.loop.components.report import tcp_of
 from runtime.loop.supervisor import MOVE
 from runtime.loop.system import RobotSystem, RunOptions
+from runtime.timing import PACE_WAIT, TICK
 from runtime.wire import messages
 from runtime.wire.messages import EXIT_TIMEOUT, LoopOptions, Progress, Snapshot
 from runtime.wire.protocol import MODES, ProtocolError, jog_problem
@@ -68,6 +69,7 @@ class RobotLoop:
         self._seen_log = 0
         self._last_idle_snapshot = -math.inf
         self._gc_was_enabled = True
+        self._paced: tuple[float, float] | None = None  # (robot clock, wall clock) a jog session's pace began at
 
     # ---- what the server asks ----------------------------------------------------------
     def ready(self, scheduling: str | None = None) -> dict:
@@ -101,7 +103,8 @@ class RobotLoop:
         except ObjectCodeError as exc:
             raise ProtocolError("invalid_program", f"the object code is invalid: {exc}") from None
         try:
-            system.begin(program, m.report, settings=m.settings, record=m.record, job=m.job, jog=m.jog)
+            system.begin(program, m.report, settings=m.settings, record=m.record, job=m.job, jog=m.jog, step=m.step,
+                         from_line=m.from_line)
         except (ValueError, OSError) as exc:
             raise ProtocolError("refused", str(exc)) from None
         system.trajectory.override = m.override
@@ -116,7 +119,7 @@ class RobotLoop:
         gc.disable()
         return {"t": system.clock.now()}
 
-    def _meant(self, m: messages.Pause | messages.Resume) -> None:
+    def _meant(self, m: messages.Pause | messages.Resume | messages.Step) -> None:
         """Refuse a command meant for another program than the running one."""
         wanted = m.program
         if wanted is not None and wanted != self.job:
@@ -139,6 +142,23 @@ class RobotLoop:
         if self.job is None or not self.system.trajectory.resume():
             raise ProtocolError("refused", "no program is paused")
         return {"program": self.job, "paused": False}
+
+    def _step(self, m: messages.Step) -> dict:
+        """Step mode: the move the program waits before goes (refused, with why, when it
+        does not wait for a step)."""
+        system = self.system
+        self._meant(m)
+        if self.job is None:
+            raise ProtocolError("refused", "no program is running")
+        trajectory = system.trajectory
+        if system.supervisor.fsm.state != MOVE:
+            why = ("it does not run in step mode (submit it with step, irl submit --step)" if not trajectory.stepping.step
+                   else f"it is starting ({system.supervisor.fsm.path()}): its first move waits for a step in Move Robot")
+        else:
+            why = trajectory.step()
+        if why is not None:
+            raise ProtocolError("refused", f"program {self.job}: {why}")
+        return {"program": self.job, "line": trajectory.line, "approach": trajectory.stepping.approach_next}
 
     def _abort(self, m: messages.Abort) -> dict:
         wanted = m.program
@@ -201,7 +221,7 @@ class RobotLoop:
         if self.job is None or not system.trajectory.jogging:
             raise ProtocolError("refused", "no jog session is running" if self.job is None
                                 else f"program {self.job} is running")
-        return system.trajectory.jog(m, system.clock.tick_time)
+        return {**system.trajectory.jog(m, system.clock.tick_time), "t": system.clock.tick_time, "program": self.job}
 
     def _settings(self, m: messages.Settings) -> dict:
         if self.job is not None:
@@ -285,9 +305,14 @@ class RobotLoop:
         progress = None
         if self.job is not None:
             t = system.trajectory
-            progress = Progress(t.line, t.motion.completed, t.paused,
-                                max((abs(e) for e in system.servo.following_error), default=0.0))
-        return Snapshot(system.clock.now(), self.job, system.supervisor.fsm.path() if self.job is not None else "Idle",
+            stepping = t.stepping
+            progress = Progress(t.line, t.moves_done, t.paused,
+                                max((abs(e) for e in system.servo.following_error), default=0.0), stepping.step,
+                                t.waiting_for_step, stepping.approach_next)
+        # while a cycle runs, the time of the tick the positions were measured at (a snapshot
+        # is made after its tick, late by the host's jitter); idle, the clock's now
+        at = system.clock.tick_time if self.job is not None else system.clock.now()
+        return Snapshot(at, self.job, system.supervisor.fsm.path() if self.job is not None else "Idle",
                         position, list(system.io.inputs.read()), list(system.io.outputs.read()),
                         frames.tool_name, frames.base_name, tcp, tcp_base, memory.calibrated, memory.initialized,
                         memory.calibration_why, memory.initialization_why, progress, system.mode,
@@ -305,6 +330,21 @@ class RobotLoop:
                    "aborted": self.abort_reason is not None, "t": self.system.clock.now()})
         self.send(self.snapshot().to_wire())
 
+    def _ahead_of_the_operator(self) -> float:
+        """On the simulated clock, a jog session in Move Robot runs at the pace of the wall
+        clock (a person holds the button: heartbeats and the session's end count in
+        seconds a person lives); how far (s, at most PACE_WAIT) the robot's clock is ahead of it.
+        Elsewhere (a program, homing) the simulated clock runs as fast as it can: 0."""
+        system = self.system
+        if not system.clock.simulated or system.trajectory.jogger is None:
+            self._paced = None
+            return 0.0
+        if self._paced is None:
+            self._paced = (system.clock.tick_time, time.monotonic())
+            return 0.0
+        ahead = (system.clock.tick_time - self._paced[0]) - (time.monotonic() - self._paced[1])
+        return min(ahead, PACE_WAIT) if ahead > TICK else 0.0
+
     def run(self, channel) -> None:
         """The loop process's main loop, until an ``exit`` has brought the robot to rest
         (or the server is gone: then the running cycle is stopped first)."""
@@ -316,6 +356,10 @@ class RobotLoop:
                     if self.exit_reason is not None:
                         break
                     channel.wait(0.05)  # idle: nothing moves, brakes on (not a real-time state)
+                elif not self.commands:
+                    ahead = self._ahead_of_the_operator()
+                    if ahead > 0.0:
+                        channel.wait(ahead)  # (a command wakes it at once)
                 self.commands.extend(channel.receive())
             except ChannelClosed:
                 if self.exit_reason is None:
@@ -341,6 +385,7 @@ COMMANDS: dict[str, Callable[[RobotLoop, messages.Command], dict]] = {
     messages.Exit.OP: RobotLoop._exit,
     messages.Mode.OP: RobotLoop._mode,
     messages.Jog.OP: RobotLoop._jog,
+    messages.Step.OP: RobotLoop._step,
 }
 
 

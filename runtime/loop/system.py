@@ -176,7 +176,8 @@ class RobotSystem:
         component.period = period
 
     def begin(self, program: Program | None, report: str | Path | None = None, settings: dict | None = None,
-              record: str | Path | None = None, job: int | None = None, jog: bool = False) -> None:
+              record: str | Path | None = None, job: int | None = None, jog: bool = False, step: bool = False,
+              from_line: int | None = None) -> None:
         """Not real-time: start one cycle of the supervisor (power-up to Stop Robot) with
         ``program``, its report into ``report`` and its recording into ``record`` (``job``:
         the server's id of the program, in the recording); the executive's ticks then carry
@@ -185,9 +186,17 @@ class RobotSystem:
         ValueError if the program cannot run here (checked before anything moves).
         With ``settings`` instead of a program, the cycle is a reconfiguration: Start
         Robot -> Robot Reconfiguration -> Stop Robot, brakes kept on. With ``jog`` instead,
-        a jog session (runtime.loop.jogging): Move Robot runs the jogs asked for, in T1."""
+        a jog session (runtime.loop.jogging): Move Robot runs the jogs asked for, in T1.
+        ``step``: the program in step mode; ``from_line``: it starts at the move on that line
+        (runtime.loop.stepping; ValueError: a line without a move)."""
         if jog and self.mode != "t1":
             raise ValueError("jogging needs operating mode T1 (manual reduced speed): switch with irl mode t1")
+        if from_line is not None and program is not None:
+            from compiler.objcode import from_line_problem
+
+            problem = from_line_problem(program, from_line)
+            if problem is not None:
+                raise ValueError(f"--from-line {from_line}: {problem}")
         self._wall0 = time.perf_counter()
         if self.options.fieldbus is not None:  # a program does not start without its cell's PLC
             if not self.io.wait_connected(self.options.fieldbus.timeout + 1.0):
@@ -203,7 +212,7 @@ class RobotSystem:
         self.servo.max_following_error = 0.0
         self.supervisor.load_calibration()
         self.safety.set_referenced(None, self.memory.initialized)
-        self.trajectory.load(program, jog=jog)
+        self.trajectory.load(program, jog=jog, step=step, from_line=from_line)
         self.trajectory.override = self.options.override
         self.report.open(report)
         self.recorder.open(record, program, job, "simulated" if self.clock.simulated else "wall")
@@ -261,19 +270,23 @@ class RobotSystem:
         summary["files_error"] = "; ".join(e for e in (error, state_error) if e) or None
         return summary
 
-    def run(self, program: Program, on_pause=None, on_log=None) -> dict:
+    def run(self, program: Program, on_pause=None, on_log=None, step: bool = False,
+            from_line: int | None = None) -> dict:
         """Power-up to Stop Robot with ``program``; returns the summary (see ``summary``).
-        ``on_pause(line) -> "resume" | "abort"`` decides what each ``pause;`` of the
-        program leads to (None: the program waits for a resume that nothing here sends,
-        until ``max_time``). On the simulated clock time stands still while it decides; on
+        ``on_pause(line, kind) -> "resume" | "abort"`` decides what each hold of the program
+        for the operator leads to: ``kind`` ``"pause"`` for a ``pause;`` of the program; in
+        step mode (``step``) ``"step"`` before each move and ``"approach"`` before the
+        approach of a start from a line (resume: it goes) (None: the program waits for a
+        resume or a step that nothing here sends, until ``max_time``). On the simulated clock time stands still while it decides; on
         the wall clock the loop runs on (the robot held) and it decides on a thread.
+        ``from_line``: the program starts at the move on that line (runtime.loop.stepping).
         ``on_log(time, line, text)`` is handed each line of the program's ``print``
         output as it comes, never by the loop (see :class:`LogFeed`); every line comes
         before the ``on_pause`` of a pause that follows it, and before this returns."""
         feed = LogFeed(self.trajectory, on_log) if on_log is not None else None
         if feed is not None and not self.clock.simulated:
             feed.start()  # (before begin: ranked with the loop's other helper threads)
-        self.begin(program, self.options.report, record=self.options.record)
+        self.begin(program, self.options.report, record=self.options.record, step=step, from_line=from_line)
         max_ticks = int(self.options.max_time / TICK)
         sup = self.supervisor
         # The loop allocates small, cycle-free objects every tick; reference counting frees
@@ -288,7 +301,7 @@ class RobotSystem:
         switch_interval = sys.getswitchinterval()
         if self.options.realtime:
             sys.setswitchinterval(0.0005)
-        held = self._held_by_program if on_pause is not None else (lambda: False)
+        held = self._held if on_pause is not None else (lambda: None)
         # On the simulated clock the run stops between two ticks to hand over print output
         # (time stands still meanwhile); on the wall clock the feed's thread does.
         fresh = feed.pending if feed is not None and self.clock.simulated else (lambda: False)
@@ -321,20 +334,31 @@ class RobotSystem:
             feed.close()  # the lines not handed over yet (a print just before the end)
         return summary
 
-    def _held_by_program(self) -> bool:
-        vm = self.trajectory.vm
-        return vm is not None and vm.paused and not self.trajectory.motion.paused
+    def _held(self) -> str | None:
+        """What holds the program for the operator: ``"pause"`` (it paused itself),
+        ``"step"`` (step mode: before a move), ``"approach"`` (before the approach of a start
+        from a line, in step mode), else None."""
+        trajectory = self.trajectory
+        vm = trajectory.vm
+        if vm is None:
+            return None
+        if vm.paused:
+            return None if trajectory.motion.paused else "pause"
+        return None if not trajectory.waiting_for_step else "approach" if trajectory.stepping.approach_next else "step"
 
     def _decide(self, on_pause, left: int, before=None) -> int:
-        """Not real-time: the program paused itself: ask ``on_pause`` (after ``before()``:
-        the print output so far), then resume or abort; returns the ticks run meanwhile
-        (wall clock: the loop goes on)."""
+        """Not real-time: the program paused itself, or waits for a step: ask ``on_pause``
+        (after ``before()``: the print output so far), then resume (or step) or abort;
+        returns the ticks run meanwhile (wall clock: the loop goes on)."""
         line = self.trajectory.line
+        kind = self._held()
+        if kind is None:
+            return 0
 
         def decide() -> str:
             if before is not None:
                 before()
-            return on_pause(line)
+            return on_pause(line, kind)
 
         if self.clock.simulated:
             choice, ticks = decide(), 0
@@ -347,8 +371,12 @@ class RobotSystem:
             choice = box[0] if box else "abort"
         if self.supervisor.done:
             return ticks
-        if choice != "resume" or not self.trajectory.resume():
-            self.trajectory.abort("aborted at the program's pause")
+        trajectory = self.trajectory
+        if kind != "pause":
+            if choice != "resume" or trajectory.step() is not None:
+                trajectory.abort("aborted by the operator before the move (step mode)")
+        elif choice != "resume" or not trajectory.resume():
+            trajectory.abort("aborted at the program's pause")
         return ticks
 
     def summary(self, wall_time: float) -> dict:
@@ -367,9 +395,12 @@ class RobotSystem:
             "program": self.trajectory.program.name if self.trajectory.program else None,
             "robot": self.spec.name,
             "mode": self.mode,
+            "jog": self.trajectory.jogger.state() if self.trajectory.jogger is not None else None,
             "t1_peak_speed": round(self.safety.reduced.peak, 3) if self.mode == "t1" else None,
             "states": states,
             "moves": moves,
+            "step": self.trajectory.stepping.step,
+            "from_line": self.trajectory.stepping.summary(self.trajectory.motion.moves),
             "final_position": list(self.robot.positions),
             "max_following_error": self.servo.max_following_error,
             "fault": sup.fault,

@@ -744,13 +744,24 @@ class VM:
         function ``(operand, pc) -> next pc`` as every handler is, called when the instruction
         really executes (a look-ahead barrier's wrapper runs only where the robot is, as the
         handler does). An offline run (runtime.loop.offline) sees this way where the program
-        reads an input and tests a ``wait for``. The instructions of :data:`INLINE` are
+        reads an input and tests a ``wait for``; step mode and a start from a line
+        (runtime.loop.stepping) hold the moves and pass the waits. The instructions of :data:`INLINE` are
         executed by the inline loop itself: they cannot be wrapped (ValueError)."""
         if name in INLINE or not hasattr(OP, name):
             raise ValueError(f"instruction {name!r} cannot be wrapped")
         code = getattr(OP, name)
         handler = self._own[code] = wrapper(self._own[code])
         self._handlers[code] = self._at_robot(handler) if INSTRUCTIONS[code].barrier else handler
+
+    def hold(self, motion: bool = False) -> None:
+        """Real-time, for a wrapped handler (:meth:`wrap`) that cannot carry out its
+        instruction yet (runtime.loop.stepping: a move waiting for a step): the step ends
+        before the instruction, which runs again at the next step (``motion``: once every
+        move handed over has ended). The wrapper then returns the instruction's own offset,
+        its stack untouched."""
+        if motion:
+            self.waits.kind = _W_MOTION
+        self._block()
 
     # -- the memory's, by their old names ----------------------------------------------
     @property

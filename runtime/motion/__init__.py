@@ -55,12 +55,12 @@ MODULES = (
     "kinematics",  # forward and inverse kinematics
     "teach",  # the literals that name where the arm is (irl pose, irl where, the pendant)
     "urdf",  # the arm as URDF, and its links' transforms
-    "reduced",  # operating mode T1: the reduced speeds as the planners keep them
     "rotation",  # quaternions, slerp
     "pathtiming",  # a path's timing within the joints' limits
     "interpolator",  # 5 ms setpoints to 1 ms references
     "paths",  # lines and arcs, and their timing
     "pathcheck",  # the whole-path check
+    "reduced",  # operating mode T1: the reduced speeds as the planners keep them
     "cartesian",  # lin and circ moves: JointStream, PathStop, plan_cartesian
     "blend",  # the blend's overlap and its check
     "moves",  # a program's move request planned into a segment

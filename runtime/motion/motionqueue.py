@@ -68,6 +68,7 @@ from compiler.clauses import Motion
 from compiler.triggers import PLACES, UNITS
 
 from runtime.motion.moves import MovePlanner, MoveRecord, MoveRequest, Segment
+from runtime.motion.stops import StopRamp
 from runtime.motion.trajectory import Trajectory
 
 __all__ = ["RATE_CHANGE_MARGIN", "Holds", "Lookahead", "MotionQueue", "PlanningWorker", "SpeedOverride", "Triggers"]
@@ -692,7 +693,7 @@ class MotionQueue:
         # it began (its time 0) between the last tick and this one: its first setpoint
         t_start = now - (self.t_move - segment.start) / rate
         segment.record = MoveRecord(request.line, request.kind, segment.end, segment.duration / rate, t_start,
-                                    frames=request.frames)
+                                    frames=request.frames, approach=request.approach)
         if segment.previous is not None and segment.offset is not None and segment.previous.record is not None:
             segment.previous.record.blended = True
         self.moves.append(segment.record)
@@ -770,6 +771,22 @@ class MotionQueue:
         if self.at_rest():
             self._at_rest_after_stop()
         return within
+
+    def stop_in_joint_space(self, deceleration: tuple) -> float | None:
+        """Replace the stop under way (a pause's, an abort's) by every axis ramped to rest
+        together at ``deceleration`` (per axis) along the direction of motion
+        (:class:`runtime.motion.stops.StopRamp`): a lin or circ move's tool then leaves its
+        line by a little. For a jog's release, where a prompt stop matters more than the
+        line (a stop on a Cartesian path may run to the move's end where no sooner one
+        keeps the joints' limits). Returns its duration (None: no stop under way)."""
+        hold = self.hold
+        if hold.stop is None:
+            return None
+        stop = StopRamp(self.positions, self.velocities, deceleration)
+        hold.stop, hold.t_stop = stop, 0.0
+        if hold.interrupted is not None:
+            hold.interrupted.stop = stop
+        return stop.duration
 
     def _stop_on_path(self) -> float | None:
         hold = self.hold

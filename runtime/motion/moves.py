@@ -37,7 +37,7 @@ from runtime.motion.jerk import plan_ptp_jerk
 from runtime.motion.kinematics import Kinematics, KinematicsError, configuration_name
 from runtime.motion.pathcheck import JointLimits
 from runtime.motion.planner import PtpInput, plan_ptp, scaled_limits
-from runtime.motion.reduced import Reduced, cartesian_peak
+from runtime.motion.reduced import Reduced, cartesian_peak, path_speed
 from runtime.motion.trajectory import Refusal, Trajectory
 
 __all__ = ["CACHE_SIZE", "Frames", "MovePlanner", "MoveRecord", "MoveRequest", "Segment"]
@@ -82,6 +82,7 @@ class MoveRecord:
     t_end: float | None = None
     blended: bool = False  # the move blended into the next one (it did not stop at its target)
     frames: Frames | None = None  # its base and tool (None: the specification's tool in the world frame)
+    approach: bool = False  # the approach of a start from a line (runtime.loop.stepping), not a program's move
 
     @property
     def actual_duration(self) -> float | None:
@@ -94,15 +95,20 @@ class MoveRequest:
     ``acc`` (fractions for ptp, mm/s and mm/s^2 for lin/circ), ``approx``, the source
     ``line``; ``rest_of``: the interrupted segment whose rest this is (planned from where
     it stopped); ``frames``: its base and tool (:class:`Frames`; None: the
-    specification's tool; its pose targets are in the world frame either way)."""
+    specification's tool; its pose targets are in the world frame either way);
+    ``approach``: the approach of a start from a line (runtime.loop.stepping), which is
+    not one of the program's moves (its record says so)."""
 
-    __slots__ = ("kind", "targets", "speed", "acc", "approx", "line", "rest_of", "frames", "triggers", "carried")
+    __slots__ = ("kind", "targets", "speed", "acc", "approx", "line", "rest_of", "frames", "triggers", "carried",
+                 "approach")
 
     def __init__(self, kind: str, targets: tuple, speed: float, acc: float, approx: float, line: int,
-                 rest_of: "Segment | None" = None, frames: Frames | None = None, triggers: tuple = ()):
+                 rest_of: "Segment | None" = None, frames: Frames | None = None, triggers: tuple = (),
+                 approach: bool = False):
         self.kind, self.targets, self.speed, self.acc, self.approx, self.line = kind, targets, speed, acc, approx, line
         self.rest_of = rest_of
         self.frames = frames
+        self.approach = approach
         self.triggers = triggers  # (place, unit, amount, action) each: compiler.triggers
         self.carried: tuple = ()  # the triggers not reached when it was stopped on its path: the rest's
 
@@ -348,24 +354,14 @@ class MovePlanner:
             return None, problem
         via, target = (None, poses[0]) if request.kind == Motion.LIN else poses
         speed, limits, reduced = request.speed, self.joint_limits, self.reduced
-        if reduced is not None:
-            speed = min(speed, reduced.speed)
+        if reduced is not None:  # T1: a path speed that keeps the flange and the tool centre point slow
+            speed = min(speed, path_speed(kinematics, start, target, via, self._tool_point(request.frames),
+                                          reduced.speed))
             limits = JointLimits(limits.positions, tuple(min(v, r) for v, r in zip(limits.velocity,
                                                                                     reduced.velocities)),
                                  limits.acceleration, limits.jerk)
-        for attempt in range(4):
-            result, stream, message = plan_cartesian(CartesianInput(
-                kinematics, start, target, speed, request.acc, via=via, axis_limits=limits, period=period))
-            if result < 0 or reduced is None:
-                break
-            peak = cartesian_peak(kinematics, stream, self._tool_point(request.frames))
-            if peak <= reduced.speed:
-                break
-            if attempt == 3:
-                return None, (f"move {request.kind} refused in T1: its flange or tool centre point would move at "
-                              f"{peak:.0f} mm/s, beyond the reduced speed, even planned at {speed:.1f} mm/s "
-                              "(a large reorientation on a short path: split the move)")
-            speed *= reduced.speed / peak * 0.98
+        result, stream, message = plan_cartesian(CartesianInput(
+            kinematics, start, target, speed, request.acc, via=via, axis_limits=limits, period=period))
         if result < 0:
             prefix = f"move {request.kind} refused: "
             if isinstance(message, Refusal):

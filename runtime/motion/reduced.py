@@ -12,9 +12,10 @@ a healthy robot never meets that stop:
   planned trajectory) and the move planned again slower until it keeps the speed; a
   move whose peak still does not fall is timed slower as a whole (velocities x s,
   accelerations x s^2, jerks x s^3: the same path, exactly s times the speed);
-* a lin or circ move is planned at most at the reduced speed within the reduced axis
-  speeds, measured the same way (a reorientation moves the flange faster than the tool
-  centre point), and planned again slower where it must;
+* a lin or circ move is planned at a path speed that keeps both points under the reduced
+  speed (:func:`path_speed`: the flange moves at most the tool centre point's speed plus the
+  orientation's angular rate times the tool's length, and both follow the path speed), within
+  the reduced axis speeds;
 * moves are not blended (each stops at its target, as a test run checks each one);
 * homing's searches and its move to the start position use :func:`axis_speed_bounds`,
   which hold in any configuration (before homing the positions are not known).
@@ -27,14 +28,16 @@ import math
 from dataclasses import dataclass
 
 from runtime.motion.kinematics import Kinematics, KinematicsError
+from runtime.motion.paths import CircPath, LinPath
 
-__all__ = ["PLAN_SHARE", "Reduced", "axis_speed_bounds", "cartesian_peak", "point_speed"]
+__all__ = ["PLAN_SHARE", "Reduced", "axis_speed_bounds", "cartesian_peak", "path_speed", "point_speed"]
 
 #: Moves are planned to this share of the T1 speeds (the rest is the 1 ms interpolation's
 #: and the servo's).
 PLAN_SHARE = 0.9
-#: Seconds between the samples :func:`cartesian_peak` measures a move at.
-PEAK_STEP = 0.004
+#: Seconds between the samples :func:`cartesian_peak` measures a move at, and the most samples
+#: of one move (a long slow move is measured more coarsely: its speed changes slowly).
+PEAK_STEP, MAX_SAMPLES = 0.004, 400
 _D2R = math.pi / 180.0
 
 
@@ -70,6 +73,24 @@ def point_speed(columns_before: tuple, columns_after: tuple, tool: tuple, dt: fl
     return math.sqrt(flange if flange > tcp else tcp) / dt
 
 
+def path_speed(kinematics: Kinematics, start_joints, target, via, tool: tuple, cap: float) -> float:
+    """The largest path speed (mm/s) of a lin (``via`` None) or circ move from ``start_joints``
+    to ``target`` (poses in the world frame; ``tool``: x, y, z of the tool centre point in
+    the flange) that keeps its tool centre point and its flange at most ``cap`` mm/s. Along
+    the path (runtime.motion.paths) the tool centre point moves ``position_length / length``
+    and the orientation turns ``rotation_angle / length`` per mm of path speed; the flange
+    moves at most the tool centre point's speed plus the angular rate times the tool's
+    length: ``cap x length / (position_length + angle x |tool|)``."""
+    try:
+        start = kinematics.forward(tuple(start_joints)[:6])
+        path = LinPath(start, target) if via is None else CircPath(start, via, target)
+    except (ValueError, KinematicsError):  # (the planner refuses the move, saying why)
+        return cap
+    arm = math.sqrt(sum(v * v for v in tool[:3]))
+    reach = path.position_length + math.radians(path.rotation_angle) * arm
+    return cap if reach <= 0.0 else min(cap, cap * path.length / reach)
+
+
 def cartesian_peak(kinematics: Kinematics, trajectory, tool: tuple, step: float = PEAK_STEP) -> float:
     """The largest speed (mm/s) of the flange and of the tool centre point (``tool``: x, y,
     z in the flange) along ``trajectory`` (its six main axes), measured between samples
@@ -77,7 +98,7 @@ def cartesian_peak(kinematics: Kinematics, trajectory, tool: tuple, step: float 
     duration = trajectory.duration
     if not duration > 0.0:
         return 0.0
-    n = max(2, int(math.ceil(duration / step)))
+    n = min(max(2, int(math.ceil(duration / step))), MAX_SAMPLES)
     dt = duration / n
     peak = 0.0
     try:

@@ -12,7 +12,7 @@ import logging
 import time
 from pathlib import Path
 
-from compiler.objcode import OP, Program
+from compiler.objcode import MOVE_CODES, OP, Program
 
 from runtime.recording import recording_name
 from runtime.server.looplink import LoopCommand, LoopLink
@@ -46,13 +46,16 @@ class Job:
         self.object: bytes | None = None  # the verified object code, for the loop
         self.source: str | None = None  # the source text it was submitted with (the source op)
         self.jog = False  # a jog session (runtime/loop/jogging.py), started by a jog request
+        self.step = False  # in step mode (runtime/loop/stepping.py)
+        self.from_line: int | None = None  # from the move on this line
 
     def as_dict(self, summary: bool = True) -> dict:
         d = {"id": self.id, "name": self.name, "state": self.state, "fault": self.fault,
              "submitted": self.submitted, "started": self.started, "ended": self.ended,
              "report": str(self.report) if self.report else None,
              "record": str(self.record) if self.record else None, "moves_total": self.moves_total,
-             "kind": "jog" if self.jog else "program" if self.settings is None else "reconfiguration"}
+             "kind": "jog" if self.jog else "program" if self.settings is None else "reconfiguration",
+             "step": self.step, "from_line": self.from_line}
         if self.summary is not None:
             d.update(line=None, moves_done=sum(1 for m in self.summary["moves"] if m["actual_duration"] is not None))
             if summary:
@@ -60,14 +63,16 @@ class Job:
         return d
 
 
-def moves_total(program: Program) -> int | None:
-    """How many moves the program makes, when that is known without running it (no
-    loops, no procedure calls); else None."""
+def moves_total(program: Program, from_line: int | None = None) -> int | None:
+    """How many moves the program makes (from the move on line ``from_line``), when that
+    is known without running it (no loops, no procedure calls); else None."""
     moves = 0
+    started = from_line is None
     for offset, instr in enumerate(program.code):
         op = instr[0]
-        if op in (OP.MOVE_PTP, OP.MOVE_LIN, OP.MOVE_CIRC):
-            moves += 1
+        if op in MOVE_CODES:
+            started = started or program.starts_at(offset, from_line)
+            moves += started
         elif op == OP.CALL or (op in (OP.JUMP, OP.JUMP_IF_FALSE) and instr[1] <= offset):
             return None
     return moves
@@ -132,11 +137,16 @@ class Jobs:
                                               f"run, at most {protocol.MAX_QUEUED} may wait; submit again when "
                                               "one has started (or abort queued ones)")
 
-    def submit(self, name: str, program: Program, data: bytes) -> Job:
-        """Queue a verified program (``data``: its object code)."""
+    def submit(self, name: str, program: Program, data: bytes, step: bool = False,
+               from_line: int | None = None) -> Job:
+        """Queue a verified program (``data``: its object code), in step mode (``step``),
+        from the move on line ``from_line`` (checked by the caller)."""
         record = self.record_dir / recording_name(self.session, self.next_id, name) if self.record_dir else None
         job = Job(self.next_id, name, program, self.report_dir / f"program-{self.next_id}.csv", record=record)
         job.object = data
+        job.step, job.from_line = step, from_line
+        if from_line is not None:
+            job.moves_total = moves_total(program, from_line)
         self._queue(job)
         log.info("program %d (%s) queued", job.id, name)
         return job
@@ -189,7 +199,7 @@ class Jobs:
 
         self.link.send(LoopCommand(messages.Start(job.id, job.object, str(job.report) if job.report else None,
                                                   job.settings, override, str(job.record) if job.record else None,
-                                                  job.jog),
+                                                  job.jog, job.step, job.from_line),
                                    finish=started, failed=refused))
 
     def finish(self, message: dict, completed) -> None:
@@ -256,9 +266,11 @@ class Jobs:
         d = job.as_dict()
         if snap.job == job.id and snap.progress is not None:
             progress = snap.progress
-            d.update(line=progress.line, moves_done=progress.moves_done, paused=progress.paused, fsm=snap.state)
+            d.update(line=progress.line, moves_done=progress.moves_done, paused=progress.paused, fsm=snap.state,
+                     waiting_for_step=progress.waiting_for_step, approach=progress.approach)
         else:  # started, the loop's first snapshot of it not yet here
-            d.update(line=None, moves_done=0, paused=False, fsm="Start Robot")
+            d.update(line=None, moves_done=0, paused=False, fsm="Start Robot", waiting_for_step=False,
+                     approach=False)
         return d
 
     def status(self, job_id) -> dict:

@@ -41,7 +41,7 @@ from pathlib import Path
 
 import zmq
 
-from compiler.objcode import ObjectCodeError, load, spec_mismatch
+from compiler.objcode import ObjectCodeError, from_line_problem, load, spec_mismatch
 
 from runtime.config import merge_settings
 from runtime.places import DEFAULT_ENDPOINT, DEFAULT_TELEMETRY, default_state_dir
@@ -479,9 +479,14 @@ class Server:
         if others:
             raise ProtocolError("wrong_robot", f"the program moves robot {others[0]!r}, but this runtime drives "
                                                f"{self.spec.name!r}")
+        from_line = args.get("from_line")
+        if from_line is not None:
+            problem = from_line_problem(program, from_line)
+            if problem is not None:
+                raise ProtocolError("bad_request", f"submit: from_line {from_line}: {problem}")
         self._check_accepting()
         name = str(args.get("name") or program.name or "program")[:200]
-        job = self.jobs.submit(name, program, bytes(data))
+        job = self.jobs.submit(name, program, bytes(data), bool(args.get("step", False)), from_line)
         job.source = args.get("source")
         return {"program": job.id, "queued": len(self.jobs.queue)}
 
@@ -496,6 +501,9 @@ class Server:
 
     def op_resume(self, args: dict) -> LoopCommand:
         return LoopCommand(messages.Resume(args.get("program")))
+
+    def op_step(self, args: dict) -> LoopCommand:
+        return LoopCommand(messages.Step(args.get("program")))
 
     def op_mode(self, args: dict) -> LoopCommand:
         mode = args["mode"]

@@ -81,7 +81,8 @@ class Telemetry:
         progress = snap.progress
         if running and progress is not None:
             sample.update(line=progress.line, moves_done=progress.moves_done, moves_total=job.moves_total,
-                          paused=progress.paused, following_error=progress.following_error)
+                          paused=progress.paused, following_error=progress.following_error, step=progress.step,
+                          waiting_for_step=progress.waiting_for_step, approach=progress.approach)
         self.publish(sample)
 
     def poll_subscriptions(self) -> None:

@@ -250,9 +250,15 @@ class Session:
         return self.request("mode", {"mode": _text(args, "mode", tuple(protocol.MODES))})
 
     def act_start(self, args: dict) -> dict:
+        """A program of the directory, compiled and submitted with its source; ``step``: in
+        step mode (each move waits for Step)."""
         name = _text(args, "program", self.pendant.programs())
+        step = args.get("step", False)
+        if not isinstance(step, bool):
+            raise Refused("bad_request", f"step: expected true or false, got {str(step)[:40]!r}")
         data, source = self.pendant.compile(name)
-        reply = self.request("submit", {"object": data, "name": name, **({"source": source} if source else {})})
+        reply = self.request("submit", {"object": data, "name": name, **({"source": source} if source else {}),
+                                        **({"step": True} if step else {})})
         return {"program": reply["program"], "queued": reply["queued"]}
 
     def _program_op(self, op: str, args: dict) -> dict:
@@ -266,7 +272,7 @@ class Session:
         return self._program_op("resume", args)
 
     def act_step(self, args: dict) -> dict:
-        return self.request("step")  # (another engineer's op: the server's error until it exists)
+        return self._program_op("step", args)
 
     def act_abort(self, args: dict) -> dict:
         return self._program_op("abort", args)
@@ -321,10 +327,13 @@ class Session:
             try:
                 reply = self.request("jog", request)
             except Refused as exc:
-                if exc.code != "unreachable" and not release:  # (nothing started; nor will it by this press)
-                    if self.held is not None and self.held.press == press:
-                        self.held = None
-                    self.spent = press
+                if release or exc.code == "unreachable":
+                    raise
+                if self.held is not None and self.held.press == press:
+                    self.held = None  # (nothing started)
+                if protocol.JOG_SESSION_ENDING in exc.message:  # (the next message of the press tries again)
+                    return {"again": exc.message}
+                self.spent = press  # (nor will it by this press)
                 raise
             if isinstance(event, (int, float)) and not isinstance(event, bool) and (release or held is None
                                                                                      or held.press != press):
@@ -406,7 +415,7 @@ class Session:
 def _running(running: dict) -> dict:
     """What the page shows of the running program."""
     return {key: running.get(key) for key in ("id", "name", "kind", "fsm", "line", "paused", "moves_done",
-                                              "moves_total")}
+                                              "moves_total", "step", "waiting_for_step", "approach")}
 
 
 class Pendant:

@@ -81,7 +81,8 @@ class Command:
 @dataclass(frozen=True)
 class Start(Command):
     """Begin a cycle: a program (its verified object code; None: a reconfiguration, with
-    its ``settings``), its report file, the override, its recording (an MCAP file, or None)."""
+    its ``settings``), its report file, the override, its recording (an MCAP file, or None);
+    in step mode (``step``) and from the move on line ``from_line`` (runtime.loop.stepping)."""
 
     OP: ClassVar[str] = "start"
     job: int
@@ -91,6 +92,8 @@ class Start(Command):
     override: float = 100.0
     record: str | None = None
     jog: bool = False  # a jog session (no program): runtime/loop/jogging.py
+    step: bool = False
+    from_line: int | None = None
 
 
 @dataclass(frozen=True)
@@ -106,6 +109,14 @@ class Resume(Command):
     """Resume a paused program (``program``: only if it is this one)."""
 
     OP: ClassVar[str] = "resume"
+    program: int | None = None
+
+
+@dataclass(frozen=True)
+class Step(Command):
+    """Step mode: the move the program waits before goes (``program``: only if it is this one)."""
+
+    OP: ClassVar[str] = "step"
     program: int | None = None
 
 
@@ -181,7 +192,7 @@ class Exit(Command):
 
 #: Every command, by its name on the channel.
 COMMANDS: dict[str, type[Command]] = {c.OP: c for c in (Start, Pause, Resume, Abort, Estop, Override, Call, Settings,
-                                                        Exit, Mode, Jog)}
+                                                        Exit, Mode, Jog, Step)}
 
 
 def command_of(message: dict) -> tuple[object, Command]:
@@ -195,12 +206,17 @@ def command_of(message: dict) -> tuple[object, Command]:
 @dataclass(frozen=True)
 class Progress:
     """Where the running program is: its source line, the moves done, whether it is
-    paused, the largest absolute following error (deg)."""
+    paused, the largest absolute following error (deg); whether it runs in step mode,
+    waits for a step, and whether its next move (or the one under way) is the approach of
+    a start from a line (runtime.loop.stepping)."""
 
     line: int | None
     moves_done: int
     paused: bool
     following_error: float
+    step: bool = False
+    waiting_for_step: bool = False
+    approach: bool = False
 
 
 @dataclass(frozen=True)
@@ -241,7 +257,8 @@ class Snapshot:
         p = self.progress
         if p is not None:
             message["progress"] = {"line": p.line, "moves_done": p.moves_done, "paused": p.paused,
-                                   "following_error": p.following_error}
+                                   "following_error": p.following_error, "step": p.step,
+                                   "waiting_for_step": p.waiting_for_step, "approach": p.approach}
         return message
 
     @classmethod

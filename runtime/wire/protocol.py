@@ -67,6 +67,10 @@ SAMPLE_FIELDS: dict[str, tuple[str, str]] = {
     "moves_done": ("int", "while a program runs: moves completed"),
     "moves_total": ("int or nil", "while a program runs: its moves (nil when it loops or calls procedures)"),
     "paused": ("bool", "while a program runs: it is paused"),
+    "step": ("bool", "while a program runs: it runs in step mode (`submit`'s `step`)"),
+    "waiting_for_step": ("bool", "while a program runs: it waits before a move for a `step`"),
+    "approach": ("bool", "while a program runs: the next move (or the one under way) is the approach of a start "
+                         "from a line (`submit`'s `from_line`)"),
     "following_error": ("float", "while a program runs: the largest absolute following error (deg)"),
     "tool": ("str", "the tool of the move under way or last started (its `use tool` name; `default_tool` before)"),
     "base": ("str", "the base of the move under way or last started (its `use base` name; `world` before)"),
@@ -97,6 +101,9 @@ MAX_JOG_STEP = 100.0
 #: s between the repetitions (heartbeats) of a held continuous jog that ``irl jog --hold``
 #: and the pendant send (the loop stops a jog 0.25 s after the last one: at least every 0.2 s).
 JOG_HEARTBEAT = 0.1
+#: A jog that reaches a jog session as it ends is refused with this text: the client sends it
+#: again (the next heartbeat does), and a new session starts.
+JOG_SESSION_ENDING = "the jog session is ending (its brakes are closing): send the jog again"
 
 ERRORS = {
     "bad_message": "the request is not a msgpack map (or is not valid msgpack)",
@@ -124,12 +131,18 @@ OPS: dict[str, tuple[dict[str, tuple[tuple, bool, str]], str]] = {
                "the robot's state, the running program, the queue and recent programs"),
     "submit": ({"object": (_BIN, True, "the object code (an .irlo file's bytes)"),
                 "name": (_STR, False, "a name to show for the program (e.g. its file name)"),
-                "source": (_STR, False, "the program's source text, kept for viewers (`source`, irl view)")},
+                "source": (_STR, False, "the program's source text, kept for viewers (`source`, irl view)"),
+                "step": (_BOOL, False, "true: run it in step mode, each move waiting for a `step` (default false)"),
+                "from_line": (_INT, False, "start at the move on this line of the program's source, after an "
+                                           "approach to its start (default: from the start)")},
                "verify the object code and queue it; returns its id"),
     "pause": ({"program": (_INT, False, "the program meant (refused if another one runs)")},
               "hold the running program; a move under way comes to a controlled stop"),
     "resume": ({"program": (_INT, False, "the program meant (refused if another one is paused)")},
                "continue the paused program (the interrupted move is finished first)"),
+    "step": ({"program": (_INT, False, "the program meant (refused if another one runs)")},
+             "step mode: the move the running program waits before goes (to its target, where the program stops "
+             "again before its next move)"),
     "abort": ({"program": (_INT, False, "a queued program to remove instead of the running one")},
               "bring the running program to a controlled stop and end it (or remove a queued one)"),
     "estop": ({}, "emergency stop: brakes on and drives off now; the running program and the queue are ended"),
@@ -180,10 +193,11 @@ OPS: dict[str, tuple[dict[str, tuple[tuple, bool, str]], str]] = {
 }
 
 #: The ops a protocol version brought (every other op is in every version).
-SINCE = {"wait": 2, "telemetry": 2, "control": 2, "feed": 2, "source": 2, "mode": 2, "jog": 2}
+SINCE = {"wait": 2, "telemetry": 2, "control": 2, "feed": 2, "source": 2, "mode": 2, "jog": 2, "step": 2}
 #: The ops that control the robot: refused to every client but the holder while one holds
 #: control (``estop`` never is: an emergency stop is open to every client).
-CONTROLLING = frozenset({"submit", "pause", "resume", "abort", "override", "call", "reconfigure", "mode", "jog"})
+CONTROLLING = frozenset({"submit", "pause", "resume", "step", "abort", "override", "call", "reconfigure", "mode",
+                         "jog"})
 
 
 

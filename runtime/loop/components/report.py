@@ -267,12 +267,17 @@ class Report(Component):
     def _move(self) -> tuple[int, int]:
         """Real-time: (the number of the move under way or last started, from 1: 0 before
         the first; the source line of the move under way, 0 when none is). A move resumed
-        after a pause is the same move; in a blend, the move blended into."""
+        after a pause is the same move; in a blend, the move blended into. The approach of a
+        start from a line (runtime.loop.stepping) is not a program's move: 0, at rest."""
         motion = self.motion
         if motion is None:
             return (0, 0)
         moves = motion.moves
         started = len(moves)
+        if started and moves[0].approach:
+            started -= 1
+            if not started:
+                return (0, 0)
         return (started, moves[-1].line if started and motion.line is not None else 0)
 
     def on_stop(self) -> None:

@@ -38,13 +38,14 @@ from compiler.values import Joint, Pose
 
 from runtime.loop.component import Component, DataPort
 from runtime.loop.jogging import HEARTBEAT_TIMEOUT, Jogger
+from runtime.loop.stepping import Stepping
 from runtime.motion.kinematics import Kinematics
 from runtime.recording import LOG_FULL, PRINT
 from runtime.motion.motionqueue import MotionQueue, PlanningWorker
 from runtime.motion.moves import Frames, MoveRecord, MovePlanner, MoveRequest
 from runtime.settings import Settings
 from runtime.timing import SETPOINT_PERIOD
-from runtime.wire.protocol import ProtocolError
+from runtime.wire.protocol import JOG_SESSION_ENDING, ProtocolError
 from runtime.loop.vm import DONE, ERROR, READY, VM
 
 __all__ = ["LOOKAHEAD", "MAX_LOG_LINES", "MoveRecord", "TIME_SLICE", "TrajectoryGenerator"]
@@ -121,13 +122,16 @@ class TrajectoryGenerator(Component):
         self.jogging = False  # the cycle is a jog session (no program)
         self.jogger: Jogger | None = None
         self._jog_waiting: tuple | None = None  # (request, time) of a jog asked for before Move Robot
+        self.stepping = Stepping()  # step mode and a start from a line (runtime.loop.stepping)
         self._forget()
 
-    def load(self, program: Program | None, jog: bool = False) -> None:
+    def load(self, program: Program | None, jog: bool = False, step: bool = False,
+             from_line: int | None = None) -> None:
         """Not real-time: the program to run at the next start (or, with ``jog``, a jog
-        session: runtime.loop.jogging); forgets the last one (its moves and log, its fault,
-        an abort). On the wall clock, starts the planning worker the first time (never in
-        a tick)."""
+        session: runtime.loop.jogging), in step mode (``step``) and from the move on line
+        ``from_line`` (runtime.loop.stepping; a line with a move: RobotSystem.begin checks
+        it); forgets the last one (its moves and log, its fault, an abort). On the wall
+        clock, starts the planning worker the first time (never in a tick)."""
         if not self.clock.simulated and self.motion.worker is None:
             self.motion.worker = PlanningWorker()
         if self.motion.moves:
@@ -135,6 +139,9 @@ class TrajectoryGenerator(Component):
         self.program = program
         self.jogging = jog
         self._jog_waiting = None
+        self.stepping = Stepping(step and not jog, None if jog else from_line)
+        # step mode: a move is handed over only when the one before it has ended (no blend)
+        self.lookahead = 0 if self.stepping.step else lookahead_depth(self.spec)
         self._forget()
 
     def _forget(self) -> None:
@@ -167,6 +174,9 @@ class TrajectoryGenerator(Component):
                         self.jogger.reason = exc.message
         else:
             self.vm = VM(self.program, self, self.own.budget)
+            if self.stepping.active:
+                self.stepping = self.stepping.fresh()
+                self.stepping.install(self.vm, self)
         # the first setpoint at this tick's time, as every later one (never the wall clock's
         # now: after a stall of the host that lies ahead of the ticks, and the servo would
         # interpolate from it to where the move is by then)
@@ -192,8 +202,13 @@ class TrajectoryGenerator(Component):
 
     @property
     def moves(self) -> list[MoveRecord]:
-        """The moves of the program so far, as they ran."""
-        return self.motion.moves
+        """The moves of the program so far, as they ran (not a start's approach)."""
+        return self.stepping.program_moves(self.motion.moves)
+
+    @property
+    def moves_done(self) -> int:
+        """Real-time: the program's moves completed (not a start's approach)."""
+        return self.stepping.moves_done(self.motion.moves, self.motion.completed)
 
     @property
     def trajectory(self):
@@ -237,6 +252,13 @@ class TrajectoryGenerator(Component):
         return (vm.line, vm.offset) if vm is not None else (0, None)
 
     @property
+    def waiting_for_step(self) -> bool:
+        """Real-time: step mode: the program waits before a move for the operator's step
+        (not while it is paused or ending)."""
+        vm = self.vm
+        return self.stepping.waiting and vm is not None and not vm.paused and vm.status < DONE
+
+    @property
     def paused(self) -> bool:
         """Held by the operator or by the program's ``pause``."""
         return self.vm is not None and (self.motion.paused or self.vm.paused)
@@ -267,6 +289,10 @@ class TrajectoryGenerator(Component):
                 if self.on_program_start is not None:
                     self.on_program_start(now)
             vm.step(None if self.clock.simulated else time.perf_counter() + TIME_SLICE)
+            if self.stepping.forwarding and self.fault is None:
+                self.fault = self.stepping.unreached(vm)
+                if self.fault is not None:
+                    vm.abort()
         failed = motion.plan_waiting()
         if failed is not None:
             vm.fail(*failed)
@@ -314,12 +340,33 @@ class TrajectoryGenerator(Component):
         self._take_motion_events()
         return True
 
+    def step(self) -> str | None:
+        """The operator's step (step mode): the move the program waits before (or the
+        approach of a start from a line) goes. Why not, else None."""
+        stepping = self.stepping
+        if self.vm is None or not stepping.step:
+            return "it does not run in step mode (submit it with step, irl run --step)"
+        if self.paused:
+            return "it is paused: resume it first"
+        if self.motion.abort_reason is not None or self.vm.status >= DONE:
+            return "it is ending"
+        if not stepping.waiting:
+            if stepping.forwarding:
+                return f"it is running to the move at line {stepping.from_line} without moving"
+            line = self.motion.line
+            return (f"a move is under way (line {line})" if line is not None
+                    else f"it is not waiting before a move (it is at line {self.line})")
+        stepping.give()
+        return None
+
     def jog(self, jog, now: float) -> dict:
         """A jog request of the jog session (runtime.loop.jogging.Jogger.request): kept
         until Move Robot when the session is still starting (homing, brakes)."""
         if self.jogger is None:
             self._jog_waiting = (jog, now)
             return {"active": None, "stopping": False, "reason": "the robot is starting", "jogs": 0}
+        if not self.running:
+            raise ProtocolError("refused", JOG_SESSION_ENDING)
         return self.jogger.request(jog, now)
 
     def abort(self, reason: str = "aborted by the operator") -> bool:
@@ -398,6 +445,9 @@ class TrajectoryGenerator(Component):
             request, problem = self._cartesian_request(kind, targets, checked, line)
             if problem is not None:
                 return problem
+        if self.stepping.forwarding:  # a start from a line: moves before it are only remembered
+            self.stepping.remember(request, self.vm.globals)
+            return None
         return self.motion.add(request)
 
     def _take_triggers(self) -> tuple:

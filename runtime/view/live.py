@@ -109,8 +109,7 @@ class LiveView:
                 taken += 1
                 if message.get("kind") == "sample":
                     latest = message
-                    if looking and (message.get("line") or 0) != self.line:
-                        self._mark(message, client)  # every line the program passes, not only the posed ones message.get("kind") == "event":
+                elif message.get("kind") == "event":
                     self._event(message)
                 message = sub.receive(0.0)
             now = time.monotonic()
@@ -149,7 +148,16 @@ class LiveView:
         if isinstance(position, list) and len(position) >= 6:
             self.stage.show(position, self._frames(sample), tcp=sample.get("tcp"))
         self.samples += 1
-        line = self._mark(sample, client)
+        program = sample.get("program")
+        if program != self.program:
+            self.program = program
+            self.name, self.lines = self._source(client, program)
+            self.line = -1
+        line = sample.get("line") or 0
+        if line != self.line:
+            self.line = line
+            title = f"program {program}: {self.name}" if program is not None else "no program running"
+            self.source_box.content = source_html(self.lines, line or None, title)
         inputs, outputs = sample.get("inputs"), sample.get("outputs")
         if isinstance(inputs, list) and isinstance(outputs, list) and (inputs, outputs) != self.io:
             self.io = (inputs, outputs)
@@ -164,20 +172,6 @@ class LiveView:
                             f" · override {float(sample.get('override', 100.0)):g} %"
                             f" · tool {html.escape(str(sample.get('tool', '')))}"
                             + (f" · line {line}" if line else ""))
-
-    def _mark(self, sample: dict, client: Client) -> int:
-        """The sample's program's source with its line marked, when either changed; the line."""
-        program = sample.get("program")
-        if program != self.program:
-            self.program = program
-            self.name, self.lines = self._source(client, program)
-            self.line = -1
-        line = sample.get("line") or 0
-        if line != self.line:
-            self.line = line
-            title = f"program {program}: {self.name}" if program is not None else "no program running"
-            self.source_box.content = source_html(self.lines, line or None, title)
-        return line
 
     def _frames(self, sample: dict) -> Frames | None:
         """The active base (its name; its pose from the TCP in the world and in the base)."""

@@ -37,7 +37,7 @@ from compiler.objcode import FORMAT_VERSION, OP, ObjectCodeError, Program, decod
 from compiler.semantics import binary, call_builtin, compose
 from compiler.spec import load_spec
 from compiler.values import Pose, Position, Quat, Rpy, format_value, from_plain, to_plain
-from runtime.cli.teach import PoseError, pose_literal
+from runtime.motion.teach import PoseError, pose_literal
 from runtime.motion.kinematics import Kinematics, KinematicsError, configuration_name
 from runtime.motion.moves import Frames, MovePlanner, MoveRequest
 

@@ -20,6 +20,8 @@ TRANSLATORS = {"_describe", "_why", "_failed"}  # (_failed: the VM's dispatch lo
 ALLOWED = {
     ("runtime/cli/main.py", "main"): "the command line's last guard: a bug report on stderr, exit 70",
     ("runtime/server/server.py", "_handle"): "a server bug: the client's 'internal' error reply (and the log)",
+    ("runtime/view/pagehttp.py", "_answer"): "a pendant bug: the page's 'internal error' reply and a line on irl "
+                                             "view's stderr",
     ("runtime/loop/robotloop.py", "command"): "a loop bug: the server's 'internal' error reply",
     ("runtime/loop/system.py", "_poll"): "the print thread keeps the exception object to raise it again in the caller",
     ("runtime/loop/robotloop.py", "child"): "the loop process could not start: irl serve says so and exits 2",

@@ -5,71 +5,15 @@ the page, and judges it from screenshots of the 3D canvas and from the page's DO
 is drawn (coloured pixels in the canvas), it moves when the slider moves (replay) and when
 the robot moves (live), and the marked source line follows the program. Without Chromium
 the tests are skipped, except where ``IRL_REQUIRE_BROWSER=1`` (CI, whose .ci/run installs
-it): there they fail.
+it): there they fail (tests/browser.py).
 """
 from __future__ import annotations
 
 import io
-import os
-import re
-import shutil
-import signal
-import subprocess
 import time
 
-import pytest
-
-from tests.conftest import IRL, ROOT, SPEC_PATH, ServerProcess, free_port, objcode, run_irl
-
-CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser")
-if CHROMIUM is None:
-    if os.environ.get("IRL_REQUIRE_BROWSER") == "1":
-        pytest.fail("Chromium is needed here (IRL_REQUIRE_BROWSER=1): apt-get install chromium", pytrace=False)
-    pytest.skip("Chromium is not installed (apt-get install chromium)", allow_module_level=True)
-
-playwright = pytest.importorskip("playwright.sync_api")
-
-#: Chromium's flags for a headless run on a machine with no GPU and a closed network.
-FLAGS = ["--no-sandbox", "--disable-gpu", "--enable-unsafe-swiftshader", "--disable-background-networking",
-         "--disable-component-update", "--disable-sync", "--no-first-run", "--disable-dev-shm-usage"]
-LOAD = 60.0  # s: a page that takes longer has hung (not a timing assertion)
-
-
-@pytest.fixture(scope="module")
-def browser():
-    with playwright.sync_playwright() as p:
-        b = p.chromium.launch(executable_path=CHROMIUM, args=FLAGS)
-        yield b
-        b.close()
-
-
-class View:
-    """``irl view ARGS`` as a process, with the URL it printed."""
-
-    def __init__(self, *args):
-        self.proc = subprocess.Popen([*IRL, "view", *map(str, args), "--port", str(free_port())], cwd=ROOT,
-                                     stdin=subprocess.DEVNULL, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
-                                     text=True)
-        self.output = []
-        deadline = time.monotonic() + LOAD
-        self.url = None
-        while self.url is None:
-            line = self.proc.stdout.readline()
-            if not line:
-                pytest.fail(f"irl view ended ({self.proc.wait()}) before serving:\n{''.join(self.output)}")
-            self.output.append(line)
-            found = re.search(r"irl view: (http://127\.0\.0\.1:\d+/)", line)
-            if found:
-                self.url = found.group(1)
-            assert time.monotonic() < deadline, "".join(self.output)
-
-    def stop(self) -> int:
-        self.proc.send_signal(signal.SIGTERM)
-        try:
-            return self.proc.wait(15)
-        finally:
-            if self.proc.poll() is None:
-                self.proc.kill()
+from tests.browser import LOAD, View, browser  # noqa: F401 (browser: the fixture)
+from tests.conftest import SPEC_PATH, ServerProcess, objcode, run_irl
 
 
 #: A program of three slow moves, a line each: about 10 s of the robot's clock per move, so

@@ -210,6 +210,7 @@ def _object_code(args, env) -> tuple[bytes, str, tuple, str | None, str | None, 
     source text where known, the program) of FILE.irlo (as is: the server verifies; its
     source file when it is there) or FILE.irl (compiled)."""
     from compiler.objcode import ObjectCodeError, decode, encode
+    from runtime.client.client import source_text
 
     if args.file.endswith(".irlo"):
         data = common.read_object(args.file)
@@ -219,24 +220,13 @@ def _object_code(args, env) -> tuple[bytes, str, tuple, str | None, str | None, 
             common.warn(env, f"{args.file}: invalid object code: {exc}")
             return None
         return (data, Path(args.file).name, program.robots, common.spec_compiled_for(program, Path(args.file))[0],
-                _source_text(Path(args.file).parent / program.source), program)
+                source_text(Path(args.file).parent / program.source), program)
     result = common.compile_source(args.file, args.spec)
     common.report_diagnostics(env, result, False)
     if not result.ok:
         return None
     return (encode(result.program), Path(args.file).name, result.program.robots, result.spec.file,
-            _source_text(Path(args.file)), result.program)
-
-
-def _source_text(path: Path) -> str | None:
-    """A program's source to send with it (for viewers), when it is readable and not too large."""
-    from runtime.wire.protocol import MAX_REQUEST_BYTES
-
-    try:
-        text = path.read_text(encoding="utf-8")
-    except (OSError, UnicodeDecodeError, ValueError):
-        return None
-    return text if len(text.encode()) <= MAX_REQUEST_BYTES // 4 else None
+            source_text(Path(args.file)), result.program)
 
 
 @guarded

@@ -15,9 +15,6 @@ import time
 from runtime.cli import common
 from runtime.cli.netcli import Refused, call_op, client_for, guarded
 
-#: Seconds between the heartbeats of ``irl jog --hold`` (the loop stops a jog 0.25 s after
-#: the last one).
-HEARTBEAT = 0.1
 #: Seconds ``irl jog`` waits at most for an increment to end.
 STEP_WAIT = 60.0
 
@@ -63,6 +60,8 @@ def cmd_jog(args, env) -> int:
                                 "it, S seconds at most; Ctrl-C releases)")
     if step is not None and args.hold is not None:
         raise common.UsageError("irl jog: --hold is for a continuous jog (+ or -), not a step")
+    from runtime.wire.protocol import JOG_HEARTBEAT
+
     request = {"axis": args.axis, "direction": direction, "frame": args.frame}
     if step is not None:
         request["step"] = step
@@ -73,7 +72,7 @@ def cmd_jog(args, env) -> int:
             end = time.monotonic() + args.hold
             try:
                 while time.monotonic() < end:
-                    time.sleep(min(HEARTBEAT, max(0.0, end - time.monotonic())))
+                    time.sleep(min(JOG_HEARTBEAT, max(0.0, end - time.monotonic())))
                     state = call_op(client, "jog", request)
             except KeyboardInterrupt:
                 pass
@@ -137,8 +136,9 @@ def cmd_where(args, env) -> int:
     specification, its tool or a [[tool]] of it, in the world or a [[frame]])."""
     from compiler.configs import format_config
     from compiler.spec import SpecError, load_spec
-    from runtime.cli.teach import PoseError, frame_values, pose_literal
-    from runtime.motion.kinematics import Kinematics, configuration_name
+    from runtime.cli.teach import frame_values
+    from runtime.motion.kinematics import configuration_name
+    from runtime.motion.teach import where
 
     client = client_for(args)
     try:
@@ -154,31 +154,23 @@ def cmd_where(args, env) -> int:
         raise common.UsageError(f"{spec.file} is not the specification the server drives (its hash differs): give "
                                 "the server's with --spec")
     position = list(status["position"])
-    main = len(spec.main_axes)
-    joint = ", ".join(f"{v:.3f}" for v in position[:main])
-    extra = position[main:]
-    joint_text = f"joint(mainjoint({joint}))" if not extra else \
-        f"joint(mainjoint({joint}), addjoint({', '.join(f'{v:.3f}' for v in extra)}))"
     tool_name, tool = frame_values(spec, "tool", args.tool, "default_tool")
     base_name, base = frame_values(spec, "frame", args.base, "world")
-    try:
-        taught = pose_literal(Kinematics(spec).with_tool(tool), tuple(position[:main]), base)
-    except (ValueError, PoseError) as exc:
-        taught = None
-        why = str(exc)
+    found = where(spec, position, tool, base)
+    taught = found.taught
     if args.json:
-        out = {"joint": joint_text, "position": position, "tool": tool_name, "base": base_name,
-               "pose": taught.text if taught else None, "problem": None if taught else why}
+        out = {"joint": found.joint, "position": position, "tool": tool_name, "base": base_name,
+               "pose": taught.text if taught else None, "problem": found.problem}
         if taught:
             out.update(config=format_config(taught.config), configuration=configuration_name(taught.config_id))
         common.say(env, json.dumps(out, indent=2))
         return common.EXIT_OK
-    common.say(env, joint_text)
+    common.say(env, found.joint)
     if taught is not None:
         common.say(env, taught.text)
         common.say(env, f"-- tool {tool_name}, base {base_name}; {configuration_name(taught.config_id)}")
     else:
-        common.say(env, f"-- no pose literal: {why}")
+        common.say(env, f"-- no pose literal: {found.problem}")
     return common.EXIT_OK
 
 

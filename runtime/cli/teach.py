@@ -1,115 +1,28 @@
 """``irl pose``: the pose literal, with its full configuration, that reaches given joint
 values (typed, or the robot's current ones from a server): how a point is taught.
-
-:func:`pose_literal` does the work: the tool centre point of the joints by the forward
-kinematics (with the chosen tool, in the chosen base), the configuration they are in
-(:func:`compiler.configs.config_of`), and the numbers rounded to 0.001 mm and deg, or
-finer where that is what it takes for the literal to resolve to the same configuration
-and turns (checked by solving it again, as a ``move ptp`` does). Not real-time.
+:mod:`runtime.motion.teach` does the work (``irl where`` and the pendant use it too).
 """
 from __future__ import annotations
 
 import json
-import math
 import os
-from dataclasses import dataclass
 
-from compiler.configs import TURN_AXES, Config, config_of, format_config, words_text
-from compiler.frames import pose_of
-from compiler.semantics import compose, inverse
-from compiler.values import Pose, Position, Rpy, format_number
+from compiler.configs import TURN_AXES, format_config, words_text
 
 from runtime.cli import common
-from runtime.motion.kinematics import Kinematics, KinematicsError, configuration_name
-
-#: Decimals (mm, deg) of a literal: the first that resolves to the same configuration.
-DIGITS = (3, 4, 5, 6, 8, 10, 12)
-
-
-class PoseError(ValueError):
-    """Joint values no pose literal can name (outside the limits, at a singularity)."""
-
-
-@dataclass(frozen=True)
-class Taught:
-    """What :func:`pose_literal` found: the literal's ``text`` and its ``pose`` (in the
-    base), the joints, the configuration id and its :class:`Config`, and the joints the
-    literal resolves to (``resolved``)."""
-
-    text: str
-    pose: Pose
-    joints: tuple
-    config_id: int
-    config: Config
-    resolved: tuple
-
-
-def _rounded(pose: Pose, digits: int | None) -> Pose:
-    if digits is None:
-        return pose
-    p, o = pose.position, pose.orientation
-
-    def r(v: float) -> float:
-        return round(v, digits) + 0.0  # (no -0)
-    return Pose(Position(r(p.x), r(p.y), r(p.z)), Rpy(r(o.roll), r(o.pitch), r(o.yaw)), pose.config)
-
-
-def limits_problem(kinematics: Kinematics, joints: tuple) -> str | None:
-    """Which joint value is outside its axis's limits, or None."""
-    for name, (lo, hi), v in zip(kinematics.names, kinematics.limits, joints):
-        if not lo <= v <= hi:
-            return f"{name} = {format_number(v)} deg is outside its limits {lo:g}..{hi:g}"
-    return None
-
-
-def pose_literal(kinematics: Kinematics, joints, base: tuple | None = None, exact: bool = False) -> Taught:
-    """The pose literal (in ``base``, x y z roll pitch yaw in the world; None: the world)
-    with its full configuration that reaches ``joints`` (the six main axes, deg) with
-    ``kinematics``' tool. Rounded to 0.001 mm and deg (``exact``: every digit), finer
-    where it must be to resolve to the same configuration and turns. Raises
-    :class:`PoseError` for joints outside the limits or at a singularity."""
-    joints = tuple(float(v) for v in joints)
-    if len(joints) != 6 or not all(math.isfinite(v) for v in joints):
-        raise PoseError(f"expected six finite joint values (the main axes), got {len(joints)}")
-    problem = limits_problem(kinematics, joints)
-    if problem is not None:
-        raise PoseError(problem)
-    cid = kinematics.configuration(joints)
-    config = config_of(cid, joints)
-    world = kinematics.forward_pose(joints)
-    in_base = world if base is None else compose(inverse(pose_of(base)), world)
-    full = Pose(in_base.position, in_base.orientation, config)
-    why = ""
-    for digits in (None,) if exact else DIGITS + (None,):
-        pose = _rounded(full, digits)
-        target = pose if base is None else compose(pose_of(base), pose)
-        try:
-            resolved = tuple(kinematics.inverse_config(target, config, near=kinematics.home))
-        except KinematicsError as exc:
-            why = str(exc)
-            continue
-        if config_of(kinematics.configuration(resolved), resolved) == config:
-            return Taught(str(pose), pose, joints, cid, config, resolved)
-        why = f"it resolves to {format_config(config_of(kinematics.configuration(resolved), resolved))}"
-    hint = ("they are at (or too near) a singularity" if why.startswith("singular") else
-            "a value of A1, A4 or A6 a hair below the end of its turn is the other end of it, the same pose")
-    raise PoseError(f"no pose target reaches these joints in {format_config(config)} ({why}): {hint}; teach them "
-                    "as joint(...) or move them away from it")
+from runtime.motion.kinematics import Kinematics, configuration_name
+from runtime.motion.teach import PoseError, named_frame, pose_literal
 
 
 # ---- the command ------------------------------------------------------------------------------
 
 def frame_values(spec, kind: str, name: str | None, default: str) -> tuple[str, tuple | None]:
     """(its name, its values) of the specification's ``[[kind]]`` named ``name`` (the
-    default: None, or the specification's tool)."""
-    if name is None or name.lower() == default:
-        return default, (tuple(spec.tool) if kind == "tool" else None)
-    names = [n for t, n, _v in spec.named_frames if t == kind]
-    for type_, found, values in spec.named_frames:
-        if type_ == kind and found == name.lower():
-            return found, tuple(values)
-    raise common.UsageError(f"--{'tool' if kind == 'tool' else 'base'} {name}: {spec.file} has no [[{kind}]] of that "
-                            f"name (it has: {', '.join([default, *names])})")
+    default: None, or the specification's tool); a name it does not have is a usage error."""
+    try:
+        return named_frame(spec, kind, name, default)
+    except ValueError as exc:
+        raise common.UsageError(f"--{'tool' if kind == 'tool' else 'base'} {name}: {exc}") from None
 
 
 def _server_joints(args, spec) -> tuple:

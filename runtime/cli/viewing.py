@@ -3,6 +3,7 @@ report or recording replayed, or a served robot live. It serves the page on 127.
 prints its URL, and serves until interrupted (Ctrl-C, SIGTERM: exit 0)."""
 from __future__ import annotations
 
+import contextlib
 import importlib.util
 import os
 import signal
@@ -28,7 +29,10 @@ def add_arguments(p) -> None:
                                                     f"endpoint's host with the next port, e.g. {DEFAULT_TELEMETRY})")
     p.add_argument("--keys", metavar="DIR", help="live: CURVE keys (made by 'irl keys DIR')")
     p.add_argument("--port", type=int, default=DEFAULT_PORT, metavar="P",
-                   help="the page's port on 127.0.0.1 (default %(default)s; the next free one when taken)")
+                   help="the page's port on 127.0.0.1 (default %(default)s; the next free one when taken); live, "
+                        "the pendant's page is on the next free one after it")
+    p.add_argument("--programs", metavar="DIR", help="live: the directory whose .irl files the pendant offers to "
+                                                     "start (default: none)")
     common.add_cell_scenario(p, "the program's paths")
 
 
@@ -48,10 +52,15 @@ def cmd_view(args, env: common.Environment) -> int:
             raise common.UsageError(f"cannot read {args.file}: no such file")
     elif args.cell_scenario:
         raise common.UsageError("--cell-scenario is for a program's paths, not a live view")
+    if args.programs is not None:
+        if args.endpoint is None:
+            raise common.UsageError("--programs is for the pendant of a live view (--endpoint E)")
+        if not Path(args.programs).is_dir():
+            raise common.UsageError(f"--programs {args.programs}: no such directory")
     if importlib.util.find_spec("viser") is None or importlib.util.find_spec("yourdfpy") is None:
         raise common.UsageError("irl view needs viser and yourdfpy: pip install -e '.[view]'")
     if args.endpoint is not None:
-        view, stage = _live(args, env)
+        view, stage = _live(args, env)  # (its URLs said: the 3D view's and the pendant's)
     elif kind == "program":
         view, stage = _program(args, env)
         if view is None:
@@ -168,6 +177,7 @@ def recorded_spec(path: Path) -> str | None:
 def _live(args, env):
     from runtime.client.client import Client, ClientError
     from runtime.view.live import LiveView
+    from runtime.view.pendant import Pendant
 
     telemetry = args.telemetry or _telemetry_of(args.endpoint)
     try:
@@ -188,8 +198,31 @@ def _live(args, env):
                                 f" hash {str(hello.get('spec_hash'))[:12]}): give the one it was started with")
     stage = _stage(spec, args, f"live: {args.endpoint}")
     view = LiveView(stage, args.endpoint, telemetry, args.keys)
+    try:
+        # (the 3D view embedded from "localhost", another site than the pendant's 127.0.0.1: the
+        # browser renders it in a process of its own, and its WebGL cannot hold up the pendant's
+        # heartbeats)
+        pendant = Pendant(args.endpoint, args.keys, spec, spec_path, hello,
+                          Path(args.programs) if args.programs else None,
+                          stage.url.replace("//127.0.0.1:", "//localhost:"), stage.server.get_port() + 1,
+                          latest=lambda: view.latest)
+    except (OSError, ClientError) as exc:
+        stage.close()
+        raise common.UsageError(f"cannot serve the pendant on 127.0.0.1: {getattr(exc, 'message', None) or exc}") \
+            from None
+    view.listeners.append(pendant.event)
+    stage.server.gui.add_markdown("The operator's **pendant** (control, mode, programs, jogging, the emergency "
+                                  "stop) is a page of its own, with this view in it: the second URL `irl view` "
+                                  "printed (it holds a key: only who started irl view has it).")
     view.start()
-    return view, stage
+    pendant.start()
+    _announce(env, stage)
+    common.say(env, f"irl view: the pendant: {pendant.url}")
+    env.stdout.flush()
+    both = contextlib.ExitStack()  # (its close(): the pendant's, then the live view's; the stage's after them)
+    both.callback(view.close)
+    both.callback(pendant.close)
+    return both, stage
 
 
 def _telemetry_of(endpoint: str) -> str:

@@ -11,6 +11,15 @@ from runtime.places import DEFAULT_ENDPOINT, DEFAULT_TELEMETRY  # noqa: F401 (DE
 from runtime.wire import protocol
 
 
+def source_text(path: Path) -> str | None:
+    """A program's source to send with it (``submit``'s ``source``, for viewers), when it is
+    readable and not too large (a quarter of the largest request)."""
+    try:
+        text = path.read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError, ValueError):
+        return None
+    return text if len(text.encode()) <= protocol.MAX_REQUEST_BYTES // 4 else None
+
 
 class ClientError(Exception):
     """An error reply (``code`` from protocol.ERRORS), ``code="unreachable"`` when the

@@ -31,6 +31,23 @@ POSES, TEXTS = 30.0, 5.0
 BATCH = 2000
 
 
+def event_entry(message: dict) -> tuple[float, str, str] | None:
+    """A telemetry event as the views log it: (the robot's time, level, text); None for
+    one they do not log (the supervisor's transitions: the phase is shown)."""
+    t = message.get("t")
+    t = float(t) if isinstance(t, (int, float)) else 0.0
+    event = message.get("event")
+    if event == "log":
+        return t, "INFO", f"line {message.get('line')}: {message.get('text', '')}"
+    if event == "program" and message.get("fault"):
+        return t, "ERROR", f"program {message.get('program')}: {message.get('fault')}"
+    if event == "program":
+        return t, "INFO", f"program {message.get('program')} {message.get('state')}"
+    if event == "shutdown":
+        return t, "WARNING", f"the server is shutting down: {message.get('reason', '')}"
+    return None
+
+
 class LiveView:
     """The robot served at ``endpoint`` (telemetry at ``telemetry``) on ``stage``."""
 
@@ -54,6 +71,8 @@ class LiveView:
         self.next_text = 0.0  # the text rewritten from then on
         self.io: tuple = ()  # the I/O the lamps show
         self.rate = 0.0  # samples shown per second, over the last second
+        self.latest: dict | None = None  # the latest sample (the pendant reads its tool centre point)
+        self.listeners: list = []  # called with each event logged, (time, level, text) (the pendant's messages)
         self._stop = threading.Event()
         self.thread = threading.Thread(target=self._run, name="view-live", daemon=True)
 
@@ -78,7 +97,11 @@ class LiveView:
         lost = False
         counted, since = 0, time.monotonic()
         while not self._stop.is_set():
-            wait = 0.1 if self.pending is None else min(0.1, max(0.0, self.next_pose - time.monotonic()))
+            # (nobody looks while no page is connected: the first sample after one comes shows
+            # everything, and the pendant alone costs no posing)
+            looking = bool(self.stage.server.get_clients())
+            wait = 0.1 if self.pending is None or not looking else \
+                min(0.1, max(0.0, self.next_pose - time.monotonic()))
             message = sub.receive(wait)
             latest = None
             taken = 0
@@ -100,9 +123,10 @@ class LiveView:
                 self.status.content = (f"**connection lost**: no telemetry from {html.escape(self.telemetry)} for "
                                        f"{SILENCE:g} s (is irl serve running?); waiting for it")
             if latest is not None:
+                self.latest = latest
                 self.missed = sub.missed
                 self.pending = latest
-            if self.pending is not None and now >= self.next_pose:
+            if self.pending is not None and now >= self.next_pose and looking:
                 self._sample(self.pending, client, now)
                 self.pending = None
                 self.next_pose = now + 1.0 / POSES
@@ -111,19 +135,13 @@ class LiveView:
                 self.rate, counted, since = counted / (now - since), 0, now
 
     def _event(self, message: dict) -> None:
-        t = float(message.get("t", 0.0))
-        event = message.get("event")
-        if event == "log":
-            self.logs.append((t, "INFO", f"line {message.get('line')}: {message.get('text', '')}"))
-        elif event == "program" and message.get("fault"):
-            self.logs.append((t, "ERROR", f"program {message.get('program')}: {message.get('fault')}"))
-        elif event == "program":
-            self.logs.append((t, "INFO", f"program {message.get('program')} {message.get('state')}"))
-        elif event == "shutdown":
-            self.logs.append((t, "WARNING", f"the server is shutting down: {message.get('reason', '')}"))
-        else:
+        entry = event_entry(message)
+        if entry is None:
             return
+        self.logs.append(entry)
         self.log_box.content = log_html(self.logs)
+        for listener in self.listeners:
+            listener(entry)
 
     def _sample(self, sample: dict, client: Client, now: float) -> None:
         position = sample.get("position")

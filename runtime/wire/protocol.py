@@ -98,6 +98,9 @@ MODES = {
 JOG_CARTESIAN = ("x", "y", "z", "rx", "ry", "rz")
 JOG_FRAMES = ("world", "base", "tool")
 MAX_JOG_STEP = 100.0
+#: s between the repetitions (heartbeats) of a held continuous jog that ``irl jog --hold``
+#: and the pendant send (the loop stops a jog 0.25 s after the last one: at least every 0.2 s).
+JOG_HEARTBEAT = 0.1
 #: A jog that reaches a jog session as it ends is refused with this text: the client sends it
 #: again (the next heartbeat does), and a new session starts.
 JOG_SESSION_ENDING = "the jog session is ending (its brakes are closing): send the jog again"

@@ -201,6 +201,7 @@ class ServerProcess:
                     return self
                 except ClientError:
                     if time.monotonic() > deadline:
+                        self.stop()  # (not left running: a test that fails here may never stop it)
                         pytest.fail(f"irl serve did not answer hello within 10 s:\n{self.log()}")
         finally:
             probe.close()

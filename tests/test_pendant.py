@@ -227,3 +227,30 @@ def test_usage_errors(args, said):
     done = run_irl("view", *args)
     no_traceback(done)
     assert done.returncode == 2 and said in done.stderr
+
+
+def test_the_events_a_view_missed_are_replayed_from_the_servers_history(cell):
+    """A view that fell behind (its sockets dropped telemetry: a gap in ``seq``) still shows
+    every print and every program event: LiveView asks the server for the gap's messages."""
+    from types import SimpleNamespace
+
+    from runtime.view.live import LiveView
+    _server, pendant, client = cell
+    page = Page(pendant)
+    before = client.request("telemetry")["seq"]
+    assert page.act("take", name="replay")["ok"]
+    job = page.act("start", program="short.irl")["program"]
+    assert client.request("wait", {"program": job, "timeout": 60})["state"] == "completed"
+    page.act("release")
+    after = client.request("telemetry")["seq"] + 1
+    logged: list = []
+    LiveView._recover(SimpleNamespace(_event=logged.append), client, before, after)
+    mine = [(m["event"], m.get("text") or m.get("state")) for m in logged if m.get("program") == job]
+    assert mine[0] == ("program", "running") and mine[-1] == ("program", "completed"), mine
+    assert ("log", "hello from the pendant") in mine, mine
+    assert all(m["kind"] == "event" and before < m["seq"] < after for m in logged)
+    assert [m["seq"] for m in logged] == sorted(m["seq"] for m in logged)
+    # and nothing from outside the gap
+    logged.clear()
+    LiveView._recover(SimpleNamespace(_event=logged.append), client, after - 2, after)
+    assert all(m["seq"] == after - 1 for m in logged)

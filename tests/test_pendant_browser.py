@@ -60,12 +60,14 @@ class Cell:
         self.server = ServerProcess(base / "server", base / "state", sim_clock=False, spec=quick_homing_spec(base),
                                     extra=("--mode", "t1")).start()
         self.client = self.server.client()
+        self.pages: list = []  # the test's pages (closed after it)
         self.view = View("--endpoint", self.server.endpoint, "--telemetry", self.server.telemetry,
                          "--programs", programs)
 
     def open(self):
         """The pendant's page (without the 3D view: the tests do not look at it)."""
         page = self.browser.new_page(viewport={"width": 1280, "height": 900})
+        self.pages.append(page)
         page.goto(self.view.pendant + "?view=off")
         page.wait_for_selector("#control-pill:not(:text-is('control: ?'))", timeout=LOAD * 1000)
         return page
@@ -83,6 +85,18 @@ class Cell:
                 pytest.fail(f"not {what} after {timeout} s: {status}\n{self.server.log()}")
             time.sleep(0.05)
 
+    def tidy(self) -> None:
+        """After a test, passed or failed: its pages closed (a closed page gives control back
+        and releases its jog), and the next test starts with control free and nothing running."""
+        for page in self.pages:
+            if not page.is_closed():
+                page.close(run_before_unload=True)
+        self.pages.clear()
+        status = self.wait(lambda s: s["control"] is None or s["running"] is None, "control free or idle")
+        if status["running"] is not None:
+            self.client.request("estop")
+        self.wait(lambda s: s["control"] is None and s["running"] is None, "control free and idle")
+
     def close(self) -> None:
         code = self.view.stop()
         self.server.stop()
@@ -90,10 +104,16 @@ class Cell:
 
 
 @pytest.fixture(scope="module")
-def cell(tmp_path_factory, browser):
+def pendant_cell(tmp_path_factory, browser):
     cell = Cell(tmp_path_factory.mktemp("pendant"), browser)
     yield cell
     cell.close()
+
+
+@pytest.fixture
+def cell(pendant_cell):
+    yield pendant_cell
+    pendant_cell.tidy()
 
 
 def _take(page, name: str = "operator") -> None:
@@ -123,6 +143,35 @@ def _still_after(samples: list, t: float) -> float:
     end = samples[-1][1]
     moving = [at for at, q in samples if at >= t and max(abs(a - b) for a, b in zip(q, end)) > STILL]
     return (moving[-1] - t) if moving else 0.0
+
+
+def _stalls(cell, page) -> int:
+    """How many jogs so far the deadman stopped: the pendant for a page's heartbeats that
+    stopped coming (its note), or the server for the pendant's (the session's reason). A
+    loaded host that stalls Chromium or irl view for over 0.25 s does that, as it must."""
+    notes = sum("no heartbeat" in n["text"] for n in page.evaluate("window.__pendant.notes"))
+    reason = (cell.status()["jog"] or {}).get("reason") or ""
+    return notes + ("no heartbeat" in reason)
+
+
+def _press_until(cell, page, selector: str, predicate, what: str, tries: int = 4) -> dict:
+    """Press the button and hold it until ``predicate(status)``; pressed again (a new
+    press: a jog never starts again by itself) when the deadman stopped it on a stalled
+    host, at most ``tries`` times. The button is left held."""
+    for _ in range(tries):
+        stalls = _stalls(cell, page)
+        page.mouse.move(*_centre(page, selector))
+        page.mouse.down()
+        deadline = time.monotonic() + LOAD
+        while _stalls(cell, page) == stalls:
+            status = cell.status()
+            if predicate(status):
+                return status
+            if time.monotonic() > deadline:
+                pytest.fail(f"not {what} after {LOAD} s: {status}\n{cell.server.log()}")
+            time.sleep(0.05)
+        page.mouse.up()
+    pytest.fail(f"not {what}: the deadman stopped each of {tries} presses (lost heartbeats)\n{cell.server.log()}")
 
 
 def _hold(cell, page, selector: str, seconds: float, then=None) -> tuple[list, float]:
@@ -161,14 +210,12 @@ def test_homing_moves_only_while_a_jog_button_is_held(cell):
     assert page.evaluate("window.__pendant.cfg.view") == cell.view.url.replace("127.0.0.1", "localhost")
     _take(page)
     page.wait_for_selector("#jog-note:text('not homed')", timeout=LOAD * 1000)
-    page.mouse.move(*_centre(page, A1_PLUS))
-    page.mouse.down()
-    cell.wait(lambda s: (s["running"] or {}).get("kind") == "jog", "homing")
+    _press_until(cell, page, A1_PLUS, lambda s: (s["running"] or {}).get("kind") == "jog", "homing")
     time.sleep(0.5)
     page.mouse.up()
     ended = cell.wait(lambda s: s["running"] is None, "the session ended", timeout=10.0)
     assert not ended["initialized"]
-    session = ended["programs"][0]
+    session = ended["programs"][-1]
     assert session["kind"] == "jog" and session["state"] == "aborted", session
     page.wait_for_selector("#messages >> text=homing moves only while a jog button is held", timeout=LOAD * 1000)
     _give_back(page)
@@ -180,15 +227,17 @@ def test_holding_a_jog_button_moves_the_robot_and_releasing_it_stops_it(cell, tm
     _take(page)
     pad = page.locator("#pad-axes").bounding_box()
     if not cell.status()["initialized"]:  # (held through homing: the jog goes on when it has ended)
-        page.mouse.move(*_centre(page, A1_MINUS))
-        page.mouse.down()
-        cell.wait(lambda s: (s["jog"] or {}).get("active"), "homed and jogging")
+        _press_until(cell, page, A1_MINUS, lambda s: (s["jog"] or {}).get("active"), "homed and jogging")
         page.mouse.up()
     page.wait_for_selector("#jog-note:text('hold a button to move')", timeout=LOAD * 1000)
     # (nothing above the pad changes its size with the robot's state: a button that moved from
     # under the held pointer would be released)
     assert page.locator("#pad-axes").bounding_box() == pad
-    samples, released = _hold(cell, page, A1_PLUS, 1.0)
+    for _ in range(4):  # (a hold the deadman cut short on a stalled host is held again)
+        stalls = _stalls(cell, page)
+        samples, released = _hold(cell, page, A1_PLUS, 1.0)
+        if _stalls(cell, page) == stalls:
+            break
     held = [q for at, q in samples if at < released]
     assert held[-1][0] - held[0][0] > 1.0, "A1 did not move while its button was held"
     assert all(abs(a - b) < STILL for a, b in zip(held[-1][1:], held[0][1:])), "another axis moved"
@@ -205,15 +254,19 @@ def test_holding_a_jog_button_moves_the_robot_and_releasing_it_stops_it(cell, tm
     for end, why in ((lambda p: p.mouse.move(*leave), "pointerleave"),
                      (lambda p: p.evaluate("window.dispatchEvent(new Event('blur'))"), "the page lost the focus"),
                      (lambda p: p.evaluate("clearInterval(window.__pendant.hold.timer)"), None)):
-        page.mouse.move(*_centre(page, A1_MINUS))
-        releases = page.evaluate("window.__pendant.releases.length")
-        page.mouse.down()
-        cell.wait(lambda s: (s["jog"] or {}).get("active") == "A1-", "jogging")
-        time.sleep(0.2)
-        ended = time.monotonic()
-        end(page)
-        stopped = cell.wait(lambda s: not (s["jog"] or {}).get("active"), "stopped", timeout=5.0)
-        assert time.monotonic() - ended < AT_REST_WITHIN + 0.5, stopped
+        for _ in range(4):  # (a jog the deadman stopped on a stalled host before its end: again)
+            _press_until(cell, page, A1_MINUS, lambda s: (s["jog"] or {}).get("active") == "A1-", "jogging")
+            stalls = _stalls(cell, page)
+            releases = page.evaluate("window.__pendant.releases.length")
+            time.sleep(0.2)
+            ended = time.monotonic()
+            end(page)
+            stopped = cell.wait(lambda s: not (s["jog"] or {}).get("active"), "stopped", timeout=5.0)
+            took = time.monotonic() - ended
+            if why is None or _stalls(cell, page) == stalls:
+                break
+            page.mouse.up()
+        assert took < AT_REST_WITHIN + 0.5, stopped
         if why is None:  # (the pendant's watch released it, or the server's heartbeat timeout stopped it)
             assert re.search("released|no heartbeat", stopped["jog"]["reason"]), stopped
         else:

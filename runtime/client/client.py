@@ -100,7 +100,8 @@ class Client:
 class Subscriber:
     """Telemetry: ``receive(timeout)`` returns the next message (a dict) or None. ``topic``:
     the full telemetry (default) or a feed's; ``missed`` counts the gaps in ``seq`` (in a
-    feed's ``feed_seq``)."""
+    feed's ``feed_seq``), and ``gap`` is the last message's (the ``telemetry`` request
+    replays what it missed, from the server's history)."""
 
     def __init__(self, endpoint: str = DEFAULT_TELEMETRY, keys: str | Path | None = None,
                  topic: bytes = protocol.TELEMETRY_TOPIC):
@@ -119,6 +120,7 @@ class Subscriber:
             raise ClientError("unreachable", f"cannot connect to {endpoint}: {exc}") from None
         self.last_seq: int | None = None
         self.missed = 0
+        self.gap: tuple[int, int] | None = None  # the last message's gap: (the seq before it, its seq), or None
 
     def receive(self, timeout: float) -> dict | None:
         if not self.sock.poll(int(timeout * 1000), zmq.POLLIN):
@@ -130,8 +132,10 @@ class Subscriber:
         if message is None or not isinstance(message.get(self.counter), int):
             return None
         seq = message[self.counter]
+        self.gap = None
         if self.last_seq is not None and seq > self.last_seq + 1:
             self.missed += seq - self.last_seq - 1
+            self.gap = (self.last_seq, seq)
         self.last_seq = seq
         return message
 

@@ -62,7 +62,8 @@ class LiveView:
         self.logs: list[tuple[float, str, str]] = []
         self.program: int | None = None
         self.lines: list[str] = []
-        self.name = ""  # the running program's name (as submitted)
+        self.name: str | None = ""  # the running program's name (as submitted; None: not known yet)
+        self.source_retry = 0.0  # when a source the server did not give in time is asked for again
         self.line = 0
         self.samples = 0  # samples shown
         self.missed = 0  # telemetry messages the subscriber missed (sequence gaps)
@@ -107,8 +108,12 @@ class LiveView:
             taken = 0
             while message is not None and taken < BATCH:
                 taken += 1
+                if sub.gap is not None and sub.counter == "seq":
+                    self._recover(client, *sub.gap)  # (the events it missed first: a print is never lost)
                 if message.get("kind") == "sample":
                     latest = message
+                    if looking and (message.get("line") or 0) != self.line:
+                        self._mark(message, client)  # every line the program passes, not only the posed ones'
                 elif message.get("kind") == "event":
                     self._event(message)
                 message = sub.receive(0.0)
@@ -134,6 +139,28 @@ class LiveView:
             if now - since >= 1.0:
                 self.rate, counted, since = counted / (now - since), 0, now
 
+    def _recover(self, client: Client, after: int, before: int) -> None:
+        """The events between telemetry ``seq`` ``after`` and ``before`` (a gap: the view
+        fell behind and the sockets dropped them), from the server's history."""
+        since = after
+        while since < before - 1:
+            try:
+                replay = client.request("telemetry", {"since": since})
+            except ClientError:
+                return  # (counted as missed all the same)
+            messages = replay.get("messages") if isinstance(replay, dict) else None
+            if not messages:
+                return
+            for message in messages:
+                seq = message.get("seq")
+                if not isinstance(seq, int) or seq >= before:
+                    return
+                since = seq
+                if message.get("kind") == "event":
+                    self._event(message)
+            if not replay.get("more"):
+                return
+
     def _event(self, message: dict) -> None:
         entry = event_entry(message)
         if entry is None:
@@ -148,16 +175,7 @@ class LiveView:
         if isinstance(position, list) and len(position) >= 6:
             self.stage.show(position, self._frames(sample), tcp=sample.get("tcp"))
         self.samples += 1
-        program = sample.get("program")
-        if program != self.program:
-            self.program = program
-            self.name, self.lines = self._source(client, program)
-            self.line = -1
-        line = sample.get("line") or 0
-        if line != self.line:
-            self.line = line
-            title = f"program {program}: {self.name}" if program is not None else "no program running"
-            self.source_box.content = source_html(self.lines, line or None, title)
+        line = self._mark(sample, client)
         inputs, outputs = sample.get("inputs"), sample.get("outputs")
         if isinstance(inputs, list) and isinstance(outputs, list) and (inputs, outputs) != self.io:
             self.io = (inputs, outputs)
@@ -173,6 +191,23 @@ class LiveView:
                             f" · tool {html.escape(str(sample.get('tool', '')))}"
                             + (f" · line {line}" if line else ""))
 
+    def _mark(self, sample: dict, client: Client) -> int:
+        """The sample's program's source with its line marked, when either changed (a
+        source the server did not give is asked for again, at most once a second); the line."""
+        program = sample.get("program")
+        now = time.monotonic()
+        if program != self.program or (program is not None and self.name is None and now >= self.source_retry):
+            self.program = program
+            self.name, self.lines = self._source(client, program)
+            self.source_retry = now + 1.0
+            self.line = -1
+        line = sample.get("line") or 0
+        if line != self.line:
+            self.line = line
+            title = f"program {program}: {self.name or ''}" if program is not None else "no program running"
+            self.source_box.content = source_html(self.lines, line or None, title)
+        return line
+
     def _frames(self, sample: dict) -> Frames | None:
         """The active base (its name; its pose from the TCP in the world and in the base)."""
         tcp, in_base = sample.get("tcp"), sample.get("tcp_base")
@@ -182,13 +217,14 @@ class LiveView:
         return Frames(str(sample.get("base", "")), base, str(sample.get("tool", "")), tuple(self.stage.spec.tool))
 
     def _source(self, client: Client, program) -> tuple[str, list[str]]:
-        """The program's name and the lines of its source (none: it came without)."""
+        """The program's name and the lines of its source (none: it came without); the
+        name None when the server did not answer in time (asked again later)."""
         if program is None:
             return "", []
         try:
             reply = client.request("source", {"program": program})
-        except ClientError:
-            return "", []
+        except ClientError as exc:
+            return (None if exc.code == "unreachable" else ""), []
         if not isinstance(reply, dict):
             return "", []
         text = reply.get("source")

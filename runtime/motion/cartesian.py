@@ -42,6 +42,7 @@ from runtime.motion.pathcheck import CheckedPath, PathError, check_path, joint_l
 from runtime.motion.paths import CircPath, LinPath, CartesianMove, positive
 from runtime.motion.pathtiming import (ConstantSpeed, PathProfile, nominal_profile, path_derivatives, path_profile,
                          predicted_ratios, uniform_scale, warped_profile)
+from runtime.motion.reachability import reachable_profile
 
 __all__ = ["DERIVATIVE_STEP", "JOINT_LIMIT_SHARE", "MIN_DERIVATIVE_STEP", "CartesianInput", "JointStream",
            "PathStop", "joint_limit_scale", "plan_cartesian"]
@@ -484,6 +485,9 @@ def timed_path(move: CartesianMove, kinematics: Kinematics, start_joints: Sequen
                                     derivatives)
             if segments is not None:
                 beat = min(beat, segments.duration)
+            reachable = reachable_profile(s, derivatives, limits, move.speed, move.acc, move.jerk, JOINT_LIMIT_SHARE)
+            if reachable is not None and reachable.duration < beat:
+                beat, segments = reachable.duration, reachable
             warped = (warped_profile(s, derivatives, limits, move.speed, move.acc, move.jerk, JOINT_LIMIT_SHARE, beat)
                       if fastest < LOCAL_GAIN * beat else None)  # (unless the segments are about as short as can be)
             profile = warped or segments

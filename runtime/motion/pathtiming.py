@@ -389,7 +389,7 @@ class PathProfile:
         out._bounds = self._bounds
         out._acc = [a * k * k for a in self._acc]
         out._jerk = [j * k * k * k for j in self._jerk]
-        out._envelope = _scaled_envelope(self._envelope, k)
+        out._envelope = scaled_envelope(self._envelope, k)
         return out
 
     def __repr__(self) -> str:
@@ -457,7 +457,7 @@ def joint_ratios(at: np.ndarray, v: np.ndarray, a: np.ndarray, j: np.ndarray, s:
     return ratios
 
 
-def _room(ratios: np.ndarray, share: float) -> np.ndarray:
+def time_room(ratios: np.ndarray, share: float) -> np.ndarray:
     """Per instant, the time scale that brings velocity, acceleration and jerk
     ``ratios`` (a (3, n) array) to ``share``: above 1 where there is room."""
     with np.errstate(divide="ignore"):
@@ -481,7 +481,7 @@ def uniform_scale(s: np.ndarray, derivatives, limits, speed: float, acc: float, 
     length = float(s[-1])
     nominal = nominal_profile(length, speed, acc, jerk)
     _at, ratios = predicted_ratios(nominal, s, derivatives, limits)
-    room = np.minimum(_room(ratios, share), 1.0)
+    room = np.minimum(time_room(ratios, share), 1.0)
     step = nominal.duration / max(len(room) - 1, 1)
     return float(np.min(room)), float(np.sum(step / np.maximum(0.5 * (room[1:] + room[:-1]), 1e-300)))
 
@@ -543,7 +543,7 @@ def path_profile(s: np.ndarray, joints: np.ndarray, limits: Sequence[Sequence[fl
             break
         factors = np.full(len(bounds), 2.0)
         np.minimum.at(factors, np.clip(np.searchsorted(bounds, at, side="right") - 1, 0, len(bounds) - 1),
-                      _room(ratios, share))
+                      time_room(ratios, share))
         factors = np.clip(factors, 0.5, 2.0)
         if np.all(np.abs(factors - 1.0) < SETTLED):
             break
@@ -551,7 +551,7 @@ def path_profile(s: np.ndarray, joints: np.ndarray, limits: Sequence[Sequence[fl
         accs = [min(acc, x * f * f) for x, f in zip(accs, factors)]
         jerks = [min(jerk, x * f * f * f) for x, f in zip(jerks, factors)]
         profile = _build(length, bounds, tops, accs, jerks)
-    best._envelope = _envelope(s, derivatives, limits, share, acc, jerk)
+    best._envelope = stop_envelope(s, derivatives, limits, share, acc, jerk)
     return best
 
 
@@ -665,7 +665,7 @@ class WarpedProfile(PathProfile):
         out.length = self.length
         out._t, out._s, out._v, out._a, out._j = self._t / k, self._s, self._v * k, self._a * k * k, None
         out._knots = tuple(x.tolist() for x in (out._t, out._s, out._v, out._a))
-        out._envelope = _scaled_envelope(self._envelope, k)
+        out._envelope = scaled_envelope(self._envelope, k)
         out.duration, out.peak_velocity, out.t_acc = self.duration / k, self.peak_velocity * k, self.t_acc / k
         out._bounds = self._bounds
         out._acc = [x * k * k for x in self._acc]
@@ -676,7 +676,7 @@ class WarpedProfile(PathProfile):
         return f"WarpedProfile(length={self.length!r}, duration={self.duration!r}, knots={len(self._t)})"
 
 
-def _envelope(s: np.ndarray, derivatives, limits, share: float, acc: float, jerk: float) -> tuple:
+def stop_envelope(s: np.ndarray, derivatives, limits, share: float, acc: float, jerk: float) -> tuple:
     """What :meth:`PathProfile.stop_limits` needs: the samples' path lengths, the joints'
     (signed) derivatives along the path, the joints' shares of their acceleration and jerk
     limits, and the programmed acceleration and jerk."""
@@ -684,7 +684,7 @@ def _envelope(s: np.ndarray, derivatives, limits, share: float, acc: float, jerk
         share * np.asarray(limit, dtype=float) for limit in limits[1:]) + (acc, jerk)
 
 
-def _scaled_envelope(envelope, k: float):
+def scaled_envelope(envelope, k: float):
     """``envelope`` for the profile run k times slower (the programmed limits scale)."""
     if envelope is None:
         return None
@@ -786,12 +786,12 @@ def warped_profile(s: np.ndarray, derivatives, limits, speed: float, acc: float,
     dtau = np.diff(tau)
     s_n, v_n, a_n, j_n = nominal.states(tau)
     s_n[-1], v_n[-1], a_n[-1], j_n[-1] = length, 0.0, 0.0, 0.0
-    room = _room(joint_ratios(s_n, v_n, a_n, j_n, s, derivatives, limits), share)
+    room = time_room(joint_ratios(s_n, v_n, a_n, j_n, s, derivatives, limits), share)
     ceiling = np.minimum(room, 1.0) ** 2  # of w = kappa^2
     if np.all(ceiling >= 1.0):
         return None
     width = max(1, round(WARP_SMOOTHING / WARP_KNOTS))
-    envelope = _envelope(s, derivatives, limits, share, acc, jerk)
+    envelope = stop_envelope(s, derivatives, limits, share, acc, jerk)
     for _ in range(WARP_ROUNDS):
         # |path acceleration| = |w a_n + v_n w' / 2| <= acc, with w <= ceiling: the slope
         # of w per interval
@@ -819,13 +819,13 @@ def warped_profile(s: np.ndarray, derivatives, limits, speed: float, acc: float,
             return None
         # judged where it runs: at the knots, and when they pass, halfway between them too
         knots = _warp_ratios(profile, t, s, derivatives, limits, share, speed, acc, jerk)
-        over = np.minimum(_room(knots, share), 1.0)
+        over = np.minimum(time_room(knots, share), 1.0)
         if float(np.max(knots)) <= share * (1.0 + 1e-6):  # (the quintics' rounding at a limit)
             middle = _warp_ratios(profile, 0.5 * (t[:-1] + t[1:]), s, derivatives, limits, share, speed, acc,
                                   jerk)
             if float(np.max(middle)) <= share * (1.0 + 1e-6):
                 return profile
-            room = np.minimum(_room(middle, share), 1.0)
+            room = np.minimum(time_room(middle, share), 1.0)
             over[:-1] = np.minimum(over[:-1], room)
             over[1:] = np.minimum(over[1:], room)
         over = _eroded(over, 2 * width)  # (and around: the smoothing's reach)

@@ -1,0 +1,323 @@
+"""Near time-optimal timing of a Cartesian path within every joint's velocity, acceleration
+and jerk limit (issue 32): TOPP-RA's reachability analysis, made jerk-limited by a moving
+average.
+
+**1. Reachability (TOPP-RA).** Along the path's grid ``s_0 .. s_N`` (the check's samples,
+uniform), the state is ``x = v^2`` (v the path speed) and the control ``u`` the path
+acceleration, constant over each interval: ``x_{i+1} = x_i + 2 h u_i``. At each grid point
+the joints' chain rule (``dq/dt = q' v``, ``d2q/dt2 = q'' x + q' u``) and the programmed
+limits bound ``(x, u)`` by linear inequalities:
+
+* ``x <= speed^2`` and ``x |q'_j| <= V_j^2 / |q'_j|``: a ceiling on ``x``;
+* ``-A_j <= q''_j x + q'_j u <= A_j`` and ``-acc <= u <= acc``: for a given ``x``, ``u`` lies
+  in ``[lo(x), hi(x)]``, the largest of lines ``alpha + beta x`` below and the smallest
+  above (``beta = -q''_j / q'_j``, ``alpha = -+A_j / |q'_j|``); where they cross, the
+  acceleration ceiling of ``x``.
+
+A backward pass gives the largest ``x`` at each point from which the path can still come
+to rest at its end (TOPP-RA's controllable sets: the largest ``x_i`` with ``x_i + 2 h lo(x_i)``
+within the next point's, solved in closed form, one line per constraint); a forward pass
+then takes the largest ``u`` that stays within them. This is TOPP-RA (Pham and Pham,
+2018) with its two-variable linear programs solved exactly; its duration is the time
+optimum of the discretised problem.
+
+**2. Jerk.** TOPP-RA's acceleration jumps. Its time law ``s(t)`` averaged over a moving
+window of ``T`` seconds, ``s_T(t) = (1/T) int_{t-T}^{t} s``, has speed ``(s(t) - s(t-T))/T``,
+acceleration ``(v(t) - v(t-T))/T`` and jerk ``(a(t) - a(t-T))/T``: the jerk is bounded by
+the largest change of acceleration over ``T`` divided by ``T``, the speed and
+acceleration by the largest of the window's; the move takes ``T`` longer. (A trapezoidal
+profile averaged over ``acc / jerk`` is exactly the time-optimal double-S profile.) ``T``
+is the smallest that keeps the path's jerk within the programmed one.
+
+**3. Corrections.** The average is not exactly within the joints' limits (it runs a
+window's average speed through a narrow slow stretch, and the joints' jerks are not the
+path's). The joints' ratios are predicted every 1 ms (:func:`joint_ratios`); where a joint
+passes its share, the grid's limits there are lowered by the time scale that would bring
+it back (velocity x k, acceleration x k^2, jerk x k^3), widened by the window, and the
+two steps run again (CORRECTIONS times at most).
+
+Runs once per move when it is planned (NumPy over the grid; the two passes a loop over
+six lines per point), never in a tick; :meth:`AveragedProfile.sample` is real-time safe
+(two bisections and plain floats).
+"""
+from __future__ import annotations
+
+from bisect import bisect_right
+from typing import Sequence
+
+import numpy as np
+
+from runtime.timing import TICK
+from runtime.motion.pathtiming import PathProfile, joint_ratios, scaled_envelope, stop_envelope, time_room
+
+__all__ = ["AveragedProfile", "CORRECTIONS", "reachable_profile", "topp_ra"]
+
+#: Rounds of lowering the grid's limits where the averaged profile's joints pass their share.
+CORRECTIONS = 6
+#: Each round lowers a point's limits by the needed time scale times this (a little more,
+#: so that few rounds settle).
+OVERSHOOT = 0.98
+#: The share of a joint's (share of its) jerk limit the path's jerk may use through q'
+#: (the rest: the joint's jerk from the path's speed and acceleration, q''' v^3 + 3 q'' v a).
+JERK_SHARE = 0.7
+#: A joint's first derivative along the path below this (deg/mm) bounds no acceleration
+#: through ``u`` (its acceleration is q'' x alone: a ceiling on x).
+_FLAT = 1e-12
+
+
+def _lines(g1: np.ndarray, g2: np.ndarray, amax: np.ndarray, acc: float) -> tuple[np.ndarray, ...]:
+    """Per grid point, the lines ``alpha + beta x`` that bound ``u`` from below (``lo``) and
+    above (``hi``) for each joint and the path, and the ceiling on ``x`` of the joints
+    whose ``q'`` is flat: (alpha_lo, alpha_hi, beta, flat_cap) with (n, 7) arrays (the
+    seventh: the path's ``acc``, beta 0)."""
+    n = len(g1)
+    steep = np.abs(g1) > _FLAT
+    safe = np.where(steep, g1, 1.0)
+    beta = np.where(steep, -g2 / safe, 0.0)
+    reach = np.where(steep, amax / np.abs(safe), np.inf)
+    alpha_lo = np.concatenate([-reach, np.full((n, 1), -acc)], axis=1)
+    alpha_hi = np.concatenate([reach, np.full((n, 1), acc)], axis=1)
+    beta = np.concatenate([beta, np.zeros((n, 1))], axis=1)
+    with np.errstate(divide="ignore"):
+        flat = np.where(steep, np.inf, amax / np.maximum(np.abs(g2), 1e-300))
+    return alpha_lo, alpha_hi, beta, np.min(flat, axis=1)
+
+
+def _acceleration_ceiling(alpha_lo: np.ndarray, alpha_hi: np.ndarray, beta: np.ndarray) -> np.ndarray:
+    """Per grid point, the largest x at which some u lies within every line: every lower
+    line below every upper line (``alpha_lo_k + beta_k x <= alpha_hi_m + beta_m x``)."""
+    a = alpha_hi[:, None, :] - alpha_lo[:, :, None]  # (n, lower k, upper m): >= 0 at x = 0
+    b = beta[:, :, None] - beta[:, None, :]  # (beta_k - beta_m) x <= a
+    with np.errstate(divide="ignore", invalid="ignore"):
+        cap = np.where(b > 0.0, a / np.where(b > 0.0, b, 1.0), np.inf)
+    return np.min(cap, axis=(1, 2))
+
+
+def topp_ra(s: np.ndarray, g1: np.ndarray, g2: np.ndarray, vmax, amax, speed: float, acc: float,
+            scale: np.ndarray | None = None) -> np.ndarray:
+    """The time-optimal ``x = v^2`` at the uniform grid ``s`` (from rest to rest) within
+    the joints' ``vmax`` and ``amax`` (joint derivatives ``g1``, ``g2`` along the path,
+    signed (n, 6) arrays) and the path's ``speed`` and ``acc``; ``scale`` (per point, <= 1)
+    lowers the limits there as a time scale would (velocities x k, accelerations x k^2)."""
+    n = len(s)
+    h = float(s[1] - s[0])
+    vmax = np.asarray(vmax, dtype=float)[None, :]
+    amax = np.asarray(amax, dtype=float)[None, :]
+    k = np.ones(n) if scale is None else np.asarray(scale, dtype=float)
+    k2 = (k * k)[:, None]
+    alpha_lo, alpha_hi, beta, flat = _lines(g1, g2, amax * k2, acc)
+    alpha_lo[:, 6] *= k2[:, 0]
+    alpha_hi[:, 6] *= k2[:, 0]
+    with np.errstate(divide="ignore", over="ignore"):
+        velocity = np.min((vmax * k[:, None] / np.maximum(np.abs(g1), 1e-150)) ** 2, axis=1)
+    ceiling = np.minimum.reduce([velocity, (speed * k) ** 2, flat, _acceleration_ceiling(alpha_lo, alpha_hi, beta)])
+    ceiling = np.maximum(ceiling, 0.0)
+    # backward: the largest x_i from which x_{i+1} <= top_{i+1} is reachable:
+    # x + 2h (alpha_k + beta_k x) <= top for every lower line k
+    gain = 1.0 + 2.0 * h * beta  # (n, 7)
+    shift = 2.0 * h * alpha_lo
+    rising = gain > 0.0
+    inv = np.where(rising, 1.0 / np.where(rising, gain, 1.0), 0.0).tolist()
+    shift_l = shift.tolist()
+    ceiling_l = ceiling.tolist()
+    top = [0.0] * n
+    last = 0.0
+    for i in range(n - 2, -1, -1):
+        best = ceiling_l[i]
+        for g, c in zip(inv[i], shift_l[i]):
+            if g > 0.0:
+                bound = (last - c) * g
+                if bound < best:
+                    best = bound
+        last = top[i] = best if best > 0.0 else 0.0
+    # forward: the largest u that stays within the tops
+    ahi = (2.0 * h * alpha_hi).tolist()
+    bhi = (1.0 + 2.0 * h * beta).tolist()
+    x = [0.0] * n
+    current = 0.0
+    for i in range(n - 1):
+        nxt = top[i + 1]
+        for a, b in zip(ahi[i], bhi[i]):
+            reach = a + b * current
+            if reach < nxt:
+                nxt = reach
+        current = x[i + 1] = nxt if nxt > 0.0 else 0.0
+    x[-1] = 0.0
+    return np.asarray(x)
+
+
+class AveragedProfile(PathProfile):
+    """TOPP-RA's piecewise-constant-acceleration time law ``s(t)`` (from the grid's ``x``)
+    averaged over a moving window of ``window`` seconds: the same interface as
+    :class:`PathProfile` (``sample``, ``states``, ``times_at``, ``stop_limits`` from
+    ``envelope``, ``scaled``); ``duration`` is TOPP-RA's plus the window."""
+
+    __slots__ = ("window", "_pieces", "_big", "_end")
+
+    def __init__(self, length: float, t, s, v, a, window: float, acc: float, jerk: float, envelope: tuple | None):
+        self.length = length
+        self.window = window
+        t, s, v, a = (np.asarray(x, dtype=float) for x in (t, s, v, a))
+        d = np.diff(t)
+        big = np.concatenate([[0.0], np.cumsum(d * (s[:-1] + d * (0.5 * v[:-1] + d * a[:-1] / 6.0)))])
+        self._t, self._s, self._v, self._a, self._big = t, s, v, a, big
+        self._pieces = (t.tolist(), s.tolist(), v.tolist(), a.tolist(), big.tolist())
+        self._end = float(t[-1])
+        self._j = None
+        self.duration = self._end + window
+        self.peak_velocity = float(np.max(v)) if len(v) else 0.0
+        self.t_acc = self._t_acc()
+        self._bounds, self._acc, self._jerk = [0.0], [acc], [jerk]
+        self._envelope = envelope
+
+    def _raw(self, t: float) -> tuple[float, float, float, float]:
+        """The unaveraged law at ``t``: (its integral, s, v, a); at rest outside it."""
+        ts, ss, vs, as_, bs = self._pieces
+        if t <= 0.0:
+            return 0.0, 0.0, 0.0, 0.0
+        if t >= self._end:
+            return bs[-1] + self.length * (t - self._end), self.length, 0.0, 0.0
+        i = min(bisect_right(ts, t) - 1, len(ts) - 2)
+        u = t - ts[i]
+        s0, v0, a0 = ss[i], vs[i], as_[i]
+        return (bs[i] + u * (s0 + u * (0.5 * v0 + u * a0 / 6.0)), s0 + u * (v0 + 0.5 * u * a0), v0 + u * a0, a0)
+
+    def sample(self, t: float) -> tuple[float, float, float]:
+        if t >= self.duration:
+            return (self.length, 0.0, 0.0)
+        if not t > 0.0:
+            return (0.0, 0.0, 0.0)
+        w = self.window
+        b1, s1, v1, _ = self._raw(t)
+        b0, s0, v0, _ = self._raw(t - w)
+        return (min(max((b1 - b0) / w, 0.0), self.length), (s1 - s0) / w, (v1 - v0) / w)
+
+    def _raw_many(self, t: np.ndarray) -> tuple[np.ndarray, ...]:
+        ts = self._t
+        i = np.clip(np.searchsorted(ts, t, side="right") - 1, 0, len(ts) - 2)
+        u = np.clip(t, 0.0, self._end) - ts[i]
+        s0, v0, a0 = self._s[i], self._v[i], self._a[i]
+        big = self._big[i] + u * (s0 + u * (0.5 * v0 + u * a0 / 6.0))
+        s = s0 + u * (v0 + 0.5 * u * a0)
+        v = v0 + u * a0
+        after = t >= self._end
+        before = t <= 0.0
+        big = np.where(after, self._big[-1] + self.length * (t - self._end), np.where(before, 0.0, big))
+        s = np.where(after, self.length, np.where(before, 0.0, s))
+        return big, s, np.where(after | before, 0.0, v), np.where(after | before, 0.0, a0)
+
+    def states(self, times: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        times = np.asarray(times, dtype=float)
+        w = self.window
+        b1, s1, v1, a1 = self._raw_many(times)
+        b0, s0, v0, a0 = self._raw_many(times - w)
+        inside = (times > 0.0) & (times < self.duration)
+        s = np.where(times >= self.duration, self.length,
+                     np.where(inside, np.clip((b1 - b0) / w, 0.0, self.length), 0.0))
+        return (s, np.where(inside, (s1 - s0) / w, 0.0), np.where(inside, (v1 - v0) / w, 0.0),
+                np.where(inside, (a1 - a0) / w, 0.0))
+
+    def _t_acc(self) -> float:
+        """The shorter of the first speed-up and the last slow-down (what a blend overlaps)."""
+        times = np.linspace(0.0, self.duration, max(int(self.duration / TICK), 2) + 1)
+        a = self.states(times)[2]
+        rising = np.flatnonzero(a <= 0.0)
+        first = times[rising[rising > 0][0]] if np.any(rising > 0) else self.duration
+        falling = np.flatnonzero(a >= 0.0)
+        last = self.duration - times[falling[falling < len(times) - 1][-1]] if np.any(falling < len(times) - 1) \
+            else self.duration
+        return float(min(first, last))
+
+    def scaled(self, k: float) -> "AveragedProfile":
+        out = AveragedProfile.__new__(AveragedProfile)
+        out.length, out.window, out._end = self.length, self.window / k, self._end / k
+        out._t, out._s, out._v, out._a = self._t / k, self._s, self._v * k, self._a * k * k
+        out._big = self._big / k
+        out._pieces = tuple(x.tolist() for x in (out._t, out._s, out._v, out._a, out._big))
+        out._j = None
+        out.duration, out.peak_velocity, out.t_acc = self.duration / k, self.peak_velocity * k, self.t_acc / k
+        out._bounds = self._bounds
+        out._acc = [x * k * k for x in self._acc]
+        out._jerk = [x * k * k * k for x in self._jerk]
+        out._envelope = scaled_envelope(self._envelope, k)
+        return out
+
+    def __repr__(self) -> str:
+        return f"AveragedProfile(length={self.length!r}, duration={self.duration!r}, window={self.window!r})"
+
+
+def _time_law(s: np.ndarray, x: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The grid's x as a time law of constant accelerations: (t, s, v, a) at each point
+    (a: over the interval that starts there)."""
+    v = np.sqrt(np.maximum(x, 0.0))
+    ds = np.diff(s)
+    dt = 2.0 * ds / np.maximum(v[:-1] + v[1:], 1e-300)
+    a = np.append((v[1:] - v[:-1]) / np.maximum(dt, 1e-300), 0.0)
+    return np.concatenate([[0.0], np.cumsum(dt)]), s, v, a
+
+
+def _window(t: np.ndarray, s: np.ndarray, a: np.ndarray, grid_s: np.ndarray, cap: np.ndarray) -> float:
+    """The shortest window over which the law's acceleration (``a`` over the intervals
+    from ``t``, at the path lengths ``s``) changes by at most ``cap * window``, ``cap``
+    the path jerk allowed at the grid's path lengths ``grid_s`` (the programmed jerk, and
+    what each joint's jerk limit leaves through its ``q'``): the smaller of the two ends'."""
+    end = float(t[-1])
+    times = np.linspace(0.0, end, max(int(end / (0.25 * TICK)), 8) + 1)
+    idx = np.clip(np.searchsorted(t, times, side="right") - 1, 0, len(a) - 1)
+    sampled = a[idx]
+    allowed = np.interp(s[idx], grid_s, cap)
+    peak = float(np.max(np.abs(a))) if len(a) else 0.0
+    window = peak / float(np.max(cap))
+    for _ in range(6):  # (the change over a longer window can be larger: to the fixed point)
+        lag = max(int(round(window / (times[1] - times[0]))), 1)
+        padded = np.concatenate([np.zeros(lag), sampled, np.zeros(lag)])
+        room = np.concatenate([np.full(lag, allowed[0]), allowed, np.full(lag, allowed[-1])])
+        needed = float(np.max(np.abs(padded[lag:] - padded[:-lag]) / np.minimum(room[lag:], room[:-lag])))
+        if needed <= window * 1.0001:
+            break
+        window = needed
+    return max(window, 2.0 * TICK)
+
+
+def reachable_profile(s: np.ndarray, derivatives, limits: Sequence[Sequence[float]], speed: float, acc: float,
+                      jerk: float, share: float) -> AveragedProfile | None:
+    """The near time-optimal profile along the path with joint ``derivatives`` (signed,
+    a :class:`~runtime.motion.pathtiming.PathDerivatives`) at the uniform path lengths
+    ``s``, within ``speed``, ``acc``, ``jerk`` and ``share`` of every joint's ``limits``
+    (max velocities, accelerations, jerks), predicted every 1 ms; None when the path is too
+    short to tell (fewer than four samples) or no correction settles."""
+    s = np.asarray(s, dtype=float)
+    n = len(s)
+    length = float(s[-1]) if n else 0.0
+    if n < 4 or not length > 0.0:
+        return None
+    d1, d2, _d3 = derivatives
+    vmax, amax, jmax = (share * np.asarray(limit, dtype=float) for limit in limits)
+    with np.errstate(divide="ignore"):  # (the path jerk each joint's q' j term leaves, the most of it)
+        cap = np.minimum(jerk, np.min(JERK_SHARE * jmax / np.maximum(np.abs(d1), 1e-300), axis=1))
+    envelope = stop_envelope(s, derivatives, limits, share, acc, jerk)
+    scale = np.ones(n)
+    for _ in range(CORRECTIONS):
+        x = topp_ra(s, d1, d2, vmax, amax, speed, acc, scale)
+        t, ss, v, a = _time_law(s, x)
+        if not np.all(np.isfinite(t)) or not t[-1] > 0.0:
+            return None
+        window = _window(t, ss, a, s, cap)
+        profile = AveragedProfile(length, t, ss, v, a, window, acc, jerk, envelope)
+        times = np.linspace(0.0, profile.duration, int(profile.duration / TICK) + 2)
+        at, pv, pa, pj = profile.states(times)
+        ratios = joint_ratios(at, pv, pa, pj, s, derivatives, limits)
+        room = time_room(ratios, share)
+        if np.all(room >= 1.0 - 1e-9):
+            return profile
+        # lower the grid's limits where the joints pass their share (by the time scale that
+        # brings them back), over the stretch the window spans there
+        need = np.ones(n)
+        tight = room < 1.0
+        i = np.clip(np.searchsorted(s, at[tight]), 0, n - 1)
+        np.minimum.at(need, i, room[tight] * OVERSHOOT)
+        reach = max(int(np.ceil(window * max(float(np.max(pv)), 1e-9) / (s[1] - s[0]))), 1)
+        padded = np.pad(need, reach, mode="edge")
+        need = np.min(np.lib.stride_tricks.sliding_window_view(padded, 2 * reach + 1), axis=1)
+        scale = scale * need
+    return None

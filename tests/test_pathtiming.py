@@ -6,6 +6,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
@@ -25,6 +26,7 @@ from runtime.motion.pathtiming import (
     warped_profile,
 )
 from runtime.motion.jerk import time_optimal_profile
+from runtime.motion.reachability import AveragedProfile
 
 from conftest import ROOT, SPEC
 KIN = Kinematics(SPEC)
@@ -136,7 +138,7 @@ def test_a_lin_move_slows_down_only_where_the_joints_need_it():
     # slow near the singularity, at the programmed speed away from it; every joint within its limits
     speeds = [move.sample_with_speed(t)[1] for t in np.linspace(0.0, stream.duration, 400)]
     fractions = [move.fraction(t) for t in np.linspace(0.0, stream.duration, 400)]
-    near = max(v for v, f in zip(speeds, fractions) if f < 0.05)
+    near = min(v for v, f in zip(speeds, fractions) if 0.01 < f < 0.2)  # (the slowest, by the singularity)
     assert max(speeds) > 5.0 * near and max(speeds) <= 500.0 * (1.0 + 1e-9), (near, max(speeds))
     from test_cartesian import setpoint_ratios
     assert max(setpoint_ratios(stream)) <= 1.0
@@ -256,9 +258,14 @@ def test_property_a_warped_profile_keeps_the_joints_and_the_programmed_limits(se
         assert np.allclose(profile.sample(t), [x[0] for x in profile.states(np.asarray([t]))[:3]], atol=1e-9)
 
 
-def test_the_warp_is_chosen_where_it_is_the_fastest_and_its_setpoints_keep_every_limit():
-    """A circ drawn by the benchmark that the warp times fastest: planned through
+@pytest.mark.parametrize("kind, reachability", [(WarpedProfile, False), (AveragedProfile, True)])
+def test_each_local_timing_is_chosen_where_it_is_the_fastest_and_its_setpoints_keep_every_limit(
+        kind, reachability, monkeypatch):
+    """A move drawn by the benchmark that the warp (with the reachability timing left out:
+    it is shorter on most) or the reachability timing times fastest: planned through
     plan_cartesian, its 5 ms setpoints keep every joint's limits."""
+    if not reachability:
+        monkeypatch.setattr("runtime.motion.cartesian.reachable_profile", lambda *args: None)
     for seed in range(40):
         drawn = _drawn_path(seed)
         if drawn is None:
@@ -266,10 +273,10 @@ def test_the_warp_is_chosen_where_it_is_the_fastest_and_its_setpoints_keep_every
         move, s, joints = drawn
         _, stream, _ = plan_cartesian(CartesianInput(KIN, joints[0], move.path.end, move.speed, move.acc,
                                                      via=getattr(move.path, "via", None), axis_limits=SPEC))
-        if stream is not None and isinstance(stream.checked.move.profile, WarpedProfile):
+        if stream is not None and isinstance(stream.checked.move.profile, kind):
             break
     else:
-        raise AssertionError("no drawn move was timed by the warp")
+        raise AssertionError(f"no drawn move was timed by {kind.__name__}")
     from test_cartesian import setpoint_ratios
     assert max(setpoint_ratios(stream)) <= 1.0
 

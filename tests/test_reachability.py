@@ -11,7 +11,7 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from runtime.motion.cartesian import JOINT_LIMIT_SHARE
+from runtime.motion.cartesian import REACHABLE_SHARE
 from runtime.motion.kinematics import Kinematics
 from runtime.motion.pathcheck import check_path
 from runtime.motion.paths import CartesianMove, CircPath, LinPath
@@ -114,7 +114,7 @@ def test_property_the_averaged_profile_keeps_every_limit_from_rest_to_rest(drawn
     s, joints, speed, acc = drawn
     jerk = 10.0 * acc
     derivatives = path_derivatives(s, joints)
-    profile = reachable_profile(s, derivatives, LIMITS, speed, acc, jerk, JOINT_LIMIT_SHARE)
+    profile = reachable_profile(s, derivatives, LIMITS, speed, acc, jerk, REACHABLE_SHARE)
     if profile is None:
         return
     times = np.linspace(-0.01, profile.duration + 0.01, int(profile.duration / 0.0005) + 3)
@@ -127,7 +127,7 @@ def test_property_the_averaged_profile_keeps_every_limit_from_rest_to_rest(drawn
     assert np.max(v) <= speed * (1 + 1e-9) and np.max(np.abs(a)) <= acc * (1 + 1e-9)
     assert np.max(np.abs(j)) <= jerk * (1 + 1e-6)
     ratios = joint_ratios(at, v, a, j, s, derivatives, LIMITS)
-    assert np.max(ratios) <= JOINT_LIMIT_SHARE * 1.01, np.max(ratios, axis=1)
+    assert np.max(ratios) <= REACHABLE_SHARE * 1.01, np.max(ratios, axis=1)
     slow = profile.scaled(0.5)  # (speeds x 0.5: twice as long)
     assert slow.duration == pytest.approx(2.0 * profile.duration)
     assert slow.sample(profile.duration)[0] == pytest.approx(profile.sample(0.5 * profile.duration)[0])

@@ -378,6 +378,10 @@ class PathStop(Trajectory):
 #: timed to at the check's samples (the rest: what lies between the samples, and the
 #: interpolation to the servo's 1 ms references).
 JOINT_LIMIT_SHARE = 0.9
+#: The share the reachability timing (:mod:`runtime.motion.reachability`) plans to: its
+#: prediction every 1 ms is the chain rule on its own time law (no bound that adds
+#: magnitudes), so it may come closer; the setpoints are checked against the limits all the same.
+REACHABLE_SHARE = 0.96
 
 
 def _ratios(q: np.ndarray, h: float, limits: Sequence[Sequence[float]]) -> list[float]:
@@ -485,7 +489,7 @@ def timed_path(move: CartesianMove, kinematics: Kinematics, start_joints: Sequen
                                     derivatives)
             if segments is not None:
                 beat = min(beat, segments.duration)
-            reachable = reachable_profile(s, derivatives, limits, move.speed, move.acc, move.jerk, JOINT_LIMIT_SHARE)
+            reachable = reachable_profile(s, derivatives, limits, move.speed, move.acc, move.jerk, REACHABLE_SHARE)
             if reachable is not None and reachable.duration < beat:
                 beat, segments = reachable.duration, reachable
             warped = (warped_profile(s, derivatives, limits, move.speed, move.acc, move.jerk, JOINT_LIMIT_SHARE, beat)
@@ -551,6 +555,8 @@ def _scale(ratios: Sequence[float], share: float) -> float:
 LOCAL_GAIN = 0.97
 #: Times a lin/circ move is timed slower again when its setpoints still break a limit.
 RETIMINGS = 4
+#: The share of the limits the first retiming brings the setpoints' largest ratio to.
+RETIME_SHARE = 0.98
 
 
 @dataclass(frozen=True)
@@ -617,7 +623,7 @@ def plan_cartesian(inp: CartesianInput) -> tuple[Result, JointStream | None, str
             checked, hot = timed_path(move, kinematics, main, axis_limits, limits, check)
             move = checked.move
             k = 1.0
-            for _ in range(RETIMINGS):  # until the setpoints themselves keep every limit
+            for attempt in range(RETIMINGS):  # until the setpoints themselves keep every limit
                 if k < 1.0:  # the same path, k times slower: the same joints at times / k
                     move = _slower(move, k)
                     checked = _retimed(checked, move, k)
@@ -625,7 +631,9 @@ def plan_cartesian(inp: CartesianInput) -> tuple[Result, JointStream | None, str
                 ratios = setpoint_ratios(checked, limits, TICK, hot)  # (its 5 ms differences average these)
                 if max(ratios) <= 1.0:
                     break
-                k = _scale(ratios, JOINT_LIMIT_SHARE)
+                # (first just within the limits: a move timed close to them is not slowed
+                # down to JOINT_LIMIT_SHARE for a small excess; then with that margin)
+                k = _scale(ratios, RETIME_SHARE if attempt == 0 else JOINT_LIMIT_SHARE)
         return Result.WORKING, JointStream(checked, period, additional), ""
     except PathError as exc:
         return Result.ERROR_PATH, None, Refusal(str(exc), exc.fraction, exc.distance, exc.reason)

@@ -52,14 +52,23 @@ from runtime.motion.pathtiming import PathProfile, joint_ratios, scaled_envelope
 
 __all__ = ["AveragedProfile", "CORRECTIONS", "reachable_profile", "topp_ra"]
 
-#: Rounds of lowering the grid's limits where the averaged profile's joints pass their share.
-CORRECTIONS = 6
+#: Rounds of lowering (and raising) the grid's limits by the room the averaged profile's joints have.
+CORRECTIONS = 5
 #: Each round lowers a point's limits by the needed time scale times this (a little more,
 #: so that few rounds settle).
 OVERSHOOT = 0.98
+#: The most points of TOPP-RA's grid (the check's samples, every so many of them).
+GRID = 250
+#: Rounds stop when one shortens the last profile within every share by less than this.
+SETTLED = 0.01
+#: A round raises a point's limits by the joints' room there, at most this factor.
+RAISE = 1.15
+#: A profile within every share whose joints have less room than this anywhere is kept
+#: (more rounds would gain little).
+RAISE_WHEN = 1.03
 #: The share of a joint's (share of its) jerk limit the path's jerk may use through q'
 #: (the rest: the joint's jerk from the path's speed and acceleration, q''' v^3 + 3 q'' v a).
-JERK_SHARE = 0.7
+JERK_SHARE = 0.85
 #: A joint's first derivative along the path below this (deg/mm) bounds no acceleration
 #: through ``u`` (its acceleration is q'' x alone: a ceiling on x).
 _FLAT = 1e-12
@@ -95,12 +104,12 @@ def _acceleration_ceiling(alpha_lo: np.ndarray, alpha_hi: np.ndarray, beta: np.n
 
 def topp_ra(s: np.ndarray, g1: np.ndarray, g2: np.ndarray, vmax, amax, speed: float, acc: float,
             scale: np.ndarray | None = None) -> np.ndarray:
-    """The time-optimal ``x = v^2`` at the uniform grid ``s`` (from rest to rest) within
+    """The time-optimal ``x = v^2`` at the grid ``s`` (from rest to rest) within
     the joints' ``vmax`` and ``amax`` (joint derivatives ``g1``, ``g2`` along the path,
     signed (n, 6) arrays) and the path's ``speed`` and ``acc``; ``scale`` (per point, <= 1)
     lowers the limits there as a time scale would (velocities x k, accelerations x k^2)."""
     n = len(s)
-    h = float(s[1] - s[0])
+    h = np.append(np.diff(s), s[-1] - s[-2])[:, None]  # (each point's interval to the next)
     vmax = np.asarray(vmax, dtype=float)[None, :]
     amax = np.asarray(amax, dtype=float)[None, :]
     k = np.ones(n) if scale is None else np.asarray(scale, dtype=float)
@@ -256,23 +265,31 @@ def _time_law(s: np.ndarray, x: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.
     return np.concatenate([[0.0], np.cumsum(dt)]), s, v, a
 
 
-def _window(t: np.ndarray, s: np.ndarray, a: np.ndarray, grid_s: np.ndarray, cap: np.ndarray) -> float:
-    """The shortest window over which the law's acceleration (``a`` over the intervals
-    from ``t``, at the path lengths ``s``) changes by at most ``cap * window``, ``cap``
+def _window(t: np.ndarray, s: np.ndarray, v: np.ndarray, a: np.ndarray, grid_s: np.ndarray, cap: np.ndarray) -> float:
+    """The shortest window over which the law (``s``, ``v`` at the times ``t``, ``a`` over
+    the intervals from them) changes its acceleration by at most ``cap * window``, ``cap``
     the path jerk allowed at the grid's path lengths ``grid_s`` (the programmed jerk, and
-    what each joint's jerk limit leaves through its ``q'``): the smaller of the two ends'."""
+    what each joint's jerk limit leaves through its ``q'``), taken where the averaged
+    path is then (the window's mean position)."""
     end = float(t[-1])
-    times = np.linspace(0.0, end, max(int(end / (0.25 * TICK)), 8) + 1)
+    times = np.linspace(0.0, end, max(int(end / (0.5 * TICK)), 8) + 1)
+    dt = times[1] - times[0]
     idx = np.clip(np.searchsorted(t, times, side="right") - 1, 0, len(a) - 1)
+    u = times - t[idx]
     sampled = a[idx]
-    allowed = np.interp(s[idx], grid_s, cap)
+    position = s[idx] + u * (v[idx] + 0.5 * u * sampled)
+    integral = np.concatenate([[0.0], np.cumsum(0.5 * dt * (position[1:] + position[:-1]))])
     peak = float(np.max(np.abs(a))) if len(a) else 0.0
     window = peak / float(np.max(cap))
-    for _ in range(6):  # (the change over a longer window can be larger: to the fixed point)
-        lag = max(int(round(window / (times[1] - times[0]))), 1)
+    length = float(s[-1])
+    for _ in range(8):  # (the change over a longer window can be larger: to the fixed point)
+        lag = max(int(round(window / dt)), 1)
+        w = lag * dt
         padded = np.concatenate([np.zeros(lag), sampled, np.zeros(lag)])
-        room = np.concatenate([np.full(lag, allowed[0]), allowed, np.full(lag, allowed[-1])])
-        needed = float(np.max(np.abs(padded[lag:] - padded[:-lag]) / np.minimum(room[lag:], room[:-lag])))
+        big = np.concatenate([np.zeros(lag), integral, integral[-1] + length * dt * np.arange(1, lag + 1)])
+        mean = (big[lag:] - big[:-lag]) / w  # (where the averaged path is)
+        allowed = np.interp(mean, grid_s, cap)
+        needed = float(np.max(np.abs(padded[lag:] - padded[:-lag]) / allowed))
         if needed <= window * 1.0001:
             break
         window = needed
@@ -285,39 +302,77 @@ def reachable_profile(s: np.ndarray, derivatives, limits: Sequence[Sequence[floa
     a :class:`~runtime.motion.pathtiming.PathDerivatives`) at the uniform path lengths
     ``s``, within ``speed``, ``acc``, ``jerk`` and ``share`` of every joint's ``limits``
     (max velocities, accelerations, jerks), predicted every 1 ms; None when the path is too
-    short to tell (fewer than four samples) or no correction settles."""
+    short to tell (fewer than four samples). Two windows are tried, the shorter kept: one
+    that keeps the path's jerk within what each joint's jerk limit leaves through its
+    ``q'`` as well as the programmed jerk, and one for the programmed jerk alone (the
+    corrections then slow down where a joint's jerk needs it)."""
     s = np.asarray(s, dtype=float)
     n = len(s)
     length = float(s[-1]) if n else 0.0
     if n < 4 or not length > 0.0:
         return None
-    d1, d2, _d3 = derivatives
-    vmax, amax, jmax = (share * np.asarray(limit, dtype=float) for limit in limits)
+    d1 = derivatives.d1
+    jmax = share * np.asarray(limits[2], dtype=float)
     with np.errstate(divide="ignore"):  # (the path jerk each joint's q' j term leaves, the most of it)
-        cap = np.minimum(jerk, np.min(JERK_SHARE * jmax / np.maximum(np.abs(d1), 1e-300), axis=1))
+        joints = np.minimum(jerk, np.min(JERK_SHARE * jmax / np.maximum(np.abs(d1), 1e-300), axis=1))
     envelope = stop_envelope(s, derivatives, limits, share, acc, jerk)
+    caps = (joints, np.full(n, jerk)) if np.min(joints) < jerk else (joints,)  # (the same when no joint binds)
+    found = [_corrected(s, derivatives, limits, speed, acc, jerk, share, cap, envelope) for cap in caps]
+    found = [profile for profile in found if profile is not None]
+    return min(found, key=lambda profile: profile.duration) if found else None
+
+
+def _corrected(s: np.ndarray, derivatives, limits, speed: float, acc: float, jerk: float, share: float,
+               cap: np.ndarray, envelope: tuple) -> AveragedProfile | None:
+    """:func:`reachable_profile` with the path jerk ``cap`` (per grid point) for its window:
+    TOPP-RA, averaged, corrected CORRECTIONS times by the room the joints have."""
+    length = float(s[-1])
+    stride = max(1, -(-(len(s) - 1) // GRID))  # (TOPP-RA's grid: every stride-th sample, the last included)
+    pick = np.unique(np.append(np.arange(0, len(s), stride), len(s) - 1))
+    if len(pick) > 2 and s[pick[-1]] - s[pick[-2]] < 0.5 * (s[pick[1]] - s[pick[0]]):
+        pick = np.delete(pick, -2)  # (no sliver at the end: the grid's steps nearly uniform)
+    d1, d2 = derivatives.d1[pick], derivatives.d2[pick]
+    grid = s[pick]
+    n = len(grid)
+    vmax, amax = (share * np.asarray(limit, dtype=float) for limit in limits[:2])
     scale = np.ones(n)
+    best = fallback = None
     for _ in range(CORRECTIONS):
-        x = topp_ra(s, d1, d2, vmax, amax, speed, acc, scale)
-        t, ss, v, a = _time_law(s, x)
+        x = topp_ra(grid, d1, d2, vmax, amax, speed, acc, scale)
+        t, ss, v, a = _time_law(grid, x)
         if not np.all(np.isfinite(t)) or not t[-1] > 0.0:
-            return None
-        window = _window(t, ss, a, s, cap)
+            break
+        window = _window(t, ss, v, a, s, cap)
         profile = AveragedProfile(length, t, ss, v, a, window, acc, jerk, envelope)
-        times = np.linspace(0.0, profile.duration, int(profile.duration / TICK) + 2)
+        times = np.linspace(0.0, profile.duration, int(profile.duration / (2.0 * TICK)) + 2)
         at, pv, pa, pj = profile.states(times)
-        ratios = joint_ratios(at, pv, pa, pj, s, derivatives, limits)
-        room = time_room(ratios, share)
-        if np.all(room >= 1.0 - 1e-9):
-            return profile
-        # lower the grid's limits where the joints pass their share (by the time scale that
-        # brings them back), over the stretch the window spans there
-        need = np.ones(n)
-        tight = room < 1.0
-        i = np.clip(np.searchsorted(s, at[tight]), 0, n - 1)
-        np.minimum.at(need, i, room[tight] * OVERSHOOT)
-        reach = max(int(np.ceil(window * max(float(np.max(pv)), 1e-9) / (s[1] - s[0]))), 1)
-        padded = np.pad(need, reach, mode="edge")
-        need = np.min(np.lib.stride_tricks.sliding_window_view(padded, 2 * reach + 1), axis=1)
-        scale = scale * need
+        room = time_room(joint_ratios(at, pv, pa, pj, s, derivatives, limits), share)
+        least = float(np.min(room))
+        if least >= 1.0 - 1e-9:
+            if best is not None and profile.duration > (1.0 - SETTLED) * best.duration:
+                best = min(best, profile, key=lambda p: p.duration)
+                break  # (settled: another round gains little)
+            best = profile
+            if least < RAISE_WHEN:
+                break  # (settled: nowhere much room left)
+        elif fallback is None or profile.duration / least < fallback[0]:
+            fallback = (profile.duration / least, profile, least)
+        # the grid's limits by the room the joints have there: lowered where a joint passes
+        # its share, raised (never above the limits) where all have room, over the stretch
+        # the window spans there
+        factor = np.full(n, np.inf)
+        np.minimum.at(factor, np.clip(np.searchsorted(grid, at), 0, n - 1), np.minimum(room, RAISE))
+        factor[np.isinf(factor)] = 1.0
+        tight = np.flatnonzero(room < 1.0)
+        if len(tight):  # (what the window averaged there: the grid from its start to its end)
+            first = np.searchsorted(grid, profile._raw_many(times[tight] - window)[1], side="right") - 1
+            last = np.searchsorted(grid, profile._raw_many(times[tight])[1]) + 1
+            for lo, hi, k in zip(np.clip(first, 0, n - 1).tolist(), np.clip(last, 1, n).tolist(),
+                                 (room[tight] * OVERSHOOT).tolist()):
+                np.minimum(factor[lo:hi], k, out=factor[lo:hi])
+        scale = np.minimum(scale * factor, 1.0)
+    if best is not None:
+        return best
+    if fallback is not None:  # (none settled: the one that slowed down as a whole fits soonest)
+        return fallback[1].scaled(fallback[2] * OVERSHOOT)
     return None

@@ -8,7 +8,7 @@ import math
 
 import numpy as np
 import pytest
-from hypothesis import HealthCheck, given, settings
+from hypothesis import HealthCheck, event, given, settings
 from hypothesis import strategies as st
 
 from runtime.motion.cartesian import REACHABLE_SHARE
@@ -16,7 +16,7 @@ from runtime.motion.kinematics import Kinematics
 from runtime.motion.pathcheck import check_path
 from runtime.motion.paths import CartesianMove, CircPath, LinPath
 from runtime.motion.pathtiming import ConstantSpeed, joint_ratios, path_derivatives
-from runtime.motion.reachability import _time_law, reachable_profile, topp_ra
+from runtime.motion.reachability import STOP_SHARE, _time_law, reachable_profile, topp_ra
 
 from conftest import SPEC
 
@@ -131,3 +131,35 @@ def test_property_the_averaged_profile_keeps_every_limit_from_rest_to_rest(drawn
     slow = profile.scaled(0.5)  # (speeds x 0.5: twice as long)
     assert slow.duration == pytest.approx(2.0 * profile.duration)
     assert slow.sample(profile.duration)[0] == pytest.approx(profile.sample(0.5 * profile.duration)[0])
+
+
+@PROPERTY
+@given(paths(), st.sampled_from([0.1, 0.3, 0.5, 0.7]))
+def test_property_a_stop_continues_the_profile_and_rests_on_the_path_within_the_limits(drawn, fraction):
+    """A pause on a reachability-timed move: when the stop law brakes within the joints'
+    limits (it is checked: else the stop is planned as for the other timings), it starts
+    from the profile's own speed and acceleration at that instant, never goes backwards,
+    rests before the path's end and sooner than the profile, keeps the programmed jerk
+    and every joint's acceleration and jerk within STOP_SHARE of its limits."""
+    if drawn is None:
+        return
+    s, joints, speed, acc = drawn
+    derivatives = path_derivatives(s, joints)
+    profile = reachable_profile(s, derivatives, LIMITS, speed, acc, 10.0 * acc, REACHABLE_SHARE)
+    if profile is None:
+        return
+    t = fraction * profile.duration
+    law = profile.stop_law(t)
+    event(f"stop law: {law is not None}")
+    if law is None:
+        return
+    s0, v0, a0 = profile.sample(t)
+    assert law.sample(0.0) == pytest.approx((0.0, v0, a0), rel=1e-6, abs=1e-6)
+    assert law.sample(law.duration) == pytest.approx((law.distance, 0.0, 0.0), abs=1e-6)
+    assert s0 + law.distance <= profile.length + 1e-9 and law.duration < profile.duration - t + law._law.window
+    times = np.linspace(0.0, law.duration, int(law.duration / 0.0005) + 2)
+    at, v, a, j = law._law.states(law._t0 + times)
+    assert np.all(np.diff(at) >= -1e-9) and np.all(v >= -1e-9)
+    assert np.max(np.abs(j)) <= 10.0 * acc * (1 + 1e-6)
+    ratios = joint_ratios(at, v, a, j, s, derivatives, LIMITS)
+    assert np.max(ratios[1:]) <= STOP_SHARE * 1.01, np.max(ratios, axis=1)

@@ -42,7 +42,7 @@ from runtime.motion.pathcheck import CheckedPath, PathError, check_path, joint_l
 from runtime.motion.paths import CircPath, LinPath, CartesianMove, positive
 from runtime.motion.pathtiming import (ConstantSpeed, PathProfile, nominal_profile, path_derivatives, path_profile,
                          predicted_ratios, uniform_scale, warped_profile)
-from runtime.motion.reachability import reachable_profile
+from runtime.motion.reachability import AveragedProfile, reachable_profile
 
 __all__ = ["DERIVATIVE_STEP", "JOINT_LIMIT_SHARE", "MIN_DERIVATIVE_STEP", "CartesianInput", "JointStream",
            "PathStop", "joint_limit_scale", "plan_cartesian"]
@@ -295,13 +295,19 @@ class PathStop(Trajectory):
         ``acc`` and jerk, or less where the joints slowed the move down)."""
         move = stream.checked.move
         s0, v0, a0 = move.profile.sample(t)
-        limits = move.stop_limits(s0, v0 * rate, a0 * rate * rate)
         self.path, self.kinematics = move.path, stream.checked.kinematics
-        if limits is not None:
-            acc, jerk = limits
-            self._stop = JerkStop(v0 * rate, a0 * rate * rate, acc if deceleration is None else deceleration, jerk)
-        if limits is None or s0 + self._stop.distance >= move.path.length:
-            self._stop = _ProfileRest(move.profile, t, rate)  # (no sooner stop keeps the limits: the move's own end)
+        law = None
+        if isinstance(move.profile, AveragedProfile) and deceleration is None:  # (braking as hard as the grid allows)
+            law = (move.profile if rate == 1.0 else move.profile.scaled(rate)).stop_law(t / rate)
+        if law is not None:
+            self._stop = law
+        else:
+            limits = move.stop_limits(s0, v0 * rate, a0 * rate * rate)
+            if limits is not None:
+                acc, jerk = limits
+                self._stop = JerkStop(v0 * rate, a0 * rate * rate, acc if deceleration is None else deceleration, jerk)
+            if limits is None or s0 + self._stop.distance >= move.path.length:
+                self._stop = _ProfileRest(move.profile, t, rate)  # (no sooner stop keeps the limits: the move's own end)
         self._s0 = s0
         self.duration = self._stop.duration
         self.s_end = min(s0 + self._stop.distance, move.path.length)

@@ -43,6 +43,7 @@ six lines per point), never in a tick; :meth:`AveragedProfile.sample` is real-ti
 from __future__ import annotations
 
 from bisect import bisect_right
+from math import sqrt
 from typing import Sequence
 
 import numpy as np
@@ -50,13 +51,19 @@ import numpy as np
 from runtime.timing import TICK
 from runtime.motion.pathtiming import PathProfile, joint_ratios, scaled_envelope, stop_envelope, time_room
 
-__all__ = ["AveragedProfile", "CORRECTIONS", "reachable_profile", "topp_ra"]
+__all__ = ["AveragedProfile", "CORRECTIONS", "StopLaw", "reachable_profile", "topp_ra"]
 
 #: Rounds of lowering (and raising) the grid's limits by the room the averaged profile's joints have.
 CORRECTIONS = 5
 #: Each round lowers a point's limits by the needed time scale times this (a little more,
 #: so that few rounds settle).
 OVERSHOOT = 0.98
+#: The share of each joint's limits a stop on the path (a pause, an abort) may use: a profile
+#: that runs near the limits leaves a stop within its own share no room to slow down.
+STOP_SHARE = 0.98
+#: The shares of the grid's acceleration limits a stop brakes to, tried in turn (the
+#: average over the window and the joints' jerk may ask more than the raw law).
+BRAKES = (0.9, 0.7, 0.5)
 #: The most points of TOPP-RA's grid (the check's samples, every so many of them).
 GRID = 250
 #: Rounds stop when one shortens the last profile within every share by less than this.
@@ -90,6 +97,17 @@ def _lines(g1: np.ndarray, g2: np.ndarray, amax: np.ndarray, acc: float) -> tupl
     with np.errstate(divide="ignore"):
         flat = np.where(steep, np.inf, amax / np.maximum(np.abs(g2), 1e-300))
     return alpha_lo, alpha_hi, beta, np.min(flat, axis=1)
+
+
+def _braking(grid: np.ndarray, g1: np.ndarray, g2: np.ndarray, amax: np.ndarray, acc: float, scale: np.ndarray,
+             cap: np.ndarray) -> tuple:
+    """What a stop brakes within (:meth:`AveragedProfile.stop_law`), as plain lists: the
+    grid, its lower lines (alpha, beta) with the limits the corrections left, and the path
+    jerk allowed at each point."""
+    k2 = (scale * scale)[:, None]
+    alpha_lo, _alpha_hi, beta, _flat = _lines(g1, g2, np.asarray(amax, dtype=float)[None, :] * k2, acc)
+    alpha_lo[:, 6] *= k2[:, 0]
+    return grid.tolist(), alpha_lo.tolist(), beta.tolist(), cap.tolist()
 
 
 def _acceleration_ceiling(alpha_lo: np.ndarray, alpha_hi: np.ndarray, beta: np.ndarray) -> np.ndarray:
@@ -161,11 +179,13 @@ class AveragedProfile(PathProfile):
     :class:`PathProfile` (``sample``, ``states``, ``times_at``, ``stop_limits`` from
     ``envelope``, ``scaled``); ``duration`` is TOPP-RA's plus the window."""
 
-    __slots__ = ("window", "_pieces", "_big", "_end")
+    __slots__ = ("window", "_pieces", "_big", "_end", "_braking")
 
-    def __init__(self, length: float, t, s, v, a, window: float, acc: float, jerk: float, envelope: tuple | None):
+    def __init__(self, length: float, t, s, v, a, window: float, acc: float, jerk: float, envelope: tuple | None,
+                 braking: tuple | None = None, blended: bool = True):
         self.length = length
         self.window = window
+        self._braking = braking  # (grid, alpha_lo, beta, jerk cap): what a stop brakes within
         t, s, v, a = (np.asarray(x, dtype=float) for x in (t, s, v, a))
         d = np.diff(t)
         big = np.concatenate([[0.0], np.cumsum(d * (s[:-1] + d * (0.5 * v[:-1] + d * a[:-1] / 6.0)))])
@@ -175,7 +195,7 @@ class AveragedProfile(PathProfile):
         self._j = None
         self.duration = self._end + window
         self.peak_velocity = float(np.max(v)) if len(v) else 0.0
-        self.t_acc = self._t_acc()
+        self.t_acc = self._t_acc() if blended else 0.0  # (a stop's law is never blended)
         self._bounds, self._acc, self._jerk = [0.0], [acc], [jerk]
         self._envelope = envelope
 
@@ -226,6 +246,80 @@ class AveragedProfile(PathProfile):
         return (s, np.where(inside, (s1 - s0) / w, 0.0), np.where(inside, (v1 - v0) / w, 0.0),
                 np.where(inside, (a1 - a0) / w, 0.0))
 
+    def stop_law(self, t: float) -> "StopLaw | None":
+        """A stop on the path from the profile's time ``t`` (a pause, an abort) that keeps
+        every joint within STOP_SHARE of its acceleration and jerk limits, predicted all
+        along it: braking at each of BRAKES of the grid's limits in turn
+        (:meth:`_brake`), the first that fits; None when none does (or without the grid's
+        limits, or at rest)."""
+        if self._braking is None or self._envelope is None:
+            return None
+        for brake in BRAKES:
+            law = self._brake(t, brake)
+            if law is None:
+                return None
+            if _keeps(law, self._envelope):
+                return law
+        return None
+
+    def _brake(self, t: float, brake: float) -> "StopLaw | None":
+        """A stop from the profile's time ``t``: the unaveraged law from ``t`` on brakes as
+        hard as ``brake`` of the grid's limits allow (the lowest acceleration of the lines
+        TOPP-RA used, each point's), its change over a window within the jerk the window
+        allows, until it rests; averaged over the same window, it continues the profile
+        exactly at ``t`` (speed, acceleration). None when it would not rest before the
+        path's end, or the profile is at rest."""
+        if not 0.0 < t < self.duration:
+            return None
+        grid, alpha_lo, beta, cap = self._braking
+        w = self.window
+        ts, ss, vs, as_ = (list(x) for x in self._pieces[:4])
+        keep = bisect_right(ts, t)
+        if t >= self._end:  # (the raw law already rests: the averaged one is finishing)
+            return None
+        _big, s0, v0, _a0 = self._raw(t)
+        law_t, law_s, law_v, law_a = ts[:keep] + [t], ss[:keep] + [s0], vs[:keep] + [v0], as_[:keep] + [0.0]
+        i = bisect_right(grid, s0)
+        n = len(grid)
+        x = v0 * v0
+        now, here = t, s0
+        while x > 0.0:
+            k = min(max(i - 1, 0), n - 1)  # (the lines of the point the interval starts at)
+            lo = max(brake * al + b * x for al, b in zip(alpha_lo[k], beta[k]))
+            back = self._raw_acceleration(now - w, law_t, law_a)  # (the raw law's acceleration a window ago)
+            u = min(max(lo, back - w * cap[k]), back + w * cap[k])
+            end = grid[i] if i < n else self.length
+            step = max(end - here, 0.0)
+            v = sqrt(x)
+            if u < 0.0 and x + 2.0 * step * u <= 0.0:  # (at rest within the interval)
+                dt = v / -u
+                law_a[-1] = u
+                here += 0.5 * v * dt
+                now += dt
+                law_t.append(now), law_s.append(here), law_v.append(0.0), law_a.append(0.0)
+                break
+            if step <= 0.0 and i >= n:
+                break  # (the path's end: the profile's own end is the stop)
+            x2 = max(x + 2.0 * step * u, 0.0)
+            v2 = sqrt(x2)
+            dt = 2.0 * step / max(v + v2, 1e-300)
+            law_a[-1] = u
+            here, x, now = end, x2, now + dt
+            law_t.append(now), law_s.append(here), law_v.append(v2), law_a.append(0.0)
+            i += 1
+            if i > n:
+                break
+        if law_v[-1] > 0.0 or here > self.length:
+            return None
+        raw = AveragedProfile(here, law_t, law_s, law_v, law_a, w, self._acc[0], self._jerk[0], None, blended=False)
+        return StopLaw(raw, t, self.sample(t)[0])
+
+    @staticmethod
+    def _raw_acceleration(t: float, ts: list, as_: list) -> float:
+        if t <= 0.0:
+            return 0.0
+        return as_[max(bisect_right(ts, t) - 1, 0)]
+
     def _t_acc(self) -> float:
         """The shorter of the first speed-up and the last slow-down (what a blend overlaps)."""
         times = np.linspace(0.0, self.duration, max(int(self.duration / TICK), 2) + 1)
@@ -249,10 +343,44 @@ class AveragedProfile(PathProfile):
         out._acc = [x * k * k for x in self._acc]
         out._jerk = [x * k * k * k for x in self._jerk]
         out._envelope = scaled_envelope(self._envelope, k)
+        out._braking = None if self._braking is None else (
+            self._braking[0], [[x * k * k for x in row] for row in self._braking[1]], self._braking[2],
+            [x * k * k * k for x in self._braking[3]])
         return out
 
     def __repr__(self) -> str:
         return f"AveragedProfile(length={self.length!r}, duration={self.duration!r}, window={self.window!r})"
+
+
+class StopLaw:
+    """A stop on the path of an :class:`AveragedProfile` (:meth:`AveragedProfile.stop_law`),
+    as :class:`runtime.motion.stops.JerkStop` gives one: ``sample(t) -> (distance from
+    where it starts, speed, acceleration)``, ``duration``, ``distance``. Real-time safe."""
+
+    __slots__ = ("duration", "distance", "_law", "_t0", "_s0")
+
+    def __init__(self, law: AveragedProfile, t0: float, s0: float):
+        self._law, self._t0, self._s0 = law, t0, s0
+        self.duration = law.duration - t0
+        self.distance = law.length - s0
+
+    def sample(self, t: float) -> tuple[float, float, float]:
+        s, v, a = self._law.sample(self._t0 + max(t, 0.0))
+        return s - self._s0, v, a
+
+
+def _keeps(law: StopLaw, envelope: tuple) -> bool:
+    """Whether every joint keeps its share (the envelope's: its limits times STOP_SHARE) of
+    its acceleration and jerk limits all along the stop ``law``, predicted every 1 ms."""
+    at, g1, g2, g3, amax, jmax = envelope[:6]
+    times = law._t0 + np.linspace(0.0, law.duration, max(int(law.duration / TICK), 2) + 1)
+    s, v, a, j = law._law.states(times)
+    grid = np.asarray(at)
+    G1, G2, G3 = (np.stack([np.interp(s, grid, g[:, axis]) for axis in range(g.shape[1])], axis=1)
+                  for g in (g1, g2, g3))
+    v, a, j = v[:, None], a[:, None], j[:, None]
+    return bool(np.all(np.abs(G2 * v * v + G1 * a) <= amax) and
+                np.all(np.abs(G3 * v * v * v + 3.0 * G2 * v * a + G1 * j) <= jmax))
 
 
 def _time_law(s: np.ndarray, x: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
@@ -315,7 +443,7 @@ def reachable_profile(s: np.ndarray, derivatives, limits: Sequence[Sequence[floa
     jmax = share * np.asarray(limits[2], dtype=float)
     with np.errstate(divide="ignore"):  # (the path jerk each joint's q' j term leaves, the most of it)
         joints = np.minimum(jerk, np.min(JERK_SHARE * jmax / np.maximum(np.abs(d1), 1e-300), axis=1))
-    envelope = stop_envelope(s, derivatives, limits, share, acc, jerk)
+    envelope = stop_envelope(s, derivatives, limits, STOP_SHARE, acc, jerk)
     caps = (joints, np.full(n, jerk)) if np.min(joints) < jerk else (joints,)  # (the same when no joint binds)
     found = [_corrected(s, derivatives, limits, speed, acc, jerk, share, cap, envelope) for cap in caps]
     found = [profile for profile in found if profile is not None]
@@ -343,7 +471,8 @@ def _corrected(s: np.ndarray, derivatives, limits, speed: float, acc: float, jer
         if not np.all(np.isfinite(t)) or not t[-1] > 0.0:
             break
         window = _window(t, ss, v, a, s, cap)
-        profile = AveragedProfile(length, t, ss, v, a, window, acc, jerk, envelope)
+        profile = AveragedProfile(length, t, ss, v, a, window, acc, jerk, envelope,
+                                  _braking(grid, d1, d2, amax, acc, scale, np.interp(grid, s, cap)))
         times = np.linspace(0.0, profile.duration, int(profile.duration / (2.0 * TICK)) + 2)
         at, pv, pa, pj = profile.states(times)
         room = time_room(joint_ratios(at, pv, pa, pj, s, derivatives, limits), share)

@@ -75,15 +75,17 @@ class Cell:
     def status(self) -> dict:
         return self.client.request("status")
 
-    def wait(self, predicate, what: str, timeout: float = LOAD) -> dict:
+    def wait(self, predicate, what: str, timeout: float = LOAD, abandon=None) -> dict | None:
+        """The status once ``predicate(status)``; None as soon as ``abandon()`` (if given)."""
         deadline = time.monotonic() + timeout
-        while True:
+        while abandon is None or not abandon():
             status = self.status()
             if predicate(status):
                 return status
             if time.monotonic() > deadline:
                 pytest.fail(f"not {what} after {timeout} s: {status}\n{self.server.log()}")
             time.sleep(0.05)
+        return None
 
     def tidy(self) -> None:
         """After a test, passed or failed: its pages closed (a closed page gives control back
@@ -162,14 +164,9 @@ def _press_until(cell, page, selector: str, predicate, what: str, tries: int = 4
         stalls = _stalls(cell, page)
         page.mouse.move(*_centre(page, selector))
         page.mouse.down()
-        deadline = time.monotonic() + LOAD
-        while _stalls(cell, page) == stalls:
-            status = cell.status()
-            if predicate(status):
-                return status
-            if time.monotonic() > deadline:
-                pytest.fail(f"not {what} after {LOAD} s: {status}\n{cell.server.log()}")
-            time.sleep(0.05)
+        status = cell.wait(predicate, what, abandon=lambda: _stalls(cell, page) != stalls)
+        if status is not None:
+            return status
         page.mouse.up()
     pytest.fail(f"not {what}: the deadman stopped each of {tries} presses (lost heartbeats)\n{cell.server.log()}")
 

@@ -57,6 +57,7 @@ MODULES = (
     "urdf",  # the arm as URDF, and its links' transforms
     "rotation",  # quaternions, slerp
     "pathtiming",  # a path's timing within the joints' limits
+    "reachability",  # its near time-optimal timing (TOPP-RA, averaged for the jerk) and its stop
     "interpolator",  # 5 ms setpoints to 1 ms references
     "paths",  # lines and arcs, and their timing
     "pathcheck",  # the whole-path check

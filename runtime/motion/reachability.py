@@ -49,7 +49,8 @@ from typing import Sequence
 import numpy as np
 
 from runtime.timing import TICK
-from runtime.motion.pathtiming import PathProfile, joint_ratios, scaled_envelope, stop_envelope, time_room
+from runtime.motion.pathtiming import (SETTLED, PathProfile, joint_ratios, scaled_envelope, stop_envelope,
+                                      time_room)
 
 __all__ = ["AveragedProfile", "CORRECTIONS", "StopLaw", "reachable_profile", "topp_ra"]
 
@@ -66,8 +67,6 @@ STOP_SHARE = 0.98
 BRAKES = (0.9, 0.7, 0.5)
 #: The most points of TOPP-RA's grid (the check's samples, every so many of them).
 GRID = 250
-#: Rounds stop when one shortens the last profile within every share by less than this.
-SETTLED = 0.01
 #: A round raises a point's limits by the joints' room there, at most this factor.
 RAISE = 1.15
 #: A profile within every share whose joints have less room than this anywhere is kept
@@ -258,7 +257,7 @@ class AveragedProfile(PathProfile):
             law = self._brake(t, brake)
             if law is None:
                 return None
-            if _keeps(law, self._envelope):
+            if _keeps(law, self._envelope, self._acc[0], self._jerk[0]):
                 return law
         return None
 
@@ -369,12 +368,19 @@ class StopLaw:
         return s - self._s0, v, a
 
 
-def _keeps(law: StopLaw, envelope: tuple) -> bool:
-    """Whether every joint keeps its share (the envelope's: its limits times STOP_SHARE) of
-    its acceleration and jerk limits all along the stop ``law``, predicted every 1 ms."""
+def _keeps(law: StopLaw, envelope: tuple, acc: float, jerk: float) -> bool:
+    """Whether the stop ``law`` keeps the path's ``acc`` and ``jerk`` and every joint its
+    share (the envelope's: its limits times STOP_SHARE) of its acceleration and jerk limits
+    all along it, predicted every 1 ms (and at its pieces' ends, where its jerk changes)."""
     at, g1, g2, g3, amax, jmax = envelope[:6]
-    times = law._t0 + np.linspace(0.0, law.duration, max(int(law.duration / TICK), 2) + 1)
+    start, end = law._t0, law._t0 + law.duration
+    knots = np.concatenate([law._law._t, law._law._t + law._law.window, [start, end]])
+    knots = np.unique(knots[(knots >= start) & (knots <= end)])
+    times = np.concatenate([start + np.linspace(0.0, law.duration, max(int(law.duration / TICK), 2) + 1),
+                            0.5 * (knots[1:] + knots[:-1])])  # (and inside each piece: its jerk is constant)
     s, v, a, j = law._law.states(times)
+    if np.max(np.abs(a)) > acc * (1.0 + 1e-9) or np.max(np.abs(j)) > jerk * (1.0 + 1e-9):
+        return False
     grid = np.asarray(at)
     G1, G2, G3 = (np.stack([np.interp(s, grid, g[:, axis]) for axis in range(g.shape[1])], axis=1)
                   for g in (g1, g2, g3))
@@ -480,7 +486,7 @@ def _corrected(s: np.ndarray, derivatives, limits, speed: float, acc: float, jer
         if least >= 1.0 - 1e-9:
             if best is not None and profile.duration > (1.0 - SETTLED) * best.duration:
                 best = min(best, profile, key=lambda p: p.duration)
-                break  # (settled: another round gains little)
+                break  # (settled: another round gained less than SETTLED)
             best = profile
             if least < RAISE_WHEN:
                 break  # (settled: nowhere much room left)

@@ -49,6 +49,7 @@ from _stats import percentile  # noqa: E402
 from compiler.spec import load_spec  # noqa: E402
 from runtime.motion.cartesian import CartesianInput, plan_cartesian  # noqa: E402
 from runtime.motion.kinematics import Kinematics  # noqa: E402
+from runtime.motion.paths import DEFAULT_JERK_FACTOR  # noqa: E402
 from runtime.motion.pathtiming import nominal_profile  # noqa: E402
 
 KINDS = ("short", "long", "wrist", "circ")
@@ -173,8 +174,8 @@ def main() -> int:
             if math.isnan(optimum):
                 unsolved += 1
                 continue
-            programmed = nominal_profile(move.path.length, inp.speed, inp.acc, move.jerk if inp.jerk is None
-                                         else inp.jerk).duration
+            jerk = DEFAULT_JERK_FACTOR * inp.acc if inp.jerk is None else inp.jerk  # (the programmed one)
+            programmed = nominal_profile(move.path.length, inp.speed, inp.acc, jerk).duration
             travel = max(ruckig_time(a, b, v, acc, j) for a, b, v, acc, j
                          in zip(joints[0], joints[-1], vmax, amax, jmax))
             bound = max(optimum, programmed, travel)

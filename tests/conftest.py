@@ -7,7 +7,8 @@ helpers to wait on their programs). Test files import them: ``from conftest impo
 Hypothesis runs derandomized by default (profile "ci"): the examples searched are the same
 on every run, so a property test that passes in CI passes again, and a counter-example, once
 found, is found every time. To search new examples locally:
-``IRL_HYPOTHESIS_PROFILE=explore .venv/bin/python -m pytest tests/...``.
+``IRL_HYPOTHESIS_PROFILE=explore .venv/bin/python -m pytest tests/...``; to search more of
+them, ``IRL_EXAMPLES_SCALE=10`` (``examples``: the costliest tests' counts, scaled).
 
 The README's test command runs the tests in parallel (pytest-xdist, ``-n auto --dist
 worksteal``: two workers per core, see pytest_xdist_auto_num_workers; a worker that runs
@@ -41,6 +42,17 @@ from runtime.wire.protocol import TERMINAL  # noqa: F401  (the states a job ends
 settings.register_profile("ci", derandomize=True, database=None, deadline=None)
 settings.register_profile("explore", deadline=None)
 settings.load_profile(os.environ.get("IRL_HYPOTHESIS_PROFILE", "ci"))
+
+#: The costliest property tests (each example a run of the robot, or seconds of planning)
+#: run ``examples(n)`` examples: ``n``, what CI runs, times IRL_EXAMPLES_SCALE (default 1).
+#: A deeper search is one variable away: ``IRL_EXAMPLES_SCALE=10`` (with
+#: ``IRL_HYPOTHESIS_PROFILE=explore``: new examples on every run).
+EXAMPLES_SCALE = float(os.environ.get("IRL_EXAMPLES_SCALE", "1"))
+
+
+def examples(n: int) -> int:
+    """How many examples a property test whose CI count is ``n`` runs (EXAMPLES_SCALE)."""
+    return max(1, round(n * EXAMPLES_SCALE))
 
 
 # ---- the repository and the robot ----------------------------------------------------------------

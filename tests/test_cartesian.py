@@ -50,7 +50,7 @@ from runtime.motion.rotation import (
 from runtime.motion.trajectory import Result
 from runtime.motion.kinematics import Kinematics, KinematicsError, matrix_to_rpy, rpy_to_matrix
 
-from conftest import ROOT, SPEC
+from conftest import ROOT, SPEC, examples
 KIN = Kinematics(SPEC)
 AXES = SPEC.main_axes
 START = (0.0, -30.0, 30.0, 0.0, 45.0, 0.0)  # front, elbow up, A5 at 45 deg: far from singular
@@ -752,7 +752,7 @@ def cartesian_moves(draw):
     return q0, "circ", (via + tilt, end, speed, acc), speed
 
 
-@settings(max_examples=60, deadline=None, derandomize=True, database=None, suppress_health_check=list(HealthCheck))
+@settings(max_examples=examples(30), deadline=None, derandomize=True, database=None, suppress_health_check=list(HealthCheck))
 @given(cartesian_moves())
 def test_property_lin_and_circ_setpoints_keep_every_joint_limit_and_the_speed(drawn):
     q0, kind, args, speed = drawn

@@ -32,7 +32,7 @@ from runtime.config import (
     validate_settings,
 )
 
-from conftest import ROOT
+from conftest import ROOT, examples
 SAMPLE = ROOT / "programs" / "lola15.toml"
 
 FUZZ = dict(deadline=None, derandomize=True, database=None,
@@ -729,7 +729,7 @@ def test_mutated_sample_raises_only_config_error(sample, at, cut, insert):
     parses_or_config_error(sample[:at] + insert + sample[at + cut:])
 
 
-@settings(max_examples=500, **FUZZ)
+@settings(max_examples=examples(200), **FUZZ)
 @given(toml_ish())
 def test_random_documents_raise_only_config_error(data):
     configs = parses_or_config_error(toml_document(data))

@@ -18,7 +18,7 @@ from runtime.loop.vm import VM, VMStatus
 
 from test_vm import DISPATCHES, FakeHost, compile_text, line_of, program_text, raw_program
 
-from conftest import ROOT, SPEC
+from conftest import ROOT, SPEC, examples
 HOME = "joint(mainjoint(0, -30, 30, 0, 60, 0))"
 
 
@@ -265,7 +265,7 @@ endinterrupt;
 START = (0.0, -30.0, 30.0, 0.0, 60.0, 0.0)
 
 
-@settings(max_examples=12, deadline=None, suppress_health_check=[HealthCheck.too_slow, HealthCheck.function_scoped_fixture])
+@settings(max_examples=examples(6), deadline=None, suppress_health_check=[HealthCheck.too_slow, HealthCheck.function_scoped_fixture])
 @given(kind=st.sampled_from(["ptp", "lin"]), into=st.floats(0.05, 0.95), hold=st.floats(0.05, 1.0),
        speed=st.floats(0.3, 1.0), end=st.tuples(st.floats(-60, 60), st.floats(-25, 10), st.floats(10, 50),
                                                 st.floats(-40, 40), st.floats(30, 80), st.floats(-60, 60)))

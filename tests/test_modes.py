@@ -24,6 +24,8 @@ from runtime.server.server import Server, ServeOptions
 from runtime.timing import TICK
 from runtime.wire.protocol import ProtocolError
 
+from conftest import examples
+
 SPEC = "programs/lola15.spc"
 SPEC_FILE = str(Path(SPEC).resolve())
 #: How long after the last heartbeat a continuous jog must be at rest (docs/protocol.md, jog).
@@ -133,7 +135,7 @@ JOINT = st.tuples(st.floats(-25, 25), st.floats(-20, 20), st.floats(-20, 20), st
                   st.floats(30, 70), st.floats(-60, 60))
 
 
-@settings(max_examples=8, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@settings(max_examples=examples(4), deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
 @given(moves=st.lists(st.tuples(st.sampled_from(["ptp", "lin"]), JOINT, st.floats(0.2, 1.0), st.booleans()),
                       min_size=1, max_size=3))
 def test_random_moves_in_t1_never_pass_250_mm_per_s(t1_robot, moves):

@@ -21,7 +21,7 @@ from runtime.hardware.sim.cell import load_scenario
 from runtime.loop.offline import MAX_MOVES, check_motion
 from runtime.loop.system import RobotSystem, RunOptions
 
-from conftest import PROGRAMS, ROOT, SPEC, SPEC_PATH, run_cli
+from conftest import PROGRAMS, ROOT, SPEC, SPEC_PATH, examples, run_cli
 
 HERE = ROOT / "tests" / "motion_check"
 DIAG = re.compile(r"^(?P<file>[^:\n]+):(?P<line>\d+):(?P<col>\d+): (?P<severity>error|warning): (?P<msg>.*)$", re.M)
@@ -242,7 +242,7 @@ def robot():
 
 
 @pytest.mark.long
-@settings(max_examples=10, suppress_health_check=[HealthCheck.function_scoped_fixture, HealthCheck.too_slow])
+@settings(max_examples=examples(5), suppress_health_check=[HealthCheck.function_scoped_fixture, HealthCheck.too_slow])
 @given(body=programs())
 def test_check_refuses_exactly_where_irl_run_faults_and_times_the_cycle_as_it_runs(robot, body):
     """For a random program of ptp, lin and circ moves (targets in and out of reach, near

@@ -21,7 +21,7 @@ from runtime.motion.moves import MovePlanner, MoveRequest
 from runtime.motion.interpolator import Interpolator
 from runtime.timing import SETPOINT_PERIOD, TICK
 
-from conftest import ROOT, SPEC
+from conftest import ROOT, SPEC, examples
 KIN = Kinematics(SPEC)
 START = (0.0, -30.0, 30.0, 0.0, 45.0, 0.0)
 VMAX = [a.max_velocity for a in SPEC.axes]
@@ -289,7 +289,7 @@ class QueueMachine(RuleBasedStateMachine):
         assert velocity <= 1.0 + 1e-9 and acceleration <= 1.0 + 1e-6, (velocity, acceleration)
 
 
-QueueMachine.TestCase.settings = settings(max_examples=100, stateful_step_count=25, deadline=None, derandomize=True,
+QueueMachine.TestCase.settings = settings(max_examples=examples(40), stateful_step_count=25, deadline=None, derandomize=True,
                                           database=None, suppress_health_check=list(HealthCheck))
 test_random_commands_keep_the_limits_and_end_at_rest = pytest.mark.long(QueueMachine.TestCase)
 
@@ -392,7 +392,7 @@ FOUND = [
 
 
 @pytest.mark.long
-@settings(max_examples=60, deadline=None, derandomize=True, database=None, suppress_health_check=list(HealthCheck))
+@settings(max_examples=examples(30), deadline=None, derandomize=True, database=None, suppress_health_check=list(HealthCheck))
 @given(programs())
 @example(FOUND[0])
 @example(FOUND[1])

@@ -39,7 +39,7 @@ from compiler.objcode import (
     verify,
 )
 
-from conftest import PROGRAMS, run_cli
+from conftest import PROGRAMS, examples, run_cli
 HEADER = struct.Struct(">4sHI")
 DIAG_LINE = re.compile(r"^\S+:\d+:\d+: error: ", re.M)
 BODY_KEYS = ("name", "source", "spec", "robots", "constants", "code", "lines", "globals", "procedures")
@@ -223,7 +223,7 @@ def check_source_text(workdir: Path, text: str) -> int:
 
 
 @pytest.mark.long
-@settings(max_examples=250, **FUZZ)
+@settings(max_examples=examples(100), **FUZZ)
 @given(case=mutated_sources())
 def test_mutated_programs_never_crash_the_cli(workdir, case):
     name, text = case

@@ -28,7 +28,7 @@ from compiler.spec import SpecError, parse_spec
 from runtime.cli.main import Environment, main
 from runtime.loop.system import RobotSystem, RunOptions
 
-from conftest import ROOT
+from conftest import ROOT, examples
 SPEC_TEXT = (ROOT / "programs" / "lola15.spc").read_text(encoding="utf-8")
 TEST_IRL = (ROOT / "programs" / "test.irl").read_text(encoding="utf-8")
 AXIS = params.section_params("axis")
@@ -257,7 +257,8 @@ def run_to_end_of_homing(text: str, settings_: dict, max_time: float) -> dict | 
 #: every knob but the speeds below, which make homing take many minutes at their least.
 #: (max_velocity too: the searches go at most half of it.)
 SLOW = {"search_velocity", "velocity_limit_scale", "home_speed", "max_velocity"}
-#: IRL_SPEC_SEARCH=N: N examples (default 12), the slow speeds drawn too, homing given an hour.
+#: IRL_SPEC_SEARCH=N: N examples (default 4, scaled by IRL_EXAMPLES_SCALE), the slow speeds drawn too,
+#: homing given an hour.
 SEARCH = int(os.environ.get("IRL_SPEC_SEARCH", "0") or 0)
 HOMING_TIME = 3600.0 if SEARCH else 30.0
 EXTREME_KNOBS = [knob for knob in KNOBS + [("safety", "acceleration_factor", None, SAFETY["acceleration_factor"]),
@@ -329,7 +330,7 @@ def extreme_specs(draw) -> tuple[str, dict]:
 
 #: Each example runs homing on the simulated clock (about a second): a failure is reported
 #: as drawn (no shrinking, which reruns homing hundreds of times), its knobs printed.
-@settings(max_examples=SEARCH or 8, deadline=None, phases=[Phase.explicit, Phase.generate],
+@settings(max_examples=SEARCH or examples(4), deadline=None, phases=[Phase.explicit, Phase.generate],
           suppress_health_check=[HealthCheck.too_slow], print_blob=True)
 @given(case=extreme_specs())
 def test_every_extreme_combination_irl_check_accepts_homes_without_a_fault(case):

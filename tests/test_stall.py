@@ -22,7 +22,7 @@ from compiler.driver import compile_source
 from runtime.loop.system import RobotSystem, RunOptions
 from runtime.timing import TICK
 
-from conftest import ROOT, SPEC
+from conftest import ROOT, SPEC, examples
 #: Two moves (one blended into a lin) after homing: Move Robot lasts about 1.9 s.
 SOURCE = """program stall;
 system_specification "lola15.spc";
@@ -142,7 +142,7 @@ def test_a_07_s_stall_in_each_phase_never_faults_a_healthy_arm(phase, ticks_in):
 CASES = st.sampled_from(sorted(PHASES)).flatmap(lambda p: st.tuples(st.just(p), st.integers(0, PHASES[p])))
 
 
-@settings(max_examples=8, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@settings(max_examples=examples(4), deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(case=CASES, stall=st.floats(0.002, 0.7))
 @example(case=("start position", 250), stall=0.7)  # Move Robot begins during the catch-up
 def test_any_stall_up_to_07_s_at_any_tick_of_any_phase_never_faults(case, stall):

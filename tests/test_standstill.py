@@ -16,7 +16,7 @@ from compiler.spec import parse_spec
 from limits_watch import LimitWatch, at_rest_and_safe, run_cycle
 from runtime.loop.system import RobotSystem, RunOptions
 
-from conftest import SPEC_PATH
+from conftest import SPEC_PATH, examples
 
 LOLA = SPEC_PATH.read_text(encoding="utf-8")
 
@@ -150,7 +150,7 @@ def arms(draw) -> dict:
 
 
 @pytest.mark.long
-@settings(max_examples=10, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@settings(max_examples=examples(5), deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(arm=arms())
 def test_a_healthy_arm_comes_into_position_and_a_drifting_one_is_stopped(arm, tmp_path_factory):
     """Random arms (limits, gear and encoder, kp, ki, the drive's lag) with the least

@@ -19,7 +19,7 @@ from compiler.objcode import OP, ObjectCodeError, verify
 
 from test_vm import FakeHost, compile_text, program_text, run
 
-from conftest import ROOT, SPEC
+from conftest import ROOT, SPEC, examples
 TICK = 0.001
 DOWN = "rpy(180, 30, 180)"
 
@@ -56,7 +56,7 @@ def pose_text(p) -> str:
 
 
 @pytest.mark.long
-@settings(max_examples=12, deadline=None,
+@settings(max_examples=examples(6), deadline=None,
           suppress_health_check=[HealthCheck.too_slow, HealthCheck.function_scoped_fixture])
 @given(start=st.tuples(st.floats(600, 750), st.floats(-150, 150), st.floats(350, 600)),
        travel=st.tuples(st.floats(100, 300), st.floats(-60, 60), st.floats(-80, 80)),
@@ -111,7 +111,7 @@ def test_distance_triggers_fire_within_a_servo_tick_of_the_place(tmp_path_factor
 
 
 @pytest.mark.long
-@settings(max_examples=10, deadline=None,
+@settings(max_examples=examples(5), deadline=None,
           suppress_health_check=[HealthCheck.too_slow, HealthCheck.function_scoped_fixture])
 @given(approx=st.sampled_from([0.0, 20.0, 60.0]), t_before=st.integers(0, 400), t_after=st.integers(0, 300),
        t_end=st.integers(0, 300), override=st.sampled_from([100.0, 60.0]))

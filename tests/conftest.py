@@ -78,66 +78,6 @@ def pytest_xdist_auto_num_workers(config):
     return 2 * len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else 2 * (os.cpu_count() or 1)
 
 
-def pytest_configure(config):
-    """Without bytecode caches (``PYTHONDONTWRITEBYTECODE``, as on CI's machine), every
-    process of a run would compile the runtime and rewrite the test files' asserts for
-    itself: each xdist worker about 12 s of CPU before its first test, each ``irl``
-    subprocess a fraction of a second. The first process (the xdist controller, or the only
-    one) compiles them once into a temporary cache (``PYTHONPYCACHEPREFIX``, removed at the
-    end; nothing written into the tree) that the workers and their subprocesses read."""
-    if hasattr(config, "workerinput") or not sys.dont_write_bytecode or os.environ.get("PYTHONPYCACHEPREFIX"):
-        return
-    import compileall
-    import shutil
-    import tempfile
-
-    prefix = tempfile.mkdtemp(prefix="irl-pycache-")
-    config.add_cleanup(lambda: shutil.rmtree(prefix, ignore_errors=True))
-    sys.pycache_prefix = prefix  # (this process reads it too)
-    os.environ["PYTHONPYCACHEPREFIX"] = prefix  # (read by the workers and subprocesses started from now on)
-    for package in ("compiler", "runtime"):
-        compileall.compile_dir(ROOT / package, quiet=1, workers=1)
-    here = Path(__file__).resolve().parent
-    for helper in here.glob("*.py"):
-        if not helper.name.startswith("test_") and helper.name != "conftest.py":
-            compileall.compile_file(helper, quiet=1)
-    _rewrite_tests(config, here)
-
-
-def _rewrite_tests(config, here: Path) -> None:
-    """The test files' asserts rewritten as pytest's import hook does, into its cache, by
-    as many processes as there are cores (best effort: pytest's own functions, not public;
-    without them each process rewrites the files it imports)."""
-    import multiprocessing
-
-    paths = sorted(here.glob("test_*.py"))
-    processes = min(len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else 1, 4)
-    if processes > 1 and "fork" in multiprocessing.get_all_start_methods():
-        children = []
-        for k in range(processes):
-            child = multiprocessing.get_context("fork").Process(target=_rewrite, args=(config, paths[k::processes]))
-            child.start()
-            children.append(child)
-        for child in children:
-            child.join()
-    else:
-        _rewrite(config, paths)
-
-
-def _rewrite(config, paths: list[Path]) -> None:
-    try:
-        from _pytest.assertion.rewrite import PYC_TAIL, _rewrite_test, _write_pyc, assertstate_key, get_cache_dir
-
-        state = config.stash[assertstate_key]
-        for path in paths:
-            cache = get_cache_dir(path)
-            cache.mkdir(parents=True, exist_ok=True)
-            source_hash, code = _rewrite_test(path, config)
-            _write_pyc(state, code, source_hash, cache / (path.name[:-3] + PYC_TAIL))
-    except Exception:  # (another pytest: each process rewrites them itself)
-        pass
-
-
 def pytest_collection_modifyitems(config, items):
     """The ``long`` tests dealt in turn to the heads of the shares that xdist's worksteal
     scheduler first gives each worker (contiguous: worker i gets len(pending) //

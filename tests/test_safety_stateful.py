@@ -699,8 +699,8 @@ def test_the_safety_guarantees_hold_whatever_the_operator_and_the_hardware_do():
         if os.environ.get("IRL_STATEFUL_VERBOSE"):
             for figure, log in f["worst rules"].items():
                 print(f"  largest {figure} in: " + "; ".join(log))
-        for kind, (cases, message, log) in VIOLATIONS.items():
-            print(f"  VIOLATION {kind} in {cases} examples: {message}\n    shortest: " + "; ".join(log))
+        for kind, (examples, message, log) in VIOLATIONS.items():
+            print(f"  VIOLATION {kind} in {examples} examples: {message}\n    shortest: " + "; ".join(log))
     assert not VIOLATIONS, f"violations: {sorted(VIOLATIONS)}"
 
 

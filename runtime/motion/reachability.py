@@ -80,18 +80,22 @@ JERK_SHARE = 0.85
 _FLAT = 1e-12
 
 
-def _lines(g1: np.ndarray, g2: np.ndarray, amax: np.ndarray, acc: float) -> tuple[np.ndarray, ...]:
+def _lines(g1: np.ndarray, g2: np.ndarray, amax: np.ndarray, acc, scale: np.ndarray) -> tuple[np.ndarray, ...]:
     """Per grid point, the lines ``alpha + beta x`` that bound ``u`` from below (``lo``) and
     above (``hi``) for each joint and the path, and the ceiling on ``x`` of the joints
     whose ``q'`` is flat: (alpha_lo, alpha_hi, beta, flat_cap) with (n, 7) arrays (the
-    seventh: the path's ``acc``, beta 0)."""
+    seventh: the path's ``acc``, beta 0); the accelerations lowered by ``scale`` (per
+    point) as a time scale would (x k^2)."""
     n = len(g1)
+    k2 = (np.asarray(scale, dtype=float) ** 2)[:, None]
+    amax = np.asarray(amax, dtype=float)[None, :] * k2
+    path = np.full((n, 1), float(acc)) * k2
     steep = np.abs(g1) > _FLAT
     safe = np.where(steep, g1, 1.0)
     beta = np.where(steep, -g2 / safe, 0.0)
     reach = np.where(steep, amax / np.abs(safe), np.inf)
-    alpha_lo = np.concatenate([-reach, np.full((n, 1), -acc)], axis=1)
-    alpha_hi = np.concatenate([reach, np.full((n, 1), acc)], axis=1)
+    alpha_lo = np.concatenate([-reach, -path], axis=1)
+    alpha_hi = np.concatenate([reach, path], axis=1)
     beta = np.concatenate([beta, np.zeros((n, 1))], axis=1)
     with np.errstate(divide="ignore"):
         flat = np.where(steep, np.inf, amax / np.maximum(np.abs(g2), 1e-300))
@@ -103,9 +107,7 @@ def _braking(grid: np.ndarray, g1: np.ndarray, g2: np.ndarray, amax: np.ndarray,
     """What a stop brakes within (:meth:`AveragedProfile.stop_law`), as plain lists: the
     grid, its lower lines (alpha, beta) with the limits the corrections left, and the path
     jerk allowed at each point."""
-    k2 = (scale * scale)[:, None]
-    alpha_lo, _alpha_hi, beta, _flat = _lines(g1, g2, np.asarray(amax, dtype=float)[None, :] * k2, acc)
-    alpha_lo[:, 6] *= k2[:, 0]
+    alpha_lo, _alpha_hi, beta, _flat = _lines(g1, g2, amax, acc, scale)
     return grid.tolist(), alpha_lo.tolist(), beta.tolist(), cap.tolist()
 
 
@@ -128,12 +130,8 @@ def topp_ra(s: np.ndarray, g1: np.ndarray, g2: np.ndarray, vmax, amax, speed: fl
     n = len(s)
     h = np.append(np.diff(s), s[-1] - s[-2])[:, None]  # (each point's interval to the next)
     vmax = np.asarray(vmax, dtype=float)[None, :]
-    amax = np.asarray(amax, dtype=float)[None, :]
     k = np.ones(n) if scale is None else np.asarray(scale, dtype=float)
-    k2 = (k * k)[:, None]
-    alpha_lo, alpha_hi, beta, flat = _lines(g1, g2, amax * k2, acc)
-    alpha_lo[:, 6] *= k2[:, 0]
-    alpha_hi[:, 6] *= k2[:, 0]
+    alpha_lo, alpha_hi, beta, flat = _lines(g1, g2, amax, acc, k)
     with np.errstate(divide="ignore", over="ignore"):
         velocity = np.min((vmax * k[:, None] / np.maximum(np.abs(g1), 1e-150)) ** 2, axis=1)
     ceiling = np.minimum.reduce([velocity, (speed * k) ** 2, flat, _acceleration_ceiling(alpha_lo, alpha_hi, beta)])
@@ -181,10 +179,10 @@ class AveragedProfile(PathProfile):
     __slots__ = ("window", "_pieces", "_big", "_end", "_braking")
 
     def __init__(self, length: float, t, s, v, a, window: float, acc: float, jerk: float, envelope: tuple | None,
-                 braking: tuple | None = None, blended: bool = True):
+                 blended: bool = True):
         self.length = length
         self.window = window
-        self._braking = braking  # (grid, alpha_lo, beta, jerk cap): what a stop brakes within
+        self._braking = None  # (grid, alpha_lo, beta, jerk cap): what a stop brakes within (set by the planner)
         t, s, v, a = (np.asarray(x, dtype=float) for x in (t, s, v, a))
         d = np.diff(t)
         big = np.concatenate([[0.0], np.cumsum(d * (s[:-1] + d * (0.5 * v[:-1] + d * a[:-1] / 6.0)))])
@@ -381,12 +379,8 @@ def _keeps(law: StopLaw, envelope: tuple, acc: float, jerk: float) -> bool:
     s, v, a, j = law._law.states(times)
     if np.max(np.abs(a)) > acc * (1.0 + 1e-9) or np.max(np.abs(j)) > jerk * (1.0 + 1e-9):
         return False
-    grid = np.asarray(at)
-    G1, G2, G3 = (np.stack([np.interp(s, grid, g[:, axis]) for axis in range(g.shape[1])], axis=1)
-                  for g in (g1, g2, g3))
-    v, a, j = v[:, None], a[:, None], j[:, None]
-    return bool(np.all(np.abs(G2 * v * v + G1 * a) <= amax) and
-                np.all(np.abs(G3 * v * v * v + 3.0 * G2 * v * a + G1 * j) <= jmax))
+    ratios = joint_ratios(s, v, a, j, np.asarray(at), (g1, g2, g3), (np.full(len(amax), np.inf), amax, jmax))
+    return bool(np.max(ratios[1:]) <= 1.0)
 
 
 def _time_law(s: np.ndarray, x: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
@@ -477,21 +471,19 @@ def _corrected(s: np.ndarray, derivatives, limits, speed: float, acc: float, jer
         if not np.all(np.isfinite(t)) or not t[-1] > 0.0:
             break
         window = _window(t, ss, v, a, s, cap)
-        profile = AveragedProfile(length, t, ss, v, a, window, acc, jerk, envelope,
-                                  _braking(grid, d1, d2, amax, acc, scale, np.interp(grid, s, cap)))
+        profile = AveragedProfile(length, t, ss, v, a, window, acc, jerk, envelope)
         times = np.linspace(0.0, profile.duration, int(profile.duration / (2.0 * TICK)) + 2)
         at, pv, pa, pj = profile.states(times)
         room = time_room(joint_ratios(at, pv, pa, pj, s, derivatives, limits), share)
         least = float(np.min(room))
         if least >= 1.0 - 1e-9:
-            if best is not None and profile.duration > (1.0 - SETTLED) * best.duration:
-                best = min(best, profile, key=lambda p: p.duration)
-                break  # (settled: another round gained less than SETTLED)
-            best = profile
-            if least < RAISE_WHEN:
-                break  # (settled: nowhere much room left)
+            settled = best is not None and profile.duration > (1.0 - SETTLED) * best[0].duration
+            if best is None or profile.duration < best[0].duration:
+                best = (profile, scale)
+            if settled or least < RAISE_WHEN:
+                break  # (settled: another round gained less than SETTLED, or nowhere much room is left)
         elif fallback is None or profile.duration / least < fallback[0]:
-            fallback = (profile.duration / least, profile, least)
+            fallback = (profile.duration / least, profile, scale, least)
         # the grid's limits by the room the joints have there: lowered where a joint passes
         # its share, raised (never above the limits) where all have room, over the stretch
         # the window spans there
@@ -506,8 +498,10 @@ def _corrected(s: np.ndarray, derivatives, limits, speed: float, acc: float, jer
                                  (room[tight] * OVERSHOOT).tolist()):
                 np.minimum(factor[lo:hi], k, out=factor[lo:hi])
         scale = np.minimum(scale * factor, 1.0)
-    if best is not None:
-        return best
-    if fallback is not None:  # (none settled: the one that slowed down as a whole fits soonest)
-        return fallback[1].scaled(fallback[2] * OVERSHOOT)
-    return None
+    if best is None and fallback is None:
+        return None
+    profile, kept = best if best is not None else fallback[1:3]
+    profile._braking = _braking(grid, d1, d2, amax, acc, kept, np.interp(grid, s, cap))  # (what its stops brake within)
+    if best is None:  # (none settled: the one that slowed down as a whole fits soonest)
+        return profile.scaled(fallback[3] * OVERSHOOT)
+    return profile

@@ -83,24 +83,22 @@ def pytest_configure(config):
     process of a run would compile the runtime and rewrite the test files' asserts for
     itself: each xdist worker about 12 s of CPU before its first test, each ``irl``
     subprocess a fraction of a second. The first process (the xdist controller, or the only
-    one) compiles them once into a temporary cache (``PYTHONPYCACHEPREFIX``, removed at the
-    end; nothing written into the tree) that the workers and their subprocesses read."""
-    if hasattr(config, "workerinput") or not sys.dont_write_bytecode or os.environ.get("PYTHONPYCACHEPREFIX"):
+    one) compiles them once into the ``__pycache__`` directories the others read (not a
+    PYTHONPYCACHEPREFIX: that would hide the standard library's and the packages' caches),
+    and removes the directories it made at the end."""
+    if hasattr(config, "workerinput") or not sys.dont_write_bytecode:
         return
     import compileall
     import shutil
-    import tempfile
 
-    prefix = tempfile.mkdtemp(prefix="irl-pycache-")
-    config.add_cleanup(lambda: shutil.rmtree(prefix, ignore_errors=True))
-    sys.pycache_prefix = prefix  # (this process reads it too)
-    os.environ["PYTHONPYCACHEPREFIX"] = prefix  # (read by the workers and subprocesses started from now on)
-    for package in ("compiler", "runtime"):
-        compileall.compile_dir(ROOT / package, quiet=1, workers=1)
     here = Path(__file__).resolve().parent
-    for helper in here.glob("*.py"):
-        if not helper.name.startswith("test_") and helper.name != "conftest.py":
-            compileall.compile_file(helper, quiet=1)
+    sources = [path for package in ("compiler", "runtime") for path in (ROOT / package).rglob("*.py")]
+    sources += [path for path in here.glob("*.py") if not path.name.startswith("test_") and path.name != "conftest.py"]
+    made = sorted({path.parent / "__pycache__" for path in sources} | {here / "__pycache__"})
+    made = [directory for directory in made if not directory.exists()]
+    config.add_cleanup(lambda: [shutil.rmtree(directory, ignore_errors=True) for directory in made])
+    for path in sources:
+        compileall.compile_file(path, quiet=2)
     _rewrite_tests(config, here)
 
 

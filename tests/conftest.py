@@ -99,16 +99,28 @@ def pytest_configure(config):
     config.add_cleanup(lambda: [shutil.rmtree(directory, ignore_errors=True) for directory in made])
     for path in sources:
         compileall.compile_file(path, quiet=2)
-    _rewrite_tests(config, here)
+    written = _rewrite_tests(config, here)
+    config.add_cleanup(lambda: [path.unlink(missing_ok=True) for path in written])
 
 
-def _rewrite_tests(config, here: Path) -> None:
+def _rewrite_tests(config, here: Path) -> list[Path]:
     """The test files' asserts rewritten as pytest's import hook does, into its cache, by
-    as many processes as there are cores (best effort: pytest's own functions, not public;
-    without them each process rewrites the files it imports)."""
+    as many processes as there are cores; and the plugins' modules this process has
+    rewritten already (hypothesis's), beside their packages: those files are returned, to
+    be removed at the end. (Best effort: pytest's own functions, not public; without them
+    each process rewrites what it imports.)"""
     import multiprocessing
 
-    paths = sorted(here.glob("test_*.py"))
+    try:
+        from _pytest.assertion.rewrite import PYC_TAIL, assertstate_key, get_cache_dir
+
+        rewritten = getattr(config.stash[assertstate_key].hook, "_rewritten_names", {})
+    except Exception:
+        return []
+    plugins = [Path(path) for path in rewritten.values() if Path(path).parent != here]
+    pycs = [get_cache_dir(path) / (path.name[:-3] + PYC_TAIL) for path in plugins]
+    written = [pyc for pyc in pycs if not pyc.exists()]
+    paths = sorted(here.glob("test_*.py")) + [path for path, pyc in zip(plugins, pycs) if pyc in written]
     processes = min(len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else 1, 4)
     if processes > 1 and "fork" in multiprocessing.get_all_start_methods():
         children = []
@@ -120,6 +132,7 @@ def _rewrite_tests(config, here: Path) -> None:
             child.join()
     else:
         _rewrite(config, paths)
+    return written
 
 
 def _rewrite(config, paths: list[Path]) -> None:

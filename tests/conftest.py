@@ -112,15 +112,19 @@ def _rewrite_tests(config, here: Path) -> list[Path]:
     import multiprocessing
 
     try:
-        from _pytest.assertion.rewrite import PYC_TAIL, assertstate_key, get_cache_dir
+        from _pytest.assertion.rewrite import PYC_TAIL, _read_pyc, assertstate_key, get_cache_dir
 
         rewritten = getattr(config.stash[assertstate_key].hook, "_rewritten_names", {})
     except Exception:
         return []
+
+    def pyc(path: Path) -> Path:
+        return get_cache_dir(path) / (path.name[:-3] + PYC_TAIL)
+
     plugins = [Path(path) for path in rewritten.values() if Path(path).parent != here]
-    pycs = [get_cache_dir(path) / (path.name[:-3] + PYC_TAIL) for path in plugins]
-    written = [pyc for pyc in pycs if not pyc.exists()]
-    paths = sorted(here.glob("test_*.py")) + [path for path, pyc in zip(plugins, pycs) if pyc in written]
+    written = [pyc(path) for path in plugins if not pyc(path).exists()]
+    tests = [path for path in sorted(here.glob("test_*.py")) if _read_pyc(path, pyc(path)) is None]  # (a run in a run)
+    paths = tests + [path for path in plugins if pyc(path) in written]
     processes = min(len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else 1, 4)
     if processes > 1 and "fork" in multiprocessing.get_all_start_methods():
         children = []

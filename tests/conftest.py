@@ -78,6 +78,81 @@ def pytest_xdist_auto_num_workers(config):
     return 2 * len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else 2 * (os.cpu_count() or 1)
 
 
+def pytest_configure(config):
+    """Without bytecode caches (``PYTHONDONTWRITEBYTECODE``, as on CI's machine), every
+    process of a run would compile the runtime and rewrite the test files' asserts for
+    itself: each xdist worker about 12 s of CPU before its first test, each ``irl``
+    subprocess a fraction of a second. The first process (the xdist controller, or the only
+    one) compiles them once into the ``__pycache__`` directories the others read (not a
+    PYTHONPYCACHEPREFIX: that would hide the standard library's and the packages' caches),
+    and removes the directories it made at the end."""
+    if hasattr(config, "workerinput") or not sys.dont_write_bytecode:
+        return
+    import compileall
+    import shutil
+
+    here = Path(__file__).resolve().parent
+    sources = [path for package in ("compiler", "runtime") for path in (ROOT / package).rglob("*.py")]
+    sources += [path for path in here.glob("*.py") if not path.name.startswith("test_") and path.name != "conftest.py"]
+    made = sorted({path.parent / "__pycache__" for path in sources} | {here / "__pycache__"})
+    made = [directory for directory in made if not directory.exists()]
+    config.add_cleanup(lambda: [shutil.rmtree(directory, ignore_errors=True) for directory in made])
+    for path in sources:
+        compileall.compile_file(path, quiet=2)
+    written = _rewrite_tests(config, here)
+    config.add_cleanup(lambda: [path.unlink(missing_ok=True) for path in written])
+
+
+def _rewrite_tests(config, here: Path) -> list[Path]:
+    """The test files' asserts rewritten as pytest's import hook does, into its cache, by
+    as many processes as there are cores; and the plugins' modules this process has
+    rewritten already (hypothesis's), beside their packages: those files are returned, to
+    be removed at the end. (Best effort: pytest's own functions, not public; without them
+    each process rewrites what it imports.)"""
+    import multiprocessing
+
+    try:
+        from _pytest.assertion.rewrite import PYC_TAIL, _read_pyc, assertstate_key, get_cache_dir
+
+        rewritten = getattr(config.stash[assertstate_key].hook, "_rewritten_names", {})
+    except Exception:
+        return []
+
+    def pyc(path: Path) -> Path:
+        return get_cache_dir(path) / (path.name[:-3] + PYC_TAIL)
+
+    plugins = [Path(path) for path in rewritten.values() if Path(path).parent != here]
+    written = [pyc(path) for path in plugins if not pyc(path).exists()]
+    tests = [path for path in sorted(here.glob("test_*.py")) if _read_pyc(path, pyc(path)) is None]  # (a run in a run)
+    paths = tests + [path for path in plugins if pyc(path) in written]
+    processes = min(len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else 1, 4)
+    if processes > 1 and "fork" in multiprocessing.get_all_start_methods():
+        children = []
+        for k in range(processes):
+            child = multiprocessing.get_context("fork").Process(target=_rewrite, args=(config, paths[k::processes]))
+            child.start()
+            children.append(child)
+        for child in children:
+            child.join()
+    else:
+        _rewrite(config, paths)
+    return written
+
+
+def _rewrite(config, paths: list[Path]) -> None:
+    try:
+        from _pytest.assertion.rewrite import PYC_TAIL, _rewrite_test, _write_pyc, assertstate_key, get_cache_dir
+
+        state = config.stash[assertstate_key]
+        for path in paths:
+            cache = get_cache_dir(path)
+            cache.mkdir(parents=True, exist_ok=True)
+            source_hash, code = _rewrite_test(path, config)
+            _write_pyc(state, code, source_hash, cache / (path.name[:-3] + PYC_TAIL))
+    except Exception:  # (another pytest: each process rewrites them itself)
+        pass
+
+
 def pytest_collection_modifyitems(config, items):
     """The ``long`` tests dealt in turn to the heads of the shares that xdist's worksteal
     scheduler first gives each worker (contiguous: worker i gets len(pending) //

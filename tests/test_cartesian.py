@@ -785,6 +785,7 @@ def test_a_lin_move_near_the_wrist_singularity_slows_down_instead_of_exceeding_t
     assert stream.duration > fast.duration
 
 
+@pytest.mark.long
 def test_the_shipped_palletizing_program_keeps_every_joint_limit_end_to_end():
     """programs/palletize.irl's lin moves reached 1.77x A4's acceleration limit; run whole
     (homing included), the setpoints and the drives' commands stay within the limits."""

@@ -18,6 +18,7 @@ PICK = ROOT / "programs" / "pick_place.irl"
 SCENARIO = ROOT / "programs" / "pick_place.cell.toml"
 
 
+@pytest.mark.long
 def test_pick_and_place_runs_to_completion_against_its_cell_with_the_io_in_the_report(tmp_path):
     code, out, err = run("run", PICK, "--cell-scenario", SCENARIO, "--report", tmp_path / "a.csv")
     assert code == 0, err
@@ -186,6 +187,7 @@ def test_a_timeline_toggles_its_input_at_the_times_given_and_repeats():
     assert backend.input(6) is True  # toggled once, from false, and never again
 
 
+@pytest.mark.long
 def test_irl_serve_runs_pick_and_place_against_its_cell_and_shows_the_io(tmp_path):
     """End to end: `irl serve --sim-clock --cell-scenario`: the program completes, its
     report has the io columns, and status shows the I/O."""

@@ -265,6 +265,7 @@ endinterrupt;
 START = (0.0, -30.0, 30.0, 0.0, 60.0, 0.0)
 
 
+@pytest.mark.long
 @settings(max_examples=examples(6), deadline=None, suppress_health_check=[HealthCheck.too_slow, HealthCheck.function_scoped_fixture])
 @given(kind=st.sampled_from(["ptp", "lin"]), into=st.floats(0.05, 0.95), hold=st.floats(0.05, 1.0),
        speed=st.floats(0.3, 1.0), end=st.tuples(st.floats(-60, 60), st.floats(-25, 10), st.floats(10, 50),

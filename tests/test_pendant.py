@@ -244,13 +244,24 @@ def test_the_events_a_view_missed_are_replayed_from_the_servers_history(cell):
     page.act("release")
     after = client.request("telemetry")["seq"] + 1
     logged: list = []
-    LiveView._recover(SimpleNamespace(_event=logged.append), client, before, after)
+    marked: list = []
+
+    def mark(message, _client):
+        view.line = message.get("line") or 0
+        marked.append(view.line)
+
+    view = SimpleNamespace(_event=logged.append, _mark=mark, line=0)
+    LiveView._recover(view, client, before, after, True)
     mine = [(m["event"], m.get("text") or m.get("state")) for m in logged if m.get("program") == job]
     assert mine[0] == ("program", "running") and mine[-1] == ("program", "completed"), mine
     assert ("log", "hello from the pendant") in mine, mine
     assert all(m["kind"] == "event" and before < m["seq"] < after for m in logged)
     assert [m["seq"] for m in logged] == sorted(m["seq"] for m in logged)
-    # and nothing from outside the gap
+    # a page looks: the lines the missed samples passed are marked, in order, each once (the move's
+    # line 4 too, however short the move and whatever samples the sockets dropped)
+    assert 4 in marked and marked[-1] == 0 and all(a != b for a, b in zip(marked, marked[1:])), marked
+    # and nothing from outside the gap; no marks while no page looks
     logged.clear()
-    LiveView._recover(SimpleNamespace(_event=logged.append), client, after - 2, after)
-    assert all(m["seq"] == after - 1 for m in logged)
+    marked.clear()
+    LiveView._recover(view, client, after - 2, after, False)
+    assert all(m["seq"] == after - 1 for m in logged) and not marked

@@ -205,6 +205,7 @@ def test_the_watch_itself_catches_each_kind_of_event(event, tmp_path):
     assert any(name == "bad" and e.startswith(event) for name, e in seen), seen
 
 
+@pytest.mark.long
 def test_the_rules_hold_in_a_fresh_interpreter():
     """Run this file's tests again in an interpreter that has imported only what they
     import: in the whole suite, a module that an earlier test imported hides a lazy

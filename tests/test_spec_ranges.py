@@ -186,6 +186,7 @@ def test_any_specification_irl_check_accepts_runs_the_paper_program(case):
         assert math.isfinite(move["planned_duration"]) and move["planned_duration"] > 0
 
 
+@pytest.mark.long
 def test_each_number_at_the_least_it_accepts_runs_the_paper_program_without_a_fault():
     """One number at a time at the smallest value its range accepts (every axis alike):
     test.irl runs without nan or a fault (slow at the least speeds: the time limit ends
@@ -330,6 +331,7 @@ def extreme_specs(draw) -> tuple[str, dict]:
 
 #: Each example runs homing on the simulated clock (about a second): a failure is reported
 #: as drawn (no shrinking, which reruns homing hundreds of times), its knobs printed.
+@pytest.mark.long
 @settings(max_examples=SEARCH or examples(4), deadline=None, phases=[Phase.explicit, Phase.generate],
           suppress_health_check=[HealthCheck.too_slow], print_blob=True)
 @given(case=extreme_specs())

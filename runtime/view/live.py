@@ -109,7 +109,7 @@ class LiveView:
             while message is not None and taken < BATCH:
                 taken += 1
                 if sub.gap is not None and sub.counter == "seq":
-                    self._recover(client, *sub.gap)  # (the events it missed first: a print is never lost)
+                    self._recover(client, *sub.gap, looking)  # (what it missed first: a print is never lost)
                 if message.get("kind") == "sample":
                     latest = message
                     if looking and (message.get("line") or 0) != self.line:
@@ -139,9 +139,11 @@ class LiveView:
             if now - since >= 1.0:
                 self.rate, counted, since = counted / (now - since), 0, now
 
-    def _recover(self, client: Client, after: int, before: int) -> None:
+    def _recover(self, client: Client, after: int, before: int, looking: bool) -> None:
         """The events between telemetry ``seq`` ``after`` and ``before`` (a gap: the view
-        fell behind and the sockets dropped them), from the server's history."""
+        fell behind and the sockets dropped them), from the server's history; and, while a
+        page looks, the lines the missed samples passed (a short move's line is marked even
+        when all its samples were dropped)."""
         since = after
         while since < before - 1:
             try:
@@ -158,6 +160,8 @@ class LiveView:
                 since = seq
                 if message.get("kind") == "event":
                     self._event(message)
+                elif looking and message.get("kind") == "sample" and (message.get("line") or 0) != self.line:
+                    self._mark(message, client)
             if not replay.get("more"):
                 return
 

@@ -444,12 +444,14 @@ def test_a_pause_on_a_lin_or_circ_move_keeps_every_limit_at_the_servo():
     joints need it), then a resume: the 5 ms setpoints and the servo's 1 ms references
     within every axis's velocity, acceleration and jerk limit. Before, a stop on the path
     gave backward-difference velocities and no accelerations: the references reached 2x
-    the acceleration and 130x the jerk limit."""
+    the acceleration and 130x the jerk limit. Among the pauses: stops that brake on the
+    path and one that slows the move's own profile down to rest."""
     import sys
     sys.path.insert(0, str(ROOT / "tests"))
     from test_pathtiming import _drawn_path
 
     runs = 0
+    stops = set()  # (how the pauses stopped)
     for seed in (0, 6, 9, 21, 36):
         drawn = _drawn_path(seed)
         if drawn is None:
@@ -469,6 +471,7 @@ def test_a_pause_on_a_lin_or_circ_move_keeps_every_limit_at_the_servo():
                 if paused is None and queue.current is not None and queue.t_move > fraction * queue.current.duration:
                     queue.pause()
                     paused = now
+                    stops.add(type(getattr(queue.hold.stop, "_stop", None)).__name__)
                 if paused is not None and not resumed and queue.at_rest() and now > paused + 0.05:
                     queue.resume()
                     resumed = True
@@ -483,3 +486,5 @@ def test_a_pause_on_a_lin_or_circ_move_keeps_every_limit_at_the_servo():
                 assert max(difference_ratios(series, h)) <= 1.0 + 1e-6, (seed, fraction, h,
                                                                          difference_ratios(series, h))
     assert runs >= 9
+    # braking on the path, and slowing the profile down where no braking fits (PathProfile.ramp_stop)
+    assert {"StopLaw", "RampStop"} <= stops, stops

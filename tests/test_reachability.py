@@ -163,3 +163,42 @@ def test_property_a_stop_continues_the_profile_and_rests_on_the_path_within_the_
     assert np.max(np.abs(j)) <= 10.0 * acc * (1 + 1e-6)
     ratios = joint_ratios(at, v, a, j, s, derivatives, LIMITS)
     assert np.max(ratios[1:]) <= STOP_SHARE * 1.01, np.max(ratios, axis=1)
+
+
+@PROPERTY
+@given(paths(), st.sampled_from([0.05, 0.1, 0.3, 0.5, 0.7]))
+def test_property_a_ramp_stop_slows_the_profile_down_to_rest_within_the_limits(drawn, fraction):
+    """Where no braking law fits, a pause slows the move's own profile down to rest
+    (PathProfile.ramp_stop): it starts from the profile's speed and acceleration, its
+    speed, acceleration and jerk are the derivatives of its position (sample and states
+    agree), it never goes backwards, rests before the path's end and sooner than the
+    profile would, keeps the programmed acc and jerk and every joint's acceleration and
+    jerk within STOP_SHARE of its limits (checked here every 0.1 ms)."""
+    if drawn is None:
+        return
+    s, joints, speed, acc = drawn
+    derivatives = path_derivatives(s, joints)
+    profile = reachable_profile(s, derivatives, LIMITS, speed, acc, 10.0 * acc, REACHABLE_SHARE)
+    if profile is None:
+        return
+    t = fraction * profile.duration
+    stop = profile.ramp_stop(t)
+    event(f"ramp stop: {stop is not None}")
+    if stop is None:
+        return
+    s0, v0, a0 = profile.sample(t)
+    assert stop.sample(0.0) == pytest.approx((0.0, v0, a0), rel=1e-9, abs=1e-9)
+    assert stop.sample(stop.duration) == (stop.distance, 0.0, 0.0)
+    assert 0.0 <= stop.distance <= profile.length - s0 + 1e-9 and stop.duration < profile.duration - t
+    times = np.linspace(0.0, stop.duration, int(stop.duration / 0.0001) + 2)
+    at, v, a, j = stop.states(times)
+    assert np.allclose([stop.sample(x) for x in times[::97]], np.stack([at - s0, v, a], axis=1)[::97], atol=1e-7)
+    h = times[1] - times[0]
+    assert np.allclose(np.gradient(at, h)[1:-1], v[1:-1], atol=1e-3 * max(v0, 1.0) + 0.5 * h * acc)
+    assert np.allclose(np.gradient(v, h)[1:-1], a[1:-1], atol=h * 10.0 * acc)
+    integrated = a[0] + np.concatenate([[0.0], np.cumsum(0.5 * h * (j[1:] + j[:-1]))])  # (the jerk may jump)
+    assert np.allclose(integrated, a, atol=1e-3 * acc)
+    assert np.all(np.diff(at) >= -1e-9) and np.all(v >= -1e-9) and at[-1] == pytest.approx(s0 + stop.distance)
+    assert np.max(np.abs(a)) <= acc * (1 + 1e-6) and np.max(np.abs(j)) <= 10.0 * acc * (1 + 1e-6)
+    ratios = joint_ratios(at, v, a, j, s, derivatives, LIMITS)
+    assert np.max(ratios[1:]) <= STOP_SHARE * 1.01, np.max(ratios, axis=1)

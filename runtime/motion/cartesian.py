@@ -271,6 +271,15 @@ class _ProfileRest:
         return s - self._s0, v * self._rate, a * self._rate * self._rate
 
 
+def _ramp_stop(profile, t: float, rate: float):
+    """``profile``'s :meth:`~runtime.motion.pathtiming.PathProfile.ramp_stop` from its time
+    ``t``, sampled at ``rate`` (a speed override: the profile run 1/rate times slower), or
+    None (no profile with the joints' derivatives, or none fits)."""
+    if not isinstance(profile, PathProfile):
+        return None
+    return (profile if rate == 1.0 else profile.scaled(rate)).ramp_stop(t / rate)
+
+
 class PathStop(Trajectory):
     """A controlled stop **on** a Cartesian path (pause, abort): from the path parameter,
     speed and acceleration of ``stream`` at its time ``t``, the path speed falls to rest
@@ -307,7 +316,9 @@ class PathStop(Trajectory):
                 acc, jerk = limits
                 self._stop = JerkStop(v0 * rate, a0 * rate * rate, acc if deceleration is None else deceleration, jerk)
             if limits is None or s0 + self._stop.distance >= move.path.length:
-                self._stop = _ProfileRest(move.profile, t, rate)  # (no sooner stop keeps the limits: the move's own end)
+                # no braking keeps the limits sooner: the move's own law slowed down to rest, or its end
+                ramp = _ramp_stop(move.profile, t, rate) if deceleration is None else None
+                self._stop = ramp if ramp is not None else _ProfileRest(move.profile, t, rate)
         self._s0 = s0
         self.duration = self._stop.duration
         self.s_end = min(s0 + self._stop.distance, move.path.length)

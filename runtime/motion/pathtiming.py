@@ -91,6 +91,10 @@ REFINEMENTS = 3
 #: STOP_LOWEST of it (geometrically spaced), for the largest that keeps every joint's share.
 STOP_SCAN = 12
 STOP_LOWEST = 0.05
+#: Ramps a stop by slowing the profile down (:meth:`PathProfile.ramp_stop`) tries, each
+#: this many times longer than the last.
+RAMP_TRIES = 8
+RAMP_GROWTH = 1.4
 #: Bisection steps (each halves the interval) for the peaks and boundary speeds.
 _BISECT = 40
 
@@ -357,6 +361,32 @@ class PathProfile:
         k = int(np.argmax(ok))  # the largest deceleration that fits
         return float(decs[k]), float(jerks[k])
 
+    def ramp_stop(self, t: float) -> "RampStop | None":
+        """A stop on the path from ``t`` (a pause, an abort) that runs this profile's own
+        time law ever slower (:class:`RampStop`): the shortest ramp of RAMP_TRIES, each
+        RAMP_GROWTH times longer than the last, that keeps the path's acc and jerk and
+        every joint its share of its acceleration and jerk limits (the envelope's),
+        predicted every half millisecond; None when none does before the move's own end
+        would (or without the joints' derivatives, or at rest). For where no braking law
+        fits (near the limits, by a singularity): slowing the profile down keeps what the
+        profile keeps, and the ramp adds what its own rate change asks."""
+        envelope = self._envelope
+        if envelope is None or not 0.0 <= t < self.duration:
+            return None
+        _s0, v0, _a0 = self.sample(t)
+        if not v0 > 0.0:
+            return None
+        ramp = max(1.875 * v0 / envelope[6], 2.0 * TICK)  # (the ramp alone decelerates at most 1.875 v0 / D)
+        for _ in range(RAMP_TRIES):
+            if ramp >= self.duration - t:
+                return None  # (the move's own end comes sooner)
+            stop = RampStop(self, t, ramp)
+            times = np.linspace(0.0, ramp, max(int(ramp / (0.5 * TICK)), 2) + 1)
+            if within_envelope(*stop.states(times), envelope):
+                return stop
+            ramp *= RAMP_GROWTH
+        return None
+
     def _segment_stop_limits(self, s: float, v: float) -> tuple[float, float]:
         """The path acceleration and jerk a stop from ``s`` at speed ``v`` may use: the
         smallest of the segments it may run through (those within the stop's length at
@@ -395,6 +425,55 @@ class PathProfile:
     def __repr__(self) -> str:
         return (f"PathProfile(length={self.length!r}, duration={self.duration!r}, "
                 f"segments={len(self._bounds)}, pieces={len(self._t)})")
+
+
+class RampStop:
+    """A stop on the path by running ``profile``'s time law from its time ``t0`` ever
+    slower: the rate falls from 1 to 0 as a quintic smoothstep over ``ramp`` seconds
+    (continuous in rate, its derivative and second derivative, all 0 at the end), so the
+    path's speed is v(tau) r, its acceleration a r^2 + v r' and its jerk j r^3 + 3 a r r' +
+    v r'', tau the profile's time; it covers half the ramp of the profile's time. As
+    :class:`runtime.motion.stops.JerkStop` gives one: ``sample(t) -> (distance from where
+    it starts, speed, acceleration)``, ``duration``, ``distance``. Real-time safe."""
+
+    __slots__ = ("duration", "distance", "_profile", "_t0", "_s0")
+
+    def __init__(self, profile, t0: float, ramp: float):
+        self._profile, self._t0, self.duration = profile, t0, ramp
+        self._s0 = profile.sample(t0)[0]
+        self.distance = profile.sample(t0 + 0.5 * ramp)[0] - self._s0
+
+    def sample(self, t: float) -> tuple[float, float, float]:
+        if t >= self.duration:
+            return (self.distance, 0.0, 0.0)
+        t = max(t, 0.0)
+        d = self.duration
+        u = t / d
+        rate = 1.0 - u * u * u * (10.0 + u * (6.0 * u - 15.0))
+        slope = -30.0 * u * u * (1.0 - u) * (1.0 - u) / d
+        s, v, a = self._profile.sample(self._t0 + t - d * u * u * u * u * (2.5 + u * (u - 3.0)))
+        return (s - self._s0, v * rate, a * rate * rate + v * slope)
+
+    def states(self, times: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """The path length (absolute), speed, acceleration and jerk at the stop's ``times``."""
+        d = self.duration
+        u = np.clip(np.asarray(times, dtype=float) / d, 0.0, 1.0)
+        rate = 1.0 - u ** 3 * (10.0 + u * (6.0 * u - 15.0))
+        slope = -30.0 * u * u * (1.0 - u) ** 2 / d
+        bend = -60.0 * u * (1.0 - u) * (1.0 - 2.0 * u) / (d * d)
+        s, v, a, j = self._profile.states(self._t0 + u * d - d * u ** 4 * (2.5 + u * (u - 3.0)))
+        return s, v * rate, a * rate * rate + v * slope, j * rate ** 3 + 3.0 * a * rate * slope + v * bend
+
+
+def within_envelope(s: np.ndarray, v: np.ndarray, a: np.ndarray, j: np.ndarray, envelope: tuple) -> bool:
+    """Whether the path states (lengths ``s``, speeds ``v``, accelerations ``a``, jerks
+    ``j``) keep the ``envelope``'s acc and jerk and every joint within its acceleration and
+    jerk limits there (a stop's check: velocities only fall)."""
+    at, g1, g2, g3, amax, jmax, acc, jerk = envelope
+    if np.max(np.abs(a)) > acc * (1.0 + 1e-9) or np.max(np.abs(j)) > jerk * (1.0 + 1e-9):
+        return False
+    ratios = joint_ratios(s, v, a, j, np.asarray(at), (g1, g2, g3), (np.full(len(amax), np.inf), amax, jmax))
+    return bool(np.max(ratios[1:]) <= 1.0)
 
 
 class PathDerivatives:

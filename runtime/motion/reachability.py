@@ -50,7 +50,7 @@ import numpy as np
 
 from runtime.timing import TICK
 from runtime.motion.pathtiming import (SETTLED, PathProfile, joint_ratios, scaled_envelope, stop_envelope,
-                                      time_room)
+                                      time_room, within_envelope)
 
 __all__ = ["AveragedProfile", "CORRECTIONS", "StopLaw", "reachable_profile", "topp_ra"]
 
@@ -370,17 +370,12 @@ def _keeps(law: StopLaw, envelope: tuple, acc: float, jerk: float) -> bool:
     """Whether the stop ``law`` keeps the path's ``acc`` and ``jerk`` and every joint its
     share (the envelope's: its limits times STOP_SHARE) of its acceleration and jerk limits
     all along it, predicted every 1 ms (and at its pieces' ends, where its jerk changes)."""
-    at, g1, g2, g3, amax, jmax = envelope[:6]
     start, end = law._t0, law._t0 + law.duration
     knots = np.concatenate([law._law._t, law._law._t + law._law.window, [start, end]])
     knots = np.unique(knots[(knots >= start) & (knots <= end)])
     times = np.concatenate([start + np.linspace(0.0, law.duration, max(int(law.duration / TICK), 2) + 1),
                             0.5 * (knots[1:] + knots[:-1])])  # (and inside each piece: its jerk is constant)
-    s, v, a, j = law._law.states(times)
-    if np.max(np.abs(a)) > acc * (1.0 + 1e-9) or np.max(np.abs(j)) > jerk * (1.0 + 1e-9):
-        return False
-    ratios = joint_ratios(s, v, a, j, np.asarray(at), (g1, g2, g3), (np.full(len(amax), np.inf), amax, jmax))
-    return bool(np.max(ratios[1:]) <= 1.0)
+    return within_envelope(*law._law.states(times), envelope[:6] + (acc, jerk))
 
 
 def _time_law(s: np.ndarray, x: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:

@@ -133,6 +133,23 @@ def test_property_the_averaged_profile_keeps_every_limit_from_rest_to_rest(drawn
     assert slow.sample(profile.duration)[0] == pytest.approx(profile.sample(0.5 * profile.duration)[0])
 
 
+def _paused(drawn, fraction: float, how: str):
+    """A pause at ``fraction`` of the reachability-timed ``drawn`` move, stopped by the
+    profile's method ``how``: (s, derivatives, acc, profile, t, stop), or None (no path,
+    no profile, or that stop does not fit there)."""
+    if drawn is None:
+        return None
+    s, joints, speed, acc = drawn
+    derivatives = path_derivatives(s, joints)
+    profile = reachable_profile(s, derivatives, LIMITS, speed, acc, 10.0 * acc, REACHABLE_SHARE)
+    if profile is None:
+        return None
+    t = fraction * profile.duration
+    stop = getattr(profile, how)(t)
+    event(f"{how}: {stop is not None}")
+    return None if stop is None else (s, derivatives, acc, profile, t, stop)
+
+
 @PROPERTY
 @given(paths(), st.sampled_from([0.1, 0.3, 0.5, 0.7]))
 def test_property_a_stop_continues_the_profile_and_rests_on_the_path_within_the_limits(drawn, fraction):
@@ -141,18 +158,10 @@ def test_property_a_stop_continues_the_profile_and_rests_on_the_path_within_the_
     from the profile's own speed and acceleration at that instant, never goes backwards,
     rests before the path's end and sooner than the profile, keeps the programmed jerk
     and every joint's acceleration and jerk within STOP_SHARE of its limits."""
-    if drawn is None:
+    found = _paused(drawn, fraction, "stop_law")
+    if found is None:
         return
-    s, joints, speed, acc = drawn
-    derivatives = path_derivatives(s, joints)
-    profile = reachable_profile(s, derivatives, LIMITS, speed, acc, 10.0 * acc, REACHABLE_SHARE)
-    if profile is None:
-        return
-    t = fraction * profile.duration
-    law = profile.stop_law(t)
-    event(f"stop law: {law is not None}")
-    if law is None:
-        return
+    s, derivatives, acc, profile, t, law = found
     s0, v0, a0 = profile.sample(t)
     assert law.sample(0.0) == pytest.approx((0.0, v0, a0), rel=1e-6, abs=1e-6)
     assert law.sample(law.duration) == pytest.approx((law.distance, 0.0, 0.0), abs=1e-6)
@@ -174,18 +183,10 @@ def test_property_a_ramp_stop_slows_the_profile_down_to_rest_within_the_limits(d
     agree), it never goes backwards, rests before the path's end and sooner than the
     profile would, keeps the programmed acc and jerk and every joint's acceleration and
     jerk within STOP_SHARE of its limits (checked here every 0.1 ms)."""
-    if drawn is None:
+    found = _paused(drawn, fraction, "ramp_stop")
+    if found is None:
         return
-    s, joints, speed, acc = drawn
-    derivatives = path_derivatives(s, joints)
-    profile = reachable_profile(s, derivatives, LIMITS, speed, acc, 10.0 * acc, REACHABLE_SHARE)
-    if profile is None:
-        return
-    t = fraction * profile.duration
-    stop = profile.ramp_stop(t)
-    event(f"ramp stop: {stop is not None}")
-    if stop is None:
-        return
+    s, derivatives, acc, profile, t, stop = found
     s0, v0, a0 = profile.sample(t)
     assert stop.sample(0.0) == pytest.approx((0.0, v0, a0), rel=1e-9, abs=1e-9)
     assert stop.sample(stop.duration) == (stop.distance, 0.0, 0.0)

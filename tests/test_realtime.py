@@ -6,6 +6,7 @@ from __future__ import annotations
 import io
 import json
 import os
+import subprocess
 from array import array
 from pathlib import Path
 
@@ -17,7 +18,7 @@ from runtime.loop.executive import DEADLINE_HINT, Executive, MissPolicy, SimCloc
 from runtime.loop.system import RobotSystem, RunOptions
 from runtime.timing import TICK
 
-from conftest import ROOT, SPEC_PATH as SPEC_FILE, run_cli as run
+from conftest import IRL, ROOT, SPEC_PATH as SPEC_FILE, run_cli as run
 SPEC = load_spec(SPEC_FILE)
 
 
@@ -382,6 +383,22 @@ def test_a_server_killed_mid_move_leaves_its_loop_to_stop_the_robot_and_end(tmp_
     time.sleep(0.1)
 
 
+#: How long the bare loop beside the flooded server measures the host (the program takes about 10 s).
+PROBE_SECONDS = 12
+
+
+def _probed(probe) -> dict:
+    """What ``irl latency --json`` measured (waited for), or {} (not started, or no answer)."""
+    if probe is None:
+        return {}
+    try:
+        out, _ = probe.communicate(timeout=PROBE_SECONDS + 30)
+        return json.loads(out)
+    except (subprocess.TimeoutExpired, ValueError):
+        probe.kill()
+        return {}
+
+
 @pytest.mark.long
 def test_a_program_completes_on_the_wall_clock_while_a_client_floods_status_requests(tmp_path):
     """Issue 15's end-to-end check: `irl serve` on the wall clock, the firm deadline
@@ -389,7 +406,10 @@ def test_a_program_completes_on_the_wall_clock_while_a_client_floods_status_requ
     (the calibration, the homing of every axis and a move: about 10 s of real time) while
     another client sends status requests as fast as it can and a subscriber reads the
     telemetry. (The paper's program would take 25 s of the flood's two busy processes
-    for the same phases, the same steps of the homing and the same kind of move.)"""
+    for the same phases, the same steps of the homing and the same kind of move.) A bare
+    loop at the same scheduling (``irl latency``) measures the host beside it: a deadline
+    fault while that loop, too, could not hold a firm 1 ms is the host's load, not the
+    server's (skipped, with the figures); a fault while it could is a failure."""
     import sys
     import time
 
@@ -408,9 +428,14 @@ def test_a_program_completes_on_the_wall_clock_while_a_client_floods_status_requ
     from _loads import start_load, stop_load
 
     load = []
+    probe = None
     try:
         client = server.client(timeout=30.0)
         load = start_load("flood", server.endpoint, server.telemetry)
+        # a bare loop at the same scheduling beside it, through the run: what the host itself gave
+        probe = subprocess.Popen([*IRL, "latency", "--duration", str(PROBE_SECONDS), "--json",
+                                  "--spec", str(SPEC_FILE)], cwd=ROOT, stdout=subprocess.PIPE,
+                                 stderr=subprocess.DEVNULL, text=True)
         job = client.request("submit", {"object": objcode(PROGRAMS / "short.irl")})["program"]
         started = time.monotonic()
         final = wait_end(client, job, server)
@@ -418,11 +443,17 @@ def test_a_program_completes_on_the_wall_clock_while_a_client_floods_status_requ
     finally:
         replies, messages = stop_load(load) if load else (0, 0)
         code = server.stop()
+        host = _probed(probe)
     summary = final.get("summary") or {}
     print(f"a program on the wall clock under a status flood: {final['state']}, "
           f"{summary.get('deadline_misses')} misses in {summary.get('ticks')} ticks, {replies} status "
-          f"replies ({replies / elapsed:.0f}/s), {messages} telemetry messages")
-    assert final["state"] == "completed", (final, server.log())
+          f"replies ({replies / elapsed:.0f}/s), {messages} telemetry messages; the host: {host}")
+    if final["state"] == "faulted" and "deadline" in str(final.get("fault")) and host.get("policy") == "soft":
+        # the host stalled a bare loop at the same scheduling too: its load, not the server, missed
+        pytest.skip(f"this host could not hold a firm 1 ms loop during the run (a bare loop at the same "
+                    f"scheduling beside it: {host.get('misses')} late wake-ups, the latest "
+                    f"{host.get('max_ms', 0.0):.1f} ms): {final.get('fault')}")
+    assert final["state"] == "completed", (final, host, server.log())
     assert replies > 1000 and messages > 100, (replies, messages)
     assert code == 0, server.log()
 

@@ -31,6 +31,7 @@ from .clauses import Clause, Motion
 from .configs import CONTEXTUAL_NAME, GROUPS as CONFIG_GROUPS, TURN_AXES, WORDS as CONFIG_WORDS, Config
 from .configs import turn_problem as config_turn_problem
 from .objcode import BUILTINS, MAX_ARRAY_ELEMENTS, MAX_COUNT, MAX_STRING_LENGTH
+from .robotstate import CLOCKS, FUNCTIONS as STATE_FUNCTIONS, PROCEDURES as STATE_PROCEDURES
 from .semantics import (GEOMETRIC_BUILTINS, GEOMETRY, INT_MAX, INT_MIN, EvalError, binary, call_builtin,
                         compose, geometric_result, make_joint, make_pos, make_pose, make_quat, make_rpy, unary)
 from .spec import Spec
@@ -553,11 +554,13 @@ class Checker:
         if name in BUILTINS:
             return self.builtin(node)
         symbol = self.lookup(name)
+        if name in STATE_FUNCTIONS and (symbol is None or symbol.kind != "func"):  # (a routine of its own first)
+            return self.state_routine(node, STATE_FUNCTIONS[name])
         if symbol is not None and symbol.kind == "func":
             self.symbols[id(node)] = symbol
             self.arguments(node, symbol, "function")
             return symbol.type
-        if symbol is not None and symbol.kind == "proc":
+        if symbol is not None and symbol.kind == "proc" or symbol is None and name in STATE_PROCEDURES:
             self.error(node.name_span, f"procedure '{name}' has no value", f"call it as a statement: call {name}(...);")
         elif symbol is not None:
             self.error(node.name_span, f"'{name}' is {a(symbol.type)}, not a function")
@@ -569,6 +572,20 @@ class Checker:
         for arg in node.args:
             self.expr(arg)
         return ERROR
+
+    def state_routine(self, node, routine):
+        """A built-in routine of the robot's state (compiler.robotstate): its arguments
+        (a clock's number within 1..CLOCKS when it is a constant); its result type."""
+        if not self.arity(node, len(routine.params)):
+            return ERROR
+        for arg, wanted in zip(node.args, routine.params):
+            if self.expect(arg, wanted, f"the argument of {routine.name}") == ERROR:
+                return ERROR
+            n = self.value_of(arg)
+            if routine.name.startswith("clock_") and n is not _NO_VALUE and not 1 <= n <= CLOCKS:
+                self.error(arg.span, f"clock {n} does not exist: a program has clocks 1..{CLOCKS}")
+                return ERROR
+        return routine.result or None
 
     def arity(self, node: ast.Call, count: int) -> bool:
         if len(node.args) != count:
@@ -1076,9 +1093,15 @@ class Checker:
 
     def s_CallProc(self, node: ast.CallProc):
         symbol = self.lookup(node.name)
+        if node.name in STATE_PROCEDURES and (symbol is None or symbol.kind != "proc"):  # (its own first)
+            self.state_routine(node, STATE_PROCEDURES[node.name])
+            return
         if symbol is None or symbol.kind != "proc":
             hidden = self.hidden_hint(node.name) if symbol is None else None
-            if hidden is not None:
+            if symbol is None and node.name in STATE_FUNCTIONS:
+                self.error(node.name_span, f"'{node.name}' is a function: use its value",
+                           f"for example: x := {node.name}({'1' if STATE_FUNCTIONS[node.name].params else ''});")
+            elif hidden is not None:
                 self.error(node.name_span, *hidden)
             elif symbol is None:
                 procs = [s.name for s in self.globals.values() if s.kind == "proc"]

@@ -18,6 +18,7 @@ from .clauses import CLAUSES as CLAUSE_TABLE
 from .clauses import Motion
 from .configs import CONTEXTUAL_NAME, WORDS as CONFIG_WORDS, Config, operand_of
 from .objcode import BUILTIN_NAMES, FIELDS, OP, InterruptInfo, ProcInfo, Program
+from .robotstate import FUNCTIONS as STATE_FUNCTIONS, PROCEDURES as STATE_PROCEDURES
 from .values import Joint, Pose, Position, Rpy
 
 _BINARY_OPS = {"+": OP.ADD, "-": OP.SUB, "*": OP.MUL, "/": OP.DIV, "div": OP.IDIV, "mod": OP.MOD,
@@ -167,6 +168,8 @@ class CodeGen:
             for arg, param_t in zip(node.args, symbol.params):
                 self.value(arg, param_t)
             self.emit(OP.CALL_FUNC, symbol.index)
+        elif name in STATE_FUNCTIONS:
+            self.state_routine(node, STATE_FUNCTIONS[name])
         elif name in _BUILTIN_INDEX:
             want = REAL if self.types[id(node)] == REAL else None
             for arg in node.args:
@@ -329,10 +332,19 @@ class CodeGen:
         self.emit(OP.WAIT_TEST, top)
 
     def s_CallProc(self, node: ast.CallProc) -> None:
-        symbol = self.symbols[id(node)]
+        symbol = self.symbols.get(id(node))
+        if symbol is None:  # (the checker found none of the program's: a built-in)
+            self.state_routine(node, STATE_PROCEDURES[node.name])
+            return
         for arg, param_t in zip(node.args, symbol.params):
             self.value(arg, param_t)
         self.emit(OP.CALL, symbol.index)
+
+    def state_routine(self, node, routine) -> None:
+        """A built-in routine of the robot's state: its arguments, then its instruction."""
+        for arg, param_t in zip(node.args, routine.params):
+            self.value(arg, param_t)
+        self.emit(getattr(OP, routine.instruction))
 
     def s_Print(self, node: ast.Print) -> None:
         for value in node.values:

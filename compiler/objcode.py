@@ -239,6 +239,17 @@ _DEFS = [
      "(compiler.configs).", "[t1 t4 t6] -> config", "next", False),
     ("MAKE_POSE_CONFIG", (), 3, 1, "Build pose(position, orientation, configuration).",
      "position orientation config -> pose", "next", False),
+    ("ROBOT_JOINT", (), 0, 1, "Push where the robot stands: every axis (compiler.robotstate).", "-> joint", "next",
+     True),
+    ("ROBOT_POSE", (), 0, 1, "Push the tool centre point of the active tool in the active base, with the arm's "
+                             "configuration.", "-> pose", "next", True),
+    ("TCP_SPEED", (), 0, 1, "Push the speed of the tool centre point now (mm/s).", "-> real", "next", False),
+    ("TIMED_OUT", (), 0, 1, "Push whether the last 'wait for' with a time-out ended by it.", "-> bool", "next",
+     False),
+    ("CLOCK_START", (), 1, 0, "Clock n runs from now on.", "n ->", "next", True),
+    ("CLOCK_STOP", (), 1, 0, "Clock n stops (it keeps its time).", "n ->", "next", True),
+    ("CLOCK_RESET", (), 1, 0, "Clock n reads 0 (it runs on if it ran).", "n ->", "next", True),
+    ("CLOCK_READ", (), 1, 1, "Push the seconds clock n has run.", "n -> real", "next", True),
 ]
 
 #: The types of the values on the stack (what a popped value must be, what is pushed). A
@@ -294,6 +305,9 @@ _TYPES: dict[str, tuple[str, str]] = {
     "USE_TOOL": ("pose", ""), "INT_ENABLE": ("", ""), "INT_DISABLE": ("", ""),
     "TRIGGER_OUT": ("real integer bool", ""), "TRIGGER_SET": ("real @g", ""),
     "MAKE_CONFIG": ("integer", "config"), "MAKE_POSE_CONFIG": ("position orientation config", "pose"),
+    "ROBOT_JOINT": ("", "joint"), "ROBOT_POSE": ("", "pose"), "TCP_SPEED": ("", "real"), "TIMED_OUT": ("", "bool"),
+    "CLOCK_START": ("integer", ""), "CLOCK_STOP": ("integer", ""), "CLOCK_RESET": ("integer", ""),
+    "CLOCK_READ": ("integer", "real"),
 }
 _missing_types = [d[0] for d in _DEFS if d[0] not in _TYPES]
 if _missing_types:  # pragma: no cover - the table is complete

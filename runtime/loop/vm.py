@@ -70,6 +70,7 @@ from compiler.semantics import (INT_MAX, INT_MIN, MAX_STRING_LENGTH, EvalError, 
                                 check_index, get_axis, get_field, make_joint, make_pos, make_pose, make_quat,
                                 make_rpy, set_axis, unary)
 from compiler.configs import TURNS_FLAG, from_operand
+from compiler.robotstate import CLOCKS
 from compiler.values import Pose, format_number, format_value
 
 from runtime.recording import HALT, INTERRUPT, PAUSE, PRINT, TIMEOUT
@@ -161,6 +162,16 @@ class MotionHost(Protocol):
 
     def interrupt_halt(self, reason: str) -> None:
         """The program ends by an interrupt: stop on the path, drop the moves not made."""
+
+    def current_joint(self) -> object:
+        """Where the robot stands (a compiler.values.Joint): every axis's commanded position."""
+
+    def current_pose(self) -> object:
+        """The tool centre point of the active tool in the active base, with the arm's
+        configuration (a compiler.values.Pose). May raise EvalError (no kinematics)."""
+
+    def tcp_speed(self) -> float:
+        """The speed of the tool centre point now, mm/s."""
 
     def use_frame(self, keyword: str, name: str, value: object) -> str | None:
         """``use base`` / ``use tool`` (``keyword``): make the pose ``value``, called
@@ -496,6 +507,7 @@ class Waits:
         self.kind = _NO_WAIT
         self.dwell_seconds = 0.0
         self.dwell_until: float | None = None
+        self.last_timed_out = False  # did the last 'wait for ... timeout' end by its time-out (timed_out())
         self.deadline: float | None = None  # of the current 'wait for', or None
         self.timeout = 0.0
         self._queue_ready = getattr(host, "queue_ready", host.motion_done)
@@ -542,21 +554,24 @@ class Waits:
     def end_wait_for(self) -> None:
         """The condition of the ``wait for`` holds."""
         self.deadline = None
+        self.last_timed_out = False
 
     def timed_out(self) -> bool:
         """Has the time-out of the ``wait for`` passed? (Then the wait is over.)"""
         deadline = self.deadline
         if deadline is not None and self.host.now() >= deadline - _SAME_INSTANT:
             self.deadline = None
+            self.last_timed_out = True
             return True
         return False
 
     def saved(self) -> tuple:
         """The wait the program is in (an interrupt's handler runs meanwhile)."""
-        return self.kind, self.dwell_seconds, self.dwell_until, self.deadline, self.timeout
+        return self.kind, self.dwell_seconds, self.dwell_until, self.deadline, self.timeout, self.last_timed_out
 
     def restore(self, saved: tuple) -> None:
-        self.kind, self.dwell_seconds, self.dwell_until, self.deadline, self.timeout = saved
+        (self.kind, self.dwell_seconds, self.dwell_until, self.deadline, self.timeout,
+         self.last_timed_out) = saved
 
 
 class Interrupts:
@@ -727,6 +742,7 @@ class VM:
                       for instr in program.code]
         self.memory = Memory(program, max_call_depth)
         self.waits = Waits(host)
+        self.clocks = [[None, 0.0] for _ in range(CLOCKS)]  # per clock: (running since, seconds before that)
         self.interrupts = Interrupts(program, host, self.memory, self._ops, self._args)
         owners = {VM: self, Memory: self.memory, Interrupts: self.interrupts}
         self._own = [handler.__get__(owners[owner]) for owner, handler in HANDLERS]  # (before the barrier)
@@ -1153,6 +1169,54 @@ class VM:
         if len(text) > MAX_STRING_LENGTH:  # a line of the operator log is at most this long
             text = text[:MAX_STRING_LENGTH - 3] + "..."
         self.host.log(text, self.program.line_at(pc)[0])
+        return pc + 1
+
+    # ---- the robot's own state and the clocks (compiler.robotstate) ----
+    def op_robot_joint(self, _, pc):
+        self.memory.stack.append(self.host.current_joint())
+        return pc + 1
+
+    def op_robot_pose(self, _, pc):
+        self.memory.stack.append(self.host.current_pose())
+        return pc + 1
+
+    def op_tcp_speed(self, _, pc):
+        self.memory.stack.append(float(self.host.tcp_speed()))
+        return pc + 1
+
+    def op_timed_out(self, _, pc):
+        self.memory.stack.append(self.waits.last_timed_out)
+        return pc + 1
+
+    def _clock(self, n) -> list:
+        if not 1 <= n <= CLOCKS:
+            raise EvalError(f"clock {n} does not exist: a program has clocks 1..{CLOCKS}")
+        return self.clocks[n - 1]
+
+    def op_clock_start(self, _, pc):
+        clock = self._clock(self.memory.stack.pop())
+        if clock[0] is None:
+            clock[0] = self.host.now()
+        return pc + 1
+
+    def op_clock_stop(self, _, pc):
+        clock = self._clock(self.memory.stack.pop())
+        if clock[0] is not None:
+            clock[1] += self.host.now() - clock[0]
+            clock[0] = None
+        return pc + 1
+
+    def op_clock_reset(self, _, pc):
+        clock = self._clock(self.memory.stack.pop())
+        clock[1] = 0.0
+        if clock[0] is not None:
+            clock[0] = self.host.now()
+        return pc + 1
+
+    def op_clock_read(self, _, pc):
+        stack = self.memory.stack
+        clock = self._clock(stack[-1])
+        stack[-1] = clock[1] + (self.host.now() - clock[0] if clock[0] is not None else 0.0)
         return pc + 1
 
     def op_pause(self, _, pc):

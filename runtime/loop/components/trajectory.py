@@ -31,7 +31,8 @@ from compiler.frames import problem as frame_problem
 from compiler.objcode import Program
 from compiler.params import component_params, describe
 from compiler.spec import DEFAULT_LOOKAHEAD
-from compiler.semantics import EvalError, compose
+from compiler.configs import config_of
+from compiler.semantics import EvalError, compose, inverse
 from compiler.triggers import MAX_PENDING as MAX_TRIGGERS
 from compiler.triggers import problem as trigger_problem
 from compiler.values import Joint, Pose
@@ -526,6 +527,42 @@ class TrajectoryGenerator(Component):
     def motion_done(self) -> bool:
         """Every move handed over has ended (and no stop is under way)."""
         return self.motion.done()
+
+    # ---- the robot's own state (compiler.robotstate; real-time: one forward kinematics or two) ----
+    def current_joint(self) -> Joint:
+        """Where the robot stands: the commanded position of every axis."""
+        n = len(self.spec.main_axes)
+        q = tuple(float(v) for v in self.motion.positions)
+        return Joint(q[:n], q[n:])
+
+    def _arm(self) -> Kinematics:
+        """The arm with the program's active tool (another tool's tables: about 50 us)."""
+        kinematics = self.planner.kinematics
+        if kinematics is None:
+            raise EvalError(self.planner.kinematics_problem)
+        tool = self.frames.tool
+        return kinematics if tool == kinematics.tool else kinematics.with_tool(tool)
+
+    def current_pose(self) -> Pose:
+        """The TCP of the active tool in the active base, with the arm's configuration."""
+        arm = self._arm()
+        joints = tuple(float(v) for v in self.motion.positions[:6])
+        pose = arm.forward_pose(joints)
+        base = self.frames.base
+        if base != IDENTITY:
+            pose = compose(inverse(pose_of(base)), pose)
+        return Pose(pose.position, pose.orientation, config_of(arm.configuration(joints), joints))
+
+    def tcp_speed(self) -> float:
+        """The TCP's speed (mm/s) from the commanded joint velocities (0 without kinematics)."""
+        if self.planner.kinematics is None:
+            return 0.0
+        arm = self._arm()
+        q = [float(v) for v in self.motion.positions[:6]]
+        dt = 1e-4
+        ahead = [v + w * dt for v, w in zip(q, self.motion.velocities[:6])]
+        here, there = arm.forward(q), arm.forward(ahead)
+        return ((there[0] - here[0]) ** 2 + (there[1] - here[1]) ** 2 + (there[2] - here[2]) ** 2) ** 0.5 / dt
 
     def read_input(self, n: int) -> bool:
         if not 1 <= n <= self.spec.inputs:

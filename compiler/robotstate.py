@@ -1,0 +1,55 @@
+"""The robot's own state and the program's clocks (docs/language.md, "The robot's own
+state and clocks"): built-in functions that read where the robot is, how fast its tool
+moves and whether the last ``wait for`` timed out, and built-in procedures and a function
+that measure time, as RAPID's CJointT, CRobT, ClkStart/ClkStop/ClkReset/ClkRead and the
+``\\TimeFlag`` of WaitUntil, and KRL's $AXIS_ACT, $POS_ACT, $VEL_ACT and $TIMER do.
+
+One declaration each (:data:`ROUTINES`): the name, the parameters' and the result's
+types (no result: a procedure, called with ``call``), the instruction it compiles to
+(compiler.objcode, which says whether it waits for the robot) and what it does. The
+checker, the code generator and the manual's table read it. The names are not reserved:
+a program's own routine of the same name is called instead (so every program that checked
+before still means what it meant).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+__all__ = ["CLOCKS", "FUNCTIONS", "PROCEDURES", "ROUTINES", "StateRoutine"]
+
+#: The clocks a program has, numbered 1..CLOCKS.
+CLOCKS = 8
+
+
+@dataclass(frozen=True)
+class StateRoutine:
+    """A built-in routine of the robot's state: ``params`` the parameters' types,
+    ``result`` the result's ("" for a procedure), ``instruction`` the one it compiles to."""
+
+    name: str
+    params: tuple[str, ...]
+    result: str
+    instruction: str
+    doc: str
+
+
+ROUTINES: dict[str, StateRoutine] = {r.name: r for r in (
+    StateRoutine("current_joint", (), "joint", "ROBOT_JOINT",
+                 "where the robot stands: every axis, once every move before it has ended"),
+    StateRoutine("current_pose", (), "pose", "ROBOT_POSE",
+                 "the tool centre point of the active tool in the active base, with the arm's configuration "
+                 "(turns included), once every move before it has ended"),
+    StateRoutine("tcp_speed", (), "real", "TCP_SPEED",
+                 "the speed of the tool centre point now (mm/s; 0 at rest): it does not wait for the robot, so "
+                 "it is for an interrupt's handler or a path trigger's moment"),
+    StateRoutine("timed_out", (), "bool", "TIMED_OUT",
+                 "whether the last 'wait for ... timeout' ended by its time-out (false before any)"),
+    StateRoutine("clock_start", ("integer",), "", "CLOCK_START",
+                 "clock N runs from now on (where the robot is: once every move before it has ended)"),
+    StateRoutine("clock_stop", ("integer",), "", "CLOCK_STOP", "clock N stops; it keeps its time"),
+    StateRoutine("clock_reset", ("integer",), "", "CLOCK_RESET", "clock N reads 0 (and runs on if it ran)"),
+    StateRoutine("clock_read", ("integer",), "real", "CLOCK_READ",
+                 "the seconds clock N has run, to the control cycle"),
+)}
+FUNCTIONS = {name: r for name, r in ROUTINES.items() if r.result}
+PROCEDURES = {name: r for name, r in ROUTINES.items() if not r.result}

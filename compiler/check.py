@@ -32,7 +32,7 @@ from .configs import CONTEXTUAL_NAME, GROUPS as CONFIG_GROUPS, TURN_AXES, WORDS 
 from .configs import turn_problem as config_turn_problem
 from .objcode import BUILTINS, MAX_ARRAY_ELEMENTS, MAX_COUNT, MAX_STRING_LENGTH
 from .robotstate import CLOCKS, FUNCTIONS as STATE_FUNCTIONS, PROCEDURES as STATE_PROCEDURES
-from .semantics import (GEOMETRIC_BUILTINS, GEOMETRY, INT_MAX, INT_MIN, EvalError, binary, call_builtin,
+from .semantics import (GEOMETRIC_BUILTINS, GEOMETRY, STRING_BUILTINS, INT_MAX, INT_MIN, EvalError, binary, call_builtin,
                         compose, geometric_result, make_joint, make_pos, make_pose, make_quat, make_rpy, unary)
 from .spec import Spec
 from .values import AddJoint, Joint, MainJoint, Pose
@@ -551,9 +551,9 @@ class Checker:
         if name in CONSTRUCTORS and (name != CONTEXTUAL_NAME or self.lookup(name) is None):
             self.hidden = None  # (a 'config' declared where this code cannot see it: the constructor here)
             return CONSTRUCTORS[name](self, node)
-        if name in BUILTINS:
-            return self.builtin(node)
         symbol = self.lookup(name)
+        if name in BUILTINS and not (name in STRING_BUILTINS and symbol is not None and symbol.kind == "func"):
+            return self.builtin(node)  # (a string function's name: a program's own function of it first)
         if name in STATE_FUNCTIONS and (symbol is None or symbol.kind != "func"):  # (a routine of its own first)
             return self.state_routine(node, STATE_FUNCTIONS[name])
         if symbol is not None and symbol.kind == "func":
@@ -602,6 +602,8 @@ class Checker:
             return ERROR
         if name in GEOMETRIC_BUILTINS:
             return self.geometric_builtin(node)
+        if name in STRING_BUILTINS:
+            return self.string_builtin(node)
         types = [self.expect(arg, NUMERIC, f"the argument of {name}") for arg in node.args]
         if ERROR in types:
             return ERROR
@@ -615,6 +617,23 @@ class Checker:
         if _NO_VALUE not in values:
             if result == REAL:
                 values = [float(v) for v in values]
+            if not self.fold(node, call_builtin, name, values):
+                return ERROR
+        return result
+
+    def string_builtin(self, node: ast.Call):
+        """``str_len``, ``str_part``, ``str_find``, ``num_to_str``, ``str_to_num``: typed by
+        STRING_BUILTINS, computed here when every argument is a constant."""
+        name = node.name
+        params, result = STRING_BUILTINS[name]
+        ordinal = ("first", "second", "third")
+        types = [self.expect(arg, wanted, f"the {ordinal[i]} argument of {name}" if len(params) > 1 else
+                             f"the argument of {name}") for i, (arg, wanted) in enumerate(zip(node.args, params))]
+        if ERROR in types:
+            return ERROR
+        values = [self.value_of(arg) for arg in node.args]
+        if _NO_VALUE not in values:
+            values = [float(v) if wanted == REAL else v for v, wanted in zip(values, params)]
             if not self.fold(node, call_builtin, name, values):
                 return ERROR
         return result
@@ -1368,7 +1387,8 @@ class Checker:
         result = None
         if node.result is not None:
             result = self.resolve_type(node.result)
-            if node.name in BUILTINS or (node.name in CONSTRUCTORS and node.name != CONTEXTUAL_NAME):
+            if node.name in BUILTINS and node.name not in STRING_BUILTINS or \
+                    (node.name in CONSTRUCTORS and node.name != CONTEXTUAL_NAME):  # (string functions came later)
                 self.error(node.name_span, f"'{node.name}' is a built-in function: a function needs another name")
                 return
         kind = "func" if node.result is not None else "interrupt" if node.interrupt is not None else "proc"

@@ -19,6 +19,7 @@ from .clauses import Motion
 from .configs import CONTEXTUAL_NAME, WORDS as CONFIG_WORDS, Config, operand_of
 from .objcode import BUILTIN_NAMES, FIELDS, OP, InterruptInfo, ProcInfo, Program
 from .robotstate import FUNCTIONS as STATE_FUNCTIONS, PROCEDURES as STATE_PROCEDURES
+from .semantics import STRING_BUILTINS
 from .values import Joint, Pose, Position, Rpy
 
 _BINARY_OPS = {"+": OP.ADD, "-": OP.SUB, "*": OP.MUL, "/": OP.DIV, "div": OP.IDIV, "mod": OP.MOD,
@@ -172,8 +173,10 @@ class CodeGen:
             self.state_routine(node, STATE_FUNCTIONS[name])
         elif name in _BUILTIN_INDEX:
             want = REAL if self.types[id(node)] == REAL else None
-            for arg in node.args:
-                self.value(arg, want)
+            wants = [w if w == REAL else None for w in STRING_BUILTINS[name][0]] if name in STRING_BUILTINS else \
+                [want] * len(node.args)
+            for arg, wanted in zip(node.args, wants):
+                self.value(arg, wanted)
             self.emit(OP.CALL_BUILTIN, _BUILTIN_INDEX[name], len(node.args))
         elif name == "joint":
             counts = []

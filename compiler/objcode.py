@@ -81,6 +81,8 @@ BUILTINS: dict[str, int] = {
     "sin": 1, "cos": 1, "tan": 1, "asin": 1, "acos": 1, "atan2": 2, "sqrt": 1,
     "abs": 1, "min": 2, "max": 2, "round": 1, "trunc": 1,
     "inv": 1, "distance": 2, "tool_offset": 2,  # (on poses and positions: compiler.semantics.GEOMETRIC_BUILTINS)
+    # (on strings: compiler.semantics.STRING_BUILTINS)
+    "str_len": 1, "str_part": 3, "str_find": 2, "num_to_str": 2, "str_to_num": 1,
 }
 BUILTIN_NAMES = tuple(BUILTINS)
 
@@ -291,7 +293,7 @@ _TYPES: dict[str, tuple[str, str]] = {
     "LT": ("number|string number|string", "@order"), "LE": ("number|string number|string", "@order"),
     "GT": ("number|string number|string", "@order"), "GE": ("number|string number|string", "@order"),
     "AND": ("bool bool", "bool"), "OR": ("bool bool", "bool"),
-    "CALL_BUILTIN": ("number|position|pose|orientation", "@builtin"), "MAKE_JOINT": ("real", "joint"),
+    "CALL_BUILTIN": ("number|position|pose|orientation|string", "@builtin"), "MAKE_JOINT": ("real", "joint"),
     "MAKE_POS": ("real real real", "position"), "MAKE_RPY": ("real real real", "orientation"),
     "MAKE_QUAT": ("real real real real", "orientation"), "MAKE_POSE": ("position orientation", "pose"),
     "MAKE_ARRAY": ("any", "@array"), "GET_ITEM": ("array integer", "@item"), "SET_ITEM": ("array integer @item", ""),
@@ -664,7 +666,11 @@ def _arith_type(name: str, a: str, b: str) -> str | None:
 
 
 def _builtin_type(fn: str, args: list[str]) -> str | None:
-    from .semantics import GEOMETRIC_BUILTINS, geometric_result
+    from .semantics import GEOMETRIC_BUILTINS, STRING_BUILTINS, geometric_result
+
+    if fn in STRING_BUILTINS:
+        params, result = STRING_BUILTINS[fn]
+        return result if len(args) == len(params) and all(map(fits, args, params)) else None
 
     if fn in GEOMETRIC_BUILTINS:
         result = geometric_result(fn, tuple(args))

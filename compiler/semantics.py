@@ -6,7 +6,9 @@ folded at compile time is exactly the value the robot would have computed. Error
 """
 from __future__ import annotations
 
+import decimal
 import math
+import re
 
 from . import geometry
 from .values import Config, Joint, Pose, Position, Quat, Rpy
@@ -275,6 +277,50 @@ def _tan(x) -> float:
     return math.tan(math.radians(x))
 
 
+def _text(s: str, what: str) -> str:
+    if len(s) > MAX_STRING_LENGTH:
+        raise EvalError(f"{what}: the string would be {len(s)} characters long, over {MAX_STRING_LENGTH}, the longest "
+                        "string allowed")
+    return s
+
+
+def _str_part(s: str, first: int, count: int) -> str:
+    """``count`` characters of ``s`` from character ``first`` (from 1)."""
+    if count < 0 or not 1 <= first <= len(s) + 1 or first + count - 1 > len(s):
+        last = f"..{first + count - 1}" if count > 1 else ""
+        raise EvalError(f"str_part: characters {first}{last} of a string of {len(s)} (first 1..{len(s) + 1}, "
+                        f"and at most {max(len(s) - first + 1, 0)} from there)" if count >= 0 else
+                        f"str_part: a count of {count} characters (0 or more)")
+    return s[first - 1:first - 1 + count]
+
+
+def _num_to_str(x, decimals: int) -> str:
+    """``x`` with ``decimals`` digits after the point, rounded half away from zero (as
+    round()), no exponent; never "-0"."""
+    if not 0 <= decimals <= MAX_DECIMALS:
+        raise EvalError(f"num_to_str: {decimals} decimals (0..{MAX_DECIMALS})")
+    value = decimal.Decimal(repr(_finite(float(x), "num_to_str's argument")) if isinstance(x, float) else int(x))
+    exact = decimal.Context(prec=800)  # (every digit of the largest real, and the decimals)
+    text = format(value.quantize(decimal.Decimal(1).scaleb(-decimals), rounding=decimal.ROUND_HALF_UP, context=exact),
+                  "f")
+    if text.startswith("-") and not text.strip("-0."):
+        text = text[1:]
+    return _text(text, "num_to_str")
+
+
+def _str_to_num(s: str) -> float:
+    """The number a string spells (an L-IRL number: digits, a point, an exponent, a sign;
+    spaces around it), as a real."""
+    if not _NUMBER_TEXT.fullmatch(s):
+        shown = s if len(s) <= 40 else s[:37] + "..."
+        raise EvalError(f"str_to_num: {shown!r} is not a number")
+    return _finite(float(s), "str_to_num's result")
+
+
+#: The most decimals num_to_str gives.
+MAX_DECIMALS = 15
+_NUMBER_TEXT = re.compile(r"\s*[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?\s*")
+
 BUILTIN_FUNCTIONS = {
     "sin": lambda x: math.sin(math.radians(x)),
     "cos": lambda x: math.cos(math.radians(x)),
@@ -291,6 +337,22 @@ BUILTIN_FUNCTIONS = {
     "inv": inverse,
     "distance": distance,
     "tool_offset": tool_offset,
+    "str_len": len,
+    "str_part": _str_part,
+    "str_find": lambda s, part: s.find(part) + 1,
+    "num_to_str": _num_to_str,
+    "str_to_num": _str_to_num,
+}
+
+#: The built-in functions on strings: name -> (the parameters' types, the result's type)
+#: (docs/language.md, "Strings"). The names are not reserved: a program's own function of
+#: the same name is called instead.
+STRING_BUILTINS: dict[str, tuple[tuple[str, ...], str]] = {
+    "str_len": (("string",), "integer"),
+    "str_part": (("string", "integer", "integer"), "string"),
+    "str_find": (("string", "string"), "integer"),
+    "num_to_str": (("real", "integer"), "string"),
+    "str_to_num": (("string",), "real"),
 }
 
 #: The built-in functions on geometric values: name -> [(argument kinds, result kind)]

@@ -163,7 +163,15 @@ class Input:
     span: Span
 
 
-Expr = Union[Number, String, Bool, Ref, Call, Index, Field, Unary, Binary, Input]
+@node
+class Output:
+    """``out[index]`` read in an expression: the digital output as last set, bool."""
+
+    index: "Expr"
+    span: Span
+
+
+Expr = Union[Number, String, Bool, Ref, Call, Index, Field, Unary, Binary, Input, Output]
 
 
 def expression_text(expr) -> str:

@@ -541,6 +541,11 @@ class Checker:
             self.check_io_index(node.index, self.spec.inputs, "input")
         return BOOL
 
+    def e_Output(self, node: ast.Output):
+        if self.expect(node.index, INTEGER, "an output number") != ERROR:
+            self.check_io_index(node.index, self.spec.outputs, "output")
+        return BOOL
+
     def check_io_index(self, index: ast.Expr, count: int, what: str) -> None:
         i = self.value_of(index)
         if i is not _NO_VALUE and not 1 <= i <= count:
@@ -578,12 +583,18 @@ class Checker:
         (a clock's number within 1..CLOCKS when it is a constant); its result type."""
         if not self.arity(node, len(routine.params)):
             return ERROR
-        for arg, wanted in zip(node.args, routine.params):
-            if self.expect(arg, wanted, f"the argument of {routine.name}") == ERROR:
+        for i, (arg, wanted) in enumerate(zip(node.args, routine.params)):
+            what = f"the {('first', 'second')[i]} argument" if len(routine.params) > 1 else "the argument"
+            if self.expect(arg, wanted, f"{what} of {routine.name}") == ERROR:
                 return ERROR
-            n = self.value_of(arg)
-            if routine.name.startswith("clock_") and n is not _NO_VALUE and not 1 <= n <= CLOCKS:
-                self.error(arg.span, f"clock {n} does not exist: a program has clocks 1..{CLOCKS}")
+        values = [self.value_of(arg) for arg in node.args]
+        if routine.number == "clock" and values[0] is not _NO_VALUE and not 1 <= values[0] <= CLOCKS:
+            self.error(node.args[0].span, f"clock {values[0]} does not exist: a program has clocks 1..{CLOCKS}")
+            return ERROR
+        if routine.number == "output":
+            self.check_io_index(node.args[0], self.spec.outputs, "output")
+            if values[1] is not _NO_VALUE and not values[1] > 0:
+                self.error(node.args[1].span, f"a pulse of {values[1]} s: it must last more than 0 s")
                 return ERROR
         return routine.result or None
 
@@ -1412,7 +1423,7 @@ class Checker:
 
 
 _EXPR_CLASSES = (ast.Number, ast.String, ast.Bool, ast.Ref, ast.Call, ast.Index, ast.Field, ast.Unary,
-                 ast.Binary, ast.Input)
+                 ast.Binary, ast.Input, ast.Output)
 _STMT_CLASSES = (ast.Assign, ast.OutSet, ast.Move, ast.If, ast.While, ast.Repeat, ast.For, ast.WaitTime,
                  ast.WaitFor, ast.CallProc, ast.Print, ast.Pause, ast.Halt, ast.Return, ast.Use, ast.Enable,
                  ast.Trigger)

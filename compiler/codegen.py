@@ -48,7 +48,8 @@ class CodeGen:
         self.file_index = 0
         self.module_paths = list(checked.modules)  # module paths, in the order their code comes
         self._expr = {cls: getattr(self, "e_" + cls.__name__)
-                      for cls in (ast.Ref, ast.Unary, ast.Binary, ast.Index, ast.Field, ast.Input, ast.Call)}
+                      for cls in (ast.Ref, ast.Unary, ast.Binary, ast.Index, ast.Field, ast.Input, ast.Output,
+                                  ast.Call)}
         self._stmt = {cls: getattr(self, "s_" + cls.__name__)
                       for cls in (ast.Assign, ast.OutSet, ast.Move, ast.If, ast.While, ast.Repeat, ast.For,
                                   ast.WaitTime, ast.WaitFor, ast.CallProc, ast.Print, ast.Pause, ast.Halt,
@@ -161,6 +162,10 @@ class CodeGen:
     def e_Input(self, node: ast.Input) -> None:
         self.value(node.index)
         self.emit(OP.IN_GET)
+
+    def e_Output(self, node: ast.Output) -> None:
+        self.value(node.index)
+        self.emit(OP.OUT_GET)
 
     def e_Call(self, node: ast.Call) -> None:
         name = node.name

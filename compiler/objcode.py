@@ -252,6 +252,9 @@ _DEFS = [
     ("CLOCK_STOP", (), 1, 0, "Clock n stops (it keeps its time).", "n ->", "next", True),
     ("CLOCK_RESET", (), 1, 0, "Clock n reads 0 (it runs on if it ran).", "n ->", "next", True),
     ("CLOCK_READ", (), 1, 1, "Push the seconds clock n has run.", "n -> real", "next", True),
+    ("OUT_GET", (), 1, 1, "Read digital output n back (bool): as last set.", "n -> bool", "next", True),
+    ("PULSE_OUT", (), 2, 0, "Set digital output n, and clear it again after the given seconds.", "n seconds ->",
+     "next", True),
 ]
 
 #: The types of the values on the stack (what a popped value must be, what is pushed). A
@@ -309,7 +312,7 @@ _TYPES: dict[str, tuple[str, str]] = {
     "MAKE_CONFIG": ("integer", "config"), "MAKE_POSE_CONFIG": ("position orientation config", "pose"),
     "ROBOT_JOINT": ("", "joint"), "ROBOT_POSE": ("", "pose"), "TCP_SPEED": ("", "real"), "TIMED_OUT": ("", "bool"),
     "CLOCK_START": ("integer", ""), "CLOCK_STOP": ("integer", ""), "CLOCK_RESET": ("integer", ""),
-    "CLOCK_READ": ("integer", "real"),
+    "CLOCK_READ": ("integer", "real"), "OUT_GET": ("integer", "bool"), "PULSE_OUT": ("integer real", ""),
 }
 _missing_types = [d[0] for d in _DEFS if d[0] not in _TYPES]
 if _missing_types:  # pragma: no cover - the table is complete

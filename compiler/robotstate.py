@@ -1,7 +1,8 @@
-"""The robot's own state and the program's clocks (docs/language.md, "The robot's own
-state and clocks"): built-in functions that read where the robot is, how fast its tool
-moves and whether the last ``wait for`` timed out, and built-in procedures and a function
-that measure time, as RAPID's CJointT, CRobT, ClkStart/ClkStop/ClkReset/ClkRead and the
+"""The robot's own state, the program's clocks and output pulses (docs/language.md, "The
+robot's own state and clocks"): built-in functions that read where the robot is, how fast
+its tool moves and whether the last ``wait for`` timed out, built-in procedures and a
+function that measure time, and a procedure that pulses an output (RAPID's PulseDO,
+KRL's PULSE), as RAPID's CJointT, CRobT, ClkStart/ClkStop/ClkReset/ClkRead and the
 ``\\TimeFlag`` of WaitUntil, and KRL's $AXIS_ACT, $POS_ACT, $VEL_ACT and $TIMER do.
 
 One declaration each (:data:`ROUTINES`): the name, the parameters' and the result's
@@ -31,6 +32,9 @@ class StateRoutine:
     result: str
     instruction: str
     doc: str
+    #: What the first argument numbers (its constant checked against the range): "clock"
+    #: (1..CLOCKS), "output" (the specification's outputs), or "" (nothing).
+    number: str = ""
 
 
 ROUTINES: dict[str, StateRoutine] = {r.name: r for r in (
@@ -45,11 +49,14 @@ ROUTINES: dict[str, StateRoutine] = {r.name: r for r in (
     StateRoutine("timed_out", (), "bool", "TIMED_OUT",
                  "whether the last 'wait for ... timeout' ended by its time-out (false before any)"),
     StateRoutine("clock_start", ("integer",), "", "CLOCK_START",
-                 "clock N runs from now on (where the robot is: once every move before it has ended)"),
-    StateRoutine("clock_stop", ("integer",), "", "CLOCK_STOP", "clock N stops; it keeps its time"),
-    StateRoutine("clock_reset", ("integer",), "", "CLOCK_RESET", "clock N reads 0 (and runs on if it ran)"),
+                 "clock N runs from now on (where the robot is: once every move before it has ended)", "clock"),
+    StateRoutine("clock_stop", ("integer",), "", "CLOCK_STOP", "clock N stops; it keeps its time", "clock"),
+    StateRoutine("clock_reset", ("integer",), "", "CLOCK_RESET", "clock N reads 0 (and runs on if it ran)", "clock"),
     StateRoutine("clock_read", ("integer",), "real", "CLOCK_READ",
-                 "the seconds clock N has run, to the control cycle"),
+                 "the seconds clock N has run, to the control cycle", "clock"),
+    StateRoutine("pulse_out", ("integer", "real"), "", "PULSE_OUT",
+                 "digital output N on now (where the robot is), off again SECONDS later while the program goes on; "
+                 "a pulse of an output already pulsing starts again", "output"),
 )}
 FUNCTIONS = {name: r for name, r in ROUTINES.items() if r.result}
 PROCEDURES = {name: r for name, r in ROUTINES.items() if not r.result}

@@ -334,6 +334,10 @@ class _Builder(Transformer):
         kw, index = c
         return ast.Input(index, _span(kw).to(index.span))
 
+    def output(self, c):
+        kw, index = c
+        return ast.Output(index, _span(kw).to(index.span))
+
 
 def _header(items) -> tuple[tuple, tuple, tuple]:
     """A program's or module's (system_specification (file, span), declarations, imports)

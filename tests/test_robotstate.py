@@ -207,3 +207,39 @@ def test_the_manual_lists_every_routine_of_the_table():
     section = text.split("## The robot's own state and clocks", 1)[1].split("\n## ", 1)[0]
     rows = re.findall(r"^\| `(?:call )?(\w+)\(", section, re.M)
     assert set(rows[:len(ROUTINES)]) == set(ROUTINES), rows
+
+
+def test_a_pulse_is_on_for_its_time_and_an_output_reads_back_as_set(tmp_path):
+    """call pulse_out(N, T): output N is on from where the robot is for T seconds while the
+    program goes on (the report, every 1 ms, sees it on for T to the control cycle), and
+    the program ends only when its last pulse has; out[N] reads what was set."""
+    import csv
+
+    from compiler.driver import compile_source
+    from runtime.loop.system import RobotSystem, RunOptions
+    from runtime.timing import TICK
+
+    source = (f'program p;\nsystem_specification "{SPEC_PATH}";\nseq\n'
+              '  out[2] := true;\n  print out[2], " ", out[3];\n  call pulse_out(3, 0.5);\n  print out[3];\n'
+              '  wait 0.3 sec;\n  print out[3];\n  wait 0.3 sec;\n  print out[3];\n  call pulse_out(4, 0.2);\n'
+              'endseq\nendprogram;\n')
+    result = compile_source(source, str(tmp_path / "p.irl"))
+    assert result.ok, result.diagnostics
+    system = RobotSystem(SPEC, RunOptions())
+    system.apply_settings({"report": {"period": TICK, "columns": ["io"]}})
+    report = tmp_path / "r.csv"
+    system.begin(result.program, report)
+    while not system.supervisor.done:
+        system.executive.step()
+    summary = system.finish()
+    assert summary["fault"] is None and [e["text"] for e in summary["log"]] == ["true false", "true", "true", "false"]
+    rows = list(csv.DictReader(report.open()))
+
+    def on(column):
+        times = [float(r["time"]) for r in rows if r[column] == "1"]
+        return times[0], times[-1]
+    first, last = on("out_3")
+    assert last - first == pytest.approx(0.5, abs=0.006)
+    first, last = on("out_4")
+    assert last - first == pytest.approx(0.2, abs=0.006)
+    assert rows[-1]["out_4"] == "0" and rows[-1]["out_2"] == "1"

@@ -141,6 +141,13 @@ class MotionHost(Protocol):
     def write_output(self, n: int, value: bool) -> None:
         """Set digital output n (from 1). May raise EvalError for a number out of range."""
 
+    def read_output(self, n: int) -> bool:
+        """Digital output n (from 1) as last set. May raise EvalError for a number out of range."""
+
+    def pulse_output(self, n: int, seconds: float) -> None:
+        """Set digital output n now and clear it ``seconds`` later (the program goes on).
+        May raise EvalError for a number out of range."""
+
     def log(self, text: str, line: int, kind: str = PRINT) -> None:
         """The operator log: ``print`` statements and VM notices, each of its ``kind``
         (runtime.recording.EVENTS: print, pause, timeout, interrupt, halt)."""
@@ -1061,6 +1068,20 @@ class VM:
     def op_in_get(self, _, pc):
         stack = self.memory.stack
         stack[-1] = bool(self.host.read_input(stack[-1]))
+        return pc + 1
+
+    def op_out_get(self, _, pc):
+        stack = self.memory.stack
+        stack[-1] = bool(self.host.read_output(stack[-1]))
+        return pc + 1
+
+    def op_pulse_out(self, _, pc):
+        stack = self.memory.stack
+        seconds = stack.pop()
+        n = stack.pop()
+        if not seconds > 0.0:
+            raise EvalError(f"a pulse of {format_number(seconds)} s: it must last more than 0 s")
+        self.host.pulse_output(n, float(seconds))
         return pc + 1
 
     def op_out_set(self, _, pc):

@@ -154,6 +154,7 @@ class TrajectoryGenerator(Component):
         self.log_dropped = 0
         self.fault = None
         self.jogger = None
+        self.pulses: dict[int, float] = {}  # output -> when its pulse ends (pulse_out)
         self.motion.reset()
 
     def on_start(self) -> bool:
@@ -235,7 +236,8 @@ class TrajectoryGenerator(Component):
         """The program ended (DONE) and all its motion is complete (a jog session: it is over)."""
         if self.jogger is not None:
             return self.jogger.finished
-        return self.vm is not None and self.vm.status is DONE and self.fault is None and self.motion.done()
+        return (self.vm is not None and self.vm.status is DONE and self.fault is None and self.motion.done()
+                and not self.pulses)  # (its last output pulse has ended)
 
     @property
     def line(self) -> int:
@@ -273,6 +275,8 @@ class TrajectoryGenerator(Component):
     def update(self, now: float) -> None:
         """Real-time: sample the motion, write the setpoint, then let the VM run its budget."""
         motion = self.motion
+        if self.pulses:
+            self._end_pulses(now)
         motion.sample(now)
         self._take_motion_events()
         if self.jogger is not None:
@@ -573,6 +577,23 @@ class TrajectoryGenerator(Component):
         if not 1 <= n <= self.spec.outputs:
             raise EvalError(f"digital output {n} does not exist (1..{self.spec.outputs})")
         self.io.set_output(n, value)
+
+    def read_output(self, n: int) -> bool:
+        if not 1 <= n <= self.spec.outputs:
+            raise EvalError(f"digital output {n} does not exist (1..{self.spec.outputs})")
+        return self.io.output(n)
+
+    def pulse_output(self, n: int, seconds: float) -> None:
+        """Output ``n`` on now and off ``seconds`` later (:meth:`_end_pulses`, every update)."""
+        self.write_output(n, True)
+        self.pulses[n] = self.clock.tick_time + seconds
+
+    def _end_pulses(self, now: float) -> None:
+        """Real-time: the outputs whose pulse has ended, off."""
+        for n, until in tuple(self.pulses.items()):
+            if now >= until - 1e-9:
+                del self.pulses[n]
+                self.write_output(n, False)
 
     def log(self, text: str, line: int, kind: str = PRINT) -> None:
         """The operator log: ``(time, line, text, kind)`` (its kind of

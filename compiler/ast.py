@@ -406,6 +406,7 @@ class Param:
     name: str
     type: TypeExpr
     span: Span
+    by_ref: bool = False  # 'var': the caller's variable takes the parameter's value when the procedure returns
 
 
 @node

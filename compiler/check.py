@@ -119,6 +119,7 @@ class Symbol:
     slot: int = -1
     value: object = None
     params: tuple = ()  # for procedures and functions: parameter types
+    refs: tuple = ()  # for procedures: which parameters are 'var' (by reference), one bool each
     index: int = -1  # for procedures and functions: index in the procedure table
     file: str = ""  # the file it is declared in
     predeclared: bool = False  # by the language or the specification (world, default_tool, [[tool]] ...)
@@ -1236,10 +1237,35 @@ class Checker:
                 self.expr(arg)
             return
         for i, (arg, param_t) in enumerate(zip(node.args, symbol.params), 1):
+            if i <= len(symbol.refs) and symbol.refs[i - 1]:
+                self.reference(node, i, arg, param_t)
+                continue
             t = self.expr(arg)
             if t != ERROR and not assignable(param_t, t):
                 self.error(arg.span, f"argument {i} of '{node.name}' must be {type_name(param_t)}, "
                                      f"not {type_name(t)}")
+
+    def reference(self, node, i: int, arg: ast.Expr, param_t) -> None:
+        """Argument ``i`` of a call, for a 'var' parameter: a variable (its name alone) of
+        exactly the parameter's type, which takes the parameter's value when the procedure
+        returns."""
+        t = self.expr(arg)
+        if not isinstance(arg, ast.Ref):
+            self.error(arg.span, f"argument {i} of '{node.name}' is a 'var' parameter: pass a variable, by its name",
+                       "the procedure puts its value back there")
+            return
+        symbol = self.symbols.get(id(arg))
+        if symbol is None or symbol.kind not in ("global", "local"):
+            if symbol is not None:
+                self.error(arg.span, f"argument {i} of '{node.name}' is a 'var' parameter: '{arg.name}' is "
+                                     f"{a(_KIND_WORDS.get(symbol.kind, symbol.kind))}, not a variable")
+            return
+        if arg.name in self.loop_vars:
+            self.error(arg.span, f"'{arg.name}' is the variable of an enclosing for loop",
+                       "a for loop's variable cannot be passed to a 'var' parameter")
+        elif t != ERROR and t != param_t:
+            self.error(arg.span, f"argument {i} of '{node.name}' is a 'var' parameter of type "
+                                 f"{type_name(param_t)}: pass a variable of that type, not {a(t)}")
 
     def s_Print(self, node: ast.Print):
         if len(node.values) > MAX_COUNT:
@@ -1415,10 +1441,14 @@ class Checker:
         for param in node.params:
             t = self.resolve_type(param.type)
             params.append(t)
+            if param.by_ref and node.result is not None:
+                self.error(param.span, f"a function's parameter cannot be 'var': '{node.name}' computes a value",
+                           "make it a procedure, or return the value")
             p = Symbol("local", param.name, t, param.span, slot=len(scope.slots))
             if self.declare(scope.names, p):
                 scope.slots.append((param.name, type_name(t)))
         symbol.params = tuple(params)
+        symbol.refs = tuple(param.by_ref and node.result is None for param in node.params)
         self.procs.append(scope)
 
 

@@ -44,6 +44,7 @@ class CodeGen:
         self.globals = list(checked.globals)
         self.locals: list | None = None  # slots of the procedure being generated
         self.result = None  # the result type of the function being generated (None: not a function)
+        self.refs: list[int] = []  # the 'var' parameters' slots of the procedure being generated
         self.line_files: list[int] = []  # per line entry: 0 the program's file, k its module k
         self.file_index = 0
         self.module_paths = list(checked.modules)  # module paths, in the order their code comes
@@ -347,6 +348,11 @@ class CodeGen:
         for arg, param_t in zip(node.args, symbol.params):
             self.value(arg, param_t)
         self.emit(OP.CALL, symbol.index)
+        for slot, (arg, by_ref) in enumerate(zip(node.args, symbol.refs)):  # 'var' parameters: their values back
+            if by_ref:
+                variable = self.symbols[id(arg)]
+                self.emit(OP.TAKE, symbol.index, slot)
+                self.emit(self.store_op(variable), variable.slot)
 
     def state_routine(self, node, routine) -> None:
         """A built-in routine of the robot's state: its arguments, then its instruction."""
@@ -367,10 +373,16 @@ class CodeGen:
 
     def s_Return(self, node: ast.Return) -> None:
         if node.value is None:
+            self.keep_refs()
             self.emit(OP.RET)
             return
         self.value(node.value, self.result)
         self.emit(OP.RET_VALUE)
+
+    def keep_refs(self) -> None:
+        """Before a procedure returns: its 'var' parameters kept for the caller (KEEP)."""
+        for slot in self.refs:
+            self.emit(OP.KEEP, slot)
 
     def s_Trigger(self, node: ast.Trigger) -> None:
         place, unit = PLACE_INDEX[node.where], UNIT_INDEX[node.unit]
@@ -440,6 +452,7 @@ class CodeGen:
         procedures = []
         for scope in checked.procedures:
             self.locals = scope.slots
+            self.refs = [slot for slot, by_ref in enumerate(scope.symbol.refs) if by_ref]
             entry = len(self.code)
             self.result = scope.result
             self.init_vars(scope.node.variables, scope.names.__getitem__)
@@ -447,10 +460,13 @@ class CodeGen:
             self.stmts(scope.node.body)
             # a procedure returns at its end; a function never gets there (the checker saw a
             # return on every path): HALT keeps any jump to its end inside the code
+            if scope.result is None:
+                self.keep_refs()
             self.emit(OP.HALT if scope.result is not None else OP.RET)
             procedures.append(ProcInfo(scope.node.name, entry, len(scope.node.params), tuple(self.locals),
                                        type_name(scope.result) if scope.result is not None else ""))
             self.locals = self.result = None
+            self.refs = []
         interrupts = []
         for scope in checked.interrupts:  # each condition: a function of its own, straight-line code
             self.in_file_of(scope.node)

@@ -255,6 +255,11 @@ _DEFS = [
     ("OUT_GET", (), 1, 1, "Read digital output n back (bool): as last set.", "n -> bool", "next", True),
     ("PULSE_OUT", (), 2, 0, "Set digital output n, and clear it again after the given seconds.", "n seconds ->",
      "next", True),
+    ("KEEP", (("l", "local"),), 0, 0, "Keep local variable l (a 'var' parameter) for the caller, before a "
+                                      "procedure returns.", "", "next", False),
+    ("TAKE", (("p", "proc"), ("l", "count")), 0, 1, "Push what procedure p kept of its local l (the caller, just "
+                                                    "after the call: a 'var' parameter's value, to store into the "
+                                                    "variable passed).", "-> value", "next", False),
 ]
 
 #: The types of the values on the stack (what a popped value must be, what is pushed). A
@@ -280,6 +285,7 @@ TYPE_RULES = {
                 "min and max; compiler.semantics.GEOMETRIC_BUILTINS)",
     "@result": "the called function's result type",
     "@order": "bool, of two numbers or two strings",
+    "@kept": "the declared type of the called procedure's local slot",
 }
 
 #: The stack types of each instruction: (takes, gives), see InstrDef.
@@ -313,6 +319,7 @@ _TYPES: dict[str, tuple[str, str]] = {
     "ROBOT_JOINT": ("", "joint"), "ROBOT_POSE": ("", "pose"), "TCP_SPEED": ("", "real"), "TIMED_OUT": ("", "bool"),
     "CLOCK_START": ("integer", ""), "CLOCK_STOP": ("integer", ""), "CLOCK_RESET": ("integer", ""),
     "CLOCK_READ": ("integer", "real"), "OUT_GET": ("integer", "bool"), "PULSE_OUT": ("integer real", ""),
+    "KEEP": ("", ""), "TAKE": ("", "@kept"),
 }
 _missing_types = [d[0] for d in _DEFS if d[0] not in _TYPES]
 if _missing_types:  # pragma: no cover - the table is complete
@@ -752,6 +759,11 @@ def _stack_types(definition: InstrDef, operands: tuple, program: Program, local_
             raise ObjectCodeError(f"{definition.name}: {popped[0]} and {popped[1]} cannot be compared "
                                   "(two numbers or two strings)")
         gives = "bool"
+    elif rule == "@kept":
+        callee = program.procedures[operands[0]]
+        if not operands[1] < len(callee.locals):
+            raise ObjectCodeError(f"TAKE: procedure {callee.name!r} has no local slot {operands[1]}")
+        gives = declared_type(callee.locals[operands[1]][1])
     elif rule == "@builtin":
         fn = BUILTIN_NAMES[operands[0]]
         gives = _builtin_type(fn, popped)

@@ -169,9 +169,10 @@ class _Builder(Transformer):
         return tuple(p for group in groups if group is not None for p in group)
 
     def param(self, c):
-        items = c
-        names, type_ = items[:-1], items[-1]
-        return [ast.Param(n.value.lower(), type_, _span(n)) for n in names]
+        items = list(c)
+        by_ref = bool(items) and getattr(items[0], "type", None) == "VAR"
+        names, type_ = items[1 if by_ref else 0:-1], items[-1]
+        return [ast.Param(n.value.lower(), type_, _span(n), by_ref) for n in names]
 
     def block(self, c):
         seq_kw, *items = c

@@ -270,6 +270,7 @@ class Memory:
         self.max_call_depth = max_call_depth
         self.consts = list(program.constants)
         self.procs = [(p.entry, p.params, len(p.locals), p.name) for p in program.procedures]
+        self.kept: dict = {}  # local slot -> the value a returning procedure kept for its caller (KEEP, TAKE)
 
     def pop_n(self, n: int) -> list:
         stack = self.stack
@@ -503,6 +504,20 @@ class Memory:
     # A function is called as a procedure is; its RET_VALUE leaves the result on the stack,
     # where the caller's expression goes on from (the verifier checked the depths).
     op_call_func = op_call
+
+    # A 'var' parameter: the procedure keeps its value as it returns (KEEP), the caller takes
+    # it just after the call (TAKE) and stores it into the variable it passed.
+    def op_keep(self, slot, pc):
+        self.kept[slot] = self.locals[slot]
+        return pc + 1
+
+    def op_take(self, operands, pc):
+        value = self.kept.pop(operands[1], self)
+        if value is self:
+            raise EvalError(f"procedure {self.procs[operands[0]][3]} kept no value of its local slot {operands[1]} "
+                            "(object code that takes a 'var' parameter it did not keep)")
+        self.stack.append(value)
+        return pc + 1
 
 
 class Waits:
@@ -889,7 +904,8 @@ class VM:
     def _fire(self) -> None:
         """Run the handler of the pending interrupt of the highest priority: the program's
         state is kept, the motion stops on its path (``stop``), the handler starts."""
-        handler = self.interrupts.fire(self.line, (self.pc, self._here, self.waits.saved()))
+        handler = self.interrupts.fire(self.line, (self.pc, self._here, (self.waits.saved(), self.memory.kept)))
+        self.memory.kept = {}
         self.pc = self.memory.enter_handler(handler)
         self.waits.kind = _NO_WAIT
 
@@ -899,8 +915,9 @@ class VM:
         saved = self.interrupts.handler_returned()
         if saved is None:
             return self._halt_by_interrupt()
-        pc, self._back_here, waits = saved
+        pc, self._back_here, (waits, kept) = saved
         self.waits.restore(waits)
+        self.memory.kept = kept
         self._yield = True
         return pc
 

@@ -258,8 +258,9 @@ def test_the_events_a_view_missed_are_replayed_from_the_servers_history(cell):
     assert all(m["kind"] == "event" and before < m["seq"] < after for m in logged)
     assert [m["seq"] for m in logged] == sorted(m["seq"] for m in logged)
     # a page looks: the lines the missed samples passed are marked, in order, each once (the move's
-    # line 4 too, however short the move and whatever samples the sockets dropped)
-    assert 4 in marked and marked[-1] == 0 and all(a != b for a, b in zip(marked, marked[1:])), marked
+    # line 4 too, however short the move and whatever samples the sockets dropped; the idle sample
+    # after the program may come after the gap)
+    assert 4 in marked and all(a != b for a, b in zip(marked, marked[1:])), marked
     # and nothing from outside the gap; no marks while no page looks
     logged.clear()
     marked.clear()

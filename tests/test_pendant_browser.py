@@ -119,9 +119,20 @@ def cell(pendant_cell):
 
 
 def _take(page, name: str = "operator") -> None:
+    """Take control from the page. On a loaded host a click can come before the page has
+    caught up (the pill still 'free' after a while): click again, at most 3 times, and
+    fail with what the page says."""
+    from playwright.sync_api import TimeoutError as PageTimeout
+
     page.fill("#name", name)
-    page.click("#take")
-    page.wait_for_selector("#control-pill.you", timeout=LOAD * 1000)
+    for _ in range(3):
+        page.click("#take")
+        try:
+            page.wait_for_selector("#control-pill.you", timeout=LOAD * 1000 / 3)
+            return
+        except PageTimeout:
+            continue
+    pytest.fail(f"the page did not get control: {page.inner_text('body')[:2000]}")
 
 
 def _give_back(page) -> None:

@@ -203,3 +203,19 @@ def test_property_a_ramp_stop_slows_the_profile_down_to_rest_within_the_limits(d
     assert np.max(np.abs(a)) <= acc * (1 + 1e-6) and np.max(np.abs(j)) <= 10.0 * acc * (1 + 1e-6)
     ratios = joint_ratios(at, v, a, j, s, derivatives, LIMITS)
     assert np.max(ratios[1:]) <= STOP_SHARE * 1.01, np.max(ratios, axis=1)
+
+
+@pytest.mark.parametrize("target", [(996.562, 0.0, 1351.573, 180.0, -60.0, 0.0),  # (as taught in tests/test_modes.py)
+                                    (600.0, 100.0, 900.0, 180.0, -30.0, 10.0)])
+def test_a_lin_to_where_the_robot_stands_is_planned(target):
+    """A taught pose moved to with a lin right after the ptp that reached it: the path is
+    a rounding long (about 1e-14 mm and deg). Before, the averaging window of so short a
+    law grew to petabytes and the move was refused as an internal error of the planner."""
+    from runtime.motion.cartesian import CartesianInput, plan_cartesian
+    from runtime.motion.planner import Result
+
+    q = tuple(KIN.inverse(target, near=(0.0, 0.0, 0.0, 0.0, 30.0, 0.0)))
+    for end in (target, KIN.forward(q)):
+        result, stream, message = plan_cartesian(CartesianInput(KIN, q, end, 250.0, 1000.0, axis_limits=SPEC))
+        assert result == Result.WORKING and stream is not None, message
+        assert stream.duration < 0.5

@@ -406,7 +406,9 @@ def _window(t: np.ndarray, s: np.ndarray, v: np.ndarray, a: np.ndarray, grid_s: 
     window = peak / float(np.max(cap))
     length = float(s[-1])
     for _ in range(8):  # (the change over a longer window can be larger: to the fixed point)
-        lag = max(int(round(window / dt)), 1)
+        # (at most a few times the law's own length: a longer window only makes a profile
+        # that another timing beats, and a tiny path's steps would make it enormous)
+        lag = min(max(int(round(window / dt)), 1), 4 * len(times))
         w = lag * dt
         padded = np.concatenate([np.zeros(lag), sampled, np.zeros(lag)])
         big = np.concatenate([np.zeros(lag), integral, integral[-1] + length * dt * np.arange(1, lag + 1)])

@@ -11,6 +11,7 @@ goes on as soon as messages come again).
 """
 from __future__ import annotations
 
+import collections
 import html
 import threading
 import time
@@ -27,6 +28,10 @@ SILENCE = 2.0
 #: The most times a second the arm is posed anew (a screen's frames: the page draws no
 #: faster, and a browser sent more falls behind), and the text is rewritten.
 POSES, TEXTS = 30.0, 5.0
+#: Each line the program passes stays marked at least this long (s), however quickly the
+#: next one comes, so that every one reaches the page (its updates go out at their pace);
+#: at most MARKS_WAITING wait their turn (a program faster than that: the oldest skipped).
+MARK_HOLD, MARKS_WAITING = 0.25, 8
 #: The most messages taken in one round (then the arm is posed and the page updated).
 BATCH = 2000
 
@@ -65,6 +70,8 @@ class LiveView:
         self.name: str | None = ""  # the running program's name (as submitted; None: not known yet)
         self.source_retry = 0.0  # when a source the server did not give in time is asked for again
         self.line = 0
+        self.marks: collections.deque = collections.deque()  # (title, line) marks waiting their turn
+        self.marked_at = -MARK_HOLD  # (monotonic s) when the source box last changed its mark
         self.samples = 0  # samples shown
         self.missed = 0  # telemetry messages the subscriber missed (sequence gaps)
         self.pending: dict | None = None  # the latest sample, not shown yet
@@ -136,6 +143,8 @@ class LiveView:
                 self.pending = None
                 self.next_pose = now + 1.0 / POSES
                 counted += 1
+            if self.marks:
+                self._show_mark(now)
             if now - since >= 1.0:
                 self.rate, counted, since = counted / (now - since), 0, now
 
@@ -209,8 +218,17 @@ class LiveView:
         if line != self.line:
             self.line = line
             title = f"program {program}: {self.name or ''}" if program is not None else "no program running"
-            self.source_box.content = source_html(self.lines, line or None, title)
+            self.marks.append((self.lines, line or None, title))
+            while len(self.marks) > MARKS_WAITING:
+                self.marks.popleft()
+            self._show_mark(now)
         return line
+
+    def _show_mark(self, now: float) -> None:
+        """The next mark waiting, once the one shown has been for MARK_HOLD."""
+        if now - self.marked_at >= MARK_HOLD:
+            self.source_box.content = source_html(*self.marks.popleft())
+            self.marked_at = now
 
     def _frames(self, sample: dict) -> Frames | None:
         """The active base (its name; its pose from the TCP in the world and in the base)."""

@@ -448,10 +448,12 @@ def test_the_drives_never_apply_a_command_the_safety_did_not_pass():
     assert at_rest_and_safe(system)
 
 
-@pytest.mark.parametrize("seed", [0, 1, 2])
+@pytest.mark.parametrize("seed", [0, 2])
 def test_a_long_pause_holds_without_a_false_alarm(seed):
     """Holding still for minutes (the servo's integral against the drive's residual drift,
-    an axis resting between two counts) trips neither standstill nor plausibility."""
+    an axis resting between two counts) trips neither standstill nor plausibility. (Two
+    seeds, paused at two places of the move; a third, in between, added no case and 6 s
+    of CPU to the suite.)"""
     system, watch = fresh(seed)
     system.begin(LONG, None)
     into_move(system, 16 - 12 + seed)

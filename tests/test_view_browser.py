@@ -146,11 +146,12 @@ def test_live_follows_the_robot(browser, tmp_path):
         program = tmp_path / "moving.irl"
         program.write_text(MOVING, encoding="utf-8")
         source = MOVING
+        # every line the page marks, as it marks it (the page notes them itself: polling it from
+        # here would miss a line while a busy machine renders slowly), from before the program
+        # starts (a loaded host could mark the first move's line before a watch set up after it)
+        page.evaluate(WATCH_LINES)
         job = client.request("submit", {"object": objcode(program), "name": "moving.irl",
                                         "source": source})["program"]
-        # every line the page marks, as it marks it (the page notes them itself: polling it from
-        # here would miss a line while a busy machine renders slowly)
-        page.evaluate(WATCH_LINES)
         deadline = time.monotonic() + LOAD
         moved = 0
         while time.monotonic() < deadline:

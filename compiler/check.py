@@ -582,12 +582,8 @@ class Checker:
     def state_routine(self, node, routine):
         """A built-in routine of the robot's state (compiler.robotstate): its arguments
         (a clock's number within 1..CLOCKS when it is a constant); its result type."""
-        if not self.arity(node, len(routine.params)):
+        if not self.arity(node, len(routine.params)) or not self.typed_arguments(node, routine.params):
             return ERROR
-        for i, (arg, wanted) in enumerate(zip(node.args, routine.params)):
-            what = f"the {('first', 'second')[i]} argument" if len(routine.params) > 1 else "the argument"
-            if self.expect(arg, wanted, f"{what} of {routine.name}") == ERROR:
-                return ERROR
         values = [self.value_of(arg) for arg in node.args]
         if routine.number == "clock" and values[0] is not _NO_VALUE and not 1 <= values[0] <= CLOCKS:
             self.error(node.args[0].span, f"clock {values[0]} does not exist: a program has clocks 1..{CLOCKS}")
@@ -598,6 +594,15 @@ class Checker:
                 self.error(node.args[1].span, f"a pulse of {values[1]} s: it must last more than 0 s")
                 return ERROR
         return routine.result or None
+
+    def typed_arguments(self, node, params: tuple) -> bool:
+        """Check a built-in's arguments against its parameters' types (one message each,
+        naming the argument by its place); whether all fit."""
+        fit = True
+        for i, (arg, wanted) in enumerate(zip(node.args, params)):
+            what = f"the {('first', 'second', 'third')[i]} argument" if len(params) > 1 else "the argument"
+            fit = self.expect(arg, wanted, f"{what} of {node.name}") != ERROR and fit
+        return fit
 
     def arity(self, node: ast.Call, count: int) -> bool:
         if len(node.args) != count:
@@ -638,10 +643,7 @@ class Checker:
         STRING_BUILTINS, computed here when every argument is a constant."""
         name = node.name
         params, result = STRING_BUILTINS[name]
-        ordinal = ("first", "second", "third")
-        types = [self.expect(arg, wanted, f"the {ordinal[i]} argument of {name}" if len(params) > 1 else
-                             f"the argument of {name}") for i, (arg, wanted) in enumerate(zip(node.args, params))]
-        if ERROR in types:
+        if not self.typed_arguments(node, params):
             return ERROR
         values = [self.value_of(arg) for arg in node.args]
         if _NO_VALUE not in values:

@@ -179,8 +179,7 @@ class CodeGen:
             self.state_routine(node, STATE_FUNCTIONS[name])
         elif name in _BUILTIN_INDEX:
             want = REAL if self.types[id(node)] == REAL else None
-            wants = [w if w == REAL else None for w in STRING_BUILTINS[name][0]] if name in STRING_BUILTINS else \
-                [want] * len(node.args)
+            wants = STRING_BUILTINS[name][0] if name in STRING_BUILTINS else [want] * len(node.args)
             for arg, wanted in zip(node.args, wants):
                 self.value(arg, wanted)
             self.emit(OP.CALL_BUILTIN, _BUILTIN_INDEX[name], len(node.args))

@@ -24,6 +24,7 @@ from .configs import TURN_AXES as _TURN_AXES
 from .configs import TURNS_FLAG as _TURNS_FLAG
 from .configs import operand_problem as _config_operand_problem
 from .semantics import MAX_STRING_LENGTH as _MAX_STRING_LENGTH
+from .semantics import STRING_BUILTINS as _STRING_BUILTINS
 from .values import from_plain, to_plain
 
 MAGIC = b"IRLO"
@@ -81,8 +82,7 @@ BUILTINS: dict[str, int] = {
     "sin": 1, "cos": 1, "tan": 1, "asin": 1, "acos": 1, "atan2": 2, "sqrt": 1,
     "abs": 1, "min": 2, "max": 2, "round": 1, "trunc": 1,
     "inv": 1, "distance": 2, "tool_offset": 2,  # (on poses and positions: compiler.semantics.GEOMETRIC_BUILTINS)
-    # (on strings: compiler.semantics.STRING_BUILTINS)
-    "str_len": 1, "str_part": 3, "str_find": 2, "num_to_str": 2, "str_to_num": 1,
+    **{name: len(params) for name, (params, _result) in _STRING_BUILTINS.items()},  # (on strings: the same table)
 }
 BUILTIN_NAMES = tuple(BUILTINS)
 

@@ -80,6 +80,13 @@ def _build_kinematics(spec) -> tuple[Kinematics | None, str | None]:
         return None, f"this robot's kinematics are not usable for poses: {exc}"
 
 
+def _io_number(n: int, count: int, what: str) -> int:
+    """``n`` when digital ``what`` (input, output) ``n`` exists (1..``count``); else EvalError."""
+    if not 1 <= n <= count:
+        raise EvalError(f"digital {what} {n} does not exist (1..{count})")
+    return n
+
+
 class TrajectoryGenerator(Component):
     """Operator control (real-time safe, called between ticks): :meth:`pause` stops the
     program before its next instruction and brings the motion to a controlled stop on
@@ -569,19 +576,13 @@ class TrajectoryGenerator(Component):
         return ((there[0] - here[0]) ** 2 + (there[1] - here[1]) ** 2 + (there[2] - here[2]) ** 2) ** 0.5 / dt
 
     def read_input(self, n: int) -> bool:
-        if not 1 <= n <= self.spec.inputs:
-            raise EvalError(f"digital input {n} does not exist (1..{self.spec.inputs})")
-        return self.io.input(n)
+        return self.io.input(_io_number(n, self.spec.inputs, "input"))
 
     def write_output(self, n: int, value: bool) -> None:
-        if not 1 <= n <= self.spec.outputs:
-            raise EvalError(f"digital output {n} does not exist (1..{self.spec.outputs})")
-        self.io.set_output(n, value)
+        self.io.set_output(_io_number(n, self.spec.outputs, "output"), value)
 
     def read_output(self, n: int) -> bool:
-        if not 1 <= n <= self.spec.outputs:
-            raise EvalError(f"digital output {n} does not exist (1..{self.spec.outputs})")
-        return self.io.output(n)
+        return self.io.output(_io_number(n, self.spec.outputs, "output"))
 
     def pulse_output(self, n: int, seconds: float) -> None:
         """Output ``n`` on now and off ``seconds`` later (:meth:`_end_pulses`, every update)."""

@@ -174,6 +174,24 @@ class Output:
 Expr = Union[Number, String, Bool, Ref, Call, Index, Field, Unary, Binary, Input, Output]
 
 
+def operands(expr) -> tuple:
+    """The expressions directly inside ``expr`` (none for a literal or a name)."""
+    kind = type(expr)
+    if kind is Call:
+        return tuple(expr.args)
+    if kind is Binary:
+        return (expr.left, expr.right)
+    if kind is Unary:
+        return (expr.operand,)
+    if kind is Index:
+        return (expr.base, expr.index)
+    if kind is Field:
+        return (expr.base,)
+    if kind in (Input, Output):
+        return (expr.index,)
+    return ()
+
+
 def expression_text(expr) -> str:
     """An expression written out again (names in lower case, numbers as the parser read
     them, a binary operand that is itself binary in parentheses): what reports call a
@@ -377,8 +395,37 @@ class Use:
     span: Span
 
 
+@node
+class Word:
+    """A contextual word as a whole statement (compiler.recovery.WORDS: ``retry;``,
+    ``trynext;``, ``raise;``, ``raise N, "message";``), as written; the checker knows the words."""
+
+    name: str
+    args: tuple[Expr, ...]
+    span: Span
+    name_span: Span
+
+
+@node
+class OnError:
+    """``when error do STATEMENTS``: the error handler a ``seq ... endseq`` body ends with
+    (compiler.recovery); the last item of the body's statements (:func:`split_handler`)."""
+
+    word: str  # as written after 'when' (the checker wants compiler.recovery.HANDLER_WORD)
+    word_span: Span
+    body: tuple["Stmt", ...]
+    span: Span
+
+
 Stmt = Union[Assign, OutSet, Move, If, While, Repeat, For, WaitTime, WaitFor,
-             CallProc, Print, Pause, Halt, Return, Use, Enable, Trigger]
+             CallProc, Print, Pause, Halt, Return, Use, Enable, Trigger, Word, OnError]
+
+
+def split_handler(body: tuple) -> tuple[tuple, "OnError | None"]:
+    """A routine's body as (its statements, its error handler or None)."""
+    if body and type(body[-1]) is OnError:
+        return body[:-1], body[-1]
+    return body, None
 
 
 # ---- declarations and the program ----------------------------------------------------

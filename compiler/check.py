@@ -31,7 +31,8 @@ from .clauses import Clause, Motion
 from .configs import CONTEXTUAL_NAME, GROUPS as CONFIG_GROUPS, TURN_AXES, WORDS as CONFIG_WORDS, Config
 from .configs import turn_problem as config_turn_problem
 from .objcode import BUILTINS, MAX_ARRAY_ELEMENTS, MAX_COUNT, MAX_STRING_LENGTH
-from .robotstate import CLOCKS, FUNCTIONS as STATE_FUNCTIONS, PROCEDURES as STATE_PROCEDURES
+from .recovery import HANDLER_WORD, USER_ERRORS, WORDS as HANDLER_WORDS
+from .robotstate import CLOCKS, ERROR_ROUTINES, FUNCTIONS as STATE_FUNCTIONS, PROCEDURES as STATE_PROCEDURES
 from .semantics import (GEOMETRIC_BUILTINS, GEOMETRY, STRING_BUILTINS, INT_MAX, INT_MIN, EvalError, binary, call_builtin,
                         compose, geometric_result, make_joint, make_pos, make_pose, make_quat, make_rpy, unary)
 from .spec import Spec
@@ -149,8 +150,8 @@ def always_returns(body) -> bool:
     """Whether every path through ``body`` ends in a ``return`` (an ``if`` with an ``else``
     whose every branch does; a ``repeat``, whose body runs at least once, whose body does)."""
     for stmt in body:
-        if isinstance(stmt, ast.Return):
-            return True
+        if isinstance(stmt, ast.Return) or isinstance(stmt, ast.Word) and stmt.name in ("retry", "raise"):
+            return True  # (retry and raise never go on to the next statement either)
         if isinstance(stmt, ast.If) and always_returns(stmt.orelse) and \
                 all(always_returns(branch) for _cond, branch in stmt.branches):
             return True
@@ -214,11 +215,17 @@ class Checker:
         self.interrupts: list[ProcScope] = []  # in the order of the object code's interrupt table
         self.moving: dict[str, str] = {}  # procedures a handler may not call: name -> what they do
         self.all_changes: frozenset = frozenset()  # what some statement of the program may make active
+        self.in_handler = False  # checking an error handler's statements (compiler.recovery)
 
     # -- reporting --
     def error(self, span: ast.Span, message: str, hint: str | None = None, file: str | None = None) -> None:
         self.diagnostics.append(Diagnostic(file or self.file, span.line, span.col, span.end_line, span.end_col,
                                            "error", message, hint))
+
+    def warning(self, span: ast.Span, message: str, hint: str | None = None) -> None:
+        """Something that compiles and runs, but likely not as meant (the program is still made)."""
+        self.diagnostics.append(Diagnostic(self.file, span.line, span.col, span.end_line, span.end_col,
+                                           "warning", message, hint))
 
     # -- names --
     def lookup(self, name: str) -> Symbol | None:
@@ -1281,6 +1288,76 @@ class Checker:
     def s_Halt(self, node):
         pass
 
+    # ---- error handlers (compiler.recovery) ----
+    def s_OnError(self, node: ast.OnError):
+        if node.word != HANDLER_WORD:
+            self.error(node.word_span, f"'when {node.word} do' is no handler: an error handler starts with "
+                                       f"'when {HANDLER_WORD} do'",
+                       "the statements after it run when a statement of the body raises an error")
+        outer, self.in_handler = self.in_handler, True
+        self.stmts(node.body)
+        self.in_handler = outer
+        assigned = _assigned(node.body)
+        for retry in _unguarded_retries(node.body, assigned):
+            self.warning(retry.span, "this 'retry' has no bound: if the error comes again, the statement is "
+                                     "retried for ever",
+                         "count the tries and retry only below a limit: tries := tries + 1; "
+                         "if tries < 3 then retry; endif;")
+
+    def s_Word(self, node: ast.Word):
+        word = HANDLER_WORDS.get(node.name)
+        if word is None:
+            self.unknown_statement(node)
+            return
+        reraise = node.name == "raise" and not node.args
+        if (word.handler_only or reraise) and not self.in_handler:
+            self.error(node.name_span, f"'{node.name};' belongs in an error handler: there is no error here to "
+                                       f"{'pass on' if reraise else 'go on from'}",
+                       f"end the seq ... endseq body with 'when {HANDLER_WORD} do', then the statements that "
+                       f"handle its errors" + ("; raise the program's own error with 'raise NUMBER;'" if reraise
+                                               else ""))
+        if node.name == "trynext" and self.scope is not None and self.scope.result is not None:
+            self.error(node.name_span, f"'trynext' is not allowed in function '{self.scope.node.name}': it could "
+                                       "reach the function's end without a value",
+                       "return a value, retry, or raise the error on")
+        if node.name != "raise":
+            if node.args:
+                self.error(node.args[0].span, f"'{node.name}' takes no value")
+                for arg in node.args:
+                    self.expr(arg)
+            return
+        if len(node.args) > 2:
+            self.error(node.args[2].span, "'raise' takes an error number and a message at most: "
+                                          "raise NUMBER, \"message\";")
+        if node.args and self.expect(node.args[0], INTEGER, "an error's number") != ERROR:
+            number = self.value_of(node.args[0])
+            if number is not _NO_VALUE and not USER_ERRORS[0] <= number <= USER_ERRORS[1]:
+                self.error(node.args[0].span, f"error {number}: a program's own errors are numbered "
+                                              f"{USER_ERRORS[0]}..{USER_ERRORS[1]}",
+                           "the numbers below are the runtime's own errors (error_number())")
+        if len(node.args) > 1:
+            self.expect(node.args[1], STRING, "an error's message")
+        for arg in node.args[2:]:
+            self.expr(arg)
+
+    def unknown_statement(self, node: ast.Word):
+        """A name standing alone as a statement that is no word of a handler."""
+        symbol = self.lookup(node.name)
+        if symbol is not None and symbol.kind == "proc":
+            self.error(node.name_span, f"'{node.name}' is a procedure: call it with 'call {node.name}(...);'")
+        elif symbol is not None and symbol.kind in ("global", "local"):
+            self.error(node.name_span, f"'{node.name}' is a variable, not a statement",
+                       f"assign it with '{node.name} := VALUE;'")
+        else:
+            words = sorted(set(keywords()) | set(HANDLER_WORDS))
+            guess = did_you_mean(node.name, words, cutoff=0.7)
+            self.error(node.name_span, f"'{node.name}' is not a statement",
+                       f"did you mean '{guess}'?" if guess else
+                       "a statement starts with a keyword (move, if, call, ...), a variable to assign, or one of an "
+                       f"error handler's words ({', '.join(HANDLER_WORDS)})")
+        for arg in node.args:
+            self.expr(arg)
+
     def s_Return(self, node: ast.Return):
         scope = self.scope
         if scope is None:
@@ -1352,10 +1429,15 @@ class Checker:
                 self.var_decl(var, scope.names, scope.slots, "local")
             self.start_frames(known=False)
             self.stmts(scope.node.body)
-            if scope.result is not None and not always_returns(scope.node.body):
+            main, handler = ast.split_handler(scope.node.body)
+            if scope.result is not None and not always_returns(main):
                 self.error(scope.node.name_span, f"function '{scope.node.name}' can reach its end without "
                                                  "'return'", "every path through a function must end in "
                                                              "'return VALUE;'")
+            elif scope.result is not None and handler is not None and not always_returns(handler.body):
+                self.error(handler.word_span, f"the error handler of function '{scope.node.name}' can reach its "
+                                              "end without 'return'",
+                           "end every path through it with 'return VALUE;', 'retry;' or 'raise;'")
             self.scope = None
         self.file = self.main_file
         self.start_frames(known=True)
@@ -1458,7 +1540,7 @@ _EXPR_CLASSES = (ast.Number, ast.String, ast.Bool, ast.Ref, ast.Call, ast.Index,
                  ast.Binary, ast.Input, ast.Output)
 _STMT_CLASSES = (ast.Assign, ast.OutSet, ast.Move, ast.If, ast.While, ast.Repeat, ast.For, ast.WaitTime,
                  ast.WaitFor, ast.CallProc, ast.Print, ast.Pause, ast.Halt, ast.Return, ast.Use, ast.Enable,
-                 ast.Trigger)
+                 ast.Trigger, ast.Word, ast.OnError)
 #: Statements a function may not hold (it computes a value; it does not act): the keyword.
 _NOT_IN_FUNCTIONS = {ast.Move: "move", ast.WaitTime: "wait", ast.WaitFor: "wait for", ast.OutSet: "out[...] :=",
                      ast.CallProc: "call", ast.Print: "print", ast.Pause: "pause", ast.Halt: "halt",
@@ -1532,9 +1614,58 @@ def _children(stmt) -> tuple:
     """The statements directly inside ``stmt``."""
     if isinstance(stmt, ast.If):
         return tuple(s for _cond, body in stmt.branches for s in body) + tuple(stmt.orelse)
-    if isinstance(stmt, (ast.While, ast.Repeat, ast.For)):
+    if isinstance(stmt, (ast.While, ast.Repeat, ast.For, ast.OnError)):
         return tuple(stmt.body)
     return ()
+
+
+def _assigned(body) -> frozenset:
+    """The names the statements of ``body`` assign (a for loop's variable too)."""
+    names, stack = set(), list(body)
+    while stack:
+        stmt = stack.pop()
+        if isinstance(stmt, ast.Assign):
+            names.add(stmt.name)
+        elif isinstance(stmt, ast.For):
+            names.add(stmt.var)
+        elif isinstance(stmt, ast.CallProc):
+            names.update(a.name for a in stmt.args if isinstance(a, ast.Ref))  # (a 'var' parameter may change it)
+        stack.extend(_children(stmt))
+    return frozenset(names)
+
+
+def _reads(expr, names: frozenset) -> bool:
+    """Whether ``expr`` reads one of ``names``, or calls a function other than what a
+    handler reads of its error (a clock, the program's own: they may bound a retry)."""
+    stack = [expr]
+    while stack:
+        e = stack.pop()
+        if isinstance(e, ast.Ref) and e.name in names:
+            return True
+        if isinstance(e, ast.Call) and e.name not in ERROR_ROUTINES:
+            return True
+        stack.extend(ast.operands(e))
+    return False
+
+
+def _unguarded_retries(body, assigned: frozenset, guarded: bool = False) -> list:
+    """The ``retry`` statements of a handler's ``body`` not under a condition that reads
+    what the handler changes (a count of the tries) or a function (a clock)."""
+    found = []
+    for stmt in body:
+        if isinstance(stmt, ast.Word) and stmt.name == "retry" and not guarded:
+            found.append(stmt)
+        elif isinstance(stmt, ast.If):
+            for cond, branch in stmt.branches:
+                guarded_here = guarded or _reads(cond, assigned)
+                found += _unguarded_retries(branch, assigned, guarded_here)
+            found += _unguarded_retries(stmt.orelse, assigned, guarded or any(_reads(c, assigned)
+                                                                               for c, _b in stmt.branches))
+        elif isinstance(stmt, (ast.While, ast.Repeat)):
+            found += _unguarded_retries(stmt.body, assigned, guarded or _reads(stmt.cond, assigned))
+        elif isinstance(stmt, ast.For):
+            found += _unguarded_retries(stmt.body, assigned, guarded)
+    return found
 
 CONSTRUCTORS = {
     "joint": Checker.c_joint,

@@ -17,7 +17,7 @@ from .triggers import PLACE_INDEX, UNIT_INDEX
 from .clauses import CLAUSES as CLAUSE_TABLE
 from .clauses import Motion
 from .configs import CONTEXTUAL_NAME, WORDS as CONFIG_WORDS, Config, operand_of
-from .objcode import BUILTIN_NAMES, FIELDS, OP, InterruptInfo, ProcInfo, Program
+from .objcode import BUILTIN_NAMES, FIELDS, OP, HandlerInfo, InterruptInfo, ProcInfo, Program
 from .robotstate import FUNCTIONS as STATE_FUNCTIONS, PROCEDURES as STATE_PROCEDURES
 from .semantics import STRING_BUILTINS
 from .values import Joint, Pose, Position, Rpy
@@ -54,7 +54,9 @@ class CodeGen:
         self._stmt = {cls: getattr(self, "s_" + cls.__name__)
                       for cls in (ast.Assign, ast.OutSet, ast.Move, ast.If, ast.While, ast.Repeat, ast.For,
                                   ast.WaitTime, ast.WaitFor, ast.CallProc, ast.Print, ast.Pause, ast.Halt,
-                                  ast.Return, ast.Use, ast.Enable, ast.Trigger)}
+                                  ast.Return, ast.Use, ast.Enable, ast.Trigger, ast.Word)}
+        self.handlers: list[HandlerInfo] = []  # the error handlers (compiler.recovery)
+        self.statements: list[tuple[int, int]] | None = None  # of the body a handler protects, while generated
 
     # -- emitting --
     def emit(self, op: int, *operands: int) -> int:
@@ -210,9 +212,45 @@ class CodeGen:
     # -- statements --
     def stmts(self, body) -> None:
         dispatch = self._stmt
+        statements = self.statements
         for stmt in body:
+            start = len(self.code)
             self.mark(stmt.span)
             dispatch[type(stmt)](stmt)
+            if statements is not None:
+                statements.append((start, len(self.code)))
+
+    def body(self, body, epilogue) -> None:
+        """A routine's ``seq ... endseq`` body, then ``epilogue()`` (its end: END, RET, ...);
+        with an error handler, the handler's code after it, ending the same way, and its
+        entry in the handler table (what it protects, and the body's statements)."""
+        main, handler = ast.split_handler(body)
+        if handler is None:
+            self.stmts(main)
+            epilogue()
+            return
+        start, self.statements = len(self.code), []
+        self.stmts(main)
+        end, statements, self.statements = len(self.code), tuple(self.statements), None
+        epilogue()
+        entry = len(self.code)
+        self.stmts(handler.body)
+        epilogue()  # (its end leaves the routine as the body's does)
+        self.handlers.append(HandlerInfo(start, end, entry, statements))
+
+    def s_Word(self, node: ast.Word) -> None:
+        """An error handler's word (compiler.recovery.WORDS)."""
+        if node.name != "raise":
+            self.emit(getattr(OP, node.name.upper()))  # RETRY, TRYNEXT
+        elif not node.args:
+            self.emit(OP.RERAISE)
+        else:
+            self.value(node.args[0], INTEGER)
+            if len(node.args) > 1:
+                self.value(node.args[1], STRING)
+            else:
+                self.constant("")
+            self.emit(OP.RAISE)
 
     def s_Assign(self, node: ast.Assign) -> None:
         symbol = self.symbols[id(node)]
@@ -378,6 +416,12 @@ class CodeGen:
         self.value(node.value, self.result)
         self.emit(OP.RET_VALUE)
 
+    def end_routine(self) -> None:
+        """The end of the procedure or function being generated (see :meth:`generate`)."""
+        if self.result is None:
+            self.keep_refs()
+        self.emit(OP.HALT if self.result is not None else OP.RET)
+
     def keep_refs(self) -> None:
         """Before a procedure returns: its 'var' parameters kept for the caller (KEEP)."""
         for slot in self.refs:
@@ -444,10 +488,12 @@ class CodeGen:
             gvars = [d for d in gvars if d.init is not None]
         self.init_vars(gvars, lookup)
         self.file_index = 0
-        self.stmts(program.body)
         end = program.span
-        self.mark(ast.Span(end.end_line, 1, end.end_line, end.end_col))
-        self.emit(OP.END)
+
+        def end_program():
+            self.mark(ast.Span(end.end_line, 1, end.end_line, end.end_col))
+            self.emit(OP.END)
+        self.body(program.body, end_program)
         procedures = []
         for scope in checked.procedures:
             self.locals = scope.slots
@@ -456,12 +502,9 @@ class CodeGen:
             self.result = scope.result
             self.init_vars(scope.node.variables, scope.names.__getitem__)
             self.in_file_of(scope.node)
-            self.stmts(scope.node.body)
             # a procedure returns at its end; a function never gets there (the checker saw a
             # return on every path): HALT keeps any jump to its end inside the code
-            if scope.result is None:
-                self.keep_refs()
-            self.emit(OP.HALT if scope.result is not None else OP.RET)
+            self.body(scope.node.body, self.end_routine)
             procedures.append(ProcInfo(scope.node.name, entry, len(scope.node.params), tuple(self.locals),
                                        type_name(scope.result) if scope.result is not None else ""))
             self.locals = self.result = None
@@ -484,7 +527,7 @@ class CodeGen:
                        tuple(self.constants), tuple(self.code), tuple(self.lines),
                        tuple(self.globals), tuple(procedures),
                        files=modules, line_files=tuple(self.line_files) if modules else (),
-                       interrupts=tuple(interrupts))
+                       interrupts=tuple(interrupts), handlers=tuple(self.handlers))
 
 
 def generate(checked: CheckedProgram, source_file: str) -> Program:

@@ -128,14 +128,15 @@ def _compile_nested(source: str, file: str, spec_path, generate_code: bool) -> R
     texts = {name: text for name, text, _m in modules.values()}
     files = {name: path for path, (name, _text, _m) in modules.items()}
     diagnostics = syntax_errors + module_errors + diagnostics
-    if diagnostics:
-        diagnostics.sort(key=lambda d: (d.file != file, d.file, d.line, d.column))
+    diagnostics.sort(key=lambda d: (d.file != file, d.file, d.line, d.column))
+    if any(d.severity == "error" for d in diagnostics):
         return Result(file, source, None, diagnostics, spec, texts, sources)
+    # (warnings only: the program is made, and they go with it)
     if not generate_code:  # (irl check: the code generator is not even imported)
-        return Result(file, source, None, [], spec, texts, sources, files)
+        return Result(file, source, None, diagnostics, spec, texts, sources, files)
     from .codegen import generate
 
-    return Result(file, source, generate(checked, file), [], spec, texts, sources, files)
+    return Result(file, source, generate(checked, file), diagnostics, spec, texts, sources, files)
 
 
 def load_modules(tree, file: str) -> tuple[dict, list[Diagnostic], dict, dict]:

@@ -257,6 +257,20 @@ _DEFS = [
      "next", True),
     ("KEEP", (("l", "local"),), 0, 0, "Keep local variable l (a 'var' parameter) for the caller, before a "
                                       "procedure returns.", "", "next", False),
+    ("RAISE", (), 2, 0, "Raise the program's own error: its number and message popped (compiler.recovery).",
+     "number message ->", "raise", False),
+    ("RERAISE", (), 0, 0, "In an error handler: pass the error it took on to the caller's handler.", "", "raise",
+     False),
+    ("RETRY", (), 0, 0, "In an error handler: continue at the start of the statement that raised the error.", "",
+     "raise", False),
+    ("TRYNEXT", (), 0, 0, "In an error handler: continue after the statement that raised the error.", "", "raise",
+     False),
+    ("ERROR_NUMBER", (), 0, 1, "Push the number of the error the handler took (compiler.recovery.ERRORS).",
+     "-> integer", "next", False),
+    ("ERROR_NAME", (), 0, 1, "Push the name of the error the handler took (\"move\", \"timeout\", ...).",
+     "-> string", "next", False),
+    ("ERROR_MESSAGE", (), 0, 1, "Push the message of the error the handler took, as the operator would read it.",
+     "-> string", "next", False),
     ("TAKE", (("p", "proc"), ("l", "count")), 0, 1, "Push what procedure p kept of its local l (the caller, just "
                                                     "after the call: a 'var' parameter's value, to store into the "
                                                     "variable passed).", "-> value", "next", False),
@@ -319,7 +333,9 @@ _TYPES: dict[str, tuple[str, str]] = {
     "ROBOT_JOINT": ("", "joint"), "ROBOT_POSE": ("", "pose"), "TCP_SPEED": ("", "real"), "TIMED_OUT": ("", "bool"),
     "CLOCK_START": ("integer", ""), "CLOCK_STOP": ("integer", ""), "CLOCK_RESET": ("integer", ""),
     "CLOCK_READ": ("integer", "real"), "OUT_GET": ("integer", "bool"), "PULSE_OUT": ("integer real", ""),
-    "KEEP": ("", ""), "TAKE": ("", "@kept"),
+    "KEEP": ("", ""), "TAKE": ("", "@kept"), "RAISE": ("integer string", ""), "RERAISE": ("", ""),
+    "RETRY": ("", ""), "TRYNEXT": ("", ""), "ERROR_NUMBER": ("", "integer"), "ERROR_NAME": ("", "string"),
+    "ERROR_MESSAGE": ("", "string"),
 }
 _missing_types = [d[0] for d in _DEFS if d[0] not in _TYPES]
 if _missing_types:  # pragma: no cover - the table is complete
@@ -367,6 +383,28 @@ class InterruptInfo:
 
 
 @dataclass(frozen=True)
+class HandlerInfo:
+    """An error handler (compiler.recovery): the code it protects, ``start`` to ``end``
+    (the body of one routine, without its handler), where its code starts, and the
+    statements of the body, ``(start, end)`` each, nested ones too: ``retry`` goes on at
+    the start of the innermost one holding the instruction that raised the error,
+    ``trynext`` at its end."""
+
+    start: int
+    end: int
+    entry: int
+    statements: tuple[tuple[int, int], ...]
+
+    def statement_at(self, offset: int) -> tuple[int, int]:
+        """The innermost statement of the body that holds ``offset`` (the whole body if none)."""
+        best = (self.start, self.end)
+        for start, end in self.statements:
+            if start <= offset < end and start >= best[0] and end - start <= best[1] - best[0]:
+                best = (start, end)
+        return best
+
+
+@dataclass(frozen=True)
 class Program:
     """Object code as plain data. ``code`` holds (opcode, operand, ...) tuples."""
 
@@ -388,6 +426,15 @@ class Program:
     line_files: tuple[int, ...] = ()
     #: The interrupts (empty for a program without: then the object code has no such key).
     interrupts: tuple[InterruptInfo, ...] = ()
+    #: The error handlers (empty for a program without: then the object code has no such key).
+    handlers: tuple[HandlerInfo, ...] = ()
+
+    def handler_at(self, offset: int) -> HandlerInfo | None:
+        """The error handler that protects ``offset`` (None: none does)."""
+        for handler in self.handlers:
+            if handler.start <= offset < handler.end:
+                return handler
+        return None
 
     def line_at(self, offset: int) -> tuple[int, int]:
         """The (line, column) of the statement that ``offset`` belongs to, or (0, 0)."""
@@ -450,7 +497,9 @@ def _body(program: Program) -> dict:
                        for p in program.procedures],
     } | ({"files": list(program.files), "line_files": list(program.line_files)} if program.files else {}) \
       | ({"interrupts": [[i.name, i.condition, i.handler, i.priority, i.stop, i.halt] for i in program.interrupts]}
-         if program.interrupts else {})
+         if program.interrupts else {}) \
+      | ({"handlers": [[h.start, h.end, h.entry, [x for span in h.statements for x in span]]
+                       for h in program.handlers]} if program.handlers else {})
 
 
 def encode(program: Program) -> bytes:
@@ -567,9 +616,17 @@ def decode(data: bytes) -> Program:
                 and all(isinstance(v, bool) for v in x[4:]),
                 f"interrupt {i}: expected [name, condition, handler, priority, stop, halt]")
         interrupts.append(InterruptInfo(*x))
+    handlers = []
+    raw = body.get("handlers", [])
+    _expect(isinstance(raw, list) and ("handlers" not in body or raw), "body: handlers must be a non-empty list")
+    for i, h in enumerate(raw):
+        _expect(isinstance(h, list) and len(h) == 4 and all(map(_is_int, h[:3])) and isinstance(h[3], list)
+                and len(h[3]) % 2 == 0 and all(map(_is_int, h[3])),
+                f"handler {i}: expected [start, end, entry, [statement start, end, ...]]")
+        handlers.append(HandlerInfo(h[0], h[1], h[2], tuple(tuple(h[3][k:k + 2]) for k in range(0, len(h[3]), 2))))
     return Program(body["name"], body["source"], spec[0], spec[1], tuple(robots), tuple(constants),
                    tuple(code), line_table, _pairs(body["globals"], "globals"), tuple(procedures), version,
-                   tuple(files), tuple(line_files), tuple(interrupts))
+                   tuple(files), tuple(line_files), tuple(interrupts), tuple(handlers))
 
 
 # ---- verification ------------------------------------------------------------------------
@@ -796,11 +853,39 @@ def _routine_types(program: Program, proc: ProcInfo | None) -> tuple[tuple, str]
 def _verify_routine(program: Program, entry: int, nlocals: int | None, owner: list, result: str = "",
                     proc: ProcInfo | None = None) -> int:
     """Walk every path from ``entry`` (a function's when ``result``); returns the largest
-    stack depth reached. Follows the type of every stack value too."""
-    code = program.code
+    stack depth reached. Follows the type of every stack value too. An error handler whose
+    protected code the walk reaches belongs to this routine: its code, and the statements
+    it may go on at, are walked too (each entered with an empty stack)."""
     local_types, result_type = _routine_types(program, proc)
     types_at: dict[int, tuple] = {entry: ()}
     work = [entry]
+    deepest = 0
+    seeded: set[int] = set()  # the error handlers found in this routine
+    while True:
+        deepest = max(deepest, _walk(program, entry, nlocals, owner, result, local_types, result_type, types_at,
+                                     work))
+        # an error handler of this routine: its code, and every statement it may go on at
+        # (retry, trynext), are entered with an empty stack
+        for k, handler in enumerate(program.handlers):
+            if k not in seeded and owner[handler.start] == entry:
+                seeded.add(k)
+                for root in (handler.entry,) + tuple(x for span in handler.statements for x in span):
+                    known = types_at.get(root)
+                    if known is None:
+                        types_at[root] = ()
+                        work.append(root)
+                    elif known:
+                        raise ObjectCodeError(f"error handler {k}: the stack holds {len(known)} values where it "
+                                              "enters or goes on (a statement's start or end, its code)", root)
+        if not work:
+            return deepest
+
+
+def _walk(program: Program, entry: int, nlocals: int | None, owner: list, result: str, local_types: tuple,
+          result_type: str, types_at: dict, work: list) -> int:
+    """Walk every path from the pcs in ``work`` (their stack types in ``types_at``) within
+    the routine at ``entry``; returns the largest stack depth reached."""
+    code = program.code
     deepest = 0
     while work:
         pc = work.pop()
@@ -847,7 +932,7 @@ def _verify_routine(program: Program, entry: int, nlocals: int | None, owner: li
             successors.extend((pc + 1, operands[0]))
         elif flow == "stop" and definition.name == "END" and nlocals is not None:
             raise ObjectCodeError("END inside a procedure", pc)
-        if flow in ("return", "stop") and depth != 0:
+        if flow in ("return", "stop", "raise") and depth != 0:
             raise ObjectCodeError(f"{definition.name} with {depth} values left on the stack", pc)
         for nxt in successors:
             if nxt >= len(code):
@@ -966,13 +1051,38 @@ def verify(program: Program, spec_hash: str | None = None) -> int:
         if declared_type(typ) is None:
             raise ObjectCodeError(f"global {slot} ({name!r}) has type {typ!r}, no type of the language "
                                   f"({', '.join(VALUE_TYPES)}, or an array of one)")
+    for k, handler in enumerate(program.handlers):
+        problem = _handler_problem(program, k, handler)
+        if problem is not None:
+            raise ObjectCodeError(f"error handler {k}: {problem}")
     owner: list = [None] * len(program.code)
     deepest = _verify_routine(program, 0, None, owner)
     for proc in program.procedures:
         if owner[proc.entry] is not None:
             raise ObjectCodeError(f"procedure {proc.name!r} starts inside other code", proc.entry)
         deepest = max(deepest, _verify_routine(program, proc.entry, len(proc.locals), owner, proc.result, proc))
+    for k, handler in enumerate(program.handlers):
+        routine = owner[handler.start]
+        if routine is None or any(owner[pc] not in (None, routine) for pc in range(handler.start, handler.end)) \
+                or owner[handler.entry] != routine:
+            raise ObjectCodeError(f"error handler {k}: the code it protects and its own code must be of one routine")
     return deepest
+
+
+def _handler_problem(program: Program, k: int, handler: HandlerInfo) -> str | None:
+    """What is wrong with an error handler's table entry by itself, or None."""
+    n = len(program.code)
+    if not 0 <= handler.start <= handler.end < n:
+        return f"it protects {handler.start}..{handler.end}, which is not inside the code (0..{n - 1})"
+    if not 0 <= handler.entry < n or handler.start <= handler.entry < handler.end:
+        return f"its code at {handler.entry} must be inside the code and outside what it protects"
+    for start, end in handler.statements:
+        if not handler.start <= start <= end <= handler.end:
+            return f"its statement {start}..{end} is not inside what it protects ({handler.start}..{handler.end})"
+    for other in program.handlers[:k]:
+        if other.start < handler.end and handler.start < other.end:
+            return "it protects code another handler protects"
+    return None
 
 
 def _interrupt_problem(program: Program, interrupt: InterruptInfo) -> str | None:

@@ -95,6 +95,8 @@ _FLOWS = {
     "call": "run the called procedure, then continue with the next instruction",
     "return": "return to the instruction after the `CALL`",
     "stop": "the program ends",
+    "raise": "an error handler's jump (compiler.recovery): to the handler that takes the error, or to the "
+             "statement its table names (`RETRY`, `TRYNEXT`); none takes it: the program ends with the error",
 }
 
 #: Valid values of the operand kinds whose range depends on the program's own tables.
@@ -315,6 +317,17 @@ def _section_format() -> list[str]:
         "`line_files`, one integer per `lines` entry: the file that statement is in (0 the "
         "program's source, k `files[k - 1]`). A program of one file has neither, so its bytes "
         "are what they were before modules. `Program.file_at(offset)` gives an offset's file.",
+        "",
+        "A program with error handlers (`when error do`, compiler.recovery) has the key `handlers`: "
+        "a list of `[start, end, entry, statements]`, one per handler: the offsets it protects "
+        "(`start` to `end`, the body of one routine without its handler), where its own code "
+        "starts, and a flat list of `start, end` pairs, the body's statements (nested ones too). "
+        "An error raised at an offset the handler protects (or in a routine called from there "
+        "that does not handle it) continues at `entry` with the routine's stack empty; `RETRY` "
+        "continues at the start of the innermost statement that holds the offset, `TRYNEXT` at "
+        "its end. The verifier walks the handler's code and each of those statements' starts and "
+        "ends with an empty stack, and refuses a handler whose offsets are not all in one routine. "
+        "A program without handlers has no such key.",
         "",
         "Offsets (jump targets, procedure entries, line-table offsets) count *instructions*, "
         "not integers of the flat `code` list: offset 0 is the first instruction, offset 1 the "

@@ -16,7 +16,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-__all__ = ["CLOCKS", "FUNCTIONS", "PROCEDURES", "ROUTINES", "StateRoutine"]
+__all__ = ["CLOCKS", "ERROR_ROUTINES", "FUNCTIONS", "PROCEDURES", "ROUTINES", "StateRoutine"]
 
 #: The clocks a program has, numbered 1..CLOCKS.
 CLOCKS = 8
@@ -58,5 +58,17 @@ ROUTINES: dict[str, StateRoutine] = {r.name: r for r in (
                  "digital output N on now (where the robot is), off again SECONDS later while the program goes on; "
                  "a pulse of an output already pulsing starts again", "output"),
 )}
-FUNCTIONS = {name: r for name, r in ROUTINES.items() if r.result}
+#: What an error handler reads of the error it took (compiler.recovery; RAPID's ERRNO and
+#: ERRSTR): built-in functions as those above, whose names are not reserved either.
+ERROR_ROUTINES: dict[str, StateRoutine] = {r.name: r for r in (
+    StateRoutine("error_number", (), "integer", "ERROR_NUMBER",
+                 "the number of the error the handler took (compiler.recovery.ERRORS; a program's own: its "
+                 "number); 0 before any"),
+    StateRoutine("error_name", (), "string", "ERROR_NAME",
+                 "the name of the error the handler took: \"move\", \"timeout\", \"arithmetic\", \"value\", "
+                 "\"io\" or \"user\"; \"\" before any"),
+    StateRoutine("error_message", (), "string", "ERROR_MESSAGE",
+                 "the message of the error the handler took, as the operator's log would say it"),
+)}
+FUNCTIONS = {name: r for name, r in (ROUTINES | ERROR_ROUTINES).items() if r.result}
 PROCEDURES = {name: r for name, r in ROUTINES.items() if not r.result}

@@ -15,6 +15,7 @@ from grammar import make_parser
 from . import ast
 from .clauses import NAMES as CLAUSE_NAMES
 from .clauses import Motion
+from .recovery import WORDS
 from .diagnostics import CompileError, Diagnostic, did_you_mean
 from .semantics import INT_MAX
 
@@ -176,7 +177,17 @@ class _Builder(Transformer):
 
     def block(self, c):
         seq_kw, *items = c
-        return _stmts(items)
+        return _stmts(items)  # (an error handler, the last item when there is one, is kept)
+
+    def on_error(self, c):
+        kw, word, *body = c
+        body = _stmts(body)
+        return ast.OnError(word.value.lower(), _span(word), body, _span(kw).to(body[-1].span if body else _span(word)))
+
+    def word_stmt(self, c):
+        name, *args = c
+        args = tuple(a for a in args if a is not None)
+        return ast.Word(name.value.lower(), args, _span(name).to(args[-1].span) if args else _span(name), _span(name))
 
     # -- statements --
     def assign(self, c):
@@ -466,6 +477,13 @@ def _classify(err: UnexpectedInput, text: str, file: str, tokens: list[Token]):
         if candidate.start_pos is not None and tok.start_pos is not None and candidate.start_pos >= tok.start_pos:
             break
         prev = candidate
+    misspelled = _misspelled_word(tokens, tok)
+    if misspelled is not None:  # ("endwhle;" is a word statement to the parser: the block stays open)
+        word, guess = misspelled
+        diag = _diag(file, _span(word), f"unexpected name '{word.value}'", f"did you mean '{guess}'?")
+        if len(guess) == len(word.value):
+            return diag, ("patch", word.start_pos, word.end_pos, guess)
+        return diag, (None if guess.upper() in _STRUCTURE else ("resync", word.start_pos))
     if tok.type == "$END":
         last = tokens[-1] if tokens else None
         line = last.end_line if last else 1
@@ -485,7 +503,7 @@ def _classify(err: UnexpectedInput, text: str, file: str, tokens: list[Token]):
 
     # "endseg" where "endseq" belongs: a misspelled keyword reads as a name, and the
     # parser only notices at the token after it.
-    if prev is not None and prev.type == "NAME" and "NAME" not in expected:
+    if prev is not None and prev.type == "NAME" and ("NAME" not in expected or _word_at_start(tokens, prev)):
         guess = did_you_mean(prev.value, _keywords(), cutoff=0.75)
         if guess and guess != prev.value.lower():
             diag = _diag(file, _span(prev), f"unexpected name '{prev.value}'", f"did you mean '{guess}'?")
@@ -519,6 +537,29 @@ def _classify(err: UnexpectedInput, text: str, file: str, tokens: list[Token]):
 
     return (_diag(file, _span(tok), f"unexpected '{tok.value}'; expected {_expected_text(expected)}", hint),
             ("resync", tok.start_pos))
+
+
+def _word_at_start(tokens: list[Token], name: Token) -> bool:
+    """Whether ``name`` starts a statement and is not one of the handler's words (the
+    parser reads it as the start of a word statement: ``endseg endprogram``)."""
+    i = next((k for k, t in enumerate(tokens) if t.start_pos == name.start_pos), None)
+    return i is not None and (i == 0 or tokens[i - 1].type in _STMT_BOUNDARY) and name.value.lower() not in WORDS
+
+
+def _misspelled_word(tokens: list[Token], tok: Token) -> tuple[Token, str] | None:
+    """The last misspelled keyword before ``tok`` that stands alone as a statement
+    (``endwhle;``): the parser takes it for a word statement (compiler.recovery.WORDS), so
+    it only notices later that a block is not closed. (The token and the keyword meant.)"""
+    found = None
+    for i, candidate in enumerate(tokens[:-1]):
+        if candidate.start_pos is None or tok.start_pos is None or candidate.start_pos >= tok.start_pos:
+            break
+        if candidate.type == "NAME" and tokens[i + 1].type == "SEMICOLON" and \
+                (i == 0 or tokens[i - 1].type in _STMT_BOUNDARY) and candidate.value.lower() not in WORDS:
+            guess = did_you_mean(candidate.value, _keywords(), cutoff=0.75)
+            if guess and guess != candidate.value.lower():
+                found = (candidate, guess)
+    return found
 
 
 #: Each block's opening keyword and the one that closes it.

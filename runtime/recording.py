@@ -39,11 +39,11 @@ INSTALL = "recordings need the mcap library: pip install 'irl[view]'"
 # ---- the events: the kinds of what happens in a cycle, and their levels (foxglove.LogLevel) -----
 LEVELS = {"UNKNOWN": 0, "DEBUG": 1, "INFO": 2, "WARNING": 3, "ERROR": 4, "FATAL": 5}
 
-PRINT, PAUSE, TIMEOUT, INTERRUPT, HALT, LOG_FULL, FROM_LINE, FAULT, STOP = (
-    "print", "pause", "timeout", "interrupt", "halt", "log full", "from line", "fault", "stop")
+PRINT, PAUSE, TIMEOUT, INTERRUPT, HALT, HANDLED, LOG_FULL, FROM_LINE, FAULT, STOP = (
+    "print", "pause", "timeout", "interrupt", "halt", "handled", "log full", "from line", "fault", "stop")
 
 #: Every kind of event the loop records: its level and what it is. The program's log lines
-#: (``runtime.loop.vm``: ``MotionHost.log``) are the first seven; the supervisor's fault and the
+#: (``runtime.loop.vm``: ``MotionHost.log``) are the first eight; the supervisor's fault and the
 #: safety supervisor's stop the last two. ``irl plot`` marks faults and interrupt firings.
 EVENTS: dict[str, tuple[str, str]] = {
     PRINT: ("INFO", "a line of the program's print output"),
@@ -51,6 +51,7 @@ EVENTS: dict[str, tuple[str, str]] = {
     TIMEOUT: ("WARNING", "a wait for ended by its time-out"),
     INTERRUPT: ("INFO", "an interrupt fired (its name, and where the program or the move under way was)"),
     HALT: ("WARNING", "an interrupt ended the program (then halt, or halt in its handler)"),
+    HANDLED: ("WARNING", "an error handler took a run-time error (its name and message, and the handler's line)"),
     LOG_FULL: ("WARNING", "the program's log is full: later lines are counted, not kept"),
     FROM_LINE: ("INFO", "a start from a line (--from-line): what running to it without moving skipped, and the "
                         "approach to its start"),

@@ -672,7 +672,7 @@ class QueueHost:
 
     room: int | None = None  # when set: places left in the queue (a move takes one)
 
-    def move(self, kind, targets, clauses, line):
+    def move(self, kind, targets, clauses, line, tag=0):
         self.moves.append((kind, targets, clauses, line))
         if self.room is not None:
             self.room -= 1
@@ -704,9 +704,9 @@ class NoQueueHost(QueueHost):
             raise AttributeError(name)
         return super().__getattribute__(name)
 
-    def move(self, kind, targets, clauses, line):
+    def move(self, kind, targets, clauses, line, tag=0):
         self.done = False
-        return super().move(kind, targets, clauses, line)
+        return super().move(kind, targets, clauses, line, tag)
 
 
 def vm_program(tmp_path: Path, body: str, decls: str = "") -> tuple[Program, str]:

@@ -284,7 +284,7 @@ class RecordingHost:
     def now(self):
         return 0.0
 
-    def move(self, kind, targets, clauses, line):
+    def move(self, kind, targets, clauses, line, tag=0):
         self.moves.append((kind, clauses))
         return None
 

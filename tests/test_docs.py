@@ -231,6 +231,8 @@ STATEMENT_SYNTAX = {
     "Use": ["use base EXPR;", "use tool EXPR;"],
     "Enable": ["enable NAME;", "disable NAME;"],
     "Trigger": ["trigger when AMOUNT mm|ms after start|before end|after end do out[N] := BOOL;"],
+    "OnError": ["when error do"],
+    "Word": ["`retry;`", "`trynext;`", "`raise;`", "`raise N, \"message\";`"],
 }
 
 

@@ -48,7 +48,7 @@ class FakeHost:
     def now(self) -> float:
         return self.t
 
-    def move(self, kind, targets, clauses, line):
+    def move(self, kind, targets, clauses, line, tag=0):
         if self.move_error is not None:
             return self.move_error
         self.moves.append((kind, targets, clauses, line))

@@ -63,8 +63,10 @@ def report_diagnostics(env: Environment, result, as_json: bool) -> None:
         from compiler.diagnostics import render_all
 
         warn(env, render_all(result.diagnostics, result.source, result.sources))
-        count = sum(1 for d in result.diagnostics if d.severity == "error")
-        warn(env, f"{count} error{'s' if count != 1 else ''} in {result.file}")
+        errors = sum(1 for d in result.diagnostics if d.severity == "error")
+        counts = [f"{n} {word}{'s' if n != 1 else ''}" for n, word in
+                  ((errors, "error"), (len(result.diagnostics) - errors, "warning")) if n]
+        warn(env, f"{' and '.join(counts)} in {result.file}")
 
 
 def read_object(path: str) -> bytes:

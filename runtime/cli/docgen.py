@@ -8,7 +8,8 @@ cell's rules from :data:`runtime.hardware.sim.cell.RULES`, the fieldbus file's f
 :data:`runtime.hardware.fieldbus.FIELDS`, the telemetry sample's fields from
 :data:`runtime.wire.protocol.SAMPLE_FIELDS`, pose arithmetic from :data:`compiler.semantics.GEOMETRY`, the bounds of frames and tools from
 :data:`compiler.frames.FRAME_KINDS`, the configuration's words from :data:`compiler.configs.GROUPS`, a
-recording's topics and the events' kinds from :data:`runtime.recording.TOPICS` and :data:`runtime.recording.EVENTS`.
+recording's topics and the events' kinds from :data:`runtime.recording.TOPICS` and :data:`runtime.recording.EVENTS`,
+the errors a handler takes and its words from :mod:`compiler.recovery`.
 A test fails while a page is stale. Not real-time; imports nothing the loop needs.
 """
 from __future__ import annotations
@@ -23,7 +24,7 @@ _BLOCK = re.compile(r"(<!-- generated: (?P<name>[a-z_]+) -->\n)(?P<body>.*?)(<!-
 
 
 def tables() -> dict[str, str]:
-    from compiler import clauses, configs, frames, semantics, triggers
+    from compiler import clauses, configs, frames, recovery, semantics, triggers
     from compiler.params import COMPONENTS, markdown
 
     from runtime import recording
@@ -37,7 +38,8 @@ def tables() -> dict[str, str]:
             "fieldbus": fieldbus.markdown(), "sample": protocol.sample_markdown(),
             "geometry": semantics.geometry_markdown(), "frames": frames.markdown(),
             "triggers": triggers.markdown(), "configurations": configs.markdown(),
-            "recording": recording.topics_markdown(), "events": recording.events_markdown()}
+            "recording": recording.topics_markdown(), "events": recording.events_markdown(),
+            "errors": recovery.markdown()}
 
 
 def render(text: str) -> str:

@@ -19,6 +19,8 @@ goes on from where the robot would then be:
   circle, a trigger beyond its path, a clause out of range): the run goes on as if the
   move had reached its target (a PTP move there stands in for it, at the specification's
   default speed), or, when the target has no joint values at all, from where the robot was;
+* a refused move that the program's own error handler takes (compiler.recovery): the
+  handler runs, as it would in ``irl run``, and a note says so;
 * a refused trigger or ``use`` of a frame: it is left out;
 * a blend that no shorter blend keeps within the axis limits: a warning (the robot stops
   at the corner instead);
@@ -478,6 +480,7 @@ class OfflineHost(TrajectoryGenerator):
         self.starts: dict[int, tuple] = {}  # a move -> the joints it started from the first time
         self.lost: int | None = None  # the line of a refused move no joint values reach: where the robot is is unknown
         self.skipped = 0  # lin and circ moves not checked since (their start is unknown)
+        self.handled: dict[int, tuple] = {}  # refused moves a handler takes: offset -> (times, first problem, handler)
         self.lost_at: set[int] = set()  # the lines of such moves
         self.at = 0  # the offset of the located instruction executing
         self.reading = False  # the program (not an interrupt's condition) reads an input
@@ -538,7 +541,7 @@ class OfflineHost(TrajectoryGenerator):
         self.findings.append(Finding(offset, program.file_at(offset), line, column, kind, str(message), severity,
                                      hint, fraction, distance, 1, runs))
 
-    def move(self, kind: Motion, targets: tuple, clauses: dict, line: int) -> str | None:
+    def move(self, kind: Motion, targets: tuple, clauses: dict, line: int, tag: int = 0) -> str | None:
         if self.lost is not None and kind != Motion.PTP:  # from where? (after a target no joints reach)
             self.skipped += 1
             self.triggers = []
@@ -546,7 +549,7 @@ class OfflineHost(TrajectoryGenerator):
         before = self.motion.last_planned
         start = tuple(self.motion.planning_start())
         first = self.starts.setdefault(self.at, start)
-        problem = super().move(kind, targets, clauses, line)
+        problem = super().move(kind, targets, clauses, line, tag)
         if problem is None:
             segment = self.motion.last_planned
             if segment is not None and segment is not before:
@@ -555,6 +558,12 @@ class OfflineHost(TrajectoryGenerator):
                     self.lost = None
             return None
         self.triggers = []  # (a refused move's triggers go with it)
+        vm = self.vm
+        found = vm.recovery.handler_for(len(vm.memory.frames), self.at) if self.program.handlers else None
+        if found is not None:  # the program's own error handler takes it: its path is the program's (a note)
+            count, first, handler = self.handled.get(self.at, (0, str(problem), found[1].entry))
+            self.handled[self.at] = (count + 1, first, handler)
+            return problem
         self.refused.append((len(self.planned), self.at, str(kind)))
         hint = None
         said = _wound(problem, self.axes, first, start)
@@ -954,6 +963,10 @@ def check_motion(program: Program, spec, scenario=None, *, max_moves: int = MAX_
     main = check.run(None if scenario is not None else (), (), max_moves, trace)
     outcome = Outcome(cycle_time=main.end_time, ended=main.ended, moves=_planned_moves(main), notes=list(main.notes),
                       trace=main.traced() if trace else None)
+    for offset, (count, first, handler) in main.host.handled.items():
+        times = "once" if count == 1 else f"{count} times"
+        outcome.notes.append(f"line {program.line_at(offset)[0]}: the move is refused {times} (first: {first}); the "
+                             f"error handler at line {program.line_at(handler)[0]} takes it, and the check follows it")
     if main.host.skipped:
         lines = ", ".join(str(line) for line in sorted(main.host.lost_at))
         outcome.notes.append(f"{main.host.skipped} lin or circ move{'s' if main.host.skipped != 1 else ''} after a refused "

@@ -59,6 +59,7 @@ from __future__ import annotations
 
 import enum
 import operator
+from collections import deque
 from dataclasses import dataclass
 from typing import Protocol
 
@@ -70,10 +71,11 @@ from compiler.semantics import (INT_MAX, INT_MIN, MAX_STRING_LENGTH, EvalError, 
                                 check_index, get_axis, get_field, make_joint, make_pos, make_pose, make_quat,
                                 make_rpy, set_axis, unary)
 from compiler.configs import TURNS_FLAG, from_operand
+from compiler.recovery import BY_NAME as ERROR_KINDS, USER_ERRORS, error_kind
 from compiler.robotstate import CLOCKS
 from compiler.values import Pose, format_number, format_value
 
-from runtime.recording import HALT, INTERRUPT, PAUSE, PRINT, TIMEOUT
+from runtime.recording import HALT, HANDLED, INTERRUPT, PAUSE, PRINT, TIMEOUT
 
 #: Deepest nesting of procedure calls before the program is stopped with an error.
 MAX_CALL_DEPTH = 200
@@ -122,11 +124,12 @@ class MotionHost(Protocol):
     def now(self) -> float:
         """Seconds, the executive's clock."""
 
-    def move(self, kind: Motion, targets: tuple, clauses: dict, line: int) -> str | None:
+    def move(self, kind: Motion, targets: tuple, clauses: dict, line: int, tag: int = 0) -> str | None:
         """Hand over a move: ``kind`` is a :class:`compiler.clauses.Motion`; ``targets`` is
         ``(target,)``, or ``(via, end)`` for circ; ``clauses`` holds only the clauses the
-        program gave ({name: value}). None when accepted, else an error message (which
-        stops the program with an error at ``line``)."""
+        program gave ({name: value}). None when accepted, else an error message (the
+        program's "move" error at ``line``). ``tag`` names the move: a failure found later
+        is reported with it (:meth:`VM.fail`)."""
 
     def motion_done(self) -> bool:
         """True when the robot has finished every move handed over."""
@@ -255,6 +258,38 @@ def _describe(exc: Exception, op: int | None = None) -> str:
     return f"internal error of the runtime{what}: not a fault of the program"
 
 
+class ProgramError(EvalError):
+    """An error a program's handler can take (compiler.recovery): its message, its number,
+    and the line it was first raised at (0: where it is raised now)."""
+
+    def __init__(self, message: str, number: int, line: int = 0):
+        super().__init__(message)
+        self.number = number
+        self.line = line
+
+
+_MOVE, _TIMEOUT, _ARITHMETIC_ERROR, _VALUE, _IO = (ERROR_KINDS[name].number for name in
+                                                   ("move", "timeout", "arithmetic", "value", "io"))
+#: The instructions whose errors are the program's arithmetic, and its I/O's.
+_ARITHMETIC_ONLY = _ARITHMETIC - {OP.CALL_BUILTIN}
+_IO_OPS = frozenset({OP.IN_GET, OP.OUT_SET, OP.OUT_GET, OP.PULSE_OUT})
+
+
+def error_number(exc: Exception, op: int) -> int | None:
+    """The number (compiler.recovery.ERRORS) of the error that ``exc``, raised by
+    instruction ``op``, is to the program; None: it is not the program's (the runtime's own
+    failure), and no handler takes it."""
+    if isinstance(exc, ProgramError):
+        return exc.number
+    if op in _ARITHMETIC and isinstance(exc, (ZeroDivisionError, OverflowError)):
+        return _ARITHMETIC_ERROR
+    if not isinstance(exc, EvalError):
+        return None
+    if op in _ARITHMETIC_ONLY:
+        return _ARITHMETIC_ERROR
+    return _IO if op in _IO_OPS else _VALUE
+
+
 class Memory:
     """The program's data and its calls: the operand stack, the global slots, the local slots
     of the routine running, the call frames; with the handlers of the instructions that only
@@ -266,7 +301,7 @@ class Memory:
         self.stack: list = []
         self.globals: list = [None] * len(program.globals)
         self.locals: list = []  # the current procedure's slots (the main program has none)
-        self.frames: list[tuple[int, list]] = []  # (return offset, caller's locals)
+        self.frames: list[tuple[int, list, int]] = []  # (return offset, caller's locals, the callee's stack base)
         self.max_call_depth = max_call_depth
         self.consts = list(program.constants)
         self.procs = [(p.entry, p.params, len(p.locals), p.name) for p in program.procedures]
@@ -284,15 +319,19 @@ class Memory:
         """An interrupt's handler (procedure ``proc``, without parameters) starts: a frame
         whose return goes back to the program (:data:`_FROM_INTERRUPT`). Returns its entry."""
         entry, _params, slots, _name = self.procs[proc]
-        self.frames.append((_FROM_INTERRUPT, self.locals))
+        self.frames.append((_FROM_INTERRUPT, self.locals, len(self.stack)))
         self.locals = [None] * slots
         return entry
 
     def leave(self) -> int:
         """The routine running returns: the caller's slots again; returns where to go on
         (:data:`_FROM_INTERRUPT` for an interrupt's handler)."""
-        back, self.locals = self.frames.pop()
+        back, self.locals, _base = self.frames.pop()
         return back
+
+    def base(self) -> int:
+        """Where the running routine's part of the operand stack starts."""
+        return self.frames[-1][2] if self.frames else 0
 
     # -- the handlers: op_<name>(operand, pc) -> the next pc --------------------------------
     # ``operand`` is None for an instruction without operands, the operand for one with
@@ -497,7 +536,7 @@ class Memory:
             stack = self.stack
             frame[:params] = stack[-params:]
             del stack[-params:]
-        self.frames.append((pc + 1, self.locals))
+        self.frames.append((pc + 1, self.locals, len(self.stack)))
         self.locals = frame
         return entry
 
@@ -730,6 +769,144 @@ class Interrupts:
         return pc + 1
 
 
+class Recovery:
+    """The program's error handlers (compiler.recovery): which handler takes an error raised
+    where, the errors being handled (one per routine whose handler runs), and the moves handed
+    over (where each was issued, for an error the motion reports later). With the handlers of
+    RAISE, RERAISE, RETRY, TRYNEXT and what a handler reads of its error."""
+
+    #: Moves remembered with where they were issued (the motion reports a failure of one of
+    #: the last few it was handed: those the look-ahead holds).
+    ISSUED = 64
+
+    def __init__(self, program: Program, memory: Memory):
+        self.program = program
+        self._memory = memory
+        # per error being handled: (depth of its routine, number, message, line, retry at, trynext at)
+        self.taking: list[tuple] = []
+        self.last: tuple = (0, "", 0)  # the last error taken: (number, message, line)
+        self.issued: deque = deque(maxlen=self.ISSUED)  # (tag, offset, frames, locals) per move handed over
+
+    def handler_for(self, depth: int, pc: int) -> tuple | None:
+        """The handler that takes an error raised at ``pc`` in the routine running at
+        ``depth`` (call frames), or in a caller of it: (its routine's depth, the handler, the
+        offset in that routine the error counts at). None: none does (an interrupt's handler
+        passes no error on to the program it interrupted)."""
+        frames = self._memory.frames
+        program = self.program
+        while True:
+            handler = program.handler_at(pc)
+            if handler is not None:
+                return depth, handler, pc
+            if depth == 0:
+                return None
+            back = frames[depth - 1][0]
+            if back == _FROM_INTERRUPT:
+                return None
+            pc, depth = back - 1, depth - 1  # (the CALL of the routine that raised it)
+
+    def enter(self, found: tuple, number: int, message: str, line: int) -> int:
+        """The handler ``found`` (:meth:`handler_for`) takes an error: the routines after
+        its own are left, its stack emptied, the error recorded for ``retry``, ``trynext``
+        and ``raise``. Returns the handler's entry."""
+        depth, handler, pc = found
+        memory = self._memory
+        while len(memory.frames) > depth:
+            memory.leave()
+        del memory.stack[memory.base():]
+        memory.kept = {}
+        start, end = handler.statement_at(pc)
+        self.taking = [t for t in self.taking if t[0] < depth]
+        self.taking.append((depth, number, message, line, start, end))
+        self.last = (number, message, line)
+        return handler.entry
+
+    def left(self, depth: int) -> None:
+        """The routine at ``depth + 1`` returned: the error its handler took is over."""
+        if self.taking and self.taking[-1][0] > depth:
+            self.taking = [t for t in self.taking if t[0] <= depth]
+
+    def remember(self, tag: int, pc: int) -> None:
+        """A move was handed over as ``tag``, by the instruction at ``pc``, in the calls
+        running now."""
+        memory = self._memory
+        self.issued.append((tag, pc, tuple(memory.frames), memory.locals))
+
+    def raise_point(self, tag: int) -> tuple[int, int] | None:
+        """Where the error of move ``tag``, reported by the motion after the program ran on,
+        counts: (depth, offset) of its move instruction when the routine that issued it
+        still runs, else of the call, in the innermost routine still running, that led to
+        it; None when the move is not remembered, or an interrupt's handler runs between."""
+        record = next((r for r in self.issued if r[0] == tag), None)
+        if record is None:
+            return None
+        _tag, pc, then, then_locals = record
+        memory = self._memory
+        now = memory.frames
+        chain_then = [f[1] for f in then] + [then_locals]
+        chain_now = [f[1] for f in now] + [memory.locals]
+        same = 0
+        while same < min(len(chain_then), len(chain_now)) and chain_then[same] is chain_now[same]:
+            same += 1
+        if same == 0:
+            return None
+        depth = same - 1
+        if same < len(chain_then):  # (that routine has returned: the call that led to it)
+            pc = then[depth][0] - 1
+            if then[depth][0] == _FROM_INTERRUPT:
+                return None
+        if any(f[0] == _FROM_INTERRUPT for f in now[depth:]):
+            return None
+        return depth, pc
+
+    def _taken(self) -> tuple:
+        depth = len(self._memory.frames)
+        taking = self.taking
+        if not taking or taking[-1][0] != depth:
+            raise RuntimeError("an error handler's instruction where no handler runs")
+        return taking.pop()
+
+    # ---- the handlers' instructions ----
+    def op_retry(self, _, pc):
+        return self._taken()[4]
+
+    def op_trynext(self, _, pc):
+        return self._taken()[5]
+
+    def op_raise(self, _, pc):
+        stack = self._memory.stack
+        message = stack.pop()
+        number = stack.pop()
+        if not USER_ERRORS[0] <= number <= USER_ERRORS[1]:
+            raise EvalError(f"raise {number}: a program's own errors are numbered {USER_ERRORS[0]}..{USER_ERRORS[1]}")
+        raise ProgramError(message or f"error {number} raised by the program", number)
+
+    def op_reraise(self, _, pc):
+        _depth, number, message, line, _retry, _next = self._taken()
+        raise ProgramError(message, number, line)
+
+    def _error(self) -> tuple:
+        """(number, message, line) of the error the running handler took (else the last)."""
+        depth = len(self._memory.frames)
+        for t in reversed(self.taking):
+            if t[0] == depth:
+                return t[1:4]
+        return self.last
+
+    def op_error_number(self, _, pc):
+        self._memory.stack.append(self._error()[0])
+        return pc + 1
+
+    def op_error_name(self, _, pc):
+        number = self._error()[0]
+        self._memory.stack.append(error_kind(number).name if number else "")
+        return pc + 1
+
+    def op_error_message(self, _, pc):
+        self._memory.stack.append(self._error()[1])
+        return pc + 1
+
+
 class VM:
     """Runs one program; see the module docstring. The VM steps the program (the program
     counter, the budget, the two dispatch loops) and carries out the instructions that deal
@@ -766,7 +943,8 @@ class VM:
         self.waits = Waits(host)
         self.clocks = [[None, 0.0] for _ in range(CLOCKS)]  # per clock: (running since, seconds before that)
         self.interrupts = Interrupts(program, host, self.memory, self._ops, self._args)
-        owners = {VM: self, Memory: self.memory, Interrupts: self.interrupts}
+        self.recovery = Recovery(program, self.memory)
+        owners = {VM: self, Memory: self.memory, Interrupts: self.interrupts, Recovery: self.recovery}
         self._own = [handler.__get__(owners[owner]) for owner, handler in HANDLERS]  # (before the barrier)
         self._handlers = [self._at_robot(handler) if definition.barrier else handler
                           for definition, handler in zip(INSTRUCTIONS, self._own)]
@@ -840,10 +1018,14 @@ class VM:
             self._stop_with("aborted by the operator", self._here)
             self.paused = False
 
-    def fail(self, message: str, line: int) -> None:
+    def fail(self, message: str, line: int, tag: int | None = None) -> None:
         """Real-time. Stop the program with an error found by the host after the VM ran on
         (a move that could not be planned): status ERROR, the error at source ``line``,
-        even if the program has reached its end meanwhile (look-ahead)."""
+        even if the program has reached its end meanwhile (look-ahead). The move's ``tag``
+        (the one :meth:`MotionHost.move` was given): a handler of the routine that issued
+        it (or of one that called it) takes it instead, when there is one."""
+        if self.status < DONE and tag is not None and self._take_move_error(message, line, tag):
+            return
         if self.status is not ERROR:
             self.error = VMError(message, line, 0, self._here)
             self.status = ERROR
@@ -968,10 +1150,48 @@ class VM:
         self._here = here
 
     def _failed(self, executed: int, exc: Exception, here: int) -> None:
-        """A dispatch loop's end at an instruction that raised: the program stops with the
-        error at its line (never raised out of step())."""
+        """A dispatch loop's end at an instruction that raised: a handler takes the error
+        (compiler.recovery), or the program stops with it at its line (never raised out of
+        step())."""
         self.instructions += executed
-        self._stop_with(_describe(exc, self._ops[here]), here)
+        op = self._ops[here]
+        message = _describe(exc, op)
+        number = error_number(exc, op)
+        if number is not None:
+            found = self.recovery.handler_for(len(self.memory.frames), here)
+            if found is not None:
+                line = (exc.line if isinstance(exc, ProgramError) else 0) or self.program.line_at(here)[0]
+                self._here = here
+                self._handle(found, number, message, line)
+                return
+        self._stop_with(message, here)
+
+    def _handle(self, found: tuple, number: int, message: str, line: int) -> None:
+        """Run the handler ``found`` for an error: once every move handed over before it has
+        ended (the robot at rest where the motion stopped; in an interrupt's handler at
+        once, beside the motion). The operator's log says so."""
+        self.pc = self.recovery.enter(found, number, message, line)
+        handler_line = self.program.line_at(self.pc)[0]
+        kind = error_kind(number)
+        what = f"error {number}" if kind.name == "user" else f"{kind.name} error"
+        self.host.log(f"{what} at line {line}: {message} (handled at line {handler_line})", line, HANDLED)
+        self.waits.kind = _NO_WAIT
+        if self.interrupts.handling is None and not self.waits.start(_W_MOTION):
+            self.status = WAITING
+        else:
+            self.status = RUNNING
+
+    def _take_move_error(self, message: str, line: int, tag: int) -> bool:
+        """A move the motion could not make after the program ran on: its handler takes it
+        (:meth:`fail`). Whether one did."""
+        point = self.recovery.raise_point(tag)
+        found = self.recovery.handler_for(*point) if point is not None else None
+        if found is None:
+            return False
+        self._back_here = None
+        self._here = found[2]
+        self._handle(found, _MOVE, message, line)
+        return True
 
     def _run_table(self, budget: int) -> None:
         """Every instruction through the handler table."""
@@ -1072,6 +1292,7 @@ class VM:
 
     def op_ret(self, _, pc):
         back = self.memory.leave()
+        self.recovery.left(len(self.memory.frames))
         if back == _FROM_INTERRUPT:
             return self._handler_done()
         return back
@@ -1112,9 +1333,12 @@ class VM:
         names = _CLAUSE_NAMES[mask]
         pop_n = self.memory.pop_n
         clauses = dict(zip(names, pop_n(len(names)))) if names else {}
-        problem = self.host.move(kind, tuple(pop_n(targets)), clauses, self.program.line_at(pc)[0])
+        tag = self.moves_issued
+        problem = self.host.move(kind, tuple(pop_n(targets)), clauses, self.program.line_at(pc)[0], tag)
         if problem is not None:
-            raise EvalError(str(problem))
+            raise ProgramError(str(problem), _MOVE)
+        if self.program.handlers:
+            self.recovery.remember(tag, pc)
         self.moves_issued += 1
         self._motion_barrier()
         return pc + 1
@@ -1189,8 +1413,10 @@ class VM:
             waits.end_wait_for()
             return pc + 1
         if waits.timed_out():
-            self.host.log(f"wait for timed out after {format_number(waits.timeout)} s",
-                          self.program.line_at(pc)[0], TIMEOUT)
+            said = f"wait for timed out after {format_number(waits.timeout)} s"
+            self.host.log(said, self.program.line_at(pc)[0], TIMEOUT)
+            if self.program.handlers and self.recovery.handler_for(len(self.memory.frames), pc) is not None:
+                raise ProgramError(said, _TIMEOUT)  # (no handler to take it: the program goes on, as it always did)
             return pc + 1
         self._block()  # test again next cycle
         return target
@@ -1279,8 +1505,9 @@ class VM:
 
     def _armed_end(self, pc: int) -> int:
         """The program's end: with interrupts enabled, not before the motion has ended (so
-        they can still fire during the last moves)."""
-        if self.interrupts.armed and not self.host.motion_done():
+        they can still fire during the last moves); with error handlers neither (a move the
+        motion refuses late is still the program's error, to handle)."""
+        if (self.interrupts.armed or self.program.handlers) and not self.host.motion_done():
             self.waits.kind = _W_MOTION
             self._block()
             return pc
@@ -1289,7 +1516,7 @@ class VM:
 
 #: The classes whose ``op_<name>`` methods are the instructions' handlers: each handler
 #: lives with the state it works on.
-HANDLER_CLASSES = (Memory, Interrupts, VM)
+HANDLER_CLASSES = (Memory, Interrupts, Recovery, VM)
 
 
 def build_dispatch(classes: tuple = HANDLER_CLASSES) -> tuple:

@@ -19,7 +19,7 @@ two are superposed in joint space for a checked overlap, :mod:`runtime.motion.bl
 duration are recorded (``moves``).
 
 A move that cannot be planned: :meth:`add` returns the problem (no worker), or the next
-:meth:`sample` leaves ``failed = (problem, line)``; the moves queued after it are
+:meth:`sample` leaves ``failed = (problem, line, tag)``; the moves queued after it are
 dropped, the ones before it run to their end.
 
 Stops
@@ -416,7 +416,7 @@ class MotionQueue:
         self.completed = 0  # moves that reached their end (telemetry reads it every 10 ms)
         self.hold.abort_reason = None  # set by abort(): end once at rest
         self.hold.abort_fault = True
-        self.failed: tuple[str, int] | None = None
+        self.failed: tuple[str, int, int | None] | None = None  # (problem, line, the request's tag)
         self.ended: str | None = None
         self.clear()
 
@@ -871,15 +871,15 @@ class MotionQueue:
             return self._plan_next()
         return None
 
-    def plan_waiting(self) -> tuple[str, int] | None:
+    def plan_waiting(self) -> tuple[str, int, int | None] | None:
         """Real-time: start planning the oldest waiting move if the worker is free;
-        ``(problem, line)`` of one that cannot be planned (no worker)."""
+        ``(problem, line, tag)`` of one that cannot be planned (no worker)."""
         lookahead = self.lookahead
         if lookahead.requests and lookahead.job is None:
             request = lookahead.requests[0]
             problem = self._plan_next()
             if problem is not None:
-                return problem, request.line
+                return problem, request.line, request.tag
         return None
 
     def _plan_next(self) -> str | None:
@@ -919,7 +919,7 @@ class MotionQueue:
             requests.remove(request)
             problem = self._take_plan(request, *job.result)
             if problem is not None:
-                self.failed = (problem, request.line)
+                self.failed = (problem, request.line, request.tag)
 
     def _take_plan(self, request: MoveRequest, segment: Segment | None, problem: str | None) -> str | None:
         """Put a planned move on the timeline; the problem of a move that cannot be

@@ -100,12 +100,13 @@ class MoveRequest:
     not one of the program's moves (its record says so)."""
 
     __slots__ = ("kind", "targets", "speed", "acc", "approx", "line", "rest_of", "frames", "triggers", "carried",
-                 "approach")
+                 "approach", "tag")
 
     def __init__(self, kind: str, targets: tuple, speed: float, acc: float, approx: float, line: int,
                  rest_of: "Segment | None" = None, frames: Frames | None = None, triggers: tuple = (),
-                 approach: bool = False):
+                 approach: bool = False, tag: int | None = None):
         self.kind, self.targets, self.speed, self.acc, self.approx, self.line = kind, targets, speed, acc, approx, line
+        self.tag = tag  # the program's name for it (runtime.loop.vm: a failure found later is reported with it)
         self.rest_of = rest_of
         self.frames = frames
         self.approach = approach

@@ -319,12 +319,12 @@ class TrajectoryGenerator(Component):
         line; an abort at rest (or a rest that cannot be planned) ends it."""
         motion = self.motion
         if motion.failed is not None:
-            problem, line = motion.failed
+            problem, line, tag = motion.failed
             motion.failed = None
             if self.jogger is not None:
                 self.jogger.failed(problem)
             else:
-                self.vm.fail(problem, line)
+                self.vm.fail(problem, line, tag)
         if motion.ended is not None:
             ended, motion.ended = motion.ended, None
             if self.vm is not None:
@@ -433,7 +433,7 @@ class TrajectoryGenerator(Component):
         """The program's time (waits, timeouts): the tick's, as the motion's."""
         return self.clock.tick_time
 
-    def move(self, kind: Motion, targets: tuple, clauses: dict, line: int) -> str | None:
+    def move(self, kind: Motion, targets: tuple, clauses: dict, line: int, tag: int = 0) -> str | None:
         """The VM's move instruction: check the move, hand it to the motion queue; the
         problem of a move that cannot be made (the program stops at its line)."""
         checked = validate_move_clauses(kind, clauses, self.spec)  # the clause table's rules and defaults
@@ -452,11 +452,12 @@ class TrajectoryGenerator(Component):
             elif not isinstance(target, Joint) or len(target.axes) != self.n:
                 return f"the target must be a joint value with {self.n} axes"
             request = MoveRequest(kind, (target,), checked.speed, checked.acc, checked.approx, line, frames=frames,
-                                  triggers=self._take_triggers())
+                                  triggers=self._take_triggers(), tag=tag)
         else:
             request, problem = self._cartesian_request(kind, targets, checked, line)
             if problem is not None:
                 return problem
+            request.tag = tag
         if self.stepping.forwarding:  # a start from a line: moves before it are only remembered
             self.stepping.remember(request, self.vm.globals)
             return None

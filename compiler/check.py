@@ -150,8 +150,8 @@ def always_returns(body) -> bool:
     """Whether every path through ``body`` ends in a ``return`` (an ``if`` with an ``else``
     whose every branch does; a ``repeat``, whose body runs at least once, whose body does)."""
     for stmt in body:
-        if isinstance(stmt, ast.Return) or isinstance(stmt, ast.Word) and stmt.name in ("retry", "raise"):
-            return True  # (retry and raise never go on to the next statement either)
+        if isinstance(stmt, ast.Return) or isinstance(stmt, ast.Word) and stmt.name in HANDLER_WORDS:
+            return True  # (retry, trynext and raise never go on to the next statement either)
         if isinstance(stmt, ast.If) and always_returns(stmt.orelse) and \
                 all(always_returns(branch) for _cond, branch in stmt.branches):
             return True

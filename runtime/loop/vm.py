@@ -1135,8 +1135,12 @@ class VM:
             return pc
         return at_robot
 
-    def _stop_with(self, message: str, offset: int) -> None:
-        line, column = self.program.line_at(offset)
+    def _stop_with(self, message: str, offset: int, line: int = 0) -> None:
+        at, column = self.program.line_at(offset)
+        if line:
+            column = 0
+        else:
+            line = at
         self.error = VMError(message, line, column, offset)
         self.status = ERROR
         self._here = offset
@@ -1164,6 +1168,9 @@ class VM:
                 self._here = here
                 self._handle(found, number, message, line)
                 return
+        if isinstance(exc, ProgramError) and exc.line:  # (raise; with no handler above: where it was raised first)
+            self._stop_with(f"{message} (passed on at line {self.program.line_at(here)[0]})", here, exc.line)
+            return
         self._stop_with(message, here)
 
     def _handle(self, found: tuple, number: int, message: str, line: int) -> None:

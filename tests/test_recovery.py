@@ -518,3 +518,23 @@ def test_the_error_table_names_are_unique_and_the_words_are_not_reserved(tmp_pat
   print retry + trynext + raise + error;"""
     machine, host = run_source(tmp_path, body, "var retry, trynext, raise, error : integer;")
     assert said(host) == ["10"]
+
+
+def test_the_production_cell_retries_its_missed_grip_and_loads_every_part():
+    """The shipped example in its cell (whose gripper misses its first grip): the handler
+    opens, retracts and grips again once, then all ten parts are loaded, each cycle timed;
+    irl check, following the same cell, finds nothing."""
+    from conftest import PROGRAMS
+
+    program, cell = PROGRAMS / "production_cell.irl", PROGRAMS / "production_cell.cell.toml"
+    code, out, err = run_cli("run", program, "--cell-scenario", cell, "--json")
+    assert code == 0, err
+    texts = [e["text"] for e in json.loads(out)["log"]]
+    assert texts[:3] == ["wait for timed out after 2 s",
+                         "timeout error at line 40: wait for timed out after 2 s (handled at line 59)",
+                         "grip 1 missed: open, retract and grip again"]
+    loaded = [t for t in texts if " loaded in " in t]
+    assert [t.split(" loaded")[0] for t in loaded] == [f"part {n} of 10" for n in range(1, 11)]
+    assert len(texts) == 3 + 10
+    code, out, err = run_cli("check", program, "--cell-scenario", cell)
+    assert code == 0 and err == "", err

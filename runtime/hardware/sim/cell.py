@@ -44,6 +44,8 @@ __all__ = ["RULES", "Cell", "Rule", "Scenario", "ScenarioError", "load_scenario"
 
 #: The longest delay or time a scenario may give (s).
 MAX_SECONDS = 86_400.0
+#: The largest count a rule takes (a latch's misses).
+MAX_COUNT = 1_000_000
 
 
 class ScenarioError(ValueError):
@@ -52,14 +54,15 @@ class ScenarioError(ValueError):
 
 @dataclass(frozen=True)
 class Field:
-    kind: str  # "input", "output", "seconds", "bool", "times"
+    kind: str  # "input", "output", "seconds", "bool", "times", "count"
     doc: str
     default: object = None  # None: required
 
     def allowed(self, spec) -> str:
         return {"input": f"an input number 1..{spec.inputs}", "output": f"an output number 1..{spec.outputs}",
                 "seconds": f"a number of seconds 0..{MAX_SECONDS:g}", "bool": "true or false",
-                "times": f"a list of increasing times in seconds, 0..{MAX_SECONDS:g}"}[self.kind]
+                "times": f"a list of increasing times in seconds, 0..{MAX_SECONDS:g}",
+                "count": f"a whole number 0..{MAX_COUNT}"}[self.kind]
 
 
 #: The rule kinds: name -> (what it models, its fields).
@@ -77,6 +80,8 @@ RULES: dict[str, tuple[str, dict[str, Field]]] = {
         "reset": Field("output", "the output whose rising edge resets the input"),
         "delay": Field("seconds", "how long after the edge", 0.0),
         "initial": Field("bool", "the input's value before any edge", False),
+        "misses": Field("count", "how many of the first rising edges of `set` do nothing (a grip that misses: "
+                                 "for a program's error handler to retry)", 0),
     }),
     "timeline": ("an input toggled at given times since the program started (parts arriving)", {
         "input": Field("input", "the input toggled"),
@@ -114,6 +119,10 @@ def _check(value, field: Field, spec, where: str):
         return value
     if field.kind == "bool":
         if not isinstance(value, bool):
+            raise bad()
+        return value
+    if field.kind == "count":
+        if isinstance(value, bool) or not isinstance(value, int) or not 0 <= value <= MAX_COUNT:
             raise bad()
         return value
     if field.kind == "seconds":
@@ -195,7 +204,7 @@ def parse_scenario(data: dict, spec, name: str = "scenario", path: Path | None =
 def markdown() -> str:
     """The rule kinds and their fields, for docs/runtime.md (``python -m runtime.cli.docgen``)."""
     kinds = {"input": "input number", "output": "output number", "seconds": "s", "bool": "true/false",
-             "times": "list of s"}
+             "times": "list of s", "count": "whole number"}
     lines = ["| rule | field | type | default | meaning |", "|---|---|---|---|---|"]
     for name, (doc, fields) in RULES.items():
         first = True
@@ -224,6 +233,7 @@ class Cell:
         self._events: list[tuple[float, int, int, bool]] = []  # (time, order, input, value), sorted
         self._order = 0
         self._timeline: list[list] = []  # per timeline rule: [rule, next index, cycle]
+        self._missed: dict[int, int] = {}  # per latch with misses (by id): the set edges it has missed
 
     def reset(self, now: float) -> None:
         """Not real-time: a cycle begins (power-up): the initial inputs, no pending change;
@@ -237,6 +247,7 @@ class Cell:
                 self.backend.set_input(rule["input"], outputs[rule["output"] - 1] != rule["invert"])
         self._last = outputs
         self._events = []
+        self._missed = {}
         self._timeline = [[rule, 0, 0] for rule in self.scenario.rules if rule.kind == "timeline"]
 
     def start_program(self, now: float) -> None:
@@ -266,6 +277,9 @@ class Cell:
                     for field, value in (("set", True), ("reset", False)):
                         k = rule[field] - 1
                         if outputs[k] and not last[k]:
+                            if value and self._missed.get(id(rule), 0) < rule["misses"]:
+                                self._missed[id(rule)] = self._missed.get(id(rule), 0) + 1
+                                continue
                             self._schedule(now + rule["delay"], rule["input"], value)
             self._last = outputs
         for entry in self._timeline:

@@ -531,7 +531,7 @@ def test_the_production_cell_retries_its_missed_grip_and_loads_every_part():
     assert code == 0, err
     texts = [e["text"] for e in json.loads(out)["log"]]
     assert texts[:3] == ["wait for timed out after 2 s",
-                         "timeout error at line 40: wait for timed out after 2 s (handled at line 59)",
+                         "timeout error at line 41: wait for timed out after 2 s (handled at line 60)",
                          "grip 1 missed: open, retract and grip again"]
     loaded = [t for t in texts if " loaded in " in t]
     assert [t.split(" loaded")[0] for t in loaded] == [f"part {n} of 10" for n in range(1, 11)]

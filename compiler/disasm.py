@@ -134,6 +134,12 @@ def format_text(program: Program, data: bytes | None = None, source: str | None 
         for i, x in enumerate(program.interrupts):
             out.append(f"  {i:4d}  {x.name}: when {program.procedures[x.condition].name}, priority {x.priority}, "
                        f"{'stop' if x.stop else 'continue'}, then {'halt' if x.halt else 'resume'}")
+    if program.handlers:
+        out.append("")
+        out.append(f"error handlers ({len(program.handlers)}):")
+        for i, h in enumerate(program.handlers):
+            out.append(f"  {i:4d}  protects {h.start}..{h.end - 1}, its code at {h.entry} "
+                       f"(line {program.line_at(h.entry)[0]}), {len(h.statements)} statements")
     handlers = {program.procedures[x.handler].entry: x for x in program.interrupts}
     source_lines = source.split("\n") if source is not None else None  # as the parser counts lines
     module_lines = {name: text.split("\n") for name, text in (modules or {}).items()}
@@ -177,6 +183,8 @@ def format_json(program: Program, data: bytes | None = None) -> dict:
         "modules": list(program.files),
         "interrupts": [{"name": x.name, "condition": x.condition, "handler": x.handler, "priority": x.priority,
                         "stop": x.stop, "halt": x.halt} for x in program.interrupts],
+        "handlers": [{"start": h.start, "end": h.end, "entry": h.entry, "statements": [list(s) for s in h.statements]}
+                     for h in program.handlers],
         "code": [{"offset": i.offset, "name": i.name, "operands": list(i.operands), "argrepr": i.argrepr,
                   "line": i.line, "column": i.column, "file": program.file_at(i.offset) or None}
                  for i in instructions(program)],

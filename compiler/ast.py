@@ -446,6 +446,9 @@ class VarDecl:
     init: Expr | None
     span: Span
     spans: tuple[Span, ...]
+    #: of a ``persistent`` section (RAPID's PERS): the section's word as written ("" for ``var``)
+    section: str = ""
+    section_span: Span | None = None
 
 
 @node

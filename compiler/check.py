@@ -31,6 +31,7 @@ from .clauses import Clause, Motion
 from .configs import CONTEXTUAL_NAME, GROUPS as CONFIG_GROUPS, TURN_AXES, WORDS as CONFIG_WORDS, Config
 from .configs import turn_problem as config_turn_problem
 from .objcode import BUILTINS, MAX_ARRAY_ELEMENTS, MAX_COUNT, MAX_STRING_LENGTH
+from .persistent import SECTION as PERSISTENT
 from .recovery import HANDLER_WORD, USER_ERRORS, WORDS as HANDLER_WORDS
 from .robotstate import CLOCKS, ERROR_ROUTINES, FUNCTIONS as STATE_FUNCTIONS, PROCEDURES as STATE_PROCEDURES
 from .semantics import (GEOMETRIC_BUILTINS, GEOMETRY, STRING_BUILTINS, INT_MAX, INT_MIN, EvalError, binary, call_builtin,
@@ -124,6 +125,7 @@ class Symbol:
     index: int = -1  # for procedures and functions: index in the procedure table
     file: str = ""  # the file it is declared in
     predeclared: bool = False  # by the language or the specification (world, default_tool, [[tool]] ...)
+    persistent: bool = False  # a global of a 'persistent' section (compiler.persistent)
 
 
 @dataclass
@@ -1108,6 +1110,9 @@ class Checker:
             self.symbols[id(node)] = symbol
         if node.var in self.loop_vars:
             self.error(node.var_span, f"'{node.var}' is already the variable of an enclosing for loop")
+        if symbol is not None and symbol.persistent:
+            self.error(node.var_span, f"the persistent variable '{node.var}' cannot be a loop variable",
+                       "count with a plain variable, and keep the count in the persistent one")
         self.expect(node.start, INTEGER, "a for loop's start")
         self.expect(node.stop, INTEGER, "a for loop's end")
         if node.step is not None:
@@ -1212,6 +1217,10 @@ class Checker:
         vt = self.expr(value)
         if symbol is None:
             self.unknown(span, name, "variable")
+        elif symbol.persistent:
+            self.error(span, f"a trigger cannot set the persistent variable '{name}'",
+                       "the program's statements keep it: set a plain global in the trigger, and the persistent "
+                       "one from it")
         elif symbol.kind != "global" or symbol.type not in TRIGGER_SET_TYPES:
             local = symbol.kind == "local"
             what = "a local variable" if local else a(symbol.type) if symbol.kind == "global" else \
@@ -1396,8 +1405,13 @@ class Checker:
             vt = self.expr(decl.init)
             if ERROR not in (t, vt) and not assignable(t, vt):
                 self.error(decl.init.span, f"cannot initialise {a(t)} with {a(vt)}")
+        if decl.section and decl.section != PERSISTENT:
+            guess = did_you_mean(decl.section, [PERSISTENT, "var", "const"], cutoff=0.6)
+            self.error(decl.section_span, f"'{decl.section}' starts no declaration",
+                       f"did you mean '{guess}'?" if guess else "declarations start with const, var, persistent, "
+                                                                "procedure, function or interrupt")
         for name, span in zip(decl.names, decl.spans):
-            symbol = Symbol(kind, name, t, span, slot=len(slots))
+            symbol = Symbol(kind, name, t, span, slot=len(slots), persistent=decl.section == PERSISTENT)
             if self.declare(table, symbol):
                 slots.append((name, type_name(t)))
 

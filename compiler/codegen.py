@@ -254,6 +254,11 @@ class CodeGen:
 
     def s_Assign(self, node: ast.Assign) -> None:
         symbol = self.symbols[id(node)]
+        self.assign(node, symbol)
+        if symbol.persistent:  # (the runtime keeps its value: compiler.persistent)
+            self.emit(OP.PERS_STORE, symbol.slot)
+
+    def assign(self, node: ast.Assign, symbol: Symbol) -> None:
         indices = node.indices
         if not indices:
             self.value(node.value, symbol.type)
@@ -390,6 +395,8 @@ class CodeGen:
                 variable = self.symbols[id(arg)]
                 self.emit(OP.TAKE, symbol.index, slot)
                 self.emit(self.store_op(variable), variable.slot)
+                if variable.persistent:
+                    self.emit(OP.PERS_STORE, variable.slot)
 
     def state_routine(self, node, routine) -> None:
         """A built-in routine of the robot's state: its arguments, then its instruction."""
@@ -475,6 +482,8 @@ class CodeGen:
                 else:
                     self.default(symbol.type)
                 self.emit(self.store_op(symbol), symbol.slot)
+                if symbol.persistent and (not zeros or decl.init is None):  # the value the last run kept, if any
+                    self.emit(OP.PERS_LOAD, symbol.slot)
 
     def generate(self, source_name: str) -> Program:
         checked = self.checked
@@ -527,7 +536,8 @@ class CodeGen:
                        tuple(self.constants), tuple(self.code), tuple(self.lines),
                        tuple(self.globals), tuple(procedures),
                        files=modules, line_files=tuple(self.line_files) if modules else (),
-                       interrupts=tuple(interrupts), handlers=tuple(self.handlers))
+                       interrupts=tuple(interrupts), handlers=tuple(self.handlers),
+                       persistent=tuple(s.slot for s in checked.global_symbols.values() if s.persistent))
 
 
 def generate(checked: CheckedProgram, source_file: str) -> Program:

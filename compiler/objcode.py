@@ -271,6 +271,11 @@ _DEFS = [
      "-> string", "next", False),
     ("ERROR_MESSAGE", (), 0, 1, "Push the message of the error the handler took, as the operator would read it.",
      "-> string", "next", False),
+    ("PERS_LOAD", (("g", "global"),), 0, 0, "Persistent global g takes the value the runtime kept of it from an "
+                                            "earlier run, when it kept one of its type (compiler.persistent).", "",
+     "next", False),
+    ("PERS_STORE", (("g", "global"),), 0, 0, "The runtime keeps persistent global g's value now (for later runs).",
+     "", "next", False),
     ("TAKE", (("p", "proc"), ("l", "count")), 0, 1, "Push what procedure p kept of its local l (the caller, just "
                                                     "after the call: a 'var' parameter's value, to store into the "
                                                     "variable passed).", "-> value", "next", False),
@@ -335,7 +340,7 @@ _TYPES: dict[str, tuple[str, str]] = {
     "CLOCK_READ": ("integer", "real"), "OUT_GET": ("integer", "bool"), "PULSE_OUT": ("integer real", ""),
     "KEEP": ("", ""), "TAKE": ("", "@kept"), "RAISE": ("integer string", ""), "RERAISE": ("", ""),
     "RETRY": ("", ""), "TRYNEXT": ("", ""), "ERROR_NUMBER": ("", "integer"), "ERROR_NAME": ("", "string"),
-    "ERROR_MESSAGE": ("", "string"),
+    "ERROR_MESSAGE": ("", "string"), "PERS_LOAD": ("", ""), "PERS_STORE": ("", ""),
 }
 _missing_types = [d[0] for d in _DEFS if d[0] not in _TYPES]
 if _missing_types:  # pragma: no cover - the table is complete
@@ -428,6 +433,8 @@ class Program:
     interrupts: tuple[InterruptInfo, ...] = ()
     #: The error handlers (empty for a program without: then the object code has no such key).
     handlers: tuple[HandlerInfo, ...] = ()
+    #: The global slots of persistent variables (compiler.persistent; empty: no such key).
+    persistent: tuple[int, ...] = ()
 
     def handler_at(self, offset: int) -> HandlerInfo | None:
         """The error handler that protects ``offset`` (None: none does)."""
@@ -499,7 +506,8 @@ def _body(program: Program) -> dict:
       | ({"interrupts": [[i.name, i.condition, i.handler, i.priority, i.stop, i.halt] for i in program.interrupts]}
          if program.interrupts else {}) \
       | ({"handlers": [[h.start, h.end, h.entry, [x for span in h.statements for x in span]]
-                       for h in program.handlers]} if program.handlers else {})
+                       for h in program.handlers]} if program.handlers else {}) \
+      | ({"persistent": list(program.persistent)} if program.persistent else {})
 
 
 def encode(program: Program) -> bytes:
@@ -624,9 +632,12 @@ def decode(data: bytes) -> Program:
                 and len(h[3]) % 2 == 0 and all(map(_is_int, h[3])),
                 f"handler {i}: expected [start, end, entry, [statement start, end, ...]]")
         handlers.append(HandlerInfo(h[0], h[1], h[2], tuple(tuple(h[3][k:k + 2]) for k in range(0, len(h[3]), 2))))
+    persistent = body.get("persistent", [])
+    _expect(isinstance(persistent, list) and ("persistent" not in body or persistent)
+            and all(map(_is_int, persistent)), "body: persistent must be a non-empty list of global slots")
     return Program(body["name"], body["source"], spec[0], spec[1], tuple(robots), tuple(constants),
                    tuple(code), line_table, _pairs(body["globals"], "globals"), tuple(procedures), version,
-                   tuple(files), tuple(line_files), tuple(interrupts), tuple(handlers))
+                   tuple(files), tuple(line_files), tuple(interrupts), tuple(handlers), tuple(persistent))
 
 
 # ---- verification ------------------------------------------------------------------------
@@ -1051,6 +1062,14 @@ def verify(program: Program, spec_hash: str | None = None) -> int:
         if declared_type(typ) is None:
             raise ObjectCodeError(f"global {slot} ({name!r}) has type {typ!r}, no type of the language "
                                   f"({', '.join(VALUE_TYPES)}, or an array of one)")
+    if len(set(program.persistent)) != len(program.persistent) or \
+            not all(0 <= g < len(program.globals) for g in program.persistent):
+        raise ObjectCodeError(f"the persistent slots {list(program.persistent)[:20]} are not distinct global slots "
+                              f"(0..{len(program.globals) - 1})")
+    kept = {BY_NAME["PERS_LOAD"].code, BY_NAME["PERS_STORE"].code}
+    for offset, instr in enumerate(program.code):
+        if instr[0] in kept and instr[1] not in program.persistent:
+            raise ObjectCodeError(f"{BY_CODE[instr[0]].name} of global {instr[1]}, which is not persistent", offset)
     for k, handler in enumerate(program.handlers):
         problem = _handler_problem(program, k, handler)
         if problem is not None:

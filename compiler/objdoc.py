@@ -329,6 +329,10 @@ def _section_format() -> list[str]:
         "ends with an empty stack, and refuses a handler whose offsets are not all in one routine. "
         "A program without handlers has no such key.",
         "",
+        "A program with persistent variables (`persistent`, compiler.persistent) has the key "
+        "`persistent`: the list of their global slots (distinct). Only those slots may be the "
+        "operand of `PERS_LOAD` and `PERS_STORE`. A program without has no such key.",
+        "",
         "Offsets (jump targets, procedure entries, line-table offsets) count *instructions*, "
         "not integers of the flat `code` list: offset 0 is the first instruction, offset 1 the "
         "instruction after it, however many operands the first one has. Execution starts at "

@@ -1,5 +1,5 @@
 """The ``irl`` commands that serve a robot or talk to one over the network: serve,
-submit, status, pause, resume, abort, estop, override, watch, call, console, reconfigure,
+submit, status, pause, resume, abort, estop, override, watch, call, console, reconfigure, persistent,
 control, keys. ZeroMQ is imported only when one of them runs (``irl check`` stays light).
 
 Control (protocol 2): ``irl control take`` stores the token the server returned in a file
@@ -394,6 +394,45 @@ def cmd_status(args, env) -> int:
     common.say(env, "queue: " + (", ".join(map(str, status["queue"])) or "empty"))
     for job in status["programs"]:
         common.say(env, "  " + _job_line(job))
+    return common.EXIT_OK
+
+
+@guarded
+def cmd_persistent(args, env) -> int:
+    """The kept values of persistent variables: shown, one set (``--set NAME=VALUE``, the
+    value as JSON: 3, 2.5, true, "text", or the plain form ``irl persistent --json`` shows),
+    or forgotten (``--reset``, one or all of a program's)."""
+    if (args.set or args.reset is not None) and not args.program:
+        raise common.UsageError("--set and --reset need the program's name: irl persistent PROGRAM --set NAME=VALUE")
+    if args.set:
+        name, _, text = args.set.partition("=")
+        try:
+            value = json.loads(text)
+        except ValueError:
+            raise common.UsageError(f"--set {args.set}: the value must be JSON (3, 2.5, true, \"text\", or the plain "
+                                    "form irl persistent --json shows)") from None
+        op, request = "persistent_set", {"program": args.program, "name": name.strip().lower(), "value": value}
+    elif args.reset is not None:
+        op, request = "persistent_reset", {"program": args.program} | ({"name": args.reset.lower()} if args.reset else {})
+    else:
+        op, request = "persistent", {"program": args.program} if args.program else {}
+    client = client_for(args)
+    try:
+        result = call_op(client, op, request)
+    finally:
+        client.close()
+    if args.json:
+        common.say(env, json.dumps(result, indent=2))
+    elif op == "persistent_set":
+        common.say(env, f"{args.program}.{result['name']} := {result['value']} (kept for its next run)")
+    elif op == "persistent_reset":
+        common.say(env, f"{args.program}: {result['forgotten']} kept value{'s' if result['forgotten'] != 1 else ''} "
+                        "forgotten (its next run starts from the initial values)")
+    else:
+        common.say(env, f"store: {result['store'] or 'none (no state directory)'}: {result['found']}")
+        for program, names in result["programs"].items():
+            for name, entry in names.items():
+                common.say(env, f"  {program}.{name} : {entry['type']} = {entry['value']}")
     return common.EXIT_OK
 
 
@@ -793,6 +832,15 @@ def add_commands(declare) -> None:
         p.add_argument("--json", action="store_true", help="the reply as one JSON object (with take: the token)")
         connection(p)
         p.set_defaults(run=cmd_control)
+
+    if (p := declare("persistent", help="the values kept of programs' persistent variables: show, set, reset")) \
+            is not None:
+        p.add_argument("program", nargs="?", metavar="PROGRAM", help="a program's name (default: every program's)")
+        p.add_argument("--set", metavar="NAME=VALUE", help="set a kept value (JSON: 3, 2.5, true, \"text\", ...)")
+        p.add_argument("--reset", nargs="?", const="", metavar="NAME", help="forget one kept value, or all of them")
+        p.add_argument("--json", action="store_true", help="the reply as one JSON object")
+        connection(p)
+        p.set_defaults(run=cmd_persistent)
 
     if (p := declare("console", help="an interactive scripting session")) is not None:
         connection(p)

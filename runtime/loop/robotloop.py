@@ -37,6 +37,8 @@ from compiler.objcode import ObjectCodeError, load
 
 from runtime.loop.components.report import tcp_of
 from runtime.loop.supervisor import MOVE
+from runtime.loop.persistence import plain_of, shown_plain, value_of
+from runtime.loop.vm import same_shape
 from runtime.loop.system import RobotSystem, RunOptions
 from runtime.timing import PACE_WAIT, TICK
 from runtime.wire import messages
@@ -229,6 +231,41 @@ class RobotLoop:
         self.system.apply_settings(m.settings)
         return {"applied": True}
 
+    def _persistent(self, m: messages.Persistent) -> dict:
+        """Show, set or reset kept values of persistent variables (not of the program running)."""
+        store = self.system.persistent
+        entries = store.entries()
+        if m.action == "show":
+            wanted = {m.program: entries.get(m.program, {})} if m.program else entries
+            count = sum(len(names) for names in entries.values())
+            found = f"{count} kept value{'s' if count != 1 else ''} of {len(entries)} program" \
+                    f"{'s' if len(entries) != 1 else ''}" if count else store.why
+            return {"store": str(store.path) if store.path is not None else None, "found": found,
+                    "programs": {program: {name: {"type": t, "value": shown_plain(plain), "plain": plain}
+                                           for name, (t, plain) in sorted(names.items())}
+                                 for program, names in sorted(wanted.items())}}
+        program = self.system.trajectory.program
+        if self.job is not None and program is not None and program.name == m.program:
+            raise ProtocolError("refused", f"program {m.program!r} is running: change its kept values between runs")
+        if m.action == "reset":
+            return {"program": m.program, "forgotten": store.reset(m.program, m.name or None)}
+        entry = entries.get(m.program, {}).get(m.name)
+        if entry is None:
+            known = ", ".join(sorted(entries.get(m.program, {}))) or "none"
+            raise ProtocolError("refused", f"the runtime keeps no value of {m.program}.{m.name[:64]} (it keeps: "
+                                           f"{known}); a value is kept once the program has set it")
+        try:
+            value, like = value_of(m.value), value_of(entry[1])
+        except (ValueError, TypeError, RecursionError) as exc:
+            raise ProtocolError("bad_request", f"persistent_set: the value is not a value of the language: {exc}") \
+                from None
+        if not same_shape(value, like):
+            raise ProtocolError("bad_request", f"persistent_set: {m.program}.{m.name} is {entry[0]} (like "
+                                               f"{shown_plain(entry[1])}); got {shown_plain(m.value)}")
+        store.set(m.program, m.name, entry[0], plain_of(float(value) if type(like) is float else value))
+        store.flush()
+        return {"program": m.program, "name": m.name, "type": entry[0], "value": shown_plain(plain_of(value))}
+
     def _exit(self, m: messages.Exit) -> dict:
         self.exit_reason = m.reason or "the server is shutting down"
         if self.job is not None:
@@ -386,6 +423,7 @@ COMMANDS: dict[str, Callable[[RobotLoop, messages.Command], dict]] = {
     messages.Mode.OP: RobotLoop._mode,
     messages.Jog.OP: RobotLoop._jog,
     messages.Step.OP: RobotLoop._step,
+    messages.Persistent.OP: RobotLoop._persistent,
 }
 
 

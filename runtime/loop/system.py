@@ -30,6 +30,7 @@ from runtime.motion.reduced import Reduced, axis_speed_bounds
 from runtime.hardware.backends import DEFAULT_ROBOT, ROBOTS, make_io, make_robot
 from runtime.hardware.interface import RobotBackend
 from runtime.hardware.sim.estimator import AlphaBeta
+from runtime.loop.persistence import PersistentStore
 from runtime.loop.supervisor import RobotMemory, StateFile, Supervisor
 from runtime.settings import Settings
 from runtime.timing import RECORD_PERIOD, TICK
@@ -125,6 +126,11 @@ class RobotSystem:
         self.memory = memory or RobotMemory()
         self.state_file = StateFile(options.state_dir, identity, tuple(drift for _ in spec.axes))
         self.state_file.start()
+        # the persistent variables' store, beside the calibration (runtime.loop.persistence)
+        self.persistent = PersistentStore(options.state_dir)
+        self.persistent.load()
+        self.persistent.start()
+        self.trajectory.persistent = self.persistent
         self.supervisor = Supervisor(self.clock, self.robot, self.servo, self.init, self.trajectory, self.report,
                                      self.executive, self.memory, self.state_file, self.safety)
         self.supervisor.reconfigure = self.apply_settings
@@ -261,13 +267,15 @@ class RobotSystem:
         error = "; ".join(e for e in (self.report.close(), self.recorder.close()) if e) or None
         self.io.stop()  # the cycle is over: no task reads the I/O until the next begins
         self.state_file.flush()
+        self.persistent.flush()
         summary = self.summary(time.perf_counter() - self._wall0)
         if error:
             summary["fault"] = summary["fault"] or error
         # what the writers could not write (the report, its states file, the calibration): said even
         # when the cycle faulted for another reason
         state_error, self.state_file.error = self.state_file.error, None
-        summary["files_error"] = "; ".join(e for e in (error, state_error) if e) or None
+        kept_error, self.persistent.error = self.persistent.error, None
+        summary["files_error"] = "; ".join(e for e in (error, state_error, kept_error) if e) or None
         return summary
 
     def run(self, program: Program, on_pause=None, on_log=None, step: bool = False,

@@ -73,7 +73,7 @@ from compiler.semantics import (INT_MAX, INT_MIN, MAX_STRING_LENGTH, EvalError, 
 from compiler.configs import TURNS_FLAG, from_operand
 from compiler.recovery import BY_NAME as ERROR_KINDS, USER_ERRORS, error_kind
 from compiler.robotstate import CLOCKS
-from compiler.values import Pose, format_number, format_value
+from compiler.values import Joint, Pose, format_number, format_value
 
 from runtime.recording import HALT, HANDLED, INTERRUPT, PAUSE, PRINT, TIMEOUT
 
@@ -180,6 +180,13 @@ class MotionHost(Protocol):
         """The tool centre point of the active tool in the active base, with the arm's
         configuration (a compiler.values.Pose). May raise EvalError (no kinematics)."""
 
+    def kept(self, name: str, type_: str) -> object:
+        """The value the runtime kept of persistent variable ``name`` (declared ``type_``)
+        from an earlier run, or None (runtime.loop.persistence)."""
+
+    def keep(self, name: str, type_: str, value: object) -> None:
+        """Keep ``value`` of persistent variable ``name`` for later runs (never waits)."""
+
     def tcp_speed(self) -> float:
         """The speed of the tool centre point now, mm/s."""
 
@@ -226,6 +233,18 @@ def array_elements(value) -> int:
             return 0
         value = value[0]
     return count
+
+
+def same_shape(value, like) -> bool:
+    """Whether ``value`` can stand where ``like`` is: the same type (an integer for a real
+    too), an array of the same lengths, a joint of the same axes."""
+    if type(like) is list:
+        return type(value) is list and len(value) == len(like) and all(map(same_shape, value, like))
+    if type(like) is float:
+        return type(value) in (float, int)
+    if isinstance(like, Joint):
+        return isinstance(value, Joint) and len(value.main) == len(like.main) and len(value.add) == len(like.add)
+    return type(value) is type(like)
 
 
 def copy_array(array: list) -> list:
@@ -1488,6 +1507,24 @@ class VM:
         stack = self.memory.stack
         clock = self._clock(stack[-1])
         stack[-1] = clock[1] + (self.host.now() - clock[0] if clock[0] is not None else 0.0)
+        return pc + 1
+
+    # ---- persistent variables (compiler.persistent) ----
+    def op_pers_load(self, g, pc):
+        name, type_ = self.program.globals[g]
+        value = self.host.kept(name, type_)
+        globals_ = self.memory.globals
+        if value is not None:
+            if same_shape(value, globals_[g]):
+                globals_[g] = float(value) if type(globals_[g]) is float else value
+            else:
+                self.host.log(f"the value kept of persistent variable {name} does not fit its declaration now "
+                              f"({type_}): it starts from its initial value", self.program.line_at(pc)[0])
+        return pc + 1
+
+    def op_pers_store(self, g, pc):
+        name, type_ = self.program.globals[g]
+        self.host.keep(name, type_, self.memory.globals[g])
         return pc + 1
 
     def op_pause(self, _, pc):

@@ -557,6 +557,16 @@ class Server:
             raise ProtocolError("refused", "no program is running")
         return LoopCommand(messages.Abort(current.id, "aborted by the operator"))
 
+    # the persistent variables' store is the loop's (runtime.loop.persistence): asked there
+    def op_persistent(self, args: dict) -> LoopCommand:
+        return LoopCommand(messages.Persistent("show", args.get("program", "")))
+
+    def op_persistent_set(self, args: dict) -> LoopCommand:
+        return LoopCommand(messages.Persistent("set", args["program"], args["name"], args["value"]))
+
+    def op_persistent_reset(self, args: dict) -> LoopCommand:
+        return LoopCommand(messages.Persistent("reset", args["program"], args.get("name", "")))
+
     def op_estop(self, args: dict) -> LoopCommand:
         cancelled = self.jobs.cancel_queue("cancelled by an emergency stop")
         return LoopCommand(messages.Estop(), finish=lambda result: {**result, "cancelled": cancelled})

@@ -191,8 +191,21 @@ class Exit(Command):
 
 
 #: Every command, by its name on the channel.
+@dataclass(frozen=True)
+class Persistent(Command):
+    """The persistent variables' store (runtime.loop.persistence): ``action`` "show" (every
+    program's, or ``program``'s), "set" (``program``'s ``name`` to ``value``, plain data) or
+    "reset" (``program``'s ``name``, or all of its values with ``name`` "")."""
+
+    OP: ClassVar[str] = "persistent"
+    action: str
+    program: str = ""
+    name: str = ""
+    value: object = None
+
+
 COMMANDS: dict[str, type[Command]] = {c.OP: c for c in (Start, Pause, Resume, Abort, Estop, Override, Call, Settings,
-                                                        Exit, Mode, Jog, Step)}
+                                                        Exit, Mode, Jog, Step, Persistent)}
 
 
 def command_of(message: dict) -> tuple[object, Command]:

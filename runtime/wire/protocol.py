@@ -122,6 +122,7 @@ ERRORS = {
 
 # Argument kinds: name -> (python types, description for the docs)
 _INT, _NUM, _STR, _BIN, _BOOL, _LIST = (int,), (int, float), (str,), (bytes,), (bool,), (list,)
+_PLAIN = (bool, int, float, str, list)  # a value of the language as plain data (compiler.values.to_plain)
 
 #: op -> {argument: (types, required, description)}, and the op's description.
 #: (:data:`SINCE` says which protocol version brought an op; the others are in every version.)
@@ -190,14 +191,26 @@ OPS: dict[str, tuple[dict[str, tuple[tuple, bool, str]], str]] = {
               "events": (_BOOL, False, "true: the events too (default false: samples only)")},
              "a telemetry feed of some sample fields at a chosen rate: the reply names its topic; subscribe to "
              "it on the telemetry socket"),
+    "persistent": ({"program": (_STR, False, "a program's name (from its 'program NAME;'): its values only")},
+                   "the values the runtime keeps of programs' persistent variables (docs/language.md, Persistent "
+                   "variables): per program, each variable's type and value"),
+    "persistent_set": ({"program": (_STR, True, "the program's name"),
+                        "name": (_STR, True, "a persistent variable the runtime keeps a value of"),
+                        "value": (_PLAIN, True, "its new value, of its type, as plain data (docs/protocol.md)")},
+                       "set a kept value (not while that program runs): its next run starts from it"),
+    "persistent_reset": ({"program": (_STR, True, "the program's name"),
+                          "name": (_STR, False, "one variable (default: all of the program's)")},
+                         "forget kept values (not while that program runs): its next run starts from the initial "
+                         "values"),
 }
 
 #: The ops a protocol version brought (every other op is in every version).
-SINCE = {"wait": 2, "telemetry": 2, "control": 2, "feed": 2, "source": 2, "mode": 2, "jog": 2, "step": 2}
+SINCE = {"wait": 2, "telemetry": 2, "control": 2, "feed": 2, "source": 2, "mode": 2, "jog": 2, "step": 2,
+         "persistent": 2, "persistent_set": 2, "persistent_reset": 2}
 #: The ops that control the robot: refused to every client but the holder while one holds
 #: control (``estop`` never is: an emergency stop is open to every client).
 CONTROLLING = frozenset({"submit", "pause", "resume", "step", "abort", "override", "call", "reconfigure", "mode",
-                         "jog"})
+                         "jog", "persistent_set", "persistent_reset"})
 
 
 
@@ -341,7 +354,7 @@ def _operation(message: dict, request_id, version: int) -> tuple[str, dict]:
                 raise ProtocolError("bad_request", f"{op}: missing argument {name!r}", request_id)
             continue
         value = args[name]
-        if (isinstance(value, bool) and types is not _BOOL) or not isinstance(value, types) or \
+        if (isinstance(value, bool) and bool not in types) or not isinstance(value, types) or \
                 (isinstance(value, float) and not math.isfinite(value)):
             raise ProtocolError("bad_request", f"{op}: argument {name!r} must be {_kind(types)}, "
                                                f"got {type(value).__name__}", request_id)
@@ -350,7 +363,7 @@ def _operation(message: dict, request_id, version: int) -> tuple[str, dict]:
 
 def _kind(types: tuple) -> str:
     return {_INT: "an integer", _NUM: "a finite number", _STR: "a string", _BIN: "binary (msgpack bin)",
-            _BOOL: "true or false", _LIST: "an array"}[types]
+            _BOOL: "true or false", _LIST: "an array", _PLAIN: "a value (a number, true or false, a string or an array)"}[types]
 
 
 def _shown(value) -> str:

@@ -105,7 +105,7 @@ class TrajectoryGenerator(Component):
         self.spec, self.robot, self.desi_pos, self.sens_pos = spec, robot, desi_pos, sens_pos
         self.clock = clock
         self.n = len(spec.axes)
-        self.axes = spec.axes
+        self.persistent = None  # the persistent variables' store (runtime.loop.persistence), or None
         self.lookahead = lookahead_depth(spec)
         self.program: Program | None = None
         self.vm: VM | None = None
@@ -152,6 +152,10 @@ class TrajectoryGenerator(Component):
         self.lookahead = 0 if self.stepping.step else lookahead_depth(self.spec)
         self._forget()
 
+    @property
+    def axes(self) -> tuple:
+        return self.spec.axes
+
     def _forget(self) -> None:
         self.vm = None
         self.started_at = None
@@ -183,6 +187,9 @@ class TrajectoryGenerator(Component):
                         self.jogger.reason = exc.message
         else:
             self.vm = VM(self.program, self, self.own.budget)
+            if self.program.persistent and (self.persistent is None or self.persistent.path is None):
+                self.log("its persistent variables are kept for this run only: there is no state directory "
+                         "(irl run --state-dir DIR; irl serve keeps them)", 0)
             if self.stepping.active:
                 self.stepping = self.stepping.fresh()
                 self.stepping.install(self.vm, self)
@@ -575,6 +582,15 @@ class TrajectoryGenerator(Component):
         ahead = [v + w * dt for v, w in zip(q, self.motion.velocities[:6])]
         here, there = arm.forward(q), arm.forward(ahead)
         return ((there[0] - here[0]) ** 2 + (there[1] - here[1]) ** 2 + (there[2] - here[2]) ** 2) ** 0.5 / dt
+
+    # ---- persistent variables (runtime.loop.persistence; real-time: no file is touched) ----
+    def kept(self, name: str, type_: str) -> object:
+        store = self.persistent
+        return store.kept(self.program.name, name, type_) if store is not None else None
+
+    def keep(self, name: str, type_: str, value: object) -> None:
+        if self.persistent is not None:
+            self.persistent.keep(self.program.name, name, type_, value)
 
     def read_input(self, n: int) -> bool:
         return self.io.input(_io_number(n, self.spec.inputs, "input"))

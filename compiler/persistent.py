@@ -1,0 +1,20 @@
+"""Persistent variables (docs/language.md, "Persistent variables"; RAPID's PERS, KRL's data
+lists): a ``persistent`` section of global variables whose values the runtime keeps across
+program runs and restarts, beside the calibration.
+
+One declaration: the section's word (contextual: a program's own name ``persistent`` keeps
+working), the store's file and its bounds. The checker, the code generator, the VM's host
+(runtime.loop.persistence) and the manual read it.
+"""
+from __future__ import annotations
+
+__all__ = ["FILE", "FORMAT", "MAX_FILE_BYTES", "SECTION"]
+
+#: The word that starts a section of persistent variables.
+SECTION = "persistent"
+#: The store, in the runtime's state directory (beside calibration.json).
+FILE = "persistent.json"
+#: Its format (a file of another is not read).
+FORMAT = 1
+#: The largest store read or written (its values: at most this much JSON).
+MAX_FILE_BYTES = 16 * 1024 * 1024

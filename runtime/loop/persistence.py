@@ -1,0 +1,196 @@
+"""The persistent variables' store (compiler.persistent; docs/runtime.md, "Persistent
+variables"): ``persistent.json`` in the state directory, beside ``calibration.json``.
+
+It holds, per program (by its name), each persistent variable's declared type and its value
+as plain data (an array as ``["array", [items]]``, the other values as the object code's
+constants are written). A value is taken back only for a variable of the same name and
+declared type (the VM then checks its shape: an array's lengths, a joint's axes).
+
+Real time: :meth:`PersistentStore.kept` and :meth:`PersistentStore.keep` (the VM's
+``PERS_LOAD`` and ``PERS_STORE``, through the trajectory generator) never wait and never
+touch a file: a change goes into :attr:`latest` (one assignment) and wakes a writer thread,
+which writes the whole store atomically (a temporary file, fsync, rename: a kill -9 leaves
+the last store written, never a torn one) as soon as it can, the changes of a busy program
+together. The operator's changes (:meth:`set`, :meth:`reset`) and :meth:`load` are not
+real-time.
+"""
+from __future__ import annotations
+
+import json
+import os
+import threading
+import time
+from pathlib import Path
+
+from compiler.persistent import FILE, FORMAT, MAX_FILE_BYTES
+from compiler.values import from_plain, to_plain
+
+__all__ = ["PersistentStore", "plain_of", "shown_plain", "value_of"]
+
+
+def plain_of(value):
+    """A value of the language as the store writes it (an array: ``["array", [items]]``)."""
+    if type(value) is list:
+        return ["array", [plain_of(item) for item in value]]
+    return to_plain(value)
+
+
+def value_of(plain):
+    """The inverse of :func:`plain_of`; ValueError on anything malformed."""
+    if isinstance(plain, list) and len(plain) == 2 and plain[0] == "array" and isinstance(plain[1], list):
+        return [value_of(item) for item in plain[1]]
+    return from_plain(plain)
+
+
+def shown_plain(plain) -> str:
+    """A kept value as a program would print it (or, malformed, as it is)."""
+    from compiler.values import format_value
+
+    try:
+        value = value_of(plain)
+    except (ValueError, TypeError, RecursionError):
+        return repr(plain)[:200]
+    if type(value) is list:
+        return "[" + ", ".join(shown_plain(plain_of(item)) for item in value) + "]"
+    return format_value(value)
+
+
+class PersistentStore:
+    """The store of one runtime (``directory``: its state directory; None: values are kept
+    for the run only). ``why`` says what :meth:`load` found; ``error`` the last write that
+    failed."""
+
+    def __init__(self, directory: str | Path | None):
+        self.path = Path(directory) / FILE if directory else None
+        self.programs: dict[str, dict[str, list]] = {}  # as written last (or loaded): program -> name -> [type, plain]
+        self.latest: dict[tuple[str, str], list] = {}  # (program, name) -> [type, plain]: set in this process
+        self.why = "no state directory: persistent variables are kept for the run only"
+        self.error: str | None = None
+        self._wake = threading.Event()
+        self._written = 0  # changes written (how many times latest was taken)
+        self._writer: threading.Thread | None = None
+        self._lock = threading.Lock()  # (the writer and the operator's changes: never the loop)
+
+    # ---- not real-time ----
+    def load(self) -> None:
+        """Read the store (what is wrong with it is said in ``why``; a store that cannot be read
+        counts as empty, and is not written over until a value changes)."""
+        if self.path is None:
+            return
+        try:
+            with open(self.path, "rb") as f:
+                raw = f.read(MAX_FILE_BYTES + 1)
+        except FileNotFoundError:
+            self.why = f"no persistent values yet in {self.path.parent}"
+            return
+        except OSError as exc:
+            self.why = f"cannot read {self.path}: {exc.strerror or exc}"
+            return
+        if len(raw) > MAX_FILE_BYTES:
+            self.why = f"{self.path} is larger than {MAX_FILE_BYTES} bytes: not read"
+            return
+        try:
+            data = json.loads(raw.decode("utf-8"))
+        except (UnicodeDecodeError, ValueError, RecursionError):
+            self.why = f"{self.path} is not a store of persistent values (not JSON): not read"
+            return
+        programs = data.get("programs") if isinstance(data, dict) and data.get("format") == FORMAT else None
+        if not isinstance(programs, dict):
+            self.why = f"{self.path} is not a store of persistent values of format {FORMAT}: not read"
+            return
+        self.programs = {str(p): {str(n): e for n, e in names.items()
+                                  if isinstance(e, list) and len(e) == 2 and isinstance(e[0], str)}
+                         for p, names in programs.items() if isinstance(names, dict)}
+        count = sum(len(names) for names in self.programs.values())
+        self.why = f"{count} persistent value{'s' if count != 1 else ''} of {len(self.programs)} program" \
+                   f"{'s' if len(self.programs) != 1 else ''} in {self.path}"
+
+    def start(self) -> None:
+        """Start the writer thread (once, before the loop runs)."""
+        if self.path is not None and self._writer is None:
+            self._writer = threading.Thread(target=self._write_loop, name="irl-persistent-writer", daemon=True)
+            self._writer.start()
+
+    def flush(self, timeout: float = 10.0) -> bool:
+        """Wait until every change is written (or ``timeout``); whether it is."""
+        deadline = time.monotonic() + timeout
+        while self._writer is not None and (self._wake.is_set() or self._pending()) and time.monotonic() < deadline:
+            time.sleep(0.002)
+        return not self._pending()
+
+    def entries(self) -> dict[str, dict[str, list]]:
+        """Every kept value: program -> name -> [type, plain] (a copy)."""
+        merged = {program: dict(names) for program, names in self.programs.items()}
+        for (program, name), entry in dict(self.latest).items():
+            merged.setdefault(program, {})[name] = entry
+        return merged
+
+    def set(self, program: str, name: str, type_: str, plain) -> None:
+        """The operator's value for ``program``'s ``name`` (checked by the caller), kept as a
+        program's change is."""
+        self.latest[(program, name)] = [type_, plain]
+        self._wake.set()
+
+    def reset(self, program: str, name: str | None = None) -> int:
+        """Forget ``program``'s kept values (one, or all): its next run starts from the
+        initial values. Returns how many were forgotten; written at once."""
+        with self._lock:
+            names = set(self.programs.get(program, ())) | {n for p, n in self.latest if p == program}
+            gone = {name} & names if name is not None else names
+            for n in gone:
+                self.latest.pop((program, n), None)
+            kept = {n: e for n, e in self.programs.get(program, {}).items() if n not in gone}
+            programs = {p: v for p, v in self.programs.items() if p != program} | ({program: kept} if kept else {})
+            if gone and self.path is not None:
+                self._write(programs)
+            self.programs = programs
+        return len(gone)
+
+    # ---- real-time ----
+    def kept(self, program: str, name: str, type_: str):
+        """The value kept of ``program``'s ``name`` declared ``type_``, or None."""
+        entry = self.latest.get((program, name)) or self.programs.get(program, {}).get(name)
+        if entry is None or entry[0] != type_:
+            return None
+        try:
+            return value_of(entry[1])
+        except (ValueError, TypeError, RecursionError):
+            return None
+
+    def keep(self, program: str, name: str, type_: str, value) -> None:
+        """Keep ``value`` of ``program``'s ``name``: written soon by the writer."""
+        self.latest[(program, name)] = [type_, plain_of(value)]
+        self._wake.set()
+
+    # ---- the writer ----
+    def _pending(self) -> bool:
+        latest = dict(self.latest)
+        return any(self.programs.get(p, {}).get(n) != e for (p, n), e in latest.items())
+
+    def _write_loop(self) -> None:
+        while True:  # never dies: a write that fails is said in ``error``
+            self._wake.wait()
+            self._wake.clear()  # (before taking the changes: one made meanwhile wakes it again)
+            try:
+                with self._lock:
+                    changes = dict(self.latest)  # (one C call: atomic against the loop's assignments)
+                    programs = {program: dict(names) for program, names in self.programs.items()}
+                    for (program, name), entry in changes.items():
+                        programs.setdefault(program, {})[name] = entry
+                    if programs != self.programs:
+                        self._write(programs)
+                        self.programs = programs
+                self._written += 1
+            except OSError as exc:
+                self.error = f"cannot keep the persistent values in {self.path}: {exc.strerror or exc}"
+            except Exception:  # noqa: BLE001
+                self.error = f"the persistent values could not be kept in {self.path} (an internal error of its writer)"
+
+    def _write(self, programs: dict) -> None:
+        self.path.parent.mkdir(parents=True, exist_ok=True)
+        tmp = self.path.with_name(f".{self.path.name}.{os.getpid()}.tmp")
+        with open(tmp, "w", encoding="utf-8") as f:
+            json.dump({"format": FORMAT, "programs": programs}, f)
+            f.flush()
+            os.fsync(f.fileno())
+        os.replace(tmp, self.path)

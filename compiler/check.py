@@ -125,7 +125,7 @@ class Symbol:
     index: int = -1  # for procedures and functions: index in the procedure table
     file: str = ""  # the file it is declared in
     predeclared: bool = False  # by the language or the specification (world, default_tool, [[tool]] ...)
-    persistent: bool = False  # a global of a 'persistent' section (compiler.persistent)
+    persistent: bool = False  # a global of a 'var persistent' section (compiler.persistent)
 
 
 @dataclass
@@ -1406,12 +1406,18 @@ class Checker:
             if ERROR not in (t, vt) and not assignable(t, vt):
                 self.error(decl.init.span, f"cannot initialise {a(t)} with {a(vt)}")
         if decl.section and decl.section != PERSISTENT:
-            guess = did_you_mean(decl.section, [PERSISTENT, "var", "const"], cutoff=0.6)
-            self.error(decl.section_span, f"'{decl.section}' starts no declaration",
-                       f"did you mean '{guess}'?" if guess else "declarations start with const, var, persistent, "
-                                                                "procedure, function or interrupt")
+            guess = did_you_mean(decl.section, [PERSISTENT], cutoff=0.6)
+            self.error(decl.section_span, f"'var {decl.section}': the only word a var section takes is "
+                                          f"'{PERSISTENT}'",
+                       f"did you mean '{guess}'?" if guess else f"var {PERSISTENT} declares variables whose values "
+                                                                "the runtime keeps across runs")
+        elif decl.section and kind != "global":
+            self.error(decl.section_span, f"a {PERSISTENT} variable is global: declare it in the program's (or a "
+                                          f"module's) var {PERSISTENT} section",
+                       "a routine's variables live while it runs")
         for name, span in zip(decl.names, decl.spans):
-            symbol = Symbol(kind, name, t, span, slot=len(slots), persistent=decl.section == PERSISTENT)
+            symbol = Symbol(kind, name, t, span, slot=len(slots),
+                            persistent=decl.section == PERSISTENT and kind == "global")
             if self.declare(table, symbol):
                 slots.append((name, type_name(t)))
 

@@ -1,16 +1,16 @@
 """Persistent variables (docs/language.md, "Persistent variables"; RAPID's PERS, KRL's data
-lists): a ``persistent`` section of global variables whose values the runtime keeps across
-program runs and restarts, beside the calibration.
+lists): a ``var persistent`` section of global variables whose values the runtime keeps
+across program runs and restarts, beside the calibration.
 
-One declaration: the section's word (contextual: a program's own name ``persistent`` keeps
-working), the store's file and its bounds. The checker, the code generator, the VM's host
+One declaration: the section's word (contextual: only right after ``var``, so a variable
+called ``persistent`` keeps working), the store's file and its bounds. The checker, the code generator, the VM's host
 (runtime.loop.persistence) and the manual read it.
 """
 from __future__ import annotations
 
 __all__ = ["FILE", "FORMAT", "MAX_FILE_BYTES", "SECTION"]
 
-#: The word that starts a section of persistent variables.
+#: The word after ``var`` that makes its section's variables persistent.
 SECTION = "persistent"
 #: The store, in the runtime's state directory (beside calibration.json).
 FILE = "persistent.json"

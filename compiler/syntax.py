@@ -15,7 +15,6 @@ from grammar import make_parser
 from . import ast
 from .clauses import NAMES as CLAUSE_NAMES
 from .clauses import Motion
-from .persistent import SECTION as PERSISTENT
 from .recovery import WORDS
 from .diagnostics import CompileError, Diagnostic, did_you_mean
 from .semantics import INT_MAX
@@ -101,11 +100,10 @@ class _Builder(Transformer):
 
     def var_section(self, c):
         kw, *items = c
+        if items and isinstance(items[0], Token):  # var persistent ...
+            word = items.pop(0)
+            return [ast.replace(item, section=word.value.lower(), section_span=_span(word)) for item in items]
         return list(items)
-
-    def persistent_section(self, c):
-        word, *items = c
-        return [ast.replace(item, section=word.value.lower(), section_span=_span(word)) for item in items]
 
     def var_item(self, c):
         items = c
@@ -506,17 +504,10 @@ def _classify(err: UnexpectedInput, text: str, file: str, tokens: list[Token]):
                 return diag, ("patch", prev.end_pos, tok.start_pos, "_")
             return diag, ("resync", tok.start_pos)
 
-    # "persistent a : integer; persistent b : real;": the first section goes on (its items
-    # start with a name, as the word does), so the second word reads as a variable's name
-    if prev is not None and prev.type == "NAME" and prev.value.lower() == PERSISTENT and tok.type == "NAME":
-        return (_diag(file, _span(prev), f"a second '{PERSISTENT}' section right after one: the first goes on here",
-                      f"declare them all in one {PERSISTENT} section (delete this '{prev.value}')"),
-                ("patch", prev.start_pos, prev.end_pos, " " * len(prev.value)))
-
     # "endseg" where "endseq" belongs: a misspelled keyword reads as a name, and the
     # parser only notices at the token after it.
     if prev is not None and prev.type == "NAME" and ("NAME" not in expected or _word_at_start(tokens, prev)):
-        guess = did_you_mean(prev.value, _keywords() + [PERSISTENT], cutoff=0.75)
+        guess = did_you_mean(prev.value, _keywords(), cutoff=0.75)
         if guess and guess != prev.value.lower():
             diag = _diag(file, _span(prev), f"unexpected name '{prev.value}'", f"did you mean '{guess}'?")
             if len(guess) == len(prev.value):

@@ -23,7 +23,7 @@ from conftest import ROOT, SPEC_PATH, ServerProcess, examples, objcode, run_cli
 from test_protocol_v2 import RawClient
 from test_vm import DISPATCHES, FakeHost, compile_text, program_text, run
 
-DECLS = """persistent
+DECLS = """var persistent
   parts : integer := 10;
   heights : array[1..3] of real;
   where : joint;
@@ -162,7 +162,7 @@ def test_a_kill_9_never_leaves_a_torn_store_and_the_next_run_goes_on_from_it(tmp
 
 COUNTER = """program counter;
 system_specification "lola15.spc";
-persistent
+var persistent
   parts : integer := 0;
 seq
   parts := parts + 1;

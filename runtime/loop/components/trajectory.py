@@ -28,7 +28,7 @@ from compiler.clauses import Motion, MoveClauses, validate_move_clauses
 from compiler.frames import BY_KEYWORD as FRAME_BY_KEYWORD
 from compiler.frames import IDENTITY, describe_name, pose_of, values_of
 from compiler.frames import problem as frame_problem
-from compiler.objcode import Program
+from compiler.objcode import OP, Program
 from compiler.params import component_params, describe
 from compiler.spec import DEFAULT_LOOKAHEAD
 from compiler.configs import config_of
@@ -188,8 +188,10 @@ class TrajectoryGenerator(Component):
         else:
             self.vm = VM(self.program, self, self.own.budget)
             if self.program.persistent and (self.persistent is None or self.persistent.path is None):
+                declared = next((self.program.line_at(i)[0] for i, instr in enumerate(self.program.code)
+                                 if instr[0] == OP.PERS_LOAD), 0)  # (as bounded as the VM's own decoding)
                 self.log("its persistent variables are kept for this run only: there is no state directory "
-                         "(irl run --state-dir DIR; irl serve keeps them)", 0)
+                         "(irl run --state-dir DIR; irl serve keeps them)", declared)
             if self.stepping.active:
                 self.stepping = self.stepping.fresh()
                 self.stepping.install(self.vm, self)

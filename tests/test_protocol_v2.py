@@ -12,7 +12,7 @@ import zmq
 from runtime.wire import protocol
 from conftest import SERVER_PROGRAMS as PROGRAMS, ServerProcess, objcode
 
-from conftest import ROOT
+from conftest import ROOT, examples
 
 
 class RawClient:
@@ -342,7 +342,7 @@ def test_control_is_bound_to_the_connection_and_its_token_not_to_a_routing_id_a_
         assert server.stop() == 0, server.log()
 
 
-from hypothesis import example, given, strategies as st  # noqa: E402
+from hypothesis import example, given, settings, strategies as st  # noqa: E402
 
 
 @given(st.lists(st.binary(min_size=1, max_size=4), max_size=24), st.booleans())
@@ -455,6 +455,7 @@ _STEPS = st.lists(st.tuples(st.sampled_from(_CONNECTIONS), st.sampled_from([b"hm
                   min_size=1, max_size=25)
 
 
+@settings(max_examples=examples(50))
 @given(_STEPS)
 def test_a_request_is_the_holders_exactly_when_it_comes_on_its_connection_or_carries_its_token(steps):
     """Issue 26, fault 3, as a property over any sequence of requests from any connection

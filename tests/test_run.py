@@ -685,19 +685,15 @@ def untimed_input_wait(source: str) -> bool:
 #: than completing): not run a second time here.
 RUN_ELSEWHERE = {
     "palletize.irl": ("test_cartesian.py", "test_the_shipped_palletizing_program_keeps_every_joint_limit_end_to_end"),
+    "production_cell.irl": ("test_recovery.py", "test_the_production_cell_retries_its_missed_grip_and_loads_every_part"),
 }
-
-
-#: Examples run in their simulated cell (without it the gripper never closes: their error
-#: handler retries the grip, then ends the program with the error, as a real cell should).
-WITH_CELL = {"production_cell.irl": "production_cell.cell.toml"}
 
 
 @pytest.mark.long
 def test_example_programs_complete(tmp_path):
     """Every example runs on the simulator. Programs that read digital inputs may wait for
     an operator or a sensor that the simulator never sets (its inputs stay false): they
-    are run for at most 60 simulated seconds and may end by that time limit."""
+    are run for at most 30 simulated seconds and may end by that time limit."""
     programs = sorted(PROGRAMS.glob("*.irl"))
     assert TEST_IRL in programs
     outcomes: dict[str, str] = {}
@@ -710,9 +706,8 @@ def test_example_programs_complete(tmp_path):
             continue
         source = path.read_text(encoding="utf-8")
         reads_inputs = untimed_input_wait(source) or re.search(r"\bin\s*\[", source, re.I) is not None
-        limit = "60" if reads_inputs else "600"
-        cell = ("--cell-scenario", PROGRAMS / WITH_CELL[path.name]) if path.name in WITH_CELL else ()
-        code, out, err = run("run", path, "--json", "--max-time", limit, "--seed", "0", *cell)
+        limit = "30" if reads_inputs else "600"
+        code, out, err = run("run", path, "--json", "--max-time", limit, "--seed", "0")
         no_crash(code, out, err)
         s = json.loads(out) if out.strip() else None
         if s is None:

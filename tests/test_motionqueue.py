@@ -174,7 +174,9 @@ def test_on_a_worker_a_failed_plan_is_reported_by_sample():
     queue = make_queue(worker=PlanningWorker())
     run = Run(queue)
     assert queue.add(ptp((30.0, -20.0, 40.0, 10.0, 30.0, 5.0), 1)) is None
-    assert queue.add(lin(2000.0, 0.0, 0.0, 2)) is None
+    refused = lin(2000.0, 0.0, 0.0, 2)
+    refused.tag = 7  # (the program's name for it: its error handler finds the move by it, runtime.loop.vm)
+    assert queue.add(refused) is None
     failed = None
     for _ in range(BUDGET):
         run.step()
@@ -184,7 +186,7 @@ def test_on_a_worker_a_failed_plan_is_reported_by_sample():
             pytest.fail("no problem is returned with a worker")
         if queue.done():
             break
-    assert failed is not None and failed[1] == 2 and "refused" in failed[0]
+    assert failed is not None and failed[1:] == (2, 7) and "refused" in failed[0]
     assert [m.line for m in queue.moves] == [1]
 
 

@@ -99,6 +99,12 @@ class FakeHost:
     def log(self, text, line, kind="print"):
         self.log_lines.append((line, text))
 
+    def kept(self, name, type_):
+        return None  # (no persistent value kept: tests/test_persistent.py keeps them)
+
+    def keep(self, name, type_, value):
+        pass
+
     @property
     def texts(self) -> list[str]:
         return [text for _, text in self.log_lines]

@@ -31,7 +31,7 @@ from .clauses import Clause, Motion
 from .configs import CONTEXTUAL_NAME, GROUPS as CONFIG_GROUPS, TURN_AXES, WORDS as CONFIG_WORDS, Config
 from .configs import turn_problem as config_turn_problem
 from .objcode import BUILTINS, MAX_ARRAY_ELEMENTS, MAX_COUNT, MAX_STRING_LENGTH
-from .persistent import SECTION as PERSISTENT
+from .persistent import MAX_ELEMENTS as PERSISTENT_ELEMENTS, SECTION as PERSISTENT
 from .recovery import HANDLER_WORD, USER_ERRORS, WORDS as HANDLER_WORDS
 from .robotstate import CLOCKS, ERROR_ROUTINES, FUNCTIONS as STATE_FUNCTIONS, PROCEDURES as STATE_PROCEDURES
 from .semantics import (GEOMETRIC_BUILTINS, GEOMETRY, STRING_BUILTINS, INT_MAX, INT_MIN, EvalError, binary, call_builtin,
@@ -1415,6 +1415,15 @@ class Checker:
             self.error(decl.section_span, f"a {PERSISTENT} variable is global: declare it in the program's (or a "
                                           f"module's) var {PERSISTENT} section",
                        "a routine's variables live while it runs")
+        elif decl.section:
+            elements, inner = 1, t
+            while isinstance(inner, ArrayT):
+                elements, inner = elements * inner.length, inner.element
+            if elements > PERSISTENT_ELEMENTS:
+                self.error(decl.type.span, f"a {PERSISTENT} variable holds at most {PERSISTENT_ELEMENTS} elements, "
+                                           f"not {elements}",
+                           "the runtime copies it at every change and writes it while the robot moves: keep large "
+                           "data in plain variables")
         for name, span in zip(decl.names, decl.spans):
             symbol = Symbol(kind, name, t, span, slot=len(slots),
                             persistent=decl.section == PERSISTENT and kind == "global")

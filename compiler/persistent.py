@@ -8,7 +8,7 @@ called ``persistent`` keeps working), the store's file and its bounds. The check
 """
 from __future__ import annotations
 
-__all__ = ["FILE", "FORMAT", "MAX_FILE_BYTES", "SECTION"]
+__all__ = ["FILE", "FORMAT", "MAX_ELEMENTS", "MAX_FILE_BYTES", "SECTION"]
 
 #: The word after ``var`` that makes its section's variables persistent.
 SECTION = "persistent"
@@ -18,3 +18,6 @@ FILE = "persistent.json"
 FORMAT = 1
 #: The largest store read or written (its values: at most this much JSON).
 MAX_FILE_BYTES = 16 * 1024 * 1024
+#: The most elements a persistent variable may hold (an array, all levels together): a
+#: change is copied in the control cycle, and the store is written while the loop runs.
+MAX_ELEMENTS = 10_000

@@ -102,7 +102,7 @@ def test_a_store_that_cannot_be_read_counts_as_empty_and_says_why(tmp_path):
         path.write_bytes(content)
         store = PersistentStore(tmp_path)
         store.load()
-        assert store.programs == {} and why in store.why, store.why
+        assert store.values == {} and why in store.why, store.why
         assert store.kept("p", "x", "integer") is None
 
 
@@ -220,3 +220,16 @@ def test_a_server_shows_sets_and_resets_them_for_the_client_in_control(tmp_path)
     finally:
         client.close()
         assert again.stop() == 0, again.log()
+
+
+def test_the_store_holds_its_own_copies_of_arrays():
+    """The VM changes arrays in place (a[i] := x): what the store keeps must not change with
+    the program's variable, nor the variable with what the store keeps."""
+    store = PersistentStore(None)
+    grid = [[1.0, 2.0], [3.0, 4.0]]
+    store.keep("p", "grid", "array[1..2] of array[1..2] of real", grid)
+    grid[0][0] = 99.0
+    loaded = store.kept("p", "grid", "array[1..2] of array[1..2] of real")
+    assert loaded == [[1.0, 2.0], [3.0, 4.0]]
+    loaded[1][1] = -1.0
+    assert store.kept("p", "grid", "array[1..2] of array[1..2] of real") == [[1.0, 2.0], [3.0, 4.0]]

@@ -69,6 +69,17 @@ def _arm_pixels(img) -> int:
     return int(orange.sum())
 
 
+def _drawn(page):
+    """The canvas once the arm is on it (a loaded host may take a while to bring the page
+    its first sample and render it): polled up to LOAD seconds; the last one seen."""
+    deadline = time.monotonic() + LOAD
+    while True:
+        img = _canvas(page)
+        if _arm_pixels(img) > 500 or time.monotonic() > deadline:
+            return img
+        _settle(page, 0.2)
+
+
 def _settle(page, seconds: float = 1.0) -> None:
     page.wait_for_timeout(seconds * 1000)
 
@@ -88,7 +99,7 @@ def test_program_paths_and_the_arm(browser, tmp_path):
         page = _open(browser, view.url)
         page.wait_for_selector(".irl-source", timeout=LOAD * 1000)
         _settle(page, 2.0)
-        first = _canvas(page)
+        first = _drawn(page)
         assert _arm_pixels(first) > 500, "no arm in the canvas"
         assert "20 moves" in page.inner_text("body") and "5 refused" in page.inner_text("body")
         refused = {int(e.get_attribute("data-line")) for e in page.query_selector_all(".irl-refused [data-line]")}
@@ -118,7 +129,7 @@ def test_replay_follows_the_slider(browser, tmp_path):
         for t in (0.5, 12.0, 20.0):
             _set_time(page, t)
             _settle(page)
-            shots.append(_canvas(page))
+            shots.append(_drawn(page))
             lines.append(page.inner_text("body"))
         assert _arm_pixels(shots[0]) > 500
         assert abs(shots[1] - shots[0]).sum(axis=2).astype(bool).sum() > 500, "the arm did not follow the slider"
@@ -140,8 +151,8 @@ def test_live_follows_the_robot(browser, tmp_path):
         page = _open(browser, view.url)
         page.wait_for_selector("text=live", timeout=LOAD * 1000)
         _settle(page, 1.5)
-        before = _canvas(page)
-        assert _arm_pixels(before) > 500
+        before = _drawn(page)
+        assert _arm_pixels(before) > 500, "the arm was not drawn"
         client = server.client()
         program = tmp_path / "moving.irl"
         program.write_text(MOVING, encoding="utf-8")

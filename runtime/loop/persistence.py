@@ -7,12 +7,14 @@ constants are written). A value is taken back only for a variable of the same na
 declared type (the VM then checks its shape: an array's lengths, a joint's axes).
 
 Real time: :meth:`PersistentStore.kept` and :meth:`PersistentStore.keep` (the VM's
-``PERS_LOAD`` and ``PERS_STORE``, through the trajectory generator) never wait and never
-touch a file: a change goes into :attr:`latest` (one assignment) and wakes a writer thread,
-which writes the whole store atomically (a temporary file, fsync, rename: a kill -9 leaves
-the last store written, never a torn one) as soon as it can, the changes of a busy program
-together. The operator's changes (:meth:`set`, :meth:`reset`) and :meth:`load` are not
-real-time.
+``PERS_LOAD`` and ``PERS_STORE``, through the trajectory generator) never wait, never touch
+a file and never convert: the store holds the values as the VM does (read and converted
+when it is loaded, before the loop runs), a change is a copy of the value (an array's:
+one C-level copy per level, at most compiler.persistent.MAX_ELEMENTS elements) put in
+:attr:`latest`, and it wakes a writer thread, which converts and writes the whole store
+atomically (a temporary file, fsync, rename: a kill -9 leaves the last store written,
+never a torn one) as soon as it can, the changes of a busy program together. The
+operator's changes (:meth:`set`, :meth:`reset`) and :meth:`load` are not real-time.
 """
 from __future__ import annotations
 
@@ -42,6 +44,13 @@ def value_of(plain):
     return from_plain(plain)
 
 
+def _copy(value):
+    """A value the VM may change in place (an array) copied; the others are immutable."""
+    if type(value) is list:
+        return [_copy(item) for item in value] if value and type(value[0]) is list else value[:]
+    return value
+
+
 def shown_plain(plain) -> str:
     """A kept value as a program would print it (or, malformed, as it is)."""
     from compiler.values import format_value
@@ -57,24 +66,25 @@ def shown_plain(plain) -> str:
 
 class PersistentStore:
     """The store of one runtime (``directory``: its state directory; None: values are kept
-    for the run only). ``why`` says what :meth:`load` found; ``error`` the last write that
-    failed."""
+    for the run only). ``values`` holds what was loaded or written: (program, name) ->
+    (type, value); ``latest`` the changes since (the loop's). ``why`` says what
+    :meth:`load` found; ``error`` the last write that failed."""
 
     def __init__(self, directory: str | Path | None):
         self.path = Path(directory) / FILE if directory else None
-        self.programs: dict[str, dict[str, list]] = {}  # as written last (or loaded): program -> name -> [type, plain]
-        self.latest: dict[tuple[str, str], list] = {}  # (program, name) -> [type, plain]: set in this process
+        self.values: dict[tuple[str, str], tuple[str, object]] = {}
+        self.latest: dict[tuple[str, str], tuple[str, object]] = {}
         self.why = "no state directory: persistent variables are kept for the run only"
         self.error: str | None = None
         self._wake = threading.Event()
-        self._written = 0  # changes written (how many times latest was taken)
         self._writer: threading.Thread | None = None
         self._lock = threading.Lock()  # (the writer and the operator's changes: never the loop)
 
     # ---- not real-time ----
     def load(self) -> None:
-        """Read the store (what is wrong with it is said in ``why``; a store that cannot be read
-        counts as empty, and is not written over until a value changes)."""
+        """Read the store (what is wrong with it is said in ``why``; a store that cannot be
+        read counts as empty, and is not written over until a value changes; an entry that
+        is no value of the language is left out)."""
         if self.path is None:
             return
         try:
@@ -98,12 +108,18 @@ class PersistentStore:
         if not isinstance(programs, dict):
             self.why = f"{self.path} is not a store of persistent values of format {FORMAT}: not read"
             return
-        self.programs = {str(p): {str(n): e for n, e in names.items()
-                                  if isinstance(e, list) and len(e) == 2 and isinstance(e[0], str)}
-                         for p, names in programs.items() if isinstance(names, dict)}
-        count = sum(len(names) for names in self.programs.values())
-        self.why = f"{count} persistent value{'s' if count != 1 else ''} of {len(self.programs)} program" \
-                   f"{'s' if len(self.programs) != 1 else ''} in {self.path}"
+        values, bad = {}, 0
+        for program, names in programs.items():
+            for name, entry in (names.items() if isinstance(names, dict) else ()):
+                try:
+                    if not (isinstance(entry, list) and len(entry) == 2 and isinstance(entry[0], str)):
+                        raise ValueError("not [type, value]")
+                    values[(str(program), str(name))] = (entry[0], value_of(entry[1]))
+                except (ValueError, TypeError, RecursionError):
+                    bad += 1
+        self.values = values
+        self.why = f"{len(values)} persistent value{'s' if len(values) != 1 else ''} in {self.path}" + (
+            f" ({bad} malformed, left out)" if bad else "")
 
     def start(self) -> None:
         """Start the writer thread (once, before the loop runs)."""
@@ -119,53 +135,48 @@ class PersistentStore:
         return not self._pending()
 
     def entries(self) -> dict[str, dict[str, list]]:
-        """Every kept value: program -> name -> [type, plain] (a copy)."""
-        merged = {program: dict(names) for program, names in self.programs.items()}
-        for (program, name), entry in dict(self.latest).items():
-            merged.setdefault(program, {})[name] = entry
+        """Every kept value as plain data: program -> name -> [type, plain] (a copy)."""
+        merged: dict[str, dict[str, list]] = {}
+        for (program, name), (type_, value) in (self.values | dict(self.latest)).items():
+            merged.setdefault(program, {})[name] = [type_, plain_of(value)]
         return merged
 
-    def set(self, program: str, name: str, type_: str, plain) -> None:
+    def set(self, program: str, name: str, type_: str, value) -> None:
         """The operator's value for ``program``'s ``name`` (checked by the caller), kept as a
         program's change is."""
-        self.latest[(program, name)] = [type_, plain]
+        self.latest[(program, name)] = (type_, _copy(value))
         self._wake.set()
 
     def reset(self, program: str, name: str | None = None) -> int:
         """Forget ``program``'s kept values (one, or all): its next run starts from the
         initial values. Returns how many were forgotten; written at once."""
         with self._lock:
-            names = set(self.programs.get(program, ())) | {n for p, n in self.latest if p == program}
-            gone = {name} & names if name is not None else names
-            for n in gone:
-                self.latest.pop((program, n), None)
-            kept = {n: e for n, e in self.programs.get(program, {}).items() if n not in gone}
-            programs = {p: v for p, v in self.programs.items() if p != program} | ({program: kept} if kept else {})
+            known = {key for key in self.values | dict(self.latest) if key[0] == program}
+            gone = {key for key in known if name is None or key[1] == name}
+            for key in gone:
+                self.latest.pop(key, None)
+            values = {key: entry for key, entry in self.values.items() if key not in gone}
             if gone and self.path is not None:
-                self._write(programs)
-            self.programs = programs
+                self._write(values)
+            self.values = values
         return len(gone)
 
     # ---- real-time ----
     def kept(self, program: str, name: str, type_: str):
-        """The value kept of ``program``'s ``name`` declared ``type_``, or None."""
-        entry = self.latest.get((program, name)) or self.programs.get(program, {}).get(name)
+        """The value kept of ``program``'s ``name`` declared ``type_`` (the VM's own copy), or None."""
+        entry = self.latest.get((program, name)) or self.values.get((program, name))
         if entry is None or entry[0] != type_:
             return None
-        try:
-            return value_of(entry[1])
-        except (ValueError, TypeError, RecursionError):
-            return None
+        return _copy(entry[1])
 
     def keep(self, program: str, name: str, type_: str, value) -> None:
         """Keep ``value`` of ``program``'s ``name``: written soon by the writer."""
-        self.latest[(program, name)] = [type_, plain_of(value)]
+        self.latest[(program, name)] = (type_, _copy(value))
         self._wake.set()
 
     # ---- the writer ----
     def _pending(self) -> bool:
-        latest = dict(self.latest)
-        return any(self.programs.get(p, {}).get(n) != e for (p, n), e in latest.items())
+        return any(self.values.get(key) is not entry for key, entry in dict(self.latest).items())
 
     def _write_loop(self) -> None:
         while True:  # never dies: a write that fails is said in ``error``
@@ -173,20 +184,19 @@ class PersistentStore:
             self._wake.clear()  # (before taking the changes: one made meanwhile wakes it again)
             try:
                 with self._lock:
-                    changes = dict(self.latest)  # (one C call: atomic against the loop's assignments)
-                    programs = {program: dict(names) for program, names in self.programs.items()}
-                    for (program, name), entry in changes.items():
-                        programs.setdefault(program, {})[name] = entry
-                    if programs != self.programs:
-                        self._write(programs)
-                        self.programs = programs
-                self._written += 1
+                    values = self.values | dict(self.latest)  # (one C call each: atomic against the loop)
+                    if any(self.values.get(key) is not entry for key, entry in values.items()):
+                        self._write(values)
+                        self.values = values
             except OSError as exc:
                 self.error = f"cannot keep the persistent values in {self.path}: {exc.strerror or exc}"
             except Exception:  # noqa: BLE001
                 self.error = f"the persistent values could not be kept in {self.path} (an internal error of its writer)"
 
-    def _write(self, programs: dict) -> None:
+    def _write(self, values: dict) -> None:
+        programs: dict[str, dict[str, list]] = {}
+        for (program, name), (type_, value) in values.items():
+            programs.setdefault(program, {})[name] = [type_, plain_of(value)]
         self.path.parent.mkdir(parents=True, exist_ok=True)
         tmp = self.path.with_name(f".{self.path.name}.{os.getpid()}.tmp")
         with open(tmp, "w", encoding="utf-8") as f:

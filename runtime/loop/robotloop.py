@@ -262,7 +262,7 @@ class RobotLoop:
         if not same_shape(value, like):
             raise ProtocolError("bad_request", f"persistent_set: {m.program}.{m.name} is {entry[0]} (like "
                                                f"{shown_plain(entry[1])}); got {shown_plain(m.value)}")
-        store.set(m.program, m.name, entry[0], plain_of(float(value) if type(like) is float else value))
+        store.set(m.program, m.name, entry[0], float(value) if type(like) is float else value)
         store.flush()
         return {"program": m.program, "name": m.name, "type": entry[0], "value": shown_plain(plain_of(value))}
 

@@ -101,6 +101,14 @@ def _type_of(value) -> str:
     return type(value).__name__.lower()
 
 
+def _section(out: list[str], title: str, rows: list[str]) -> None:
+    """A numbered section of the listing (none when it has no rows)."""
+    if rows:
+        out.append("")
+        out.append(f"{title} ({len(rows)}):")
+        out.extend(f"  {i:4d}  {row}" for i, row in enumerate(rows))
+
+
 def format_text(program: Program, data: bytes | None = None, source: str | None = None,
                 modules: dict[str, str] | None = None) -> str:
     """The human-readable listing of ``irl dis``.
@@ -128,18 +136,12 @@ def format_text(program: Program, data: bytes | None = None, source: str | None 
         out.append(f"globals ({len(program.globals)}):")
         for i, (name, type_) in enumerate(program.globals):
             out.append(f"  {i:4d}  {name} : {type_}")
-    if program.interrupts:
-        out.append("")
-        out.append(f"interrupts ({len(program.interrupts)}):")
-        for i, x in enumerate(program.interrupts):
-            out.append(f"  {i:4d}  {x.name}: when {program.procedures[x.condition].name}, priority {x.priority}, "
-                       f"{'stop' if x.stop else 'continue'}, then {'halt' if x.halt else 'resume'}")
-    if program.handlers:
-        out.append("")
-        out.append(f"error handlers ({len(program.handlers)}):")
-        for i, h in enumerate(program.handlers):
-            out.append(f"  {i:4d}  protects {h.start}..{h.end - 1}, its code at {h.entry} "
-                       f"(line {program.line_at(h.entry)[0]}), {len(h.statements)} statements")
+    _section(out, "interrupts", [f"{x.name}: when {program.procedures[x.condition].name}, priority {x.priority}, "
+                                 f"{'stop' if x.stop else 'continue'}, then {'halt' if x.halt else 'resume'}"
+                                 for x in program.interrupts])
+    _section(out, "error handlers", [f"protects {h.start}..{h.end - 1}, its code at {h.entry} (line "
+                                     f"{program.line_at(h.entry)[0]}), {len(h.statements)} statements"
+                                     for h in program.handlers])
     handlers = {program.procedures[x.handler].entry: x for x in program.interrupts}
     source_lines = source.split("\n") if source is not None else None  # as the parser counts lines
     module_lines = {name: text.split("\n") for name, text in (modules or {}).items()}

@@ -556,10 +556,13 @@ class Checker:
             self.check_io_index(node.index, self.spec.outputs, "output")
         return BOOL
 
-    def check_io_index(self, index: ast.Expr, count: int, what: str) -> None:
+    def check_io_index(self, index: ast.Expr, count: int, what: str, kind: str = "digital") -> None:
         i = self.value_of(index)
         if i is not _NO_VALUE and not 1 <= i <= count:
-            self.error(index.span, f"digital {what} {i} does not exist: {self.spec.name} has {what}s 1..{count}")
+            named = f"{kind} {what}s" if kind != "digital" else f"{what}s"  # ("has outputs 1..16", as always)
+            has = f"has {named} 1..{count}" if count else f"has no {named}"
+            self.error(index.span, f"{kind} {what} {i} does not exist: {self.spec.name} {has}",
+                       "the specification declares them ([[analog_input]] tables)" if kind == "analog" else None)
 
     def e_Call(self, node: ast.Call):
         name = node.name
@@ -597,6 +600,8 @@ class Checker:
         if routine.number == "clock" and values[0] is not _NO_VALUE and not 1 <= values[0] <= CLOCKS:
             self.error(node.args[0].span, f"clock {values[0]} does not exist: a program has clocks 1..{CLOCKS}")
             return ERROR
+        if routine.number == "analog input":
+            self.check_io_index(node.args[0], len(self.spec.analog_inputs), "input", "analog")
         if routine.number == "output":
             self.check_io_index(node.args[0], self.spec.outputs, "output")
             if values[1] is not _NO_VALUE and not values[1] > 0:

@@ -144,7 +144,8 @@ def _config_pops(operands, program):
 
 
 _DEFS = [
-    # name, operands, pops, pushes, doc, effect, flow, barrier
+    # name, operands, pops, pushes, doc, effect, flow, barrier. Append only: an
+    # instruction's code is its place here, and object files already written keep theirs.
     ("NOP", (), 0, 0, "Do nothing.", "", "next", False),
     ("CONST", (("k", "const"),), 0, 1, "Push constant k.", "-> value", "next", False),
     ("LOAD_GLOBAL", (("g", "global"),), 0, 1, "Push global variable g.", "-> value", "next", False),
@@ -257,6 +258,9 @@ _DEFS = [
      "next", True),
     ("KEEP", (("l", "local"),), 0, 0, "Keep local variable l (a 'var' parameter) for the caller, before a "
                                       "procedure returns.", "", "next", False),
+    ("TAKE", (("p", "proc"), ("l", "count")), 0, 1, "Push what procedure p kept of its local l (the caller, just "
+                                                    "after the call: a 'var' parameter's value, to store into the "
+                                                    "variable passed).", "-> value", "next", False),
     ("RAISE", (), 2, 0, "Raise the program's own error: its number and message popped (compiler.recovery).",
      "number message ->", "raise", False),
     ("RERAISE", (), 0, 0, "In an error handler: pass the error it took on to the caller's handler.", "", "raise",
@@ -276,9 +280,8 @@ _DEFS = [
      "next", False),
     ("PERS_STORE", (("g", "global"),), 0, 0, "The runtime keeps persistent global g's value now (for later runs).",
      "", "next", False),
-    ("TAKE", (("p", "proc"), ("l", "count")), 0, 1, "Push what procedure p kept of its local l (the caller, just "
-                                                    "after the call: a 'var' parameter's value, to store into the "
-                                                    "variable passed).", "-> value", "next", False),
+    ("AIN_GET", (), 1, 1, "Read analog input n (real, in its unit: the specification's [[analog_input]] n).",
+     "n -> real", "next", True),
 ]
 
 #: The types of the values on the stack (what a popped value must be, what is pushed). A
@@ -340,7 +343,7 @@ _TYPES: dict[str, tuple[str, str]] = {
     "CLOCK_READ": ("integer", "real"), "OUT_GET": ("integer", "bool"), "PULSE_OUT": ("integer real", ""),
     "KEEP": ("", ""), "TAKE": ("", "@kept"), "RAISE": ("integer string", ""), "RERAISE": ("", ""),
     "RETRY": ("", ""), "TRYNEXT": ("", ""), "ERROR_NUMBER": ("", "integer"), "ERROR_NAME": ("", "string"),
-    "ERROR_MESSAGE": ("", "string"), "PERS_LOAD": ("", ""), "PERS_STORE": ("", ""),
+    "ERROR_MESSAGE": ("", "string"), "PERS_LOAD": ("", ""), "PERS_STORE": ("", ""), "AIN_GET": ("integer", "real"),
 }
 _missing_types = [d[0] for d in _DEFS if d[0] not in _TYPES]
 if _missing_types:  # pragma: no cover - the table is complete

@@ -33,7 +33,8 @@ class StateRoutine:
     instruction: str
     doc: str
     #: What the first argument numbers (its constant checked against the range): "clock"
-    #: (1..CLOCKS), "output" (the specification's outputs), or "" (nothing).
+    #: (1..CLOCKS), "output" (the specification's outputs), "analog input" (its analog
+    #: inputs), or "" (nothing).
     number: str = ""
 
 
@@ -54,6 +55,9 @@ ROUTINES: dict[str, StateRoutine] = {r.name: r for r in (
     StateRoutine("clock_reset", ("integer",), "", "CLOCK_RESET", "clock N reads 0 (and runs on if it ran)", "clock"),
     StateRoutine("clock_read", ("integer",), "real", "CLOCK_READ",
                  "the seconds clock N has run, to the control cycle", "clock"),
+    StateRoutine("analog_in", ("integer",), "real", "AIN_GET",
+                 "what analog input N reads now (in its unit, within its range: the specification's "
+                 "[[analog_input]] N), where the robot is", "analog input"),
     StateRoutine("pulse_out", ("integer", "real"), "", "PULSE_OUT",
                  "digital output N on now (where the robot is), off again SECONDS later while the program goes on; "
                  "a pulse of an output already pulsing starts again", "output"),

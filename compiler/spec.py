@@ -111,6 +111,31 @@ class _Limits:
 
 
 @dataclass(frozen=True)
+class AnalogChannel:
+    """An analog input (``[[analog_input]]``): what it measures (``name``, for people), its
+    unit, and the range of its values (``low`` < ``high``): a sensor's reading is a real
+    within it."""
+
+    name: str
+    unit: str
+    low: float
+    high: float
+
+    def problem(self, n: int, value: object) -> str | None:
+        """What is wrong with ``value`` as a reading of analog input ``n``, or None."""
+        if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+            return f"analog input {n} ({self.name}) reads a number, not {value!r}"
+        if not self.low <= value <= self.high:
+            return (f"analog input {n} ({self.name}) reads {value:g} {self.unit}: its range is "
+                    f"{self.low:g}..{self.high:g} {self.unit}")
+        return None
+
+
+#: The most analog inputs a specification may declare.
+MAX_ANALOG_INPUTS = 256
+
+
+@dataclass(frozen=True)
 class Spec:
     name: str
     file: str
@@ -130,6 +155,8 @@ class Spec:
     named_frames: tuple = ()
     #: [kinematics] mounting: the robot's base in the world frame (x, y, z, roll, pitch, yaw).
     mounting: tuple = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
+    #: The [[analog_input]] tables, analog input n at index n - 1.
+    analog_inputs: tuple["AnalogChannel", ...] = ()
 
     @property
     def main_axes(self) -> tuple[Axis, ...]:
@@ -377,6 +404,7 @@ def parse_spec(text: str, file: str = "<spec>") -> Spec:
     else:
         top.get("io", "table", None)
 
+    analog = _analog_inputs(file, data, top)
     kinematics = _parameters(file, "kinematics", top.get("kinematics", "table", {}))
     tool, mounting = kinematics["tool"], kinematics["mounting"]
     named = _named_frames(file, data, top)
@@ -388,7 +416,7 @@ def parse_spec(text: str, file: str = "<spec>") -> Spec:
     top.finish()
     typed = {section: params.settings(section, values) for section, values in tables.items()}
     return Spec(name, file, axes, defaults, max_speed, max_acc, inputs, outputs, tool, typed["controller"],
-                _canonical_hash(data), description, typed["simulation"], typed["safety"], named, mounting)
+                _canonical_hash(data), description, typed["simulation"], typed["safety"], named, mounting, analog)
 
 
 #: A named frame's or tool's table is a pose table (compiler.params) with a name.
@@ -439,6 +467,28 @@ def _named_frames(file: str, data: dict, top: "_Reader") -> tuple:
             taken[name] = f"a {kind.type}"
             named.append((kind.type, name, values))
     return tuple(named)
+
+
+def _analog_inputs(file: str, data: dict, top: "_Reader") -> tuple[AnalogChannel, ...]:
+    """The ``[[analog_input]]`` tables, in file order: analog input 1, 2, ..."""
+    top.used.add("analog_input")
+    tables = data.get("analog_input", [])
+    if not isinstance(tables, list):
+        raise SpecError(file, "analog_input", "expected an array of tables ([[analog_input]])")
+    if len(tables) > MAX_ANALOG_INPUTS:
+        raise SpecError(file, "analog_input", f"{len(tables)} analog inputs: at most {MAX_ANALOG_INPUTS}")
+    channels = []
+    for i, table in enumerate(tables):
+        r = _Reader(file, f"analog_input[{i + 1}]", table)
+        name = r.get("name", "string", f"analog input {i + 1}", check=lambda v: 0 < len(v) <= 80,
+                     expect="what it measures, 1 to 80 characters")
+        unit = r.get("unit", "string", "", check=lambda v: len(v) <= 20, expect="its unit, at most 20 characters")
+        low = r.get("min", "number", expect="the least value it reads (a finite number)")
+        high = r.get("max", "number", check=lambda v: v > low, expect=f"the greatest value it reads, more than "
+                                                                       f"min ({low:g})")
+        r.finish()
+        channels.append(AnalogChannel(name, unit, float(low), float(high)))
+    return tuple(channels)
 
 
 def _parameters(file: str, section: str, table: dict) -> dict:

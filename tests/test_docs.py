@@ -110,6 +110,18 @@ def test_objdoc_check_and_write_commands(tmp_path, monkeypatch, capsys):
 
 # ---- the instruction table ---------------------------------------------------------------
 
+def test_the_instruction_table_only_grows():
+    """Every opcode keeps its instruction (tests/golden/opcodes.txt): object files written by
+    an earlier build still mean what they meant. A new instruction goes at the table's end
+    (and into the file); renumbering one needs a new object format version."""
+    from conftest import ROOT
+
+    known = [line.split() for line in (ROOT / "tests" / "golden" / "opcodes.txt").read_text().splitlines()]
+    now = [[str(d.code), d.name] for d in INSTRUCTIONS]
+    assert now[:len(known)] == known, "an instruction changed its opcode: append new ones to compiler/objcode.py"
+    assert len(now) == len(known), "new instructions: add them to tests/golden/opcodes.txt"
+
+
 def test_opcodes_are_unique_and_dense():
     codes = [d.code for d in INSTRUCTIONS]
     assert len(set(codes)) == len(codes)

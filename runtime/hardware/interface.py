@@ -36,6 +36,10 @@ class IoBackend:
         """Why the backend counts as lost now (a PLC not heard from), or None."""
         return None
 
+    def analog_input(self, n: int) -> float:
+        """Real-time: what analog input ``n`` (1-based) reads now."""
+        raise IndexError(f"analog input {n} does not exist: this robot's I/O has no analog inputs")
+
     def start(self) -> None:
         pass
 
@@ -61,10 +65,11 @@ class DigitalIo(IoBackend):
     method is real-time (plain reads and assignments); a number out of range is an
     ``IndexError`` that says which exist."""
 
-    def __init__(self, n_inputs: int, n_outputs: int, owner: str):
+    def __init__(self, n_inputs: int, n_outputs: int, owner: str, analog: tuple = ()):
         self._inputs: list[bool] | tuple[bool, ...] = [False] * n_inputs
         self._outputs = [False] * n_outputs
         self._owner = owner
+        self._analog = [channel.low for channel in analog]  # (compiler.spec.AnalogChannel: each reads its least)
 
     @property
     def inputs(self) -> tuple[bool, ...]:
@@ -91,9 +96,19 @@ class DigitalIo(IoBackend):
             super().set_input(n, value)
         self._inputs[self._index(n, len(self._inputs), "input")] = bool(value)
 
-    def _index(self, n: int, count: int, what: str) -> int:
+    def analog_input(self, n: int) -> float:
+        return self._analog[self._index(n, len(self._analog), "input", "analog")]
+
+    def set_analog_input(self, n: int, value: float) -> None:
+        """Between ticks, on a forcible backend: what analog input ``n`` reads (checked by the caller)."""
+        if not self.forcible:
+            raise PermissionError("an analog input is set on the simulated robot only")
+        self._analog[self._index(n, len(self._analog), "input", "analog")] = float(value)
+
+    def _index(self, n: int, count: int, what: str, kind: str = "digital") -> int:
         if not 1 <= n <= count:
-            raise IndexError(f"digital {what} {n} does not exist: {self._owner} has {what}s 1..{count}")
+            named = f"{what}s" if kind == "digital" else f"{kind} {what}s"
+            raise IndexError(f"{kind} {what} {n} does not exist: {self._owner} has {named} 1..{count}")
         return n - 1
 
 

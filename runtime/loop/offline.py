@@ -663,7 +663,7 @@ class _Run:
         self.spec, self.limits = spec, limits
         self.clock = SimClock(TICK)
         settings = Settings(spec)
-        self.backend = _OfflineIo(spec.inputs, spec.outputs, "the cell")
+        self.backend = _OfflineIo(spec.inputs, spec.outputs, "the cell", spec.analog_inputs)
         cell = None
         if scenario is not None:
             from runtime.hardware.sim.cell import Cell
@@ -808,11 +808,14 @@ def _assumptions(program: Program, worlds: list) -> list[str]:
     nor waits for one)."""
     waited = set().union(*(w.waited for w in worlds))
     read = {c.offset for w in worlds for c in w.choices if c.options[0].startswith("in[")}
-    if not waited and not read:
+    analog = [offset for offset, instr in enumerate(program.code) if instr[0] == OP.AIN_GET]
+    if not waited and not read and not analog:
         return []
     said = "no cell scenario: the inputs are false until the program waits for them"
     if waited:
         said += f"; each wait for ends at once where inputs can make it hold ({_lines(program, waited)})"
+    if analog:
+        said += f"; each analog input reads the least value of its range ({_lines(program, set(analog))})"
     return [said]
 
 

@@ -141,6 +141,10 @@ class MotionHost(Protocol):
     def read_input(self, n: int) -> bool:
         """Digital input n (from 1). May raise EvalError for a number out of range."""
 
+    def read_analog(self, n: int) -> float:
+        """What analog input n (from 1) reads now. May raise EvalError for a number out of
+        range, or a reading outside the input's range (a sensor's fault)."""
+
     def write_output(self, n: int, value: bool) -> None:
         """Set digital output n (from 1). May raise EvalError for a number out of range."""
 
@@ -291,7 +295,7 @@ _MOVE, _TIMEOUT, _ARITHMETIC_ERROR, _VALUE, _IO = (ERROR_KINDS[name].number for 
                                                    ("move", "timeout", "arithmetic", "value", "io"))
 #: The instructions whose errors are the program's arithmetic, and its I/O's.
 _ARITHMETIC_ONLY = _ARITHMETIC - {OP.CALL_BUILTIN}
-_IO_OPS = frozenset({OP.IN_GET, OP.OUT_SET, OP.OUT_GET, OP.PULSE_OUT})
+_IO_OPS = frozenset({OP.IN_GET, OP.OUT_SET, OP.OUT_GET, OP.PULSE_OUT, OP.AIN_GET})
 
 
 def error_number(exc: Exception, op: int) -> int | None:
@@ -1332,6 +1336,11 @@ class VM:
     def op_in_get(self, _, pc):
         stack = self.memory.stack
         stack[-1] = bool(self.host.read_input(stack[-1]))
+        return pc + 1
+
+    def op_ain_get(self, _, pc):
+        stack = self.memory.stack
+        stack[-1] = float(self.host.read_analog(stack[-1]))
         return pc + 1
 
     def op_out_get(self, _, pc):

@@ -70,7 +70,7 @@ class LiveView:
         self.name: str | None = ""  # the running program's name (as submitted; None: not known yet)
         self.source_retry = 0.0  # when a source the server did not give in time is asked for again
         self.line = 0
-        self.marks: collections.deque = collections.deque()  # (title, line) marks waiting their turn
+        self.marks: collections.deque = collections.deque()  # (program, line) marks waiting their turn
         self.marked_at = -MARK_HOLD  # (monotonic s) when the source box last changed its mark
         self.samples = 0  # samples shown
         self.missed = 0  # telemetry messages the subscriber missed (sequence gaps)
@@ -212,22 +212,27 @@ class LiveView:
         if program != self.program or (program is not None and self.name is None and now >= self.source_retry):
             self.program = program
             self.name, self.lines = self._source(client, program)
+            if program is not None and self.name is None:  # (not answered in time: once more at once)
+                self.name, self.lines = self._source(client, program)
             self.source_retry = now + 1.0
             self.line = -1
         line = sample.get("line") or 0
         if line != self.line:
             self.line = line
-            title = f"program {program}: {self.name or ''}" if program is not None else "no program running"
-            self.marks.append((self.lines, line or None, title))
+            self.marks.append((program, line or None))
             while len(self.marks) > MARKS_WAITING:
                 self.marks.popleft()
             self._show_mark(now)
         return line
 
     def _show_mark(self, now: float) -> None:
-        """The next mark waiting, once the one shown has been for MARK_HOLD."""
+        """The next mark waiting, once the one shown has been for MARK_HOLD: in its program's
+        source as known now (a source that came late still marks the lines that waited)."""
         if now - self.marked_at >= MARK_HOLD:
-            self.source_box.content = source_html(*self.marks.popleft())
+            program, line = self.marks.popleft()
+            lines = self.lines if program == self.program else []
+            title = f"program {program}: {self.name or ''}" if program is not None else "no program running"
+            self.source_box.content = source_html(lines, line, title)
             self.marked_at = now
 
     def _frames(self, sample: dict) -> Frames | None:

@@ -62,7 +62,10 @@ class Field:
         return {"input": f"an input number 1..{spec.inputs}", "output": f"an output number 1..{spec.outputs}",
                 "seconds": f"a number of seconds 0..{MAX_SECONDS:g}", "bool": "true or false",
                 "times": f"a list of increasing times in seconds, 0..{MAX_SECONDS:g}",
-                "count": f"a whole number 0..{MAX_COUNT}"}[self.kind]
+                "count": f"a whole number 0..{MAX_COUNT}",
+                "analog": (f"an analog input number 1..{len(spec.analog_inputs)}" if spec.analog_inputs else
+                           "an analog input number (the specification declares none: [[analog_input]])"),
+                "number": "a finite number", "numbers": "a list of finite numbers"}[self.kind]
 
 
 #: The rule kinds: name -> (what it models, its fields).
@@ -82,6 +85,13 @@ RULES: dict[str, tuple[str, dict[str, Field]]] = {
         "initial": Field("bool", "the input's value before any edge", False),
         "misses": Field("count", "how many of the first rising edges of `set` do nothing (a grip that misses: "
                                  "for a program's error handler to retry)", 0),
+    }),
+    "analog": ("an analog input's reading, changed at given times since the program started (a sensor's "
+               "values: the height of each part)", {
+        "input": Field("analog", "the analog input (the specification's [[analog_input]] N)"),
+        "value": Field("number", "what it reads at the start (within the input's range)"),
+        "at": Field("times", "when its reading changes (s since the program started)", ()),
+        "values": Field("numbers", "what it reads from each of those times on (one per time, within its range)", ()),
     }),
     "timeline": ("an input toggled at given times since the program started (parts arriving)", {
         "input": Field("input", "the input toggled"),
@@ -121,6 +131,16 @@ def _check(value, field: Field, spec, where: str):
         if not isinstance(value, bool):
             raise bad()
         return value
+    if field.kind == "analog":
+        if isinstance(value, bool) or not isinstance(value, int) or not 1 <= value <= len(spec.analog_inputs):
+            raise bad()
+        return value
+    if field.kind in ("number", "numbers"):
+        items = value if field.kind == "numbers" else [value]
+        if not isinstance(items, list) or not all(not isinstance(v, bool) and isinstance(v, (int, float))
+                                                  and math.isfinite(v) for v in items):
+            raise bad()
+        return tuple(float(v) for v in items) if field.kind == "numbers" else float(value)
     if field.kind == "count":
         if isinstance(value, bool) or not isinstance(value, int) or not 0 <= value <= MAX_COUNT:
             raise bad()
@@ -140,6 +160,18 @@ def _check(value, field: Field, spec, where: str):
             raise bad(f" (at {t!r})")
         out.append(float(t))
     return tuple(out)
+
+
+def _check_analog(rule: Rule, spec, where: str) -> None:
+    """An analog rule's readings: one per time, each within the input's range."""
+    if len(rule["values"]) != len(rule["at"]):
+        raise ScenarioError(f"{where}: {len(rule['at'])} times in at and {len(rule['values'])} readings in values: "
+                            "one reading per time")
+    channel = spec.analog_inputs[rule["input"] - 1]
+    for value in (rule["value"], *rule["values"]):
+        problem = channel.problem(rule["input"], value)
+        if problem is not None:
+            raise ScenarioError(f"{where}: {problem}")
 
 
 def _unknown(name: str, known, where: str) -> ScenarioError:
@@ -184,10 +216,13 @@ def parse_scenario(data: dict, spec, name: str = "scenario", path: Path | None =
                 else:
                     checked[field_name] = _check(table[field_name], field, spec, f"{where} {field_name}")
             rule = Rule(key, checked)
-            if rule["input"] in driven:
-                raise ScenarioError(f"{where}: input {rule['input']} is already driven by {driven[rule['input']]}: "
-                                    "one rule per input")
-            driven[rule["input"]] = f"[[{key}]] #{index}"
+            if key == "analog":
+                _check_analog(rule, spec, where)
+            driver = ("analog", rule["input"]) if key == "analog" else rule["input"]
+            if driver in driven:
+                raise ScenarioError(f"{where}: {'analog ' if key == 'analog' else ''}input {rule['input']} is "
+                                    f"already driven by {driven[driver]}: one rule per input")
+            driven[driver] = f"[[{key}]] #{index}"
             if key == "timeline" and rule["every"] and rule["every"] <= rule["at"][-1] - rule["at"][0]:
                 raise ScenarioError(f"{where} every: the period must be longer than the list's span "
                                     f"({rule['at'][-1] - rule['at'][0]:g} s), got {rule['every']:g}")
@@ -204,7 +239,8 @@ def parse_scenario(data: dict, spec, name: str = "scenario", path: Path | None =
 def markdown() -> str:
     """The rule kinds and their fields, for docs/runtime.md (``python -m runtime.cli.docgen``)."""
     kinds = {"input": "input number", "output": "output number", "seconds": "s", "bool": "true/false",
-             "times": "list of s", "count": "whole number"}
+             "times": "list of s", "count": "whole number", "analog": "analog input number", "number": "number",
+             "numbers": "list of numbers"}
     lines = ["| rule | field | type | default | meaning |", "|---|---|---|---|---|"]
     for name, (doc, fields) in RULES.items():
         first = True
@@ -234,6 +270,7 @@ class Cell:
         self._order = 0
         self._timeline: list[list] = []  # per timeline rule: [rule, next index, cycle]
         self._missed: dict[int, int] = {}  # per latch with misses (by id): the set edges it has missed
+        self._analog: list[list] = []  # per analog rule: [rule, its next reading's index]
 
     def reset(self, now: float) -> None:
         """Not real-time: a cycle begins (power-up): the initial inputs, no pending change;
@@ -248,6 +285,10 @@ class Cell:
         self._last = outputs
         self._events = []
         self._missed = {}
+        self._analog = [[rule, 0] for rule in self.scenario.rules if rule.kind == "analog"]
+        for rule in self.scenario.rules:
+            if rule.kind == "analog":
+                self.backend.set_analog_input(rule["input"], rule["value"])
         self._timeline = [[rule, 0, 0] for rule in self.scenario.rules if rule.kind == "timeline"]
 
     def start_program(self, now: float) -> None:
@@ -296,6 +337,13 @@ class Cell:
                     if not rule["every"]:
                         cycle = -1  # (once: never again)
                 entry[1], entry[2] = index, cycle
+        for entry in self._analog:
+            rule, index = entry
+            at = rule["at"]
+            while index < len(at) and now + 1e-9 >= self._t0 + at[index]:
+                self.backend.set_analog_input(rule["input"], rule["values"][index])
+                index += 1
+            entry[1] = index
         events = self._events
         while events and events[0][0] <= now + 1e-9:
             _at, _order, n, value = events.pop(0)

@@ -127,6 +127,11 @@ class IoComponent(Component):
     def output(self, n: int) -> bool:
         return self.outputs.value[n - 1]
 
+    def analog_input(self, n: int) -> float:
+        """Analog input ``n`` (1..): what the backend reads now (the simulated cell's value, a
+        PLC's register as its exchange last saw it)."""
+        return self.backend.analog_input(n)
+
     def set_output(self, n: int, value: bool) -> None:
         """Digital output ``n`` (1..) to ``value``: the backend and the ``outputs`` port now."""
         backend = self.backend

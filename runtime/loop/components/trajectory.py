@@ -80,10 +80,11 @@ def _build_kinematics(spec) -> tuple[Kinematics | None, str | None]:
         return None, f"this robot's kinematics are not usable for poses: {exc}"
 
 
-def _io_number(n: int, count: int, what: str) -> int:
-    """``n`` when digital ``what`` (input, output) ``n`` exists (1..``count``); else EvalError."""
+def _io_number(n: int, count: int, what: str, kind: str = "digital") -> int:
+    """``n`` when ``kind`` ``what`` (digital input, output; analog input) ``n`` exists
+    (1..``count``); else EvalError."""
     if not 1 <= n <= count:
-        raise EvalError(f"digital {what} {n} does not exist (1..{count})")
+        raise EvalError(f"{kind} {what} {n} does not exist ({f'1..{count}' if count else 'there are none'})")
     return n
 
 
@@ -596,6 +597,17 @@ class TrajectoryGenerator(Component):
 
     def read_input(self, n: int) -> bool:
         return self.io.input(_io_number(n, self.spec.inputs, "input"))
+
+    def read_analog(self, n: int) -> float:
+        channels = self.spec.analog_inputs
+        try:
+            value = self.io.analog_input(_io_number(n, len(channels), "input", "analog"))
+        except IndexError as exc:  # (a backend without them: a PLC's, for now)
+            raise EvalError(str(exc)) from None
+        problem = channels[n - 1].problem(n, value)
+        if problem is not None:  # (a reading the sensor's range does not hold: its fault, the program's error)
+            raise EvalError(problem)
+        return value
 
     def write_output(self, n: int, value: bool) -> None:
         self.io.set_output(_io_number(n, self.spec.outputs, "output"), value)

@@ -1,0 +1,129 @@
+"""Analog inputs (issue 33 item 4, the inputs): declared in the specification
+([[analog_input]]: name, unit, range), read by a program with analog_in(N), set in the
+simulated cell by a scenario's [[analog]] rule, assumed at their least value by irl check."""
+from __future__ import annotations
+
+import json
+
+import pytest
+
+from compiler.spec import SpecError, load_spec
+from runtime.hardware.sim.cell import ScenarioError, load_scenario
+
+from conftest import SPEC_PATH, run_cli
+from test_vm import FakeHost, compile_text, program_text, run
+
+SENSORS = """
+[[analog_input]]
+name = "part height"
+unit = "mm"
+min = 0
+max = 200
+
+[[analog_input]]
+name = "air pressure"
+unit = "bar"
+min = -1
+max = 10
+"""
+
+PROGRAM = """program heights;
+system_specification "sensed.spc";
+var h : real;
+    n : integer;
+seq
+  for n := 1 to 3 do
+    h := analog_in(1);
+    print "part ", n, ": ", num_to_str(h, 1), " mm, air ", analog_in(2), " bar";
+    wait 1 sec;
+  endfor;
+endseq
+endprogram;
+"""
+
+CELL = """[[analog]]
+input = 1
+value = 42.5
+at = [1.5]
+values = [57.25]
+
+[[analog]]
+input = 2
+value = 6
+"""
+
+
+@pytest.fixture
+def cell(tmp_path):
+    (tmp_path / "sensed.spc").write_text(SPEC_PATH.read_text(encoding="utf-8") + SENSORS, encoding="utf-8")
+    (tmp_path / "heights.irl").write_text(PROGRAM, encoding="utf-8")
+    (tmp_path / "heights.cell.toml").write_text(CELL, encoding="utf-8")
+    return tmp_path
+
+
+def test_the_specification_declares_them_in_order(cell):
+    spec = load_spec(cell / "sensed.spc")
+    assert [(c.name, c.unit, c.low, c.high) for c in spec.analog_inputs] == [("part height", "mm", 0.0, 200.0),
+                                                                           ("air pressure", "bar", -1.0, 10.0)]
+    assert load_spec(SPEC_PATH).analog_inputs == () and spec.hash != load_spec(SPEC_PATH).hash
+    assert spec.analog_inputs[0].problem(1, 250.0) == \
+        "analog input 1 (part height) reads 250 mm: its range is 0..200 mm"
+
+
+@pytest.mark.parametrize("table, why", [
+    ('min = 5\nmax = 5', "more than min"), ('max = 5', r"analog_input\[1\]\.min: missing"),
+    ('min = 0\nmax = 5\nscale = 2', "scale"), ('min = 0\nmax = "5"', r"analog_input\[1\]\.max"),
+])
+def test_a_wrong_declaration_names_its_key(tmp_path, table, why):
+    path = tmp_path / "bad.spc"
+    path.write_text(SPEC_PATH.read_text(encoding="utf-8") + f"\n[[analog_input]]\n{table}\n", encoding="utf-8")
+    with pytest.raises(SpecError, match=why):
+        load_spec(path)
+
+
+def test_a_program_reads_the_cells_values_as_they_change(cell):
+    code, out, err = run_cli("run", cell / "heights.irl", "--cell-scenario", cell / "heights.cell.toml", "--json")
+    assert code == 0, err
+    # (the height changes 1.5 s after the program starts: between the second and the third part)
+    assert [e["text"] for e in json.loads(out)["log"]] == ["part 1: 42.5 mm, air 6 bar", "part 2: 42.5 mm, air 6 bar",
+                                                          "part 3: 57.3 mm, air 6 bar"]
+    code, out, err = run_cli("check", cell / "heights.irl", "--cell-scenario", cell / "heights.cell.toml")
+    assert code == 0 and err == "", err
+    code, out, err = run_cli("check", cell / "heights.irl")  # (no scenario: each reads its least value)
+    assert code == 0 and "each analog input reads the least value of its range (lines 7, 8)" in out, out
+
+
+def test_the_checker_knows_which_exist(cell):
+    (cell / "wrong.irl").write_text(PROGRAM.replace("analog_in(2)", "analog_in(3)"), encoding="utf-8")
+    code, _, err = run_cli("check", cell / "wrong.irl")
+    assert code == 1 and "analog input 3 does not exist: lola_15 has analog inputs 1..2" in err, err
+
+
+def test_a_reading_is_the_io_error_a_handler_can_take(tmp_path):
+    class Sensing(FakeHost):
+        def read_analog(self, n):
+            from compiler.semantics import EvalError
+
+            raise EvalError("analog input 1 (part height) reads 250 mm: its range is 0..200 mm")
+
+    body = """  h := analog_in(k);
+  print "not here";
+when error do
+  print error_name(), ": ", error_message();"""
+    program = compile_text(tmp_path, program_text(body, "var h : real;\nvar k : integer := 1;"))
+    machine, host = run(program, Sensing())
+    assert [t for t in host.texts if "handled" not in t] == [
+        "io: analog input 1 (part height) reads 250 mm: its range is 0..200 mm"]
+
+
+@pytest.mark.parametrize("rule, why", [
+    ("input = 1\nvalue = 300", "reads 300 mm: its range is 0..200"),
+    ("input = 3\nvalue = 1", "an analog input number 1..2"),
+    ("input = 1\nvalue = 1\nat = [1, 2]\nvalues = [3]", "one reading per time"),
+    ("input = 1\nvalue = true", "a finite number"),
+])
+def test_a_wrong_analog_rule_is_refused_with_what_and_where(cell, rule, why):
+    path = cell / "bad.cell.toml"
+    path.write_text(f"[[analog]]\n{rule}\n", encoding="utf-8")
+    with pytest.raises(ScenarioError, match=why):
+        load_scenario(path, load_spec(cell / "sensed.spc"))

@@ -42,21 +42,20 @@ def test_pick_and_place_runs_to_completion_against_its_cell_with_the_io_in_the_r
 
 
 def test_without_a_scenario_nothing_answers_and_every_wait_times_out():
-    """Two of the ten parts (250 simulated seconds, most of them spent waiting: the whole
-    program takes 1037 s, a million ticks): every wait for an input the program reaches,
-    each of its four, times out."""
+    """The first of the ten parts (140 simulated seconds, most of them spent waiting: the
+    whole program takes 1037 s, a million ticks): every wait for an input the program
+    reaches, each of its four, times out."""
     import json
 
-    code, out, err = run("run", PICK, "--json", "--max-time", "250")
+    code, out, err = run("run", PICK, "--json", "--max-time", "140")
     summary = json.loads(out)
     log = [(entry["line"], entry["text"]) for entry in summary["log"]]
-    assert code == 1 and "did not end within 250 s" in summary["fault"], (summary["fault"], err)
+    assert code == 1 and "did not end within 140 s" in summary["fault"], (summary["fault"], err)
     waits = [(line, text) for line, text in log if "wait for" in text]
     assert all("timed out" in text for _line, text in waits), log
     lines = {n for n, text in enumerate(PICK.read_text(encoding="utf-8").splitlines(), 1) if "wait for in[" in text}
-    assert {line for line, _text in waits} == lines and len(lines) == 4 and len(waits) >= 10, (lines, log)
-    assert [text.split(" in ")[0] for _line, text in log if "loaded" in text] == ["part 1 of 10 loaded",
-                                                                               "part 2 of 10 loaded"], log
+    assert {line for line, _text in waits} == lines and len(lines) == 4 and len(waits) >= 5, (lines, log)
+    assert [text.split(" in ")[0] for _line, text in log if "loaded" in text] == ["part 1 of 10 loaded"], log
 
 
 @pytest.mark.parametrize("text, words", [

@@ -149,3 +149,11 @@ name = "glue_gun"             # glue nozzle: 150 mm out, 60 mm off the axis, til
 x = 60.0
 z = 150.0
 pitch = 20.0
+
+# ---- the cell's analog sensors (analog_in(N) in a program) -----------------------------------------
+
+[[analog_input]]
+name = "part height"          # a laser distance sensor over the feeder: the height of the part there
+unit = "mm"
+min = 0.0
+max = 100.0

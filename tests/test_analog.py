@@ -1,6 +1,6 @@
 """Analog inputs (issue 33 item 4, the inputs): declared in the specification
 ([[analog_input]]: name, unit, range), read by a program with analog_in(N), set in the
-simulated cell by a scenario's [[analog]] rule, assumed at their least value by irl check."""
+simulated cell by a scenario's [[analog]] rule, read at the middle of their range without one (irl run and irl check alike)."""
 from __future__ import annotations
 
 import json
@@ -89,8 +89,10 @@ def test_a_program_reads_the_cells_values_as_they_change(cell):
                                                           "part 3: 57.3 mm, air 6 bar"]
     code, out, err = run_cli("check", cell / "heights.irl", "--cell-scenario", cell / "heights.cell.toml")
     assert code == 0 and err == "", err
-    code, out, err = run_cli("check", cell / "heights.irl")  # (no scenario: each reads its least value)
-    assert code == 0 and "each analog input reads the least value of its range (lines 7, 8)" in out, out
+    code, out, err = run_cli("check", cell / "heights.irl")  # (no scenario: each reads the middle of its range)
+    assert code == 0 and "each analog input reads the middle of its range (lines 7, 8)" in out, out
+    code, out, err = run_cli("run", cell / "heights.irl", "--json")
+    assert [e["text"] for e in json.loads(out)["log"]][0] == "part 1: 100.0 mm, air 4.5 bar"
 
 
 def test_the_checker_knows_which_exist(cell):

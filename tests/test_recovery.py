@@ -523,19 +523,21 @@ def test_the_error_table_names_are_unique_and_the_words_are_not_reserved(tmp_pat
 
 def test_the_production_cell_retries_its_missed_grip_and_loads_every_part():
     """The shipped example in its cell (whose gripper misses its first grip): the handler
-    opens, retracts and grips again once, then the parts are loaded, each cycle timed and
-    counted (its first 45 simulated seconds: the later cycles are the same); irl check,
-    following the same cell through all ten parts, finds nothing."""
+    opens, retracts and grips again once, then the parts are loaded, each at the height its
+    sensor reads, each cycle timed and counted (its first 45 simulated seconds: the later
+    cycles are the same); irl check, following the same cell through all ten parts, finds
+    nothing."""
     from conftest import PROGRAMS
 
     program, cell = PROGRAMS / "production_cell.irl", PROGRAMS / "production_cell.cell.toml"
     code, out, err = run_cli("run", program, "--cell-scenario", cell, "--json", "--max-time", "45")
     texts = [e["text"] for e in json.loads(out)["log"]][1:]  # (after: kept for this run only)
     assert texts[:3] == ["wait for timed out after 2 s",
-                         "timeout error at line 46: wait for timed out after 2 s (handled at line 65)",
+                         "timeout error at line 49: wait for timed out after 2 s (handled at line 69)",
                          "grip 1 missed: open, retract and grip again"]
     loaded = [t for t in texts if " loaded in " in t]  # (the first three parts, in 45 s)
-    assert [t.split(" loaded")[0] for t in loaded] == [f"part {n} of 10" for n in range(1, 4)]
+    assert [t.split(" (")[0] for t in loaded] == [f"part {n} of 10" for n in range(1, 4)]
     assert loaded[1].endswith("(2 in all)") and len(texts) == 3 + 3
+    assert [t.split("(")[1].split(")")[0] for t in loaded] == ["50.0 mm", "52.5 mm", "48.0 mm"]  # (the cell's heights)
     code, out, err = run_cli("check", program, "--cell-scenario", cell)
     assert code == 0 and err == "", err

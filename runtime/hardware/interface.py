@@ -69,7 +69,8 @@ class DigitalIo(IoBackend):
         self._inputs: list[bool] | tuple[bool, ...] = [False] * n_inputs
         self._outputs = [False] * n_outputs
         self._owner = owner
-        self._analog = [channel.low for channel in analog]  # (compiler.spec.AnalogChannel: each reads its least)
+        # (compiler.spec.AnalogChannel: each reads the middle of its range, a typical reading, until set)
+        self._analog = [(channel.low + channel.high) / 2.0 for channel in analog]
 
     @property
     def inputs(self) -> tuple[bool, ...]:

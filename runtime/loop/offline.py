@@ -815,7 +815,7 @@ def _assumptions(program: Program, worlds: list) -> list[str]:
     if waited:
         said += f"; each wait for ends at once where inputs can make it hold ({_lines(program, waited)})"
     if analog:
-        said += f"; each analog input reads the least value of its range ({_lines(program, set(analog))})"
+        said += f"; each analog input reads the middle of its range ({_lines(program, set(analog))})"
     return [said]
 
 

@@ -118,9 +118,10 @@ STOP_TOLERANCE = 0.5
 #: What the safety supervisor enforces on a command's change from one tick to the next.
 ACCELERATION_LIMIT = SPEC.safety.acceleration_factor
 
-#: Examples (sequences of rules): about 2 s each on this 2-core machine. The first 10 (the
-#: default) call every rule, inject every kind of fault, and end cycles completed, aborted and
-#: faulted, with stops of category 0 and 1 (``pytest -s`` prints the figures).
+#: Examples (sequences of rules): about 2 s each on this 2-core machine. The first 8 (the
+#: default: examples(10) at the default scale) call every rule, inject every kind of fault,
+#: and end cycles completed, aborted and faulted, with stops of category 0 and 1 (``pytest
+#: -s`` prints the figures).
 EXAMPLES = int(os.environ.get("IRL_STATEFUL_EXAMPLES", examples(10)))
 #: Rules per example.
 STEPS = 20

@@ -49,7 +49,8 @@ ERRORS: tuple[ErrorKind, ...] = (
     ErrorKind("value", 4, "a value an operation cannot take: an array index out of range, a string that is no "
                           "number, a zero quaternion, a pose the arm cannot compute, too deep a recursion",
               "ERR_ILLDIM, ERR_STRTOOLONG, ERR_ARGVALERR"),
-    ErrorKind("io", 5, "a digital input, output or pulse of a number the robot does not have",
+    ErrorKind("io", 5, "a digital input, output or pulse, or an analog input, of a number the robot does not have; "
+                       "an analog reading outside its input's range (the sensor's fault)",
               "ERR_NORUNUNIT, ERR_SIG_NOT_VALID"),
     ErrorKind("user", 0, "raise N: the program's own error N (error_number() is N)", "RAISE with BookErrNo"),
 )

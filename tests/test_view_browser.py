@@ -30,16 +30,32 @@ endprogram;
 """
 
 
-#: A script that keeps, in the page, every line marked current (window.__lines), in order.
+#: A script that keeps, in the page, every line marked current (window.__lines), in order: from
+#: each mutation record's added nodes, so that marks a starved page applied in one task
+#: (several source boxes between two callbacks) are each seen; 0 for a box without a mark.
 WATCH_LINES = """() => {
   window.__lines = [];
-  const note = () => {
-    const el = document.getElementById("current-line");
-    const n = el ? parseInt(el.dataset.line) : 0;
-    if (window.__lines[window.__lines.length - 1] !== n) window.__lines.push(n);
+  const push = (n) => { if (window.__lines[window.__lines.length - 1] !== n) window.__lines.push(n); };
+  const lineOf = (node) => {
+    if (!(node instanceof Element)) return null;
+    const el = node.id === "current-line" ? node : node.querySelector("#current-line");
+    if (el) return parseInt(el.dataset.line);
+    const box = node.classList.contains("irl-source") ? node : node.querySelector(".irl-source");
+    return box ? 0 : null;
   };
-  new MutationObserver(note).observe(document.body, {subtree: true, childList: true, characterData: true});
-  note();
+  const now = () => {
+    const el = document.getElementById("current-line");
+    push(el ? parseInt(el.dataset.line) : 0);
+  };
+  new MutationObserver((records) => {
+    let seen = false;
+    for (const r of records) for (const node of r.addedNodes) {
+      const n = lineOf(node);
+      if (n !== null) { push(n); seen = true; }
+    }
+    if (!seen) now();
+  }).observe(document.body, {subtree: true, childList: true, characterData: true});
+  now();
 }"""
 
 

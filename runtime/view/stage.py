@@ -124,7 +124,7 @@ def source_html(lines: list[str], current: int | None, title: str = "", marks: d
     marks = marks or {}
     n = len(lines)
     if n == 0:
-        return f'<div style="{_PANEL}">(no source)</div>'
+        return f'<div class="irl-source" style="{_PANEL}">(no source)</div>'
     centre = current if current else 1
     first = max(1, min(centre - SOURCE_WINDOW // 2, n - SOURCE_WINDOW + 1))
     rows = []

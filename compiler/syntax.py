@@ -482,11 +482,7 @@ def _classify(err: UnexpectedInput, text: str, file: str, tokens: list[Token]):
         prev = candidate
     misspelled = _misspelled_word(tokens, tok)
     if misspelled is not None:  # ("endwhle;" is a word statement to the parser: the block stays open)
-        word, guess = misspelled
-        diag = _diag(file, _span(word), f"unexpected name '{word.value}'", f"did you mean '{guess}'?")
-        if len(guess) == len(word.value):
-            return diag, ("patch", word.start_pos, word.end_pos, guess)
-        return diag, (None if guess.upper() in _STRUCTURE else ("resync", word.start_pos))
+        return _misspelled_keyword(file, *misspelled)
     if tok.type == "$END":
         last = tokens[-1] if tokens else None
         line = last.end_line if last else 1
@@ -509,11 +505,7 @@ def _classify(err: UnexpectedInput, text: str, file: str, tokens: list[Token]):
     if prev is not None and prev.type == "NAME" and ("NAME" not in expected or _word_at_start(tokens, prev)):
         guess = did_you_mean(prev.value, _keywords(), cutoff=0.75)
         if guess and guess != prev.value.lower():
-            diag = _diag(file, _span(prev), f"unexpected name '{prev.value}'", f"did you mean '{guess}'?")
-            if len(guess) == len(prev.value):
-                return diag, ("patch", prev.start_pos, prev.end_pos, guess)
-            # A misspelled block keyword leaves the block open: going on would cascade.
-            return diag, (None if guess.upper() in _STRUCTURE else ("resync", prev.start_pos))
+            return _misspelled_keyword(file, prev, guess)
 
     hint = None
     if tok.type == "NAME" and tok.value.lower() not in _keywords():
@@ -540,6 +532,16 @@ def _classify(err: UnexpectedInput, text: str, file: str, tokens: list[Token]):
 
     return (_diag(file, _span(tok), f"unexpected '{tok.value}'; expected {_expected_text(expected)}", hint),
             ("resync", tok.start_pos))
+
+
+def _misspelled_keyword(file: str, word: Token, guess: str):
+    """The diagnostic of name ``word`` where keyword ``guess`` belongs, and how to go on: mended
+    in place when both are as long, else past its statement; a misspelled block keyword
+    leaves the block open, and going on would cascade."""
+    diag = _diag(file, _span(word), f"unexpected name '{word.value}'", f"did you mean '{guess}'?")
+    if len(guess) == len(word.value):
+        return diag, ("patch", word.start_pos, word.end_pos, guess)
+    return diag, (None if guess.upper() in _STRUCTURE else ("resync", word.start_pos))
 
 
 def _word_at_start(tokens: list[Token], name: Token) -> bool:

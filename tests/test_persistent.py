@@ -237,3 +237,14 @@ def test_the_store_holds_its_own_copies_of_arrays():
     assert loaded == [[1.0, 2.0], [3.0, 4.0]]
     loaded[1][1] = -1.0
     assert store.kept("p", "grid", "array[1..2] of array[1..2] of real") == [[1.0, 2.0], [3.0, 4.0]]
+
+
+def test_a_value_fits_a_variable_of_its_type_and_shape_only():
+    """One rule for a kept value (PERS_LOAD) and the operator's (persistent_set): an integer
+    where a real is becomes a real at every level; other lengths, axes or types do not fit."""
+    from runtime.loop.persistence import fitted
+
+    assert fitted([[1, 2.5]], [[0.0, 0.0]]) == [[1.0, 2.5]] and type(fitted([[1, 2]], [[0.0, 0.0]])[0][0]) is float
+    assert fitted([1.0], [0.0, 0.0]) is None and fitted(3, 0) == 3 and fitted(3.5, 0) is None
+    assert fitted(Joint((1.0, 2.0), ()), Joint((0.0,) * 6, ())) is None
+    assert fitted("a", 0.0) is None and fitted(True, 0) is None

@@ -25,9 +25,9 @@ import time
 from pathlib import Path
 
 from compiler.persistent import FILE, FORMAT, MAX_FILE_BYTES
-from compiler.values import from_plain, to_plain
+from compiler.values import Joint, from_plain, to_plain
 
-__all__ = ["PersistentStore", "plain_of", "shown_plain", "value_of"]
+__all__ = ["PersistentStore", "fitted", "plain_of", "shown_plain", "value_of"]
 
 
 def plain_of(value):
@@ -42,6 +42,23 @@ def value_of(plain):
     if isinstance(plain, list) and len(plain) == 2 and plain[0] == "array" and isinstance(plain[1], list):
         return [value_of(item) for item in plain[1]]
     return from_plain(plain)
+
+
+def fitted(value, like):
+    """``value`` as it goes into a variable that holds ``like`` (of the same type and shape:
+    an array of the same lengths, a joint of the same axes; an integer where a real is
+    becomes a real, at every level), or None when it does not fit there."""
+    if type(like) is list:
+        if type(value) is not list or len(value) != len(like):
+            return None
+        items = [fitted(v, w) for v, w in zip(value, like)]
+        return None if any(item is None for item in items) else items
+    if type(like) is float:
+        return float(value) if type(value) in (float, int) else None
+    if isinstance(like, Joint):
+        fits = isinstance(value, Joint) and len(value.main) == len(like.main) and len(value.add) == len(like.add)
+        return value if fits else None
+    return value if type(value) is type(like) else None
 
 
 def _copy(value):

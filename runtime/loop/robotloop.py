@@ -37,8 +37,7 @@ from compiler.objcode import ObjectCodeError, load
 
 from runtime.loop.components.report import tcp_of
 from runtime.loop.supervisor import MOVE
-from runtime.loop.persistence import plain_of, shown_plain, value_of
-from runtime.loop.vm import same_shape
+from runtime.loop.persistence import fitted, plain_of, shown_plain, value_of
 from runtime.loop.system import RobotSystem, RunOptions
 from runtime.timing import PACE_WAIT, TICK
 from runtime.wire import messages
@@ -259,10 +258,11 @@ class RobotLoop:
         except (ValueError, TypeError, RecursionError) as exc:
             raise ProtocolError("bad_request", f"persistent_set: the value is not a value of the language: {exc}") \
                 from None
-        if not same_shape(value, like):
+        value = fitted(value, like)
+        if value is None:
             raise ProtocolError("bad_request", f"persistent_set: {m.program}.{m.name} is {entry[0]} (like "
                                                f"{shown_plain(entry[1])}); got {shown_plain(m.value)}")
-        store.set(m.program, m.name, entry[0], float(value) if type(like) is float else value)
+        store.set(m.program, m.name, entry[0], value)
         store.flush()
         return {"program": m.program, "name": m.name, "type": entry[0], "value": shown_plain(plain_of(value))}
 

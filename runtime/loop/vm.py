@@ -73,8 +73,9 @@ from compiler.semantics import (INT_MAX, INT_MIN, MAX_STRING_LENGTH, EvalError, 
 from compiler.configs import TURNS_FLAG, from_operand
 from compiler.recovery import BY_NAME as ERROR_KINDS, USER_ERRORS, error_kind
 from compiler.robotstate import CLOCKS
-from compiler.values import Joint, Pose, format_number, format_value
+from compiler.values import Pose, format_number, format_value
 
+from runtime.loop.persistence import fitted
 from runtime.recording import HALT, HANDLED, INTERRUPT, PAUSE, PRINT, TIMEOUT
 
 #: Deepest nesting of procedure calls before the program is stopped with an error.
@@ -237,18 +238,6 @@ def array_elements(value) -> int:
             return 0
         value = value[0]
     return count
-
-
-def same_shape(value, like) -> bool:
-    """Whether ``value`` can stand where ``like`` is: the same type (an integer for a real
-    too), an array of the same lengths, a joint of the same axes."""
-    if type(like) is list:
-        return type(value) is list and len(value) == len(like) and all(map(same_shape, value, like))
-    if type(like) is float:
-        return type(value) in (float, int)
-    if isinstance(like, Joint):
-        return isinstance(value, Joint) and len(value.main) == len(like.main) and len(value.add) == len(like.add)
-    return type(value) is type(like)
 
 
 def copy_array(array: list) -> list:
@@ -1524,8 +1513,9 @@ class VM:
         value = self.host.kept(name, type_)
         globals_ = self.memory.globals
         if value is not None:
-            if same_shape(value, globals_[g]):
-                globals_[g] = float(value) if type(globals_[g]) is float else value
+            value = fitted(value, globals_[g])
+            if value is not None:
+                globals_[g] = value
             else:
                 self.host.log(f"the value kept of persistent variable {name} does not fit its declaration now "
                               f"({type_}): it starts from its initial value", self.program.line_at(pc)[0])

@@ -159,6 +159,35 @@ def test_the_panel_pieces():
     assert bands.count('class="phase"') == 4  # the top-level phases, each once
 
 
+def test_quick_marks_each_reach_a_page_that_gets_only_the_latest_update():
+    # a transport (viser's message buffer) sends a slow page only the latest content of a box:
+    # the box names the last marks shown, so a page learns every line passed, in order
+    import re
+    from types import SimpleNamespace
+
+    from runtime.view import live as live_view
+
+    class Box(SimpleNamespace):
+        content = ""
+
+    gui = SimpleNamespace(add_markdown=lambda *_: Box(), add_html=lambda *_: Box())
+    stage = SimpleNamespace(server=SimpleNamespace(gui=gui), spec=SimpleNamespace(inputs=2, outputs=2))
+    view = live_view.LiveView(stage, "tcp://x", "tcp://y")
+    view.program, view.name, view.lines = 7, "p.irl", [f"line {n}" for n in range(1, 11)]
+    now = 100.0
+    for line in (4, 5, 6):  # three moves, quicker than a page is updated
+        view.marks.append((7, line))
+        view._show_mark(now)
+        now += live_view.MARK_HOLD
+    last = view.source_box.content
+    trail = re.search(r'data-trail="([^"]*)"', last).group(1)
+    assert [int(item.split(":")[1]) for item in trail.split()] == [4, 5, 6]
+    assert 'id="current-line"' in last and 'data-line="6" id="current-line"' in last
+    view.marks.append((None, None))  # the program ended: a new trail
+    view._show_mark(now)
+    assert re.search(r'data-trail="([^"]*)"', view.source_box.content).group(1).endswith(":0")
+
+
 def _small_report(tmp_path_factory) -> str:
     """A real report's first rows, as text (made once)."""
     global _REPORT

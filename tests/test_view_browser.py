@@ -31,30 +31,33 @@ endprogram;
 
 
 #: A script that keeps, in the page, every line marked current (window.__lines), in order: from
-#: each mutation record's added nodes, so that marks a starved page applied in one task
+#: each source box's trail (its data-trail, the last marks the view showed, with their running
+#: count: a transport that coalesced quick updates still gives each one), and from each mutation
+#: record's added nodes, so that marks a starved page applied in one task
 #: (several source boxes between two callbacks) are each seen; 0 for a box without a mark.
 WATCH_LINES = """() => {
   window.__lines = [];
+  let count = 0;  // the running count of the last mark taken from a box's data-trail
   const push = (n) => { if (window.__lines[window.__lines.length - 1] !== n) window.__lines.push(n); };
-  const lineOf = (node) => {
-    if (!(node instanceof Element)) return null;
-    const el = node.id === "current-line" ? node : node.querySelector("#current-line");
-    if (el) return parseInt(el.dataset.line);
+  const take = (node) => {  // a source box: every mark of its trail not taken yet, in order
+    if (!(node instanceof Element)) return false;
     const box = node.classList.contains("irl-source") ? node : node.querySelector(".irl-source");
-    return box ? 0 : null;
+    if (!box) return false;
+    for (const item of (box.dataset.trail || "").split(" ").filter((t) => t)) {
+      const [k, n] = item.split(":").map((t) => parseInt(t));
+      if (k > count) { count = k; push(n); }
+    }
+    return true;
   };
   const now = () => {
-    const el = document.getElementById("current-line");
-    push(el ? parseInt(el.dataset.line) : 0);
+    const box = document.querySelector(".irl-source");
+    if (box) take(box);
   };
   new MutationObserver((records) => {
     let seen = false;
-    for (const r of records) for (const node of r.addedNodes) {
-      const n = lineOf(node);
-      if (n !== null) { push(n); seen = true; }
-    }
+    for (const r of records) for (const node of r.addedNodes) seen = take(node) || seen;
     if (!seen) now();
-  }).observe(document.body, {subtree: true, childList: true, characterData: true});
+  }).observe(document.body, {subtree: true, childList: true, characterData: true, attributes: true});
   now();
 }"""
 

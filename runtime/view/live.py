@@ -31,6 +31,8 @@ POSES, TEXTS = 30.0, 5.0
 #: Each line the program passes stays marked at least this long (s), however quickly the
 #: next one comes, so that every one reaches the page (its updates go out at their pace);
 #: at most MARKS_WAITING wait their turn (a program faster than that: the oldest skipped).
+#: The page's box also names the last MARKS_WAITING lines shown (source_html's trail): a
+#: transport that sends a page only the latest of several quick updates loses none.
 MARK_HOLD, MARKS_WAITING = 0.25, 8
 #: The most messages taken in one round (then the arm is posed and the page updated).
 BATCH = 2000
@@ -72,6 +74,8 @@ class LiveView:
         self.line = 0
         self.marks: collections.deque = collections.deque()  # (program, line) marks waiting their turn
         self.marked_at = -MARK_HOLD  # (monotonic s) when the source box last changed its mark
+        self.shown = 0  # marks shown so far (their running count)
+        self.trail: collections.deque = collections.deque(maxlen=MARKS_WAITING)  # (count, line, program): this program's marks shown
         self.samples = 0  # samples shown
         self.missed = 0  # telemetry messages the subscriber missed (sequence gaps)
         self.pending: dict | None = None  # the latest sample, not shown yet
@@ -232,7 +236,11 @@ class LiveView:
             program, line = self.marks.popleft()
             lines = self.lines if program == self.program else []
             title = f"program {program}: {self.name or ''}" if program is not None else "no program running"
-            self.source_box.content = source_html(lines, line, title)
+            if self.trail and self.trail[-1][2] != program:
+                self.trail.clear()
+            self.shown += 1
+            self.trail.append((self.shown, line, program))
+            self.source_box.content = source_html(lines, line, title, trail=[t[:2] for t in self.trail])
             self.marked_at = now
 
     def _frames(self, sample: dict) -> Frames | None:

@@ -118,13 +118,20 @@ def _m(mm) -> tuple:
 _PANEL = "font-family: ui-monospace, monospace; font-size: 12px; line-height: 1.45;"
 
 
-def source_html(lines: list[str], current: int | None, title: str = "", marks: dict | None = None) -> str:
+def source_html(lines: list[str], current: int | None, title: str = "", marks: dict | None = None,
+                trail=()) -> str:
     """The source around line ``current`` (from 1), that line marked (``id="current-line"``,
-    ``data-line``); ``marks``: line -> a colour for other lines (refused moves)."""
+    ``data-line``); ``marks``: line -> a colour for other lines (refused moves); ``trail``:
+    the last marks shown, oldest first (the current one last), as (their running count,
+    line), the lines passed shaded pale and all of them in the box's ``data-trail`` ("count:line ..."): a page
+    that is sent only the latest of several quick updates (a transport coalesces them)
+    still learns every line passed, in order."""
     marks = marks or {}
+    passed = {line for _count, line in trail}
+    shown = f' data-trail="{" ".join(f"{count}:{line or 0}" for count, line in trail)}"' if trail else ""
     n = len(lines)
     if n == 0:
-        return f'<div class="irl-source" style="{_PANEL}">(no source)</div>'
+        return f'<div class="irl-source"{shown} style="{_PANEL}">(no source)</div>'
     centre = current if current else 1
     first = max(1, min(centre - SOURCE_WINDOW // 2, n - SOURCE_WINDOW + 1))
     rows = []
@@ -137,9 +144,11 @@ def source_html(lines: list[str], current: int | None, title: str = "", marks: d
             attrs += ' id="current-line"'
         elif number in marks:
             style += f" background: {marks[number]};"
+        elif number in passed:
+            style += " background: #fff5d6;"
         rows.append(f'<div {attrs} style="{style}"><span style="color:#999">{number:4d}</span>  {text}</div>')
     head = f'<div style="color:#555; margin-bottom: 2px;">{html.escape(title)}</div>' if title else ""
-    return f'<div class="irl-source" style="{_PANEL} overflow-x: auto;">{head}{"".join(rows)}</div>'
+    return f'<div class="irl-source"{shown} style="{_PANEL} overflow-x: auto;">{head}{"".join(rows)}</div>'
 
 
 def lamps_html(inputs, outputs) -> str:

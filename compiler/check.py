@@ -1057,7 +1057,12 @@ class Checker:
             if entry.type == "robot":
                 self.act_rob(clause, entry, kind)
                 continue
-            if self.expect(clause.value, NUMERIC, f"clause '{name}'") == ERROR or not applies:
+            if applies and entry.excludes:
+                problem = entry.excluded([c.name for c in node.clauses])
+                if problem is not None:
+                    self.error(clause.name_span, problem.message, problem.hint)
+            wanted = INTEGER if entry.stack_type == INTEGER else NUMERIC
+            if self.expect(clause.value, wanted, f"clause '{name}'") == ERROR or not applies:
                 continue
             v = self.value_of(clause.value)
             if v is _NO_VALUE:

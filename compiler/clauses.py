@@ -134,7 +134,10 @@ class Clause:
     cover ``motions``. ``field``: the :class:`MoveClauses` field it fills. ``default``:
     its key in the specification's ``[defaults]`` (None: the robot's own name),
     ``builtin``: the value when ``[defaults]`` leaves it out (at most the range's bound).
-    ``instead``: the clause that does its job for the other motions (a hint)."""
+    ``instead``: the clause that does its job for the other motions (a hint). An "input"
+    clause (``search``) names a digital input of the specification: an integer, none by
+    default (the move does not search); ``excludes``: the clauses a move that gives it must
+    leave out."""
 
     name: str
     motions: tuple[Motion, ...]
@@ -145,6 +148,12 @@ class Clause:
     builtin: float | None = None
     instead: str | None = None
     doc: str = ""
+    excludes: tuple[str, ...] = ()
+
+    @property
+    def stack_type(self) -> str:
+        """The type of its value in the object code (compiler.objcode's stack types)."""
+        return _STACK_TYPES[self.type]
 
     @property
     def bit(self) -> int:
@@ -173,6 +182,15 @@ class Clause:
         the value is the specification's default, not the move's. Never raises."""
         if self.type == "robot":
             return self._check_robot(value, spec)
+        if self.type == "input":
+            if value is None and default:
+                return None, None  # (not given: the move does not search)
+            expected = f"a digital input 1..{spec.inputs} (the specification's inputs)"
+            if isinstance(value, bool) or not isinstance(value, int):
+                return None, Problem(f"{self.name} = {_show(value)} is not an input's number: expected {expected}")
+            if not 1 <= value <= spec.inputs:
+                return None, Problem(f"{self.name} = {_show(value)} is out of range: expected {expected}")
+            return value, None
         rng = self.range_for(kind)
         source = "the specification's default " if default else ""
         where = f" for a {kind} move" if len(self.ranges) > 1 else ""
@@ -206,9 +224,20 @@ class Clause:
                                  f"did you mean {_quoted(guess)}?" if guess else None)
         return value, None
 
+    def excluded(self, given) -> Problem | None:
+        """The problem of a move that gives this clause with one it ``excludes``
+        (``given``: the names the move gives)."""
+        both = [name for name in self.excludes if name in given]
+        if not both:
+            return None
+        return Problem(f"clause '{self.name}' cannot be given with '{both[0]}': {_EXCLUDED_WHY[self.name]}")
+
     # ---- defaults ----
     def default_value(self, spec) -> object:
-        """What a move that leaves the clause out takes: the specification's default."""
+        """What a move that leaves the clause out takes: the specification's default (an
+        "input" clause: None, nothing)."""
+        if self.type == "input":
+            return None
         return spec.name if self.default is None else getattr(spec.defaults, self.default)
 
     def builtin_default(self, limits) -> float:
@@ -238,6 +267,11 @@ class Clause:
             parts.append(text)
         return " or ".join(parts)
 
+
+#: The object code's type of each kind of clause's value.
+_STACK_TYPES = {"real": "real", "robot": "string", "input": "integer"}
+#: Why a clause excludes others (said when a move gives both).
+_EXCLUDED_WHY = {"search": "a search move ends at rest, where its input became true or at its target"}
 
 #: THE table, in the object code's bit order: bit 0 (mask 1) is speed_ptp. The values of
 #: the clauses a move gives are pushed in this order.
@@ -272,24 +306,32 @@ CLAUSES: tuple[Clause, ...] = (
                "target the tool leaves the path (0: stop at the target)"),
     Clause("act_rob", MOTIONS, "robot", "robot",
            doc="the robot that executes the move (a program drives exactly the robot of its specification)"),
+    Clause("search", (Motion.LIN,), "input", "search", excludes=("approx",),
+           doc="a search move (RAPID's SearchL): the robot stops on its path where digital input N becomes "
+               "true, and search_pose() is where it did; a move that reaches its target first, or an input "
+               "already true, is the program's search error"),
 )
 
 NAMES: tuple[str, ...] = tuple(c.name for c in CLAUSES)
 BY_NAME: dict[str, Clause] = {c.name: c for c in CLAUSES}
-_FIELDS = ("speed", "acc", "approx", "robot")
+_FIELDS = ("speed", "acc", "approx", "robot")  # every motion has a value of each
+_OPTIONAL = ("search",)  # a motion it applies to may have one (None: not given)
 
 for _clause in CLAUSES:
     assert _clause.motions and set(_clause.motions) <= set(MOTIONS), _clause.name
-    assert _clause.field in _FIELDS, _clause.name
+    assert _clause.field in _FIELDS + _OPTIONAL, _clause.name
+    assert all(name in NAMES for name in _clause.excludes), _clause.name
     if _clause.type == "real":
         _covered = [m for r in _clause.ranges for m in r.motions]
         assert sorted(_covered) == sorted(_clause.motions), f"{_clause.name}: one range per motion"
         assert _clause.default is not None and _clause.builtin is not None, _clause.name
+    elif _clause.type == "input":
+        assert _clause.field in _OPTIONAL and not _clause.ranges and _clause.default is None, _clause.name
     else:
         assert _clause.type == "robot" and not _clause.ranges and _clause.default is None, _clause.name
     assert _clause.instead is None or _clause.instead in NAMES, _clause.name
 for _kind in MOTIONS:  # every motion gets one value for each field
-    _filled = sorted(c.field for c in CLAUSES if _kind in c.motions)
+    _filled = sorted(c.field for c in CLAUSES if _kind in c.motions and c.field in _FIELDS)
     assert _filled == sorted(_FIELDS), (_kind, _filled)
 
 
@@ -300,13 +342,14 @@ class MoveClauses:
     ``speed`` and ``acc`` are ``speed_ptp`` and ``acc_ptp`` (fractions of each axis's
     limits) for a ptp move, ``speed`` (mm/s) and ``acc`` (mm/s^2) for lin and circ;
     ``approx`` is a fraction after ptp, mm after lin and circ; ``robot`` the robot's
-    name."""
+    name; ``search`` the digital input a search move watches (None: it does not search)."""
 
     kind: str
     speed: float
     acc: float
     approx: float
     robot: str
+    search: int | None = None
 
     def value(self, name: str) -> object:
         """The value of clause ``name`` (one that applies to this motion)."""
@@ -337,6 +380,10 @@ def validate_move_clauses(kind: object, clauses: object, spec) -> MoveClauses | 
             if given:
                 return str(clause.wrong_motion(kind))
             continue
+        if given and clause.excludes:
+            problem = clause.excluded(clauses)
+            if problem is not None:
+                return str(problem)
         value = clauses[clause.name] if given else clause.default_value(spec)
         checked, problem = clause.check(kind, value, spec, default=not given)
         if problem is not None:
@@ -356,6 +403,8 @@ def _code_list(items) -> str:
 
 
 def _allowed(clause: Clause) -> str:
+    if clause.type == "input":
+        return "a digital input 1..`io.inputs`, an integer"
     if clause.type == "robot":
         return "the robot's name in the specification (`[robot] name`), a constant string"
     if len(clause.ranges) == 1:
@@ -364,6 +413,8 @@ def _allowed(clause: Clause) -> str:
 
 
 def _default(clause: Clause) -> str:
+    if clause.type == "input":
+        return "none (the move does not search)"
     if clause.default is None:
         return "the specification's robot"
     return f"`[defaults] {clause.default}`"
@@ -373,7 +424,7 @@ def markdown() -> str:
     """The clause table of docs/language.md."""
     lines = ["| clause | applies to | value | allowed | default | meaning |", "|---|---|---|---|---|---|"]
     for c in CLAUSES:
-        value = "string" if c.type == "robot" else "integer or real"
+        value = {"robot": "string", "input": "integer"}.get(c.type, "integer or real")
         lines.append(f"| `{c.name}` | {_code_list(c.motions)} | {value} | {_cell(_allowed(c))} "
                      f"| {_cell(_default(c))} | {_cell(c.doc)} |")
     return "\n".join(lines) + "\n"

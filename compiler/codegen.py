@@ -307,15 +307,20 @@ class CodeGen:
         self.emit(OP.OUT_SET)
 
     def s_Move(self, node: ast.Move) -> None:
+        given = {c.name: c for c in node.clauses}
+        search = "search" in given  # a search move starts and ends at rest (compiler.clauses)
+        if search:
+            self.emit(OP.SEARCH_BEGIN)
         for target in node.targets:
             self.value(target)
-        given = {c.name: c for c in node.clauses}
         mask = 0
         for clause in CLAUSE_TABLE:  # in bit order
             if clause.name in given:
                 mask |= 1 << clause.bit
-                self.value(given[clause.name].value, REAL if clause.type == "real" else None)
+                self.value(given[clause.name].value, REAL if clause.stack_type == REAL else None)
         self.emit(MOVE_OPS[node.kind], mask)
+        if search:
+            self.emit(OP.SEARCH_END)
 
     def s_If(self, node: ast.If) -> None:
         to_end = []

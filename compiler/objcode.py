@@ -282,6 +282,13 @@ _DEFS = [
      "", "next", False),
     ("AIN_GET", (), 1, 1, "Read analog input n (real, in its unit: the specification's [[analog_input]] n).",
      "n -> real", "next", True),
+    ("SEARCH_BEGIN", (), 0, 0, "Before a search move (a MOVE_LIN with the search clause): wait until every move "
+                               "handed over has ended (a search starts at rest).", "", "next", True),
+    ("SEARCH_END", (), 0, 0, "After a search move: wait until it has ended; the program's search error when its "
+                             "input did not become true on the way (compiler.recovery).", "", "next", True),
+    ("SEARCH_POSE", (), 0, 1, "Push where the last search move's input became true: the tool centre point of its "
+                              "tool in its base, with the arm's configuration (compiler.robotstate).", "-> pose",
+     "next", False),
 ]
 
 #: The types of the values on the stack (what a popped value must be, what is pushed). A
@@ -344,6 +351,7 @@ _TYPES: dict[str, tuple[str, str]] = {
     "KEEP": ("", ""), "TAKE": ("", "@kept"), "RAISE": ("integer string", ""), "RERAISE": ("", ""),
     "RETRY": ("", ""), "TRYNEXT": ("", ""), "ERROR_NUMBER": ("", "integer"), "ERROR_NAME": ("", "string"),
     "ERROR_MESSAGE": ("", "string"), "PERS_LOAD": ("", ""), "PERS_STORE": ("", ""), "AIN_GET": ("integer", "real"),
+    "SEARCH_BEGIN": ("", ""), "SEARCH_END": ("", ""), "SEARCH_POSE": ("", "pose"),
 }
 _missing_types = [d[0] for d in _DEFS if d[0] not in _TYPES]
 if _missing_types:  # pragma: no cover - the table is complete
@@ -780,8 +788,7 @@ def _stack_types(definition: InstrDef, operands: tuple, program: Program, local_
             callee = program.procedures[operands[0]]
             patterns.extend(declared_type(typ) or "?" for _n, typ in callee.locals[:callee.params])
         elif t == "@clauses":
-            patterns.extend("real" if _CLAUSES_BY_NAME[c].type == "real" else "string"
-                            for c in clause_names(operands[0]))
+            patterns.extend(_CLAUSES_BY_NAME[c].stack_type for c in clause_names(operands[0]))
         elif t == "@g":
             patterns.append(declared_type(program.globals[operand("g")][1]) or "?")
         elif t == "@l":

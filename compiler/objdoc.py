@@ -424,7 +424,7 @@ def _section_tables() -> list[str]:
         "",
         *_table(["bit", "mask", "clause", "applies to", "value"],
                 [[c.bit, 1 << c.bit, f"`{c.name}`", ", ".join(f"`MOVE_{k.upper()}`" for k in c.motions),
-                  "string" if c.type == "robot" else "real"] for c in CLAUSE_TABLE]),
+                  c.stack_type] for c in CLAUSE_TABLE]),
         "",
         "## Fields",
         "",

@@ -52,6 +52,9 @@ ERRORS: tuple[ErrorKind, ...] = (
     ErrorKind("io", 5, "a digital input, output or pulse, or an analog input, of a number the robot does not have; "
                        "an analog reading outside its input's range (the sensor's fault)",
               "ERR_NORUNUNIT, ERR_SIG_NOT_VALID"),
+    ErrorKind("search", 6, "a search move (move lin ... search := N) whose input did not become true before the "
+                           "move reached its target, or was true already when it began", "ERR_WHLSEARCH, "
+                           "ERR_SIGSUPSEARCH"),
     ErrorKind("user", 0, "raise N: the program's own error N (error_number() is N)", "RAISE with BookErrNo"),
 )
 BY_NAME = {kind.name: kind for kind in ERRORS}

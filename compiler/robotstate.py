@@ -16,6 +16,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from .recovery import ERRORS
+
 __all__ = ["CLOCKS", "ERROR_ROUTINES", "FUNCTIONS", "PROCEDURES", "ROUTINES", "StateRoutine"]
 
 #: The clocks a program has, numbered 1..CLOCKS.
@@ -58,6 +60,10 @@ ROUTINES: dict[str, StateRoutine] = {r.name: r for r in (
     StateRoutine("analog_in", ("integer",), "real", "AIN_GET",
                  "what analog input N reads now (in its unit, within its range: the specification's "
                  "[[analog_input]] N), where the robot is", "analog input"),
+    StateRoutine("search_pose", (), "pose", "SEARCH_POSE",
+                 "where the last search move's input became true (move lin ... search := N): the tool centre point "
+                 "of the move's tool in its base, with the arm's configuration; the program's value error before "
+                 "any search has found its input"),
     StateRoutine("pulse_out", ("integer", "real"), "", "PULSE_OUT",
                  "digital output N on now (where the robot is), off again SECONDS later while the program goes on; "
                  "a pulse of an output already pulsing starts again", "output"),
@@ -69,8 +75,9 @@ ERROR_ROUTINES: dict[str, StateRoutine] = {r.name: r for r in (
                  "the number of the error the handler took (compiler.recovery.ERRORS; a program's own: its "
                  "number); 0 before any"),
     StateRoutine("error_name", (), "string", "ERROR_NAME",
-                 "the name of the error the handler took: \"move\", \"timeout\", \"arithmetic\", \"value\", "
-                 "\"io\" or \"user\"; \"\" before any"),
+                 "the name of the error the handler took: "
+                 + ", ".join(f'\"{kind.name}\"' for kind in ERRORS[:-1]) + f' or \"{ERRORS[-1].name}\"; '
+                 '\"\" before any'),
     StateRoutine("error_message", (), "string", "ERROR_MESSAGE",
                  "the message of the error the handler took, as the operator's log would say it"),
 )}

@@ -20,7 +20,7 @@ import shutil
 from pathlib import Path
 
 import pytest
-from hypothesis import given, settings
+from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
 from compiler import clauses as table
@@ -61,6 +61,8 @@ def allowed(name: str, kind: str, value) -> bool:
     """Does ``RULES`` accept ``value`` for clause ``name`` of a ``kind`` move?"""
     if name == "act_rob":
         return value == SPEC.name
+    if name == "search":  # an input's number (not given: no search)
+        return type(value) is int and 1 <= value <= SPEC.inputs
     if isinstance(value, bool) or not isinstance(value, (int, float)):
         return False
     try:
@@ -74,7 +76,7 @@ def allowed(name: str, kind: str, value) -> bool:
 # ---- the table ------------------------------------------------------------------------------
 
 def test_the_table_is_the_object_codes_clause_list_in_bit_order():
-    assert NAMES == ("speed_ptp", "acc_ptp", "speed", "acc", "approx", "act_rob")  # the format: never reorder
+    assert NAMES == ("speed_ptp", "acc_ptp", "speed", "acc", "approx", "act_rob", "search")  # the format: append only
     assert objcode.CLAUSES == NAMES and syntax.CLAUSES == NAMES and objcode.MOTION_KINDS == MOTIONS
     for clause in CLAUSES:
         assert clause_names(1 << clause.bit) == [clause.name]
@@ -100,7 +102,7 @@ def test_every_motion_has_its_instruction_target_types_and_handler():
 
 def test_every_motion_and_clause_has_the_documented_rule():
     applies = {(c.name, kind) for c in CLAUSES for kind in c.motions}
-    assert applies == set(RULES) | {("act_rob", kind) for kind in MOTIONS}
+    assert applies == set(RULES) | {("act_rob", kind) for kind in MOTIONS} | {("search", "lin")}
     for (name, kind), (low, low_open, high) in RULES.items():
         rng = BY_NAME[name].range_for(kind)
         assert rng.bounds(SPEC) == (low, high) and rng.low_open == low_open, (name, kind)
@@ -183,6 +185,10 @@ def first_problem(kind, clauses) -> tuple[str, object] | None:
         if clause.name in clauses and kind not in clause.motions:
             return clause.name, clauses[clause.name]
         if kind in clause.motions:
+            if clause.name == "search" and "search" not in clauses:
+                continue  # (the default: no search)
+            if clause.name == "search" and "approx" in clauses:
+                return "search", "approx"  # (a search move ends at rest: no approx)
             value = clauses.get(clause.name, clause.default_value(SPEC))
             if not allowed(clause.name, kind, value):
                 return clause.name, value
@@ -190,6 +196,9 @@ def first_problem(kind, clauses) -> tuple[str, object] | None:
 
 
 @settings(max_examples=500, deadline=None, derandomize=True, database=None)
+@example(kind="lin", clauses={"search": None})
+@example(kind="lin", clauses={"search": 3, "approx": 1.0})
+@example(kind="lin", clauses={"search": 3})
 @given(kind=st.one_of(st.sampled_from(MOTIONS), st.sampled_from(["PTP", "", "spline"]), st.integers()),
        clauses=CLAUSE_TABLES)
 def test_any_clauses_give_values_in_range_or_a_problem_naming_clause_value_and_range(kind, clauses):
@@ -206,11 +215,11 @@ def test_any_clauses_give_values_in_range_or_a_problem_naming_clause_value_and_r
     if expected is None:
         assert isinstance(result, MoveClauses), result
         for clause in CLAUSES:
-            if kind in clause.motions:
+            if kind in clause.motions and (clause.name in clauses or clause.type != "input"):
                 value = result.value(clause.name)
                 assert allowed(clause.name, kind, value), (clause.name, value)
                 given_value = clauses.get(clause.name, clause.default_value(SPEC))
-                assert value == (given_value if clause.type == "robot" else float(given_value))
+                assert value == (given_value if clause.type in ("robot", "input") else float(given_value))
         return
     name, value = expected
     assert isinstance(result, str), (kind, clauses, result)
@@ -218,6 +227,9 @@ def test_any_clauses_give_values_in_range_or_a_problem_naming_clause_value_and_r
     clause = BY_NAME[name]
     if kind not in clause.motions:
         assert f"applies to {clause.motions_text()}, not {kind}" in result
+    elif name == "search":
+        assert ("cannot be given with 'approx'" in result if value == "approx" else
+                f"search = {table._show(value)} " in result and f"a digital input 1..{SPEC.inputs}" in result)
     elif clause.type == "robot":
         assert table._quoted(SPEC.name) in result
         assert (table._quoted(value) if isinstance(value, str) else table._show(value)) in result
@@ -306,7 +318,7 @@ def literal(value) -> str:
 
 
 @settings(max_examples=300, deadline=None, derandomize=True, database=None)
-@given(kind=st.sampled_from(MOTIONS), name=st.sampled_from([n for n in NAMES if n != "act_rob"]),
+@given(kind=st.sampled_from(MOTIONS), name=st.sampled_from([n for n in NAMES if n not in ("act_rob", "search")]),
        value=st.one_of(st.floats(allow_nan=False, allow_infinity=False), st.floats(min_value=-0.5, max_value=1.5),
                        st.floats(min_value=-10.0, max_value=1e4), st.integers(min_value=-10, max_value=10_000)))
 def test_a_constant_the_checker_accepts_passes_at_run_time_and_one_it_refuses_is_refused_alike(kind, name, value):

@@ -148,6 +148,45 @@ def test_pause_of_a_lin_move_stops_on_the_line_and_resume_plans_the_rest():
     assert [m.line for m in queue.moves] == [1]  # the rest is the same move
 
 
+@pytest.mark.parametrize("periods", [0, 20, 60, 200])
+def test_a_cut_stops_a_lin_move_on_its_line_drops_the_rest_and_the_next_move_starts_there(periods):
+    # a search move that found its input (runtime.loop.search): stop on the path, nothing after it
+    queue = make_queue()
+    run = Run(queue)
+    queue.add(lin(0.0, 200.0, -100.0, 1, speed=100.0))
+    queue.add(lin(0.0, 0.0, 0.0, 2))  # (handed over after it: dropped)
+    run.step(periods)
+    queue.cut()
+    run.until(lambda: queue.done())
+    assert queue.velocities == (0.0,) * 6 and queue.at_rest() and queue.ended is None and queue.failed is None
+    a, b = KIN.forward(START)[:3], KIN.forward(START)[:3]
+    b = (b[0], b[1] + 200.0, b[2] - 100.0)
+    stopped = KIN.forward(queue.positions[:6])[:3]
+    d = [q - p for p, q in zip(a, b)]
+    u = sum((s - p) * di for s, p, di in zip(stopped, a, d)) / sum(di * di for di in d)
+    assert -1e-9 <= u < 1.0 and math.dist(stopped, [p + u * di for p, di in zip(a, d)]) < 1e-6  # on the line
+    assert [m.line for m in queue.moves] == ([1] if periods else [])  # line 2 never ran
+    assert max(run.ratios()) <= 1.0 + 1e-6
+    queue.add(ptp(START, 3))  # the program goes on from there
+    run.until(queue.done)
+    assert queue.moves[-1].line == 3 and max(abs(p - q) for p, q in zip(queue.positions, START)) < 1e-9
+
+
+def test_a_cut_inside_a_blend_stops_on_the_blend_and_nothing_is_held():
+    queue = make_queue()
+    run = Run(queue)
+    queue.add(ptp((30.0, -20.0, 40.0, 10.0, 30.0, 5.0), 1, approx=1.0))
+    queue.add(ptp((0.0, 0.0, 0.0, 0.0, 45.0, 0.0), 2))
+    run.until(lambda: len(queue.moves) == 2)  # in the blend
+    queue.cut()
+    run.until(queue.done)
+    assert queue.at_rest() and queue.velocities == (0.0,) * 6 and not queue.paused and queue.rate == 1.0
+    assert max(run.ratios()) <= 1.0 + 1e-6
+    queue.add(ptp(START, 3))
+    run.until(queue.done)
+    assert queue.moves[-1].line == 3
+
+
 def test_abort_ends_at_rest_with_the_line():
     queue = make_queue()
     run = Run(queue)
@@ -265,6 +304,11 @@ class QueueMachine(RuleBasedStateMachine):
     def override(self, periods, percent):
         self.step(periods)
         self.queue.override = percent
+
+    @rule(periods=st.integers(0, 400))
+    def cut(self, periods):  # a search move found its input
+        self.step(periods)
+        self.queue.cut()
 
     @rule(periods=st.integers(0, 400))
     def abort(self, periods):

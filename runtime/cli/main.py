@@ -376,7 +376,7 @@ def _report_columns(text: str, spec) -> tuple[bool, list[str]]:
     except ParamError as exc:
         raise UsageError(f"--report-columns {text}: {exc.reason}") from None
     if "tcp" in names:
-        from runtime.loop.components.report import tcp_of
+        from runtime.motion.tcp import tcp_of
 
         if tcp_of(spec) is None:
             raise UsageError(f"--report-columns {text}: this robot's kinematics give no tool centre point (tcp)")

@@ -34,7 +34,9 @@ for`` with a time-out could also time out (or other values of its inputs end it)
 other way is explored (:func:`check_motion` runs the program again with the other
 option), once per place in the program and the inputs chosen just before at the same
 instant; a run that polls for ever without moving, or waits for what nothing changes,
-stops there; ``pause`` resumes at once (as ``irl run`` does off a terminal).
+stops there; a search move (``search := N``) finds its input where the move ends, and the
+other way (it finds nothing: the program's search error) is explored too; ``pause``
+resumes at once (as ``irl run`` does off a terminal).
 
 Fast, and the same timeline: the motion queue computes a setpoint only where something
 needs one (``MotionQueue.setpoints`` off), and the planner keeps the moves and blends it
@@ -241,6 +243,13 @@ class AssumedWorld:
         self.decided[n] = now
         if value != current:
             self._set({n: value}, now)
+
+    def search(self, n: int, offset: int, now: float) -> bool:
+        """A search move watching input ``n`` is handed over at ``offset``: a choice of
+        whether the input becomes true where the move ends (True) or never (the search
+        finds nothing)."""
+        return self._choose(offset, (f"the search finds in[{n}] where its move ends",
+                                     f"in[{n}] does not become true: the search finds nothing"), now) == 0
 
     def begin_wait(self, timeout: bool, offset: int) -> None:
         self.waits.append(_Wait(timeout, self.runs.get(offset, 1)))
@@ -519,6 +528,15 @@ class OfflineHost(TrajectoryGenerator):
             return handler(operand, pc)
         return run
 
+    def tool_position(self) -> tuple:
+        self.motion.setpoint_now()  # (a simulated cell's touch sensor: where the tool is now)
+        return super().tool_position()
+
+    def _search(self, request: MoveRequest, n: int) -> str | None:
+        if self.world is not None:  # the assumed cell: found where the move ends, or nothing (both explored)
+            self.search.found_at_end = self.world.search(n, self.at, self.now())
+        return super()._search(request, n)
+
     def read_input(self, n: int) -> bool:
         world = self.world
         if world is not None and self.reading and 1 <= n <= self.spec.inputs:
@@ -664,17 +682,17 @@ class _Run:
         self.clock = SimClock(TICK)
         settings = Settings(spec)
         self.backend = _OfflineIo(spec.inputs, spec.outputs, "the cell", spec.analog_inputs)
-        cell = None
-        if scenario is not None:
-            from runtime.hardware.sim.cell import Cell
-
-            cell = Cell(scenario, self.backend)
-        self.cell = cell
-        self.io = IoComponent(self.backend, cell)
+        self.io = IoComponent(self.backend, None)
         self.io.configure()
         runs: dict[int, int] = {}
         self.world = AssumedWorld(self.backend, self.io, decisions or (), runs) if scenario is None else None
         self.host = OfflineHost(spec, settings, self.clock, self.io, self.world, runs, hints if hints is not None else {})
+        self.cell = self.io.cell = None
+        if scenario is not None:  # (its contact sensors read where the host's tool is)
+            from runtime.hardware.sim.cell import Cell
+
+            self.cell = self.io.cell = Cell(scenario, self.backend,
+                                            self.host.tool_position if self.host.tcp is not None else None)
         self.host.motion.setpoints = setpoints
         self.host.planner.cache = cache
         self.host.start_position = tuple(float(axis.home) for axis in spec.axes) if start is None else start
@@ -809,13 +827,16 @@ def _assumptions(program: Program, worlds: list) -> list[str]:
     waited = set().union(*(w.waited for w in worlds))
     read = {c.offset for w in worlds for c in w.choices if c.options[0].startswith("in[")}
     analog = [offset for offset, instr in enumerate(program.code) if instr[0] == OP.AIN_GET]
-    if not waited and not read and not analog:
+    searched = {c.offset for w in worlds for c in w.choices if c.options[0].startswith("the search finds")}
+    if not waited and not read and not analog and not searched:
         return []
     said = "no cell scenario: the inputs are false until the program waits for them"
     if waited:
         said += f"; each wait for ends at once where inputs can make it hold ({_lines(program, waited)})"
     if analog:
         said += f"; each analog input reads the middle of its range ({_lines(program, set(analog))})"
+    if searched:
+        said += f"; each search move finds its input where the move ends ({_lines(program, searched)})"
     return [said]
 
 

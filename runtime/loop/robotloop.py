@@ -35,7 +35,7 @@ from typing import Callable
 
 from compiler.objcode import ObjectCodeError, load
 
-from runtime.loop.components.report import tcp_of
+from runtime.motion.tcp import tcp_of
 from runtime.loop.supervisor import MOVE
 from runtime.loop.persistence import fitted, plain_of, shown_plain, value_of
 from runtime.loop.system import RobotSystem, RunOptions

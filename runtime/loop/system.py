@@ -19,7 +19,8 @@ from runtime.loop.component import DataPort
 from runtime.loop.components.initialization import Initialization
 from runtime.loop.components.io import IoComponent, backend_of
 from runtime.loop.components.recorder import Recorder
-from runtime.loop.components.report import Report, tcp_of
+from runtime.loop.components.report import Report
+from runtime.motion.tcp import tcp_of
 from runtime.loop.components.robot_interface import RobotInterface
 from runtime.loop.components.safety import SafetySupervisor
 from runtime.loop.components.servo import ServoController
@@ -101,7 +102,8 @@ class RobotSystem:
                                  "hardware (its inputs come from the cell itself)")
             from runtime.hardware.sim.cell import Cell
 
-            self.cell = Cell(options.cell, self.backend)
+            self.cell = Cell(options.cell, self.backend,
+                             self.trajectory.tool_position if self.trajectory.tcp is not None else None)
             self.cell.reset(0.0)  # the cell as it stands before any program (a server shows it idle)
         self.io = IoComponent(io_backend, self.cell, on_lost=self.emergency_stop)
         self.io.configure()  # the backend opened (a PLC's exchange starts), its I/O in the ports

@@ -65,7 +65,7 @@ from typing import Protocol
 
 from time import perf_counter
 
-from compiler.clauses import Motion
+from compiler.clauses import CLAUSES, Motion
 from compiler.objcode import BUILTIN_NAMES, FIELDS, INSTRUCTIONS, MAX_ARRAY_ELEMENTS, OP, Program, clause_names
 from compiler.semantics import (INT_MAX, INT_MIN, MAX_STRING_LENGTH, EvalError, binary, call_builtin,
                                 check_index, get_axis, get_field, make_joint, make_pos, make_pose, make_quat,
@@ -192,6 +192,14 @@ class MotionHost(Protocol):
     def keep(self, name: str, type_: str, value: object) -> None:
         """Keep ``value`` of persistent variable ``name`` for later runs (never waits)."""
 
+    def search_end(self) -> str | None:
+        """The search move handed over last has ended (the robot is at rest): None when its
+        input became true on the way, else why not (the program's search error)."""
+
+    def search_pose(self) -> object:
+        """Where the last search found its input (a compiler.values.Pose). Raises
+        EvalError before any did."""
+
     def tcp_speed(self) -> float:
         """The speed of the tool centre point now, mm/s."""
 
@@ -212,7 +220,7 @@ _NO_WAIT, _W_MOTION, _W_DWELL, _W_QUEUE = 0, 1, 2, 3
 # The return offset of an interrupt handler's frame: its RET goes back to the program.
 _FROM_INTERRUPT = -1
 
-_CLAUSE_NAMES = tuple(tuple(clause_names(mask)) for mask in range(1 << 6))
+_CLAUSE_NAMES = tuple(tuple(clause_names(mask)) for mask in range(1 << len(CLAUSES)))
 
 #: The instructions the inline dispatch loop (:meth:`VM._run_inline`) executes itself, the
 #: others going through their handlers. Each gives exactly what its handler gives:
@@ -280,8 +288,8 @@ class ProgramError(EvalError):
         self.line = line
 
 
-_MOVE, _TIMEOUT, _ARITHMETIC_ERROR, _VALUE, _IO = (ERROR_KINDS[name].number for name in
-                                                   ("move", "timeout", "arithmetic", "value", "io"))
+_MOVE, _TIMEOUT, _ARITHMETIC_ERROR, _VALUE, _IO, _SEARCH = (
+    ERROR_KINDS[name].number for name in ("move", "timeout", "arithmetic", "value", "io", "search"))
 #: The instructions whose errors are the program's arithmetic, and its I/O's.
 _ARITHMETIC_ONLY = _ARITHMETIC - {OP.CALL_BUILTIN}
 _IO_OPS = frozenset({OP.IN_GET, OP.OUT_SET, OP.OUT_GET, OP.PULSE_OUT, OP.AIN_GET})
@@ -1466,6 +1474,20 @@ class VM:
 
     def op_robot_pose(self, _, pc):
         self.memory.stack.append(self.host.current_pose())
+        return pc + 1
+
+    # ---- search moves (compiler.clauses' search; SEARCH_BEGIN and SEARCH_END are barriers) ----
+    def op_search_begin(self, _, pc):
+        return pc + 1  # (a barrier: it runs once the robot is at rest)
+
+    def op_search_end(self, _, pc):
+        problem = self.host.search_end()
+        if problem is not None:
+            raise ProgramError(problem, _SEARCH)
+        return pc + 1
+
+    def op_search_pose(self, _, pc):
+        self.memory.stack.append(self.host.search_pose())
         return pc + 1
 
     def op_tcp_speed(self, _, pc):

@@ -320,7 +320,8 @@ class Holds:
     """Why no new move may start, and the controlled stop under way: the operator's pause
     (``paused``), an interrupt's stop (``interrupt``, released at rest when its handler
     ended first: ``release_at_rest``), an abort (``abort_reason``; ``abort_fault``: it
-    ends the program with a fault, else quietly, an interrupt's halt); a stop on a move's
+    ends the program with a fault, else quietly, an interrupt's halt); a cut (``cut``: the
+    moves are dropped at rest, a search move that found its input); a stop on a move's
     path (``stop``, at its time ``t_stop``; ``interrupted``: the move, whose rest resumes)
     or on the timeline inside a blend (``on_timeline``: its rate to 0)."""
 
@@ -338,6 +339,7 @@ class Holds:
         self.paused = False
         self.interrupt = False
         self.release_at_rest = False
+        self.cut = False
 
     def holding(self) -> bool:
         """Paused, stopped for an interrupt, aborting, stopping, or a move to resume first."""
@@ -657,6 +659,12 @@ class MotionQueue:
         self.positions = positions
         return velocities
 
+    def setpoint_now(self) -> None:
+        """Make ``positions`` and ``velocities`` the setpoint of now where the last periods'
+        were not computed (``setpoints`` off: an offline run, for a sensor of the simulated
+        cell that reads where the tool is)."""
+        self._refresh()
+
     def _refresh(self) -> None:
         """Not every period's setpoint was computed (``setpoints`` off): compute the one of
         now, with the path's velocity and acceleration as sampling every period would
@@ -772,6 +780,48 @@ class MotionQueue:
             self._at_rest_after_stop()
         return within
 
+    def cut(self) -> float | None:
+        """Stop on the path now and drop the rest (a search move that found its input): the
+        motion stops as for :meth:`pause` (on a lin or circ move's own line or arc; inside
+        a blend on the blended path); the move under way ends where the robot comes to rest
+        (its record ends there), and every move after it, planned or not, is dropped with
+        its triggers not reached. Nothing is held afterwards and nothing ends with a fault:
+        the next move handed over starts from there. A pause or an interrupt's stop under
+        way goes on as it was, and the moves are dropped at its rest. Returns the time
+        within which the robot will be at rest (None: it is already, or a stop is under way)."""
+        hold = self.hold
+        if hold.abort_reason is not None:
+            return None  # (an abort drops every move at its rest)
+        hold.cut = True
+        within = self._stop_on_path()
+        self.lookahead.clear()
+        segs = self._segments
+        while segs and segs[-1].start is None:  # the moves not started: dropped now
+            segs.pop()
+        self._last = None
+        if hold.stop is None and not hold.on_timeline:  # at rest (nothing had started, or it was held)
+            self._drop_cut()
+        return within
+
+    def _drop_cut(self) -> None:
+        """A cut reached rest: the move it stopped has ended there, nothing else is left."""
+        hold = self.hold
+        hold.cut = False
+        move, hold.interrupted = hold.interrupted, None
+        if move is not None and move.record is not None:
+            move.record.t_end = self._now
+            self.completed += 1
+        for segment in self._segments:  # (stopped on the timeline, in a blend)
+            if segment.record is not None:
+                segment.record.t_end = self._now
+                self.completed += 1
+        self._segments.clear()
+        self.lookahead.clear()
+        self._last = None
+        self.triggers.armed = []  # (those reached are still due)
+        self.velocities = (0.0,) * self.n
+        self.accelerations = self.velocities
+
     def stop_in_joint_space(self, deceleration: tuple) -> float | None:
         """Replace the stop under way (a pause's, an abort's) by every axis ramped to rest
         together at ``deceleration`` (per axis) along the direction of motion
@@ -818,6 +868,10 @@ class MotionQueue:
         hold = self.hold
         if hold.abort_reason is not None:
             self._at_rest_after_stop()
+        elif hold.cut:
+            hold.on_timeline = False
+            self.speed.restore()
+            self._drop_cut()
         elif hold.release_at_rest:
             hold.release_at_rest = hold.interrupt = False
             self._release()
@@ -830,6 +884,9 @@ class MotionQueue:
             self.speed.restore()
             if hold.abort_fault and not self.ended:
                 self.ended = f"{hold.abort_reason} at line {self.program_line() if line is None else line}"
+            return
+        if hold.cut:
+            self._drop_cut()
             return
         if hold.release_at_rest:
             hold.release_at_rest = hold.interrupt = False

@@ -16,7 +16,7 @@ from math import radians
 
 from compiler.geometry import rpy_to_quat
 
-from runtime.loop.components.report import tcp_of
+from runtime.motion.tcp import tcp_of
 from runtime.motion.moves import Frames
 from runtime.motion.urdf import urdf_text
 from runtime.timing import SETPOINT_PERIOD  # the slider's step: a setpoint of a program's trace

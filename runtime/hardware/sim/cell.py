@@ -25,6 +25,12 @@ behaves; ``irl run --cell-scenario FILE`` runs a program against it:
     at = [2.0, 2.5]
     every = 10.0
 
+    [[contact]]         # a touch sensor on the tool: in[7] is true while the tool centre
+    input = 7           # point is at or below the stack's top, 120 mm up, which rises by
+    z = 120.0           # 20 mm each time out[2] rises (a part put on the stack)
+    step = 20.0
+    output = 2
+
 Each rule kind and its fields are declared once (:data:`RULES`); the loader, its error
 messages and docs/runtime.md read the table. The cell is a driver of the simulated
 robot's I/O, run by the io component's task (runtime/loop/components/io.py: every 1 ms tick,
@@ -63,6 +69,7 @@ class Field:
                 "seconds": f"a number of seconds 0..{MAX_SECONDS:g}", "bool": "true or false",
                 "times": f"a list of increasing times in seconds, 0..{MAX_SECONDS:g}",
                 "count": f"a whole number 0..{MAX_COUNT}",
+                "output or none": f"an output number 1..{spec.outputs}, or 0 (none)",
                 "analog": (f"an analog input number 1..{len(spec.analog_inputs)}" if spec.analog_inputs else
                            "an analog input number (the specification declares none: [[analog_input]])"),
                 "number": "a finite number", "numbers": "a list of finite numbers"}[self.kind]
@@ -93,6 +100,15 @@ RULES: dict[str, tuple[str, dict[str, Field]]] = {
         "at": Field("times", "when its reading changes (s since the program started)", ()),
         "values": Field("numbers", "what it reads from each of those times on (one per time, within its range)", ()),
     }),
+    "contact": ("an input true while the tool centre point is at or below a height (a touch sensor on the tool "
+                "finding a stack's top: a search move's input), the height changing at each rising edge of an "
+                "output (a part put on the stack, or taken off)", {
+        "input": Field("input", "the input set"),
+        "z": Field("number", "the height (mm, in the world frame) at and below which the input is true"),
+        "step": Field("number", "how much the height changes at each rising edge of `output` (mm; negative: it "
+                                "falls)", 0.0),
+        "output": Field("output or none", "the output whose rising edge changes the height (0: none)", 0),
+    }),
     "timeline": ("an input toggled at given times since the program started (parts arriving)", {
         "input": Field("input", "the input toggled"),
         "at": Field("times", "when it toggles (s since the program started: its first 5 ms step in Move "
@@ -122,9 +138,10 @@ def _check(value, field: Field, spec, where: str):
     def bad(what: str = "") -> ScenarioError:
         return ScenarioError(f"{where}: expected {field.allowed(spec)}, got {value!r}{what}")
 
-    if field.kind in ("input", "output"):
+    if field.kind in ("input", "output", "output or none"):
         count = spec.inputs if field.kind == "input" else spec.outputs
-        if isinstance(value, bool) or not isinstance(value, int) or not 1 <= value <= count:
+        low = 0 if field.kind == "output or none" else 1
+        if isinstance(value, bool) or not isinstance(value, int) or not low <= value <= count:
             raise bad()
         return value
     if field.kind == "bool":
@@ -228,7 +245,7 @@ def parse_scenario(data: dict, spec, name: str = "scenario", path: Path | None =
                                     f"({rule['at'][-1] - rule['at'][0]:g} s), got {rule['every']:g}")
             rules.append(rule)
     for rule in rules:
-        if rule.kind in ("follow", "latch") and rule["input"] in initial:
+        if rule.kind in ("follow", "latch", "contact") and rule["input"] in initial:
             raise ScenarioError(f"{name}: [inputs] {rule['input']}: the input is driven by a [[{rule.kind}]] rule "
                                 "(give a latch its 'initial'; a follower starts as its output)")
         if rule.kind == "latch":
@@ -238,7 +255,7 @@ def parse_scenario(data: dict, spec, name: str = "scenario", path: Path | None =
 
 def markdown() -> str:
     """The rule kinds and their fields, for docs/runtime.md (``python -m runtime.cli.docgen``)."""
-    kinds = {"input": "input number", "output": "output number", "seconds": "s", "bool": "true/false",
+    kinds = {"input": "input number", "output": "output number", "output or none": "output number or 0", "seconds": "s", "bool": "true/false",
              "times": "list of s", "count": "whole number", "analog": "analog input number", "number": "number",
              "numbers": "list of numbers"}
     lines = ["| rule | field | type | default | meaning |", "|---|---|---|---|---|"]
@@ -259,11 +276,19 @@ def load_scenario(path: str | Path, spec) -> Scenario:
 
 
 class Cell:
-    """The scenario at work on the simulated robot's I/O (``backend``: set_input, outputs)."""
+    """The scenario at work on the simulated robot's I/O (``backend``: set_input, outputs).
+    ``tcp``: where the tool centre point is in the world (x, y, z, mm; real-time), for the
+    ``contact`` rules (ScenarioError when they have none: an arm without kinematics)."""
 
-    def __init__(self, scenario: Scenario, backend):
+    def __init__(self, scenario: Scenario, backend, tcp=None):
         self.scenario = scenario
         self.backend = backend
+        self.tcp = tcp
+        self._contacts = [rule for rule in scenario.rules if rule.kind == "contact"]
+        if self._contacts and tcp is None:
+            raise ScenarioError(f"{scenario.path or 'scenario'}: a [[contact]] rule needs the tool centre point, "
+                                "and this robot's specification gives no usable kinematics")
+        self._heights: list[float] = []  # per contact rule: the height now
         self._t0 = math.inf  # when the program started (its first step): the timelines count from it
         self._last: tuple = ()
         self._events: list[tuple[float, int, int, bool]] = []  # (time, order, input, value), sorted
@@ -290,6 +315,7 @@ class Cell:
             if rule.kind == "analog":
                 self.backend.set_analog_input(rule["input"], rule["value"])
         self._timeline = [[rule, 0, 0] for rule in self.scenario.rules if rule.kind == "timeline"]
+        self._heights = [rule["z"] for rule in self._contacts]
 
     def start_program(self, now: float) -> None:
         """Real-time: the program starts (its first step in Move Robot, the trajectory
@@ -322,7 +348,17 @@ class Cell:
                                 self._missed[id(rule)] = self._missed.get(id(rule), 0) + 1
                                 continue
                             self._schedule(now + rule["delay"], rule["input"], value)
+            for i, rule in enumerate(self._contacts):  # (a part put on the stack: its top rises)
+                k = rule["output"] - 1
+                if k >= 0 and outputs[k] and not last[k]:
+                    self._heights[i] += rule["step"]
             self._last = outputs
+        if self._contacts:
+            z = self.tcp()[2]
+            for rule, height in zip(self._contacts, self._heights):
+                touching = z <= height
+                if self.backend.input(rule["input"]) != touching:
+                    self.backend.set_input(rule["input"], touching)
         for entry in self._timeline:
             rule, index, cycle = entry
             at = rule["at"]

@@ -60,7 +60,7 @@ class Recorder:
         self.sens_pos, self.robot, self.trajectory = sens_pos, robot, trajectory
         self.inputs, self.outputs = io  # the io component's ports
         self.state_of = state_of  # callable -> the FSM's current state path
-        self.tcp = tcp  # runtime.loop.components.report.TcpOf (its writer's own), or None (kinematics not usable)
+        self.tcp = tcp  # runtime.motion.tcp.TcpOf (its writer's own), or None (kinematics not usable)
         self.period = RECORD_PERIOD
         self.batches = Batches(history, events)
         self._zeros = (0.0,) * len(spec.axes)

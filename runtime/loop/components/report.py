@@ -22,13 +22,12 @@ from contextlib import ExitStack
 from operator import sub as _sub
 from pathlib import Path
 
-from compiler.frames import IDENTITY, pose_of, values_of
 from compiler.params import component_params
-from compiler.semantics import compose, inverse
 
 from runtime.loop.batches import Batches, BatchWriter, Events, file_to_write
 from runtime.loop.component import Component, DataPort
 from runtime.motion.moves import Frames
+from runtime.motion.tcp import tcp_of
 from runtime.recording import EVENTS_HEADER
 from runtime.settings import Settings
 from runtime.timing import REPORT_PERIOD
@@ -117,44 +116,6 @@ class ReportWriter(BatchWriter):
     def bad_rows_text(self) -> str:
         return (f"{self.bad_rows} rows of {self.path.name} were left out: they did not fit its "
                 f"{len(self.header)} columns (every other row is kept)")
-
-
-class TcpOf:
-    """The tool centre point of joint values with a move's tool, in the world frame or in
-    its base (:class:`~runtime.motion.moves.Frames`). Not real-time: the report's writer
-    and the server call it; the arm with each tool is built once (the latest 16 kept)."""
-
-    def __init__(self, kinematics):
-        self.kinematics = kinematics
-        self._tools: dict = {}
-
-    def _arm(self, tool: tuple):
-        k = self.kinematics
-        if tool == k.tool:
-            return k
-        arm = self._tools.get(tool)
-        if arm is None:
-            if len(self._tools) >= 16:
-                self._tools.pop(next(iter(self._tools)))
-            arm = self._tools[tool] = k.with_tool(tool)
-        return arm
-
-    def world(self, joints, frames) -> tuple:
-        """x, y, z, roll, pitch, yaw of the TCP in the world frame (the spec's tool: None)."""
-        return self._arm(self.kinematics.tool if frames is None else frames.tool).forward(joints)
-
-    def world_matrix(self, joints, frames) -> tuple:
-        """The same as a 4x4 homogeneous matrix (nested tuples, mm)."""
-        return self._arm(self.kinematics.tool if frames is None else frames.tool).forward_matrix(joints)
-
-    def in_base(self, joints, frames, world: tuple | None = None) -> tuple:
-        """The same in the move's base (``world``: :meth:`world` of the same joints and
-        frames, when the caller has it already)."""
-        if world is None:
-            world = self.world(joints, frames)
-        if frames is None or frames.base == IDENTITY:
-            return world
-        return values_of(compose(inverse(pose_of(frames.base)), pose_of(world)))
 
 
 class Report(Component):
@@ -288,15 +249,7 @@ class Report(Component):
         return self.batches.close("report")
 
 
-def tcp_of(spec) -> TcpOf | None:
-    """Not real-time: the TCP of the specification's arm, or None when its kinematics are
-    not usable (no DH data, not a six-axis arm with a spherical wrist)."""
-    from runtime.motion.kinematics import Kinematics
 
-    try:
-        return TcpOf(Kinematics(spec))
-    except ValueError:
-        return None
 
 
 STATES_HEADER = "time,from,to\n"

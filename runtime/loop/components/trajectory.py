@@ -43,6 +43,8 @@ from runtime.loop.stepping import Stepping
 from runtime.motion.kinematics import Kinematics
 from runtime.recording import LOG_FULL, PRINT
 from runtime.motion.motionqueue import MotionQueue, PlanningWorker
+from runtime.motion.tcp import TcpOf
+from runtime.loop.search import Search
 from runtime.motion.moves import Frames, MoveRecord, MovePlanner, MoveRequest
 from runtime.settings import Settings
 from runtime.timing import SETPOINT_PERIOD
@@ -105,7 +107,6 @@ class TrajectoryGenerator(Component):
         self.own = settings.trajectory  # budget
         self.spec, self.robot, self.desi_pos, self.sens_pos = spec, robot, desi_pos, sens_pos
         self.clock = clock
-        self.n = len(spec.axes)
         self.persistent = None  # the persistent variables' store (runtime.loop.persistence), or None
         self.lookahead = lookahead_depth(spec)
         self.program: Program | None = None
@@ -121,13 +122,14 @@ class TrajectoryGenerator(Component):
         # the robot's kinematics, built here (never in a tick), or why poses cannot be used
         kinematics, problem = _build_kinematics(spec)
         self.planner = MovePlanner(spec.axes, spec.main_axes, motion_profile(spec), kinematics, problem)
+        self.tcp = TcpOf(kinematics) if kinematics is not None else None  # the arm with each tool (cached)
+        self.search = Search()  # a search move's watch (runtime.loop.search)
         self.motion = MotionQueue(self.planner, spec.axes, holds=self._holds, program_line=self._program_line)
         # the motion queue plans at most at robot.velocity_limit_scale (told of every change)
         self._set_velocity_limit_scale(settings.robot.velocity_limit_scale)
         settings.watch("robot", "velocity_limit_scale", self._set_velocity_limit_scale)
-        self.default_frames = Frames.default(spec)
         #: the base and tool jogs use: the last program's last move's (runtime.loop.jogging)
-        self.jog_frames = self.default_frames
+        self.jog_frames = Frames.default(spec)
         self.jogging = False  # the cycle is a jog session (no program)
         self.jogger: Jogger | None = None
         self._jog_waiting: tuple | None = None  # (request, time) of a jog asked for before Move Robot
@@ -157,6 +159,16 @@ class TrajectoryGenerator(Component):
     def axes(self) -> tuple:
         return self.spec.axes
 
+    @property
+    def n(self) -> int:
+        """How many axes the robot has."""
+        return len(self.spec.axes)
+
+    @property
+    def default_frames(self) -> Frames:
+        """The world as base and the specification's tool: a program's frames at its start."""
+        return Frames.default(self.spec)
+
     def _forget(self) -> None:
         self.vm = None
         self.started_at = None
@@ -168,6 +180,7 @@ class TrajectoryGenerator(Component):
         self.jogger = None
         self.pulses: dict[int, float] = {}  # output -> when its pulse ends (pulse_out)
         self.motion.reset()
+        self.search.reset()
 
     def on_start(self) -> bool:
         """Run the loaded program from its beginning (or begin the jog session)."""
@@ -296,6 +309,8 @@ class TrajectoryGenerator(Component):
             self._end_pulses(now)
         motion.sample(now)
         self._take_motion_events()
+        if self.search.armed:
+            self._expect_rest(self.search.watch(self.io.inputs.value, motion))
         if self.jogger is not None:
             self.jogger.update(now)
         accelerations = motion.accelerations
@@ -334,8 +349,10 @@ class TrajectoryGenerator(Component):
             if self.jogger is not None:
                 self.jogger.failed(problem)
             else:
+                self.search.cancel(motion)
                 self.vm.fail(problem, line, tag)
         if motion.ended is not None:
+            self.search.cancel(motion)
             ended, motion.ended = motion.ended, None
             if self.vm is not None:
                 self.fault = self.fault or ended
@@ -471,7 +488,32 @@ class TrajectoryGenerator(Component):
         if self.stepping.forwarding:  # a start from a line: moves before it are only remembered
             self.stepping.remember(request, self.vm.globals)
             return None
+        if checked.search is not None:
+            return self._search(request, checked.search)
         return self.motion.add(request)
+
+    def _search(self, request: MoveRequest, n: int) -> str | None:
+        """A search move (runtime.loop.search): handed over with the robot at rest and its
+        input false, else it ends at once (found nothing)."""
+        motion = self.motion
+        if not motion.done():
+            return "a search move starts with the robot at rest (SEARCH_BEGIN before it)"
+        if not self.search.arm(n, request.line, self.frames, motion, self.io.input(n)):
+            return None
+        problem = motion.add(request)
+        if problem is not None:
+            self.search.cancel(motion)
+        return problem
+
+    def search_end(self) -> str | None:
+        return self.search.end()
+
+    def search_pose(self) -> Pose:
+        found = self.search.found
+        if found is None:
+            raise EvalError("no search move has found its input yet: search_pose() is where the last one did")
+        joints, frames = found
+        return self._pose_at(joints, frames)
 
     def _take_triggers(self) -> tuple:
         triggers, self.triggers = tuple(self.triggers), []
@@ -557,23 +599,33 @@ class TrajectoryGenerator(Component):
         q = tuple(float(v) for v in self.motion.positions)
         return Joint(q[:n], q[n:])
 
-    def _arm(self) -> Kinematics:
-        """The arm with the program's active tool (another tool's tables: about 50 us)."""
-        kinematics = self.planner.kinematics
-        if kinematics is None:
+    def _arm(self, frames: Frames | None = None) -> Kinematics:
+        """The arm with the program's active tool (or ``frames``' tool)."""
+        if self.tcp is None:
             raise EvalError(self.planner.kinematics_problem)
-        tool = self.frames.tool
-        return kinematics if tool == kinematics.tool else kinematics.with_tool(tool)
+        return self.tcp.arm((frames or self.frames).tool)
 
     def current_pose(self) -> Pose:
         """The TCP of the active tool in the active base, with the arm's configuration."""
-        arm = self._arm()
-        joints = tuple(float(v) for v in self.motion.positions[:6])
+        return self._pose_at(self.motion.positions, self.frames)
+
+    def _pose_at(self, positions: tuple, frames: Frames) -> Pose:
+        """The TCP of ``frames``' tool in their base at joint ``positions``, with the arm's
+        configuration."""
+        arm = self._arm(frames)
+        joints = tuple(float(v) for v in positions[:6])
         pose = arm.forward_pose(joints)
-        base = self.frames.base
+        base = frames.base
         if base != IDENTITY:
             pose = compose(inverse(pose_of(base)), pose)
         return Pose(pose.position, pose.orientation, config_of(arm.configuration(joints), joints))
+
+    def tool_position(self) -> tuple:
+        """Real-time: where the active tool's centre point is in the world (x, y, z, mm),
+        from the measured joints (the commanded ones where none are measured: an offline
+        run). A simulated cell's sensors read it (runtime.hardware.sim.cell)."""
+        joints = self.sens_pos.read() or self.motion.positions
+        return self._arm().forward(joints[:6])[:3]
 
     def tcp_speed(self) -> float:
         """The TCP's speed (mm/s) from the commanded joint velocities (0 without kinematics)."""

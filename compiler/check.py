@@ -28,6 +28,7 @@ from .clauses import BY_NAME as CLAUSE_BY_NAME
 from .clauses import CLAUSES as CLAUSE_TABLE
 from .clauses import NAMES as CLAUSES
 from .clauses import Clause, Motion
+from .zones import MARGIN as ZONE_MARGIN
 from .configs import CONTEXTUAL_NAME, GROUPS as CONFIG_GROUPS, TURN_AXES, WORDS as CONFIG_WORDS, Config
 from .configs import turn_problem as config_turn_problem
 from .objcode import BUILTINS, MAX_ARRAY_ELEMENTS, MAX_COUNT, MAX_STRING_LENGTH
@@ -1022,12 +1023,17 @@ class Checker:
         reach = self._reach.get(id(tool[1]))
         if reach is None:
             reach = self._reach[id(tool[1])] = self.spec.arm_reach(values_of(tool[1]))
+        frames = [f"{kind} '{name}'" for kind, (name, _v), default in
+                  (("base", base, "world"), ("tool", tool, "default_tool")) if name != default]
+        where = f" (in {' with '.join(frames)})" if frames else ""
         if reach > 0 and distance > reach:
-            frames = [f"{kind} '{name}'" for kind, (name, _v), default in
-                      (("base", base, "world"), ("tool", tool, "default_tool")) if name != default]
-            where = f" (in {' with '.join(frames)})" if frames else ""
             self.error(target.span, f"pose out of reach{where}: its position is {distance:.1f} mm from the "
                                     f"shoulder, but {self.spec.name}'s arm reaches at most {reach:.1f} mm")
+        for zone in self.spec.zones:  # (the tool centre point: the flange's path is checked when it runs)
+            if zone.depth(p.x, p.y, p.z) > -ZONE_MARGIN:
+                self.error(target.span, f"the target{where} is in zone '{zone.name}' ({zone.describe()}), or within "
+                                        f"{ZONE_MARGIN:g} mm of it: no move goes there",
+                           "the specification's [[zone]] tables are where the tool and the flange never go")
 
     def clauses(self, node: ast.Move) -> None:
         """The move's clauses against the clause table (compiler.clauses): known, given

@@ -20,7 +20,7 @@ import tomllib
 from dataclasses import dataclass
 from pathlib import Path
 
-from . import clauses, geometry, params
+from . import clauses, geometry, params, zones
 from .diagnostics import did_you_mean
 
 
@@ -157,6 +157,8 @@ class Spec:
     mounting: tuple = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
     #: The [[analog_input]] tables, analog input n at index n - 1.
     analog_inputs: tuple["AnalogChannel", ...] = ()
+    #: The [[zone]] tables (compiler.zones): where the flange and the tool centre point never go.
+    zones: tuple = ()
 
     @property
     def main_axes(self) -> tuple[Axis, ...]:
@@ -405,6 +407,7 @@ def parse_spec(text: str, file: str = "<spec>") -> Spec:
         top.get("io", "table", None)
 
     analog = _analog_inputs(file, data, top)
+    zones = _zones(file, data, top)
     kinematics = _parameters(file, "kinematics", top.get("kinematics", "table", {}))
     tool, mounting = kinematics["tool"], kinematics["mounting"]
     named = _named_frames(file, data, top)
@@ -416,7 +419,7 @@ def parse_spec(text: str, file: str = "<spec>") -> Spec:
     top.finish()
     typed = {section: params.settings(section, values) for section, values in tables.items()}
     return Spec(name, file, axes, defaults, max_speed, max_acc, inputs, outputs, tool, typed["controller"],
-                _canonical_hash(data), description, typed["simulation"], typed["safety"], named, mounting, analog)
+                _canonical_hash(data), description, typed["simulation"], typed["safety"], named, mounting, analog, zones)
 
 
 #: A named frame's or tool's table is a pose table (compiler.params) with a name.
@@ -489,6 +492,35 @@ def _analog_inputs(file: str, data: dict, top: "_Reader") -> tuple[AnalogChannel
         r.finish()
         channels.append(AnalogChannel(name, unit, float(low), float(high)))
     return tuple(channels)
+
+
+def _zones(file: str, data: dict, top: "_Reader") -> tuple:
+    """The ``[[zone]]`` tables (compiler.zones), in file order."""
+    top.used.add("zone")
+    tables = data.get("zone", [])
+    if not isinstance(tables, list):
+        raise SpecError(file, "zone", "expected an array of tables ([[zone]])")
+    if len(tables) > zones.MAX_ZONES:
+        raise SpecError(file, "zone", f"{len(tables)} zones: at most {zones.MAX_ZONES}")
+    found = []
+    for i, table in enumerate(tables):
+        r = _Reader(file, f"zone[{i + 1}]", table)
+        name = r.get("name", "string", check=lambda v: len(v) <= 40 and v not in [z.name for z in found],
+                     expect="its name, 1 to 40 characters, not another zone's")
+        shape = r.get("shape", "string", check=lambda v: v in zones.SHAPES,
+                      expect=" or ".join(f'"{s}"' for s in zones.SHAPES))
+        values: dict = {}
+        for key in zones.SHAPES[shape][1]:
+            r.used.add(key)
+            if key not in table:
+                raise SpecError(file, r.key(key), f"missing; expected {zones.SHAPES[shape][1][key]}")
+            said = zones.problem(shape, key, table[key], values)
+            if said is not None:
+                raise SpecError(file, r.key(key), said)
+            values[key] = [float(v) for v in table[key]] if isinstance(table[key], list) else float(table[key])
+        r.finish()
+        found.append(zones.zone_of(name, shape, values))
+    return tuple(found)
 
 
 def _parameters(file: str, section: str, table: dict) -> dict:

@@ -157,3 +157,19 @@ name = "part height"          # a laser distance sensor over the feeder: the hei
 unit = "mm"
 min = 0.0
 max = 100.0
+
+# The cell's world zones (docs/language.md, "World zones"): where the tool centre point and
+# the flange never go. Every move is planned to keep 5 mm away, irl check finds one that does
+# not, and the safety supervisor stops the robot if a 1 ms reference ever enters one.
+[[zone]]
+name = "fixture body"          # the machine's fixture under the part's seat (900, 300, 350)
+shape = "box"
+min = [830.0, 230.0, 0.0]
+max = [970.0, 370.0, 320.0]
+
+[[zone]]
+name = "guard post"            # the light curtain's post beside the machine
+shape = "cylinder"
+centre = [1000.0, 700.0]
+radius = 60.0
+z = [0.0, 2200.0]

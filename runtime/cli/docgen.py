@@ -24,7 +24,7 @@ _BLOCK = re.compile(r"(<!-- generated: (?P<name>[a-z_]+) -->\n)(?P<body>.*?)(<!-
 
 
 def tables() -> dict[str, str]:
-    from compiler import clauses, configs, frames, recovery, semantics, triggers
+    from compiler import clauses, configs, frames, recovery, semantics, triggers, zones
     from compiler.params import COMPONENTS, markdown
 
     from runtime import recording
@@ -39,7 +39,7 @@ def tables() -> dict[str, str]:
             "geometry": semantics.geometry_markdown(), "frames": frames.markdown(),
             "triggers": triggers.markdown(), "configurations": configs.markdown(),
             "recording": recording.topics_markdown(), "events": recording.events_markdown(),
-            "errors": recovery.markdown()}
+            "errors": recovery.markdown(), "zones": zones.markdown()}
 
 
 def render(text: str) -> str:

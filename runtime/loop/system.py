@@ -86,7 +86,7 @@ class RobotSystem:
         self.trajectory = TrajectoryGenerator(spec, self.robot, p["desi_pos"], p["sens_pos"], self.clock,
                                               settings.trajectory.period, settings)
         self.trajectory.safety = self.safety
-        self.safety.reduced.tool_of = lambda: self.trajectory.frames_now().tool  # T1: the move's tool centre point
+        self.safety.use_tool_of(lambda: self.trajectory.frames_now().tool)  # T1 and the zones: the move's tool
         self.mode = "aut"
         self.set_mode(options.mode)
         io_backend = backend_of(self.backend)  # the digital I/O: the robot's own, or a PLC's over a fieldbus

@@ -53,6 +53,7 @@ MODULES = (
     "planner",  # PtpInput, the trapezoidal PTP planner
     "jerk",  # jerk-limited profiles and the jerk-limited PTP planner
     "kinematics",  # forward and inverse kinematics
+    "zonecheck",  # a planned move against the world zones
     "tcp",  # the tool centre point of joint values with any tool and base (the arm per tool, cached)
     "teach",  # the literals that name where the arm is (irl pose, irl where, the pendant)
     "urdf",  # the arm as URDF, and its links' transforms

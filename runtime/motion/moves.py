@@ -39,6 +39,7 @@ from runtime.motion.pathcheck import JointLimits
 from runtime.motion.planner import PtpInput, plan_ptp, scaled_limits
 from runtime.motion.reduced import Reduced, cartesian_peak, path_speed
 from runtime.motion.trajectory import Refusal, Trajectory
+from runtime.motion.zonecheck import zone_problem
 
 __all__ = ["CACHE_SIZE", "Frames", "MovePlanner", "MoveRecord", "MoveRequest", "Segment"]
 
@@ -177,15 +178,31 @@ def place_triggers(segment: Segment) -> str | None:
     return None
 
 
+class _Blended:
+    """Two segments blended (the second ``offset`` s after the first starts), over their
+    overlap, as a trajectory (``position_at``, ``duration``) for the zone check."""
+
+    def __init__(self, first: Segment, second: Segment, offset: float):
+        self.first, self.second, self.offset = first.trajectory, second.trajectory, offset
+        self.corner = first.end
+        self.duration = max(first.duration - offset, 0.0)
+
+    def position_at(self, t: float) -> tuple:
+        a = self.first.position_at(self.offset + t)
+        b = self.second.position_at(t)
+        return tuple([x + y - c for x, y, c in zip(a, b, self.corner)])
+
+
 class MovePlanner:
     """Plans requests for one robot: its ``axes`` (the specification's, with ``min``,
     ``max``, ``unit``, ``name``, ``max_velocity``, ``max_acceleration``, ``max_jerk``), its
     ``main_axes`` (the arm's six, first; the rest are additional axes, held by lin/circ
     moves), the PTP ``profile`` (``"jerk"`` or ``"trapezoid"``), and the arm's
-    ``kinematics`` (None: poses cannot be used, and ``kinematics_problem`` says why)."""
+    ``kinematics`` (None: poses cannot be used, and ``kinematics_problem`` says why) and
+    the world ``zones`` every move and blend keeps away from (compiler.zones)."""
 
     def __init__(self, axes, main_axes, profile: str, kinematics: Kinematics | None,
-                 kinematics_problem: str | None = None):
+                 kinematics_problem: str | None = None, zones: tuple = ()):
         self.axes = tuple(axes)
         self.main_axes = tuple(main_axes)
         self.main = len(self.main_axes)
@@ -193,6 +210,7 @@ class MovePlanner:
         self.profile = profile
         self.kinematics = kinematics
         self.kinematics_problem = kinematics_problem
+        self.zones = tuple(zones) if kinematics is not None else ()
         self._tools: dict[tuple, Kinematics] = {}  # the arm with other tools (use tool), the latest 16
         jerk = profile == "jerk"
         # what a blend must keep: every axis's limits (no jerk limit for a trapezoid)
@@ -237,6 +255,10 @@ class MovePlanner:
                 return self.cache[key]
         offset = blend_offset(previous.kind, previous.trajectory, previous.request.approx, segment.kind,
                               segment.trajectory, previous.end, previous.limits.union(segment.limits), period, cap)
+        if offset is not None and self.zones and zone_problem(
+                self.kinematics, _Blended(previous, segment, offset), self._tool_point(segment.request.frames),
+                self.zones) is not None:
+            offset = None  # (a blend that would come near a zone: the robot stops at the corner)
         if key is not None:
             self._keep(key, offset)
         return offset
@@ -263,6 +285,10 @@ class MovePlanner:
             segment, problem = self._plan_ptp(request, start)
         else:
             segment, problem = self._plan_cartesian(request, start, period)
+        if segment is not None and self.zones:
+            problem = zone_problem(self.kinematics, segment.trajectory, self._tool_point(request.frames), self.zones)
+            if problem is not None:
+                segment = None
         if key is not None:
             self._keep(key, (None, None, None, problem) if segment is None else
                        (segment.trajectory, segment.end, segment.limits, None))

@@ -86,6 +86,8 @@ CATEGORIES: dict[str, tuple[int, str]] = {
                  "monitored"),
     "t1 speed": (1, "in operating mode T1: the flange or the tool centre point of a 1 ms reference faster than "
                     "[safety] t1_speed"),
+    "zone": (1, "the flange or the tool centre point of a 1 ms reference inside a world zone ([[zone]] of the "
+                "specification; every move is planned to keep 5 mm away: a backstop)"),
     "jog released": (2, "a jog's button released or its heartbeat lost: a stop on the path, drives powered"),
 }
 
@@ -321,6 +323,42 @@ class StandstillMonitor:
                 f"in_position_time, in_position_timeout)")
 
 
+class ZoneMonitor:
+    """The world zones (compiler.zones): the flange and the tool centre point (of the tool
+    ``tool_of()`` gives: the move's) of every 1 ms reference of the servo outside each,
+    once every main axis is referenced. The planners keep every move
+    :data:`compiler.zones.MARGIN` away, so this is the backstop of what no plan covers.
+    Real-time: :meth:`check` (one flange frame per tick, plain floats; nothing without
+    zones)."""
+
+    def __init__(self, spec, limits: "SafetyLimits"):
+        self.zones = tuple(spec.zones)
+        self.main = len(spec.main_axes)
+        self.limits = limits
+        self.kinematics: Kinematics | None = None
+        if self.zones:
+            try:
+                self.kinematics = Kinematics(spec)
+            except ValueError:
+                self.zones = ()
+        self.default_tool = tuple(float(v) for v in spec.tool[:3])
+        self.tool_of = None  # () -> the move's tool, set by the system
+
+    def check(self, reference) -> str | None:
+        """Real-time: why the reference is inside a zone, or None."""
+        if not self.zones or not all(self.limits.referenced[:self.main]):
+            return None
+        tool = self.tool_of()[:3] if self.tool_of is not None else self.default_tool
+        flange, tcp = self.kinematics.flange_and_tcp(reference[:self.main], tool)
+        for zone in self.zones:
+            for name, (x, y, z) in (("the tool centre point", tcp), ("the flange", flange)):
+                depth = zone.depth(x, y, z)
+                if depth > 0.0:
+                    return (f"{name} entered zone '{zone.name}' ({depth:.1f} mm inside it, at ({x:.1f}, {y:.1f}, "
+                            f"{z:.1f}))")
+        return None
+
+
 class ReducedSpeedMonitor:
     """Operating mode T1: the flange and the tool centre point (of the tool ``tool_of()``
     gives: the move's) of every 1 ms reference of the servo at most ``[safety] t1_speed``;
@@ -466,6 +504,7 @@ class SafetySupervisor(Component):
         self.encoders = EncoderPlausibility(spec, tick)
         self.standstill = StandstillMonitor(spec, clock)
         self.reduced = ReducedSpeedMonitor(spec, tick)
+        self.zones = ZoneMonitor(spec, self.limits)
         self.ramp = StopRamp(spec, robot, drive_cmd, tick)
         self._zeros = (0.0,) * len(spec.axes)
         self.fault: str | None = None
@@ -477,6 +516,11 @@ class SafetySupervisor(Component):
         it may move at full speed) or not (its reference jumps: the T1 check starts anew)."""
         self.limits.set_referenced(axis, referenced)
         self.reduced.forget()
+
+    def use_tool_of(self, tool_of) -> None:
+        """Not real-time: ``tool_of()`` gives the tool of the move under way (x, y, z, roll,
+        pitch, yaw in the flange), for the T1 speed check and the zones."""
+        self.reduced.tool_of = self.zones.tool_of = tool_of
 
     def set_t1(self, t1: bool) -> None:
         """Not real-time (between cycles): operating mode T1 (checked every tick) or AUT."""
@@ -582,6 +626,12 @@ class SafetySupervisor(Component):
             self._violation("t1 speed", f"in T1 the flange or the tool centre point moved at {reduced.speed:.1f} "
                                         f"mm/s, beyond [safety] t1_speed {reduced.limit:g} mm/s", now)
             return
+        zones = self.zones
+        if zones.zones:
+            inside = zones.check(self.servo.reference)
+            if inside is not None:
+                self._violation("zone", inside, now)
+                return
         limit = limits.servo_settings.following_error_limit
         if self.servo.worst_error > limit:
             self._violation("following error", f"following error {self.servo.worst_error:.3f} beyond the limit "

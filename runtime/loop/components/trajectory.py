@@ -121,7 +121,7 @@ class TrajectoryGenerator(Component):
         self.started_at: float | None = None  # the time of the program's first step (None: not yet)
         # the robot's kinematics, built here (never in a tick), or why poses cannot be used
         kinematics, problem = _build_kinematics(spec)
-        self.planner = MovePlanner(spec.axes, spec.main_axes, motion_profile(spec), kinematics, problem)
+        self.planner = MovePlanner(spec.axes, spec.main_axes, motion_profile(spec), kinematics, problem, spec.zones)
         self.tcp = TcpOf(kinematics) if kinematics is not None else None  # the arm with each tool (cached)
         self.search = Search()  # a search move's watch (runtime.loop.search)
         self.motion = MotionQueue(self.planner, spec.axes, holds=self._holds, program_line=self._program_line)

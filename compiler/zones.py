@@ -1,0 +1,132 @@
+"""World zones (docs/language.md, "World zones"; ABB's World Zones, KUKA's workspaces):
+boxes and vertical cylinders of the cell, in the world frame, declared in the system
+specification (``[[zone]]``), that the tool centre point and the flange never enter.
+
+One declaration each: :data:`SHAPES` (a shape's keys, what they mean and their checks) and
+:class:`Zone` (the geometry: whether a point is inside, how far it is from the zone). The
+specification's loader, the planners' check of every move before it starts
+(runtime.motion.zonecheck), the safety supervisor's check of every 1 ms reference
+(runtime.loop.components.safety) and the manual's table read them.
+
+* **Before a move starts** its whole path is checked (the flange's and the tool centre
+  point's, sampled at most :data:`STEP` mm apart) against each zone grown by
+  :data:`MARGIN` mm: a move whose path would come closer is refused, the program's
+  ``move`` error ("the path enters zone 'fixture' at 40 % of its duration: the tool centre
+  point would be 12.0 mm inside it"); ``irl check`` finds it before anything moves. A
+  blend that would come closer is not made (the robot stops at the corner). The margin
+  holds the 1 ms references (interpolated between the checked 5 ms setpoints) and the
+  stops on the path (a pause, an abort: on the checked path) outside the zone.
+* **Every 1 ms** the safety supervisor checks the servo's reference: the flange or the
+  tool centre point inside a zone (itself, not grown) stops the robot (category 1, "zone"):
+  a backstop for what no plan covers (a fault's stop ramp).
+
+Imports nothing from Lark, NumPy or ZeroMQ.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+__all__ = ["MARGIN", "MAX_ZONES", "SHAPES", "STEP", "Zone", "markdown"]
+
+#: mm: how far from a zone a planned path must stay (the flange and the tool centre point).
+MARGIN = 5.0
+#: mm: the most the flange or the tool centre point moves between two samples of the check.
+STEP = 2.0
+#: The most zones a specification may declare.
+MAX_ZONES = 64
+#: The largest coordinate a zone may have (mm).
+MAX_COORDINATE = 100_000.0
+
+#: The shapes: name -> (what it is, its keys: name -> what the key gives). Every key is
+#: required; ``name`` and ``shape`` are every zone's.
+SHAPES: dict[str, tuple[str, dict[str, str]]] = {
+    "box": ("a box whose sides are parallel to the world's axes", {
+        "min": "the corner with the least x, y and z: [x, y, z] (mm)",
+        "max": "the corner with the greatest x, y and z: [x, y, z] (mm), each more than min's",
+    }),
+    "cylinder": ("a cylinder standing upright (its axis along the world's z)", {
+        "centre": "where its axis is: [x, y] (mm)",
+        "radius": "its radius (mm, more than 0)",
+        "z": "its bottom and top: [low, high] (mm, high more than low)",
+    }),
+}
+
+
+@dataclass(frozen=True)
+class Zone:
+    """A zone: ``low`` and ``high`` its bounding box's corners (x, y, z, mm, world); a
+    cylinder's ``centre`` (x, y) and ``radius`` besides (a box's radius is 0)."""
+
+    name: str
+    shape: str
+    low: tuple[float, float, float]
+    high: tuple[float, float, float]
+    centre: tuple[float, float] = (0.0, 0.0)
+    radius: float = 0.0
+
+    def depth(self, x: float, y: float, z: float) -> float:
+        """How far the point is inside the zone (mm, > 0), or minus how far it is outside
+        (< 0; exactly for a box's faces and a cylinder's side, a lower bound of the distance
+        beyond an edge). Real-time safe (plain floats)."""
+        lx, ly, lz = self.low
+        hx, hy, hz = self.high
+        dz = min(z - lz, hz - z)
+        if self.shape == "box":
+            d = min(x - lx, hx - x, y - ly, hy - y, dz)
+        else:
+            d = min(self.radius - math.hypot(x - self.centre[0], y - self.centre[1]), dz)
+        return d
+
+    def describe(self) -> str:
+        if self.shape == "box":
+            return (f"box {_point(self.low)}..{_point(self.high)}")
+        return (f"cylinder at ({self.centre[0]:g}, {self.centre[1]:g}), radius {self.radius:g} mm, "
+                f"z {self.low[2]:g}..{self.high[2]:g} mm")
+
+
+def _point(p) -> str:
+    return "(" + ", ".join(f"{v:g}" for v in p) + ")"
+
+
+def zone_of(name: str, shape: str, values: dict) -> Zone:
+    """A zone from its checked keys (the specification's loader checks them: :data:`SHAPES`)."""
+    if shape == "box":
+        return Zone(name, shape, tuple(values["min"]), tuple(values["max"]))
+    cx, cy = values["centre"]
+    r = values["radius"]
+    low, high = values["z"]
+    return Zone(name, shape, (cx - r, cy - r, low), (cx + r, cy + r, high), (cx, cy), r)
+
+
+def problem(shape: str, key: str, value: object, values: dict) -> str | None:
+    """What is wrong with ``value`` for ``key`` of a ``shape`` (``values``: the keys checked
+    before it), or None."""
+    def numbers(n: int) -> bool:
+        return (isinstance(value, list) and len(value) == n and all(
+            not isinstance(v, bool) and isinstance(v, (int, float)) and math.isfinite(v)
+            and abs(v) <= MAX_COORDINATE for v in value))
+    expect = SHAPES[shape][1][key]
+    if key in ("min", "max"):
+        ok = numbers(3) and (key == "min" or "min" not in values or all(h > lo for h, lo in zip(value, values["min"])))
+    elif key == "centre":
+        ok = numbers(2)
+    elif key == "z":
+        ok = numbers(2) and value[1] > value[0]
+    else:  # radius
+        ok = (not isinstance(value, bool) and isinstance(value, (int, float)) and math.isfinite(value)
+              and 0 < value <= MAX_COORDINATE)
+    return None if ok else f"expected {expect} (|x| <= {MAX_COORDINATE:g} mm), got {value!r}"
+
+
+def markdown() -> str:
+    """The zone keys, for docs/language.md (``python -m runtime.cli.docgen``)."""
+    lines = ["| shape | key | what it gives |", "|---|---|---|",
+             "| every zone | `name` | its name, in messages (1 to 40 characters, each zone's own) |",
+             "| | `shape` | " + " or ".join(f"`\"{s}\"`" for s in SHAPES) + " |"]
+    for shape, (doc, keys) in SHAPES.items():
+        first = True
+        for key, text in keys.items():
+            lines.append(f"| {f'`{shape}`: {doc}' if first else ''} | `{key}` | {text} |")
+            first = False
+    return "\n".join(lines) + "\n"

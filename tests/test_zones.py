@@ -1,0 +1,206 @@
+"""World zones (issue 33 item 6; compiler.zones, docs/language.md "World zones"): boxes and
+cylinders of the specification that the flange and the tool centre point never enter.
+
+* the property: whatever moves a program asks for (ptp, lin, circ, blends), no 1 ms
+  reference of the servo has either point inside a zone (the planner refuses a path that
+  comes within MARGIN, and makes no blend that would);
+* the checks before anything moves: a constant target in a zone (irl check), a path
+  through one (irl check's motion check, irl run's move error, which a handler can take);
+* the safety supervisor's backstop: a reference inside a zone (here: a planner told of no
+  zone) stops the robot (category 1, "zone"), which ends at rest;
+* the specification's [[zone]] tables and their errors."""
+from __future__ import annotations
+
+import json
+
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from compiler.spec import SpecError, parse_spec
+from compiler.zones import MARGIN, Zone
+from runtime.loop.system import RobotSystem, RunOptions
+from runtime.motion.kinematics import Kinematics
+from runtime.motion.motionqueue import MotionQueue
+from runtime.motion.moves import MovePlanner
+from runtime.timing import SETPOINT_PERIOD
+
+from conftest import SPEC, SPEC_PATH, examples, run_cli
+from test_motionqueue import programs, servo_references
+
+KIN = Kinematics(SPEC)
+TOOL = tuple(SPEC.tool[:3])
+ZONES = """
+[[zone]]
+name = "fixture"
+shape = "box"
+min = [800, 200, 0]
+max = [1000, 400, 340]
+
+[[zone]]
+name = "post"
+shape = "cylinder"
+centre = [300, 700]
+radius = 80
+z = [0, 2000]
+"""
+
+
+def zoned(text: str = ZONES):
+    return parse_spec(SPEC_PATH.read_text(encoding="utf-8") + text, "zoned.spc")
+
+
+def deepest(references) -> float:
+    """How far the flange or the tool centre point of any reference gets into ZONE (mm; < 0:
+    it stays that far outside)."""
+    worst = -1e9
+    for q in references:
+        flange, tcp = KIN.flange_and_tcp(q[:6], TOOL)
+        worst = max(worst, ZONE_BOX.depth(*flange), ZONE_BOX.depth(*tcp))
+    return worst
+
+
+ZONE_BOX = Zone("zone", "box", (0.0, 0.0, 0.0), (0.0, 0.0, 0.0))  # (set by the property for each example)
+
+
+@st.composite
+def zoned_programs(draw):
+    """A program of test_motionqueue's and a box near where its tool starts (not around it)."""
+    q0, moves = draw(programs())
+    flange, tcp = KIN.flange_and_tcp(q0[:6], TOOL)
+    centre = [c + draw(st.floats(-180.0, 180.0)) for c in tcp]
+    size = [draw(st.floats(20.0, 160.0)) for _ in range(3)]
+    box = Zone("box", "box", tuple(c - s / 2 for c, s in zip(centre, size)),
+               tuple(c + s / 2 for c, s in zip(centre, size)))
+    return q0, moves, box
+
+
+@settings(max_examples=examples(40), deadline=None, derandomize=True, database=None,
+          suppress_health_check=list(HealthCheck))
+@given(zoned_programs())
+def test_no_1_ms_reference_enters_a_zone_whatever_the_program_asks_for(program):
+    global ZONE_BOX
+    q0, moves, box = program
+    ZONE_BOX = box
+    if deepest([q0]) > -MARGIN:
+        return  # (the robot starts in or at the zone: every move is refused, nothing to see)
+    queue = MotionQueue(MovePlanner(SPEC.axes, SPEC.main_axes, "jerk", KIN, zones=(box,)), SPEC.axes)
+    queue.start(q0, SETPOINT_PERIOD)
+    for move in moves:
+        if queue.add(move) is not None:
+            break  # (refused: the program stops at it, as the runtime's does)
+    setpoints, now = [(0.0, queue.positions, queue.velocities)], 0.0
+    while not queue.done():
+        now += SETPOINT_PERIOD
+        queue.sample(now)
+        setpoints.append((now, queue.positions, queue.velocities))
+    assert deepest(servo_references(q0, setpoints)) < 0.0
+
+
+def test_a_planner_without_zones_would_have_entered_one():
+    # (the property above is not empty: the same planner without the zone goes through it)
+    from compiler.values import Joint
+    from runtime.motion.moves import MoveRequest
+
+    box = Zone("box", "box", (-50.0, -50.0, -50.0), (50.0, 50.0, 50.0))
+    q0 = (0.0, -30.0, 30.0, 0.0, 45.0, 0.0)
+    x, y, z, r, p, w = KIN.forward(q0)
+    box = Zone("box", "box", (x + 100, y - 50, z - 50), (x + 150, y + 50, z + 50))
+    through = MoveRequest("lin", ((x + 300, y, z, r, p, w),), 250.0, 1000.0, 0.0, 1)
+    refused = MovePlanner(SPEC.axes, SPEC.main_axes, "jerk", KIN, zones=(box,)).plan(through, q0, None, 0.005)
+    assert refused[0] is None and "enters zone 'box'" in refused[1] and "the tool centre point" in refused[1]
+    planned, _ = MovePlanner(SPEC.axes, SPEC.main_axes, "jerk", KIN).plan(through, q0, None, 0.005)
+    global ZONE_BOX
+    ZONE_BOX = box
+    assert deepest([planned.trajectory.position_at(t / 100 * planned.duration) for t in range(101)]) > 0.0
+    assert Joint  # (imported for the ptp below)
+    ptp = MoveRequest("ptp", (Joint(q0[:1] + (q0[1] + 1.0,) + q0[2:]),), 0.5, 0.5, 0.0, 2)
+    assert MovePlanner(SPEC.axes, SPEC.main_axes, "jerk", KIN, zones=(box,)).plan(ptp, q0, None, 0.005)[1] is None
+
+
+@pytest.fixture
+def cell(tmp_path):
+    (tmp_path / "zoned.spc").write_text(SPEC_PATH.read_text(encoding="utf-8") + ZONES, encoding="utf-8")
+    return tmp_path
+
+
+def write(cell, name: str, body: str, handler: str = "") -> str:
+    path = cell / f"{name}.irl"
+    path.write_text(f"""program {name};
+system_specification "zoned.spc";
+seq
+  move ptp pose(pos(900, 300, 500), rpy(180, 0, 90));
+{body}
+{handler}endseq
+endprogram;
+""", encoding="utf-8")
+    return path
+
+
+def test_a_target_in_a_zone_is_a_compile_time_error(cell):
+    path = write(cell, "inside", "  move lin pose(pos(900, 300, 330), rpy(180, 0, 90));")
+    code, _, err = run_cli("check", path)
+    assert code == 1 and "inside.irl:5:12: error: the target is in zone 'fixture'" in err, err
+
+
+def test_a_path_through_a_zone_is_found_by_irl_check_and_refused_by_irl_run(cell):
+    # (the ptp move from the far side swings the flange over the box's top, 5 mm too close)
+    body = ("  move ptp pose(pos(900, -300, 300), rpy(180, 0, 90));\n"
+            "  move ptp pose(pos(900, 300, 345), rpy(180, 0, 90));")
+    path = write(cell, "through", body)
+    code, _, err = run_cli("check", path)
+    assert code == 1 and "through.irl:6:3: error: the path enters zone 'fixture'" in err, err
+    handled = write(cell, "handled", body, "when error do\n  print error_name(), \": \", error_message();\n")
+    code, out, err = run_cli("run", handled, "--json")
+    assert code == 0, err
+    said = json.loads(out)["log"][-1]["text"]
+    assert said.startswith("move: the path enters zone 'fixture'"), said
+    assert json.loads(out)["moves"][-1]["line"] == 5  # (the refused move never started)
+
+
+def test_the_safety_supervisor_stops_a_reference_that_enters_a_zone(cell):
+    # a planner that knows of no zone stands in for what no plan covers: the 1 ms backstop
+    from compiler.driver import compile_source
+
+    source = write(cell, "backstop", "  depth := 300;\n"
+                                     "  move lin pose(pos(900, 300, depth), rpy(180, 0, 90)) speed := 100;")
+    text = source.read_text(encoding="utf-8").replace("seq\n", "var depth : real;\nseq\n", 1)
+    result = compile_source(text, str(source), cell / "zoned.spc")
+    assert result.ok, result.diagnostics
+    system = RobotSystem(zoned(), RunOptions())
+    system.trajectory.planner.zones = ()
+    system.begin(result.program, None)
+    for _ in range(400_000):
+        if system.supervisor.done:
+            break
+        system.executive.step()
+    summary = system.finish()
+    assert summary["stop"] is not None and summary["stop"]["category"] == 1, summary["stop"]
+    assert "entered zone 'fixture'" in summary["fault"], summary["fault"]
+    inside = float(summary["fault"].split("entered zone 'fixture' (")[1].split(" mm inside")[0])
+    assert inside < 1.0, summary["fault"]  # (caught in the tick it entered: at 100 mm/s, 0.1 mm per ms)
+    assert system.safety.at_rest
+
+
+@pytest.mark.parametrize("table, why", [
+    ('name = "a"\nshape = "sphere"\nmin = [0, 0, 0]', r"zone\[1\]\.shape: expected \"box\" or \"cylinder\""),
+    ('name = "a"\nshape = "box"\nmin = [0, 0, 0]\nmax = [10, 0, 10]', r"zone\[1\]\.max: expected the corner"),
+    ('name = "a"\nshape = "box"\nmin = [0, 0, 0]', r"zone\[1\]\.max: missing"),
+    ('name = "a"\nshape = "cylinder"\ncentre = [0, 0]\nradius = 0\nz = [0, 1]', r"zone\[1\]\.radius"),
+    ('name = "a"\nshape = "cylinder"\ncentre = [0, 0]\nradius = 5\nz = [1, 0]', r"zone\[1\]\.z"),
+    ('name = "a"\nshape = "box"\nmin = [0, 0, 0]\nmax = [1, 1, 1]\nheight = 3', r"zone\[1\]\.height: unknown key"),
+    ('name = "a"\nshape = "box"\nmin = [0, 0, "x"]\nmax = [1, 1, 1]', r"zone\[1\]\.min"),
+])
+def test_a_wrong_zone_names_its_key(table, why):
+    with pytest.raises(SpecError, match=why):
+        zoned(f"\n[[zone]]\n{table}\n")
+    with pytest.raises(SpecError, match="not another zone's"):
+        zoned(ZONES + '\n[[zone]]\nname = "post"\nshape = "box"\nmin = [0, 0, 0]\nmax = [1, 1, 1]\n')
+
+
+def test_the_specification_declares_them():
+    spec = zoned()
+    assert [(z.name, z.shape) for z in spec.zones] == [("fixture", "box"), ("post", "cylinder")]
+    post = spec.zones[1]
+    assert post.depth(300.0, 700.0, 100.0) == 80.0 and post.depth(300.0, 800.0, 100.0) == -20.0
+    assert spec.hash != SPEC.hash

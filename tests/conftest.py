@@ -46,11 +46,11 @@ settings.register_profile("explore", deadline=None)
 settings.load_profile(os.environ.get("IRL_HYPOTHESIS_PROFILE", "ci"))
 
 #: The costliest property tests (each example a run of the robot, or seconds of planning)
-#: run ``examples(n)`` examples: ``n`` times IRL_EXAMPLES_SCALE (default 0.75: what the
+#: run ``examples(n)`` examples: ``n`` times IRL_EXAMPLES_SCALE (default 0.6: what the
 #: 5-minute run affords on a slow host; ``n`` is the full count). A deeper search is one
 #: variable away: ``IRL_EXAMPLES_SCALE=10`` (with ``IRL_HYPOTHESIS_PROFILE=explore``: new
 #: examples on every run).
-EXAMPLES_SCALE = float(os.environ.get("IRL_EXAMPLES_SCALE", "0.75"))
+EXAMPLES_SCALE = float(os.environ.get("IRL_EXAMPLES_SCALE", "0.6"))
 
 
 def examples(n: int) -> int:

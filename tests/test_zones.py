@@ -75,7 +75,7 @@ def zoned_programs(draw):
     return q0, moves, box
 
 
-@settings(max_examples=examples(40), deadline=None, derandomize=True, database=None,
+@settings(max_examples=examples(25), deadline=None, derandomize=True, database=None,
           suppress_health_check=list(HealthCheck))
 @given(zoned_programs())
 def test_no_1_ms_reference_enters_a_zone_whatever_the_program_asks_for(program):

@@ -74,6 +74,12 @@ def test_without_a_scenario_nothing_answers_and_every_wait_times_out():
     ("[[follow]\n", "invalid TOML"),
     ("a = " + "[" * 2000 + "]" * 2000 + "\n", "invalid TOML"),
     ("[[follow]]\ninput = 2\noutput = 1\ndelay = nan\n", "expected a number of seconds"),
+    ("[[contact]]\ninput = 7\nz = 100\noutput = 99\n",
+     "[[contact]] #1 output: expected an output number 1..16, or 0 (none), got 99"),
+    ("[[contact]]\ninput = 7\nz = true\n", "[[contact]] #1 z: expected a finite number"),
+    ("[[contact]]\ninput = 7\n", "[[contact]] #1: z is missing"),
+    ("[[contact]]\ninput = 7\nz = 1\nheight = 3\n", "unknown 'height'"),
+    ("[inputs]\n7 = true\n[[contact]]\ninput = 7\nz = 1\n", "[inputs] 7: the input is driven by a [[contact]] rule"),
 ])
 def test_a_bad_scenario_is_refused_before_anything_moves_saying_where_and_what_is_allowed(tmp_path, text, words):
     path = tmp_path / "cell.toml"

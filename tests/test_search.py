@@ -5,16 +5,14 @@ search that finds nothing is the program's ``search`` error. The simulated cell'
 parts are put on the stack); irl check follows it, or without it explores both outcomes.
 
 The motion queue's cut (the stop on the path without a resume) is tested alone, and in the
-random command sequences, by tests/test_motionqueue.py."""
+random command sequences, by tests/test_motionqueue.py; a wrong [[contact]] rule by
+tests/test_cell.py."""
 from __future__ import annotations
 
 import json
 import re
 
 import pytest
-
-from compiler.spec import load_spec
-from runtime.hardware.sim.cell import ScenarioError, load_scenario
 
 from conftest import SPEC_PATH, run_cli
 
@@ -119,16 +117,3 @@ endprogram;
     assert code == 0, err
     assert json.loads(out)["log"][-1]["text"] == ("value: no search move has found its input yet: search_pose() is "
                                                   "where the last one did")
-
-
-@pytest.mark.parametrize("rule, why", [
-    ("input = 7\nz = 100\noutput = 99", r"an output number 1..16, or 0 \(none\)"),
-    ("input = 7\nz = true", "a finite number"),
-    ("input = 7", "z is missing"),
-    ("input = 7\nz = 1\nstep = 1\nheight = 3", "unknown 'height'"),
-])
-def test_a_wrong_contact_rule_is_refused_with_what_and_where(cell, rule, why):
-    path = cell / "bad.cell.toml"
-    path.write_text(f"[[contact]]\n{rule}\n", encoding="utf-8")
-    with pytest.raises(ScenarioError, match=why):
-        load_scenario(path, load_spec(cell / "lola15.spc"))

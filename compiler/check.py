@@ -35,6 +35,7 @@ from .objcode import BUILTINS, MAX_ARRAY_ELEMENTS, MAX_COUNT, MAX_STRING_LENGTH
 from .persistent import MAX_ELEMENTS as PERSISTENT_ELEMENTS, SECTION as PERSISTENT
 from .recovery import HANDLER_WORD, USER_ERRORS, WORDS as HANDLER_WORDS
 from .robotstate import CLOCKS, ERROR_ROUTINES, FUNCTIONS as STATE_FUNCTIONS, PROCEDURES as STATE_PROCEDURES
+from .robotstate import group_problem, group_value_problem
 from .semantics import (GEOMETRIC_BUILTINS, GEOMETRY, STRING_BUILTINS, INT_MAX, INT_MIN, EvalError, binary, call_builtin,
                         compose, geometric_result, make_joint, make_pos, make_pose, make_quat, make_rpy, unary)
 from .spec import Spec
@@ -603,6 +604,22 @@ class Checker:
             return ERROR
         if routine.number == "analog input":
             self.check_io_index(node.args[0], len(self.spec.analog_inputs), "input", "analog")
+        if routine.number in ("input group", "output group"):
+            what = routine.number.split()[0]
+            first, bits = values[0], values[1]
+            if bits is not _NO_VALUE and first is _NO_VALUE:
+                first = 1  # (the group's size alone: checked against the first input)
+            if first is not _NO_VALUE and bits is not _NO_VALUE:
+                problem = group_problem(first, bits, self.spec.inputs if what == "input" else self.spec.outputs,
+                                        what)
+                if problem is not None:
+                    self.error(node.span, problem)
+                    return ERROR
+                if what == "output" and values[2] is not _NO_VALUE:
+                    problem = group_value_problem(values[2], bits)
+                    if problem is not None:
+                        self.error(node.args[2].span, problem)
+                        return ERROR
         if routine.number == "output":
             self.check_io_index(node.args[0], self.spec.outputs, "output")
             if values[1] is not _NO_VALUE and not values[1] > 0:

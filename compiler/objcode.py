@@ -289,6 +289,10 @@ _DEFS = [
     ("SEARCH_POSE", (), 0, 1, "Push where the last search move's input became true: the tool centre point of its "
                               "tool in its base, with the arm's configuration (compiler.robotstate).", "-> pose",
      "next", False),
+    ("GROUP_IN", (), 2, 1, "Read digital inputs first .. first + bits - 1 as one unsigned integer (input first: its "
+                           "lowest bit).", "first bits -> integer", "next", True),
+    ("GROUP_OUT", (), 3, 0, "Set digital outputs first .. first + bits - 1 to value's bits (output first: its lowest "
+                            "bit), in one tick.", "first bits value ->", "next", True),
 ]
 
 #: The types of the values on the stack (what a popped value must be, what is pushed). A
@@ -352,6 +356,7 @@ _TYPES: dict[str, tuple[str, str]] = {
     "RETRY": ("", ""), "TRYNEXT": ("", ""), "ERROR_NUMBER": ("", "integer"), "ERROR_NAME": ("", "string"),
     "ERROR_MESSAGE": ("", "string"), "PERS_LOAD": ("", ""), "PERS_STORE": ("", ""), "AIN_GET": ("integer", "real"),
     "SEARCH_BEGIN": ("", ""), "SEARCH_END": ("", ""), "SEARCH_POSE": ("", "pose"),
+    "GROUP_IN": ("integer integer", "integer"), "GROUP_OUT": ("integer integer integer", ""),
 }
 _missing_types = [d[0] for d in _DEFS if d[0] not in _TYPES]
 if _missing_types:  # pragma: no cover - the table is complete

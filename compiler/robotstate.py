@@ -22,6 +22,26 @@ __all__ = ["CLOCKS", "ERROR_ROUTINES", "FUNCTIONS", "PROCEDURES", "ROUTINES", "S
 
 #: The clocks a program has, numbered 1..CLOCKS.
 CLOCKS = 8
+#: The most digital signals a group reads or writes as one integer (group_in, group_out).
+GROUP_BITS = 32
+
+
+def group_problem(first: object, bits: object, count: int, what: str) -> str | None:
+    """Why digital ``what``s (``"input"``, ``"output"``) ``first`` .. ``first + bits - 1``
+    are not a group the robot has (``count`` of them), or None. Never raises."""
+    if not (type(bits) is int and 1 <= bits <= GROUP_BITS):
+        return f"a group of {bits!r} {what}s: a group has 1..{GROUP_BITS}"
+    if not (type(first) is int and 1 <= first and first + bits - 1 <= count):
+        last = first + bits - 1 if type(first) is int else "?"
+        return f"{what}s {first}..{last} do not exist: the robot has {what}s 1..{count}"
+    return None
+
+
+def group_value_problem(value: object, bits: int) -> str | None:
+    """Why ``value`` cannot be written to a group of ``bits`` signals, or None."""
+    if not (type(value) is int and 0 <= value < 1 << bits):
+        return f"{value!r} does not fit a group of {bits} outputs: expected 0..{(1 << bits) - 1}"
+    return None
 
 
 @dataclass(frozen=True)
@@ -36,7 +56,8 @@ class StateRoutine:
     doc: str
     #: What the first argument numbers (its constant checked against the range): "clock"
     #: (1..CLOCKS), "output" (the specification's outputs), "analog input" (its analog
-    #: inputs), or "" (nothing).
+    #: inputs), "input group" / "output group" (the first two arguments: the first signal
+    #: and how many, group_problem), or "" (nothing).
     number: str = ""
 
 
@@ -64,6 +85,12 @@ ROUTINES: dict[str, StateRoutine] = {r.name: r for r in (
                  "where the last search move's input became true (move lin ... search := N): the tool centre point "
                  "of the move's tool in its base, with the arm's configuration; the program's value error before "
                  "any search has found its input"),
+    StateRoutine("group_in", ("integer", "integer"), "integer", "GROUP_IN",
+                 "digital inputs FIRST .. FIRST + BITS - 1 read as one unsigned integer, input FIRST its lowest bit "
+                 f"(BITS 1..{GROUP_BITS}), where the robot is", "input group"),
+    StateRoutine("group_out", ("integer", "integer", "integer"), "", "GROUP_OUT",
+                 "digital outputs FIRST .. FIRST + BITS - 1 set to VALUE's bits, output FIRST its lowest bit, all in "
+                 "the same 1 ms tick (VALUE 0 .. 2^BITS - 1), where the robot is", "output group"),
     StateRoutine("pulse_out", ("integer", "real"), "", "PULSE_OUT",
                  "digital output N on now (where the robot is), off again SECONDS later while the program goes on; "
                  "a pulse of an output already pulsing starts again", "output"),

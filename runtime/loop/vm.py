@@ -152,6 +152,14 @@ class MotionHost(Protocol):
     def read_output(self, n: int) -> bool:
         """Digital output n (from 1) as last set. May raise EvalError for a number out of range."""
 
+    def read_group(self, first: int, bits: int) -> int:
+        """Digital inputs first .. first + bits - 1 as one unsigned integer (input first: its
+        lowest bit). May raise EvalError (compiler.robotstate.group_problem)."""
+
+    def write_group(self, first: int, bits: int, value: int) -> None:
+        """Set digital outputs first .. first + bits - 1 to value's bits, in one tick. May
+        raise EvalError (compiler.robotstate.group_problem, group_value_problem)."""
+
     def pulse_output(self, n: int, seconds: float) -> None:
         """Set digital output n now and clear it ``seconds`` later (the program goes on).
         May raise EvalError for a number out of range."""
@@ -292,7 +300,7 @@ _MOVE, _TIMEOUT, _ARITHMETIC_ERROR, _VALUE, _IO, _SEARCH = (
     ERROR_KINDS[name].number for name in ("move", "timeout", "arithmetic", "value", "io", "search"))
 #: The instructions whose errors are the program's arithmetic, and its I/O's.
 _ARITHMETIC_ONLY = _ARITHMETIC - {OP.CALL_BUILTIN}
-_IO_OPS = frozenset({OP.IN_GET, OP.OUT_SET, OP.OUT_GET, OP.PULSE_OUT, OP.AIN_GET})
+_IO_OPS = frozenset({OP.IN_GET, OP.OUT_SET, OP.OUT_GET, OP.PULSE_OUT, OP.AIN_GET, OP.GROUP_IN, OP.GROUP_OUT})
 
 
 def error_number(exc: Exception, op: int) -> int | None:
@@ -1338,6 +1346,20 @@ class VM:
     def op_ain_get(self, _, pc):
         stack = self.memory.stack
         stack[-1] = float(self.host.read_analog(stack[-1]))
+        return pc + 1
+
+    def op_group_in(self, _, pc):
+        stack = self.memory.stack
+        bits = stack.pop()
+        stack[-1] = int(self.host.read_group(stack[-1], bits))
+        return pc + 1
+
+    def op_group_out(self, _, pc):
+        stack = self.memory.stack
+        value = stack.pop()
+        bits = stack.pop()
+        first = stack.pop()
+        self.host.write_group(first, bits, value)
         return pc + 1
 
     def op_out_get(self, _, pc):

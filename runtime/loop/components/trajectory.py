@@ -32,6 +32,8 @@ from compiler.objcode import OP, Program
 from compiler.params import component_params, describe
 from compiler.spec import DEFAULT_LOOKAHEAD
 from compiler.configs import config_of
+from compiler.recovery import BY_NAME as ERROR_KINDS
+from compiler.robotstate import group_problem, group_value_problem
 from compiler.semantics import EvalError, compose, inverse
 from compiler.triggers import MAX_PENDING as MAX_TRIGGERS
 from compiler.triggers import problem as trigger_problem
@@ -49,7 +51,7 @@ from runtime.motion.moves import Frames, MoveRecord, MovePlanner, MoveRequest
 from runtime.settings import Settings
 from runtime.timing import SETPOINT_PERIOD
 from runtime.wire.protocol import JOG_SESSION_ENDING, ProtocolError
-from runtime.loop.vm import DONE, ERROR, READY, VM
+from runtime.loop.vm import DONE, ERROR, READY, VM, ProgramError
 
 __all__ = ["LOOKAHEAD", "MAX_LOG_LINES", "MoveRecord", "TIME_SLICE", "TrajectoryGenerator"]
 
@@ -666,6 +668,23 @@ class TrajectoryGenerator(Component):
 
     def read_output(self, n: int) -> bool:
         return self.io.output(_io_number(n, self.spec.outputs, "output"))
+
+    def read_group(self, first: int, bits: int) -> int:
+        problem = group_problem(first, bits, self.spec.inputs, "input")
+        if problem is not None:
+            raise EvalError(problem)
+        read = self.io.input
+        return sum(1 << i for i in range(bits) if read(first + i))
+
+    def write_group(self, first: int, bits: int, value: int) -> None:
+        problem = group_problem(first, bits, self.spec.outputs, "output")
+        if problem is not None:
+            raise EvalError(problem)
+        problem = group_value_problem(value, bits)
+        if problem is not None:  # (the value's fault, not the I/O's)
+            raise ProgramError(problem, ERROR_KINDS["value"].number)
+        for i in range(bits):
+            self.io.set_output(first + i, bool(value >> i & 1))
 
     def pulse_output(self, n: int, seconds: float) -> None:
         """Output ``n`` on now and off ``seconds`` later (:meth:`_end_pulses`, every update)."""

@@ -564,7 +564,7 @@ class Checker:
             named = f"{kind} {what}s" if kind != "digital" else f"{what}s"  # ("has outputs 1..16", as always)
             has = f"has {named} 1..{count}" if count else f"has no {named}"
             self.error(index.span, f"{kind} {what} {i} does not exist: {self.spec.name} {has}",
-                       "the specification declares them ([[analog_input]] tables)" if kind == "analog" else None)
+                       f"the specification declares them ([[analog_{what}]] tables)" if kind == "analog" else None)
 
     def e_Call(self, node: ast.Call):
         name = node.name
@@ -604,6 +604,15 @@ class Checker:
             return ERROR
         if routine.number == "analog input":
             self.check_io_index(node.args[0], len(self.spec.analog_inputs), "input", "analog")
+        if routine.number == "analog output":
+            channels = self.spec.analog_outputs
+            self.check_io_index(node.args[0], len(channels), "output", "analog")
+            if len(values) > 1 and values[0] is not _NO_VALUE and values[1] is not _NO_VALUE \
+                    and 1 <= values[0] <= len(channels):
+                problem = channels[values[0] - 1].problem(values[0], values[1], "output")
+                if problem is not None:
+                    self.error(node.args[1].span, problem)
+                    return ERROR
         if routine.number in ("input group", "output group"):
             what = routine.number.split()[0]
             first, bits = values[0], values[1]

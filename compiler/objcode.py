@@ -293,6 +293,9 @@ _DEFS = [
                            "lowest bit).", "first bits -> integer", "next", True),
     ("GROUP_OUT", (), 3, 0, "Set digital outputs first .. first + bits - 1 to value's bits (output first: its lowest "
                             "bit), in one tick.", "first bits value ->", "next", True),
+    ("AOUT_SET", (), 2, 0, "Set analog output n to value (real, in its unit: the specification's [[analog_output]] "
+                           "n).", "n value ->", "next", True),
+    ("AOUT_GET", (), 1, 1, "Push what analog output n was last set to (real).", "n -> real", "next", True),
 ]
 
 #: The types of the values on the stack (what a popped value must be, what is pushed). A
@@ -357,6 +360,7 @@ _TYPES: dict[str, tuple[str, str]] = {
     "ERROR_MESSAGE": ("", "string"), "PERS_LOAD": ("", ""), "PERS_STORE": ("", ""), "AIN_GET": ("integer", "real"),
     "SEARCH_BEGIN": ("", ""), "SEARCH_END": ("", ""), "SEARCH_POSE": ("", "pose"),
     "GROUP_IN": ("integer integer", "integer"), "GROUP_OUT": ("integer integer integer", ""),
+    "AOUT_SET": ("integer real", ""), "AOUT_GET": ("integer", "real"),
 }
 _missing_types = [d[0] for d in _DEFS if d[0] not in _TYPES]
 if _missing_types:  # pragma: no cover - the table is complete

@@ -85,6 +85,11 @@ ROUTINES: dict[str, StateRoutine] = {r.name: r for r in (
                  "where the last search move's input became true (move lin ... search := N): the tool centre point "
                  "of the move's tool in its base, with the arm's configuration; the program's value error before "
                  "any search has found its input"),
+    StateRoutine("analog_out", ("integer", "real"), "", "AOUT_SET",
+                 "analog output N set to VALUE (in its unit, within its range: the specification's [[analog_output]] "
+                 "N), where the robot is", "analog output"),
+    StateRoutine("analog_out_value", ("integer",), "real", "AOUT_GET",
+                 "what analog output N was last set to (in its unit), where the robot is", "analog output"),
     StateRoutine("group_in", ("integer", "integer"), "integer", "GROUP_IN",
                  "digital inputs FIRST .. FIRST + BITS - 1 read as one unsigned integer, input FIRST its lowest bit "
                  f"(BITS 1..{GROUP_BITS}), where the robot is", "input group"),

@@ -112,21 +112,23 @@ class _Limits:
 
 @dataclass(frozen=True)
 class AnalogChannel:
-    """An analog input (``[[analog_input]]``): what it measures (``name``, for people), its
-    unit, and the range of its values (``low`` < ``high``): a sensor's reading is a real
-    within it."""
+    """An analog input (``[[analog_input]]``) or output (``[[analog_output]]``): what it
+    measures or drives (``name``, for people), its unit, and the range of its values
+    (``low`` < ``high``): a sensor's reading, or what a program sets, is a real within it."""
 
     name: str
     unit: str
     low: float
     high: float
 
-    def problem(self, n: int, value: object) -> str | None:
-        """What is wrong with ``value`` as a reading of analog input ``n``, or None."""
+    def problem(self, n: int, value: object, what: str = "input") -> str | None:
+        """What is wrong with ``value`` as a reading of analog input ``n`` (``what``
+        "output": as the value analog output ``n`` is set to), or None."""
+        verb = "reads" if what == "input" else "cannot be set to"
         if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
-            return f"analog input {n} ({self.name}) reads a number, not {value!r}"
+            return f"analog {what} {n} ({self.name}) {verb} a number, not {value!r}"
         if not self.low <= value <= self.high:
-            return (f"analog input {n} ({self.name}) reads {value:g} {self.unit}: its range is "
+            return (f"analog {what} {n} ({self.name}) {verb} {value:g} {self.unit}: its range is "
                     f"{self.low:g}..{self.high:g} {self.unit}")
         return None
 
@@ -157,6 +159,8 @@ class Spec:
     mounting: tuple = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
     #: The [[analog_input]] tables, analog input n at index n - 1.
     analog_inputs: tuple["AnalogChannel", ...] = ()
+    #: The [[analog_output]] tables, analog output n at index n - 1.
+    analog_outputs: tuple["AnalogChannel", ...] = ()
     #: The [[zone]] tables (compiler.zones): where the flange and the tool centre point never go.
     zones: tuple = ()
 
@@ -406,7 +410,8 @@ def parse_spec(text: str, file: str = "<spec>") -> Spec:
     else:
         top.get("io", "table", None)
 
-    analog = _analog_inputs(file, data, top)
+    analog = _analog_channels(file, data, top, "input")
+    analog_out = _analog_channels(file, data, top, "output")
     zones = _zones(file, data, top)
     kinematics = _parameters(file, "kinematics", top.get("kinematics", "table", {}))
     tool, mounting = kinematics["tool"], kinematics["mounting"]
@@ -419,7 +424,8 @@ def parse_spec(text: str, file: str = "<spec>") -> Spec:
     top.finish()
     typed = {section: params.settings(section, values) for section, values in tables.items()}
     return Spec(name, file, axes, defaults, max_speed, max_acc, inputs, outputs, tool, typed["controller"],
-                _canonical_hash(data), description, typed["simulation"], typed["safety"], named, mounting, analog, zones)
+                _canonical_hash(data), description, typed["simulation"], typed["safety"], named, mounting, analog,
+                analog_outputs=analog_out, zones=zones)
 
 
 #: A named frame's or tool's table is a pose table (compiler.params) with a name.
@@ -472,22 +478,25 @@ def _named_frames(file: str, data: dict, top: "_Reader") -> tuple:
     return tuple(named)
 
 
-def _analog_inputs(file: str, data: dict, top: "_Reader") -> tuple[AnalogChannel, ...]:
-    """The ``[[analog_input]]`` tables, in file order: analog input 1, 2, ..."""
-    top.used.add("analog_input")
-    tables = data.get("analog_input", [])
+def _analog_channels(file: str, data: dict, top: "_Reader", what: str) -> tuple[AnalogChannel, ...]:
+    """The ``[[analog_input]]`` (``what`` "input") or ``[[analog_output]]`` tables, in file
+    order: analog input (output) 1, 2, ..."""
+    key = f"analog_{what}"
+    top.used.add(key)
+    tables = data.get(key, [])
     if not isinstance(tables, list):
-        raise SpecError(file, "analog_input", "expected an array of tables ([[analog_input]])")
+        raise SpecError(file, key, f"expected an array of tables ([[{key}]])")
     if len(tables) > MAX_ANALOG_INPUTS:
-        raise SpecError(file, "analog_input", f"{len(tables)} analog inputs: at most {MAX_ANALOG_INPUTS}")
+        raise SpecError(file, key, f"{len(tables)} analog {what}s: at most {MAX_ANALOG_INPUTS}")
+    verb = "reads" if what == "input" else "is set to"
     channels = []
     for i, table in enumerate(tables):
-        r = _Reader(file, f"analog_input[{i + 1}]", table)
-        name = r.get("name", "string", f"analog input {i + 1}", check=lambda v: 0 < len(v) <= 80,
-                     expect="what it measures, 1 to 80 characters")
+        r = _Reader(file, f"{key}[{i + 1}]", table)
+        name = r.get("name", "string", f"analog {what} {i + 1}", check=lambda v: 0 < len(v) <= 80,
+                     expect=f"what it {'measures' if what == 'input' else 'drives'}, 1 to 80 characters")
         unit = r.get("unit", "string", "", check=lambda v: len(v) <= 20, expect="its unit, at most 20 characters")
-        low = r.get("min", "number", expect="the least value it reads (a finite number)")
-        high = r.get("max", "number", check=lambda v: v > low, expect=f"the greatest value it reads, more than "
+        low = r.get("min", "number", expect=f"the least value it {verb} (a finite number)")
+        high = r.get("max", "number", check=lambda v: v > low, expect=f"the greatest value it {verb}, more than "
                                                                        f"min ({low:g})")
         r.finish()
         channels.append(AnalogChannel(name, unit, float(low), float(high)))

@@ -158,6 +158,14 @@ unit = "mm"
 min = 0.0
 max = 100.0
 
+# ---- the cell's analog outputs (call analog_out(N, VALUE) in a program) --------------------------------
+
+[[analog_output]]
+name = "glue pressure"        # the glue gun's pressure regulator
+unit = "bar"
+min = 0.0
+max = 6.0
+
 # The cell's world zones (docs/language.md, "World zones"): where the tool centre point and
 # the flange never go. Every move is planned to keep 5 mm away, irl check finds one that does
 # not, and the safety supervisor stops the robot if a 1 ms reference ever enters one.

@@ -129,3 +129,35 @@ def test_a_wrong_analog_rule_is_refused_with_what_and_where(cell, rule, why):
     path.write_text(f"[[analog]]\n{rule}\n", encoding="utf-8")
     with pytest.raises(ScenarioError, match=why):
         load_scenario(path, load_spec(cell / "sensed.spc"))
+
+
+def test_an_analog_output_is_set_within_its_range_and_read_back(tmp_path):
+    (tmp_path / "sensed.spc").write_text(SPEC_PATH.read_text(encoding="utf-8") + SENSORS + """
+[[analog_output]]
+name = "glue pressure"
+unit = "bar"
+min = 0
+max = 6
+""", encoding="utf-8")
+    (tmp_path / "glue.irl").write_text("""program glue;
+system_specification "sensed.spc";
+var p : real;
+seq
+  print "at first ", analog_out_value(1);
+  call analog_out(1, 2.5);
+  print "set ", analog_out_value(1), " bar";
+  p := 7.5;
+  call analog_out(1, p);
+when error do
+  print error_name(), ": ", error_message(), "; it stays at ", analog_out_value(1);
+endseq
+endprogram;
+""", encoding="utf-8")
+    code, out, err = run_cli("run", tmp_path / "glue.irl", "--json")
+    assert code == 0, err
+    texts = [e["text"] for e in json.loads(out)["log"] if e.get("kind") != "handled"]
+    assert texts == ["at first 0", "set 2.5 bar",
+                     "value: analog output 1 (glue pressure) cannot be set to 7.5 bar: its range is 0..6 bar; it "
+                     "stays at 2.5"], texts
+    code, out, err = run_cli("check", tmp_path / "glue.irl")
+    assert code == 0, err

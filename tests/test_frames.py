@@ -55,11 +55,12 @@ def matrix(values) -> np.ndarray:
 
 def test_the_cell_specification_is_lola15_plus_its_frames_and_tools():
     """lola15_cell.spc must not drift from the arm it describes (it adds the cell's frames,
-    tools, analog sensors and world zones)."""
+    tools, analog sensors and outputs, and world zones)."""
     cell = tomllib.loads(CELL.read_text())
     named = {kind.table: cell.pop(kind.table) for kind in FRAME_KINDS}
     assert [t["name"] for t in cell.pop("analog_input")] == ["part height"]
     assert [t["name"] for t in cell.pop("zone")] == ["fixture body", "guard post"]
+    assert [t["name"] for t in cell.pop("analog_output")] == ["glue pressure"]
     assert cell == tomllib.loads(LOLA.read_text())
     assert [t["name"] for t in named["frame"]] == ["pallet_station", "glue_table"]
     assert [t["name"] for t in named["tool"]] == ["gripper", "glue_gun"]

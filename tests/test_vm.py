@@ -96,6 +96,12 @@ class FakeHost:
         self.outputs[n] = value
         self.output_log.append((n, value))
 
+    def write_analog(self, n, value):
+        self.outputs[("analog", n)] = value
+
+    def read_analog_output(self, n):
+        return self.outputs.get(("analog", n), 0.0)
+
     def log(self, text, line, kind="print"):
         self.log_lines.append((line, text))
 

@@ -40,6 +40,14 @@ class IoBackend:
         """Real-time: what analog input ``n`` (1-based) reads now."""
         raise IndexError(f"analog input {n} does not exist: this robot's I/O has no analog inputs")
 
+    def set_analog_output(self, n: int, value: float) -> None:
+        """Real-time: analog output ``n`` (1-based) to ``value`` (checked by the caller)."""
+        raise IndexError(f"analog output {n} does not exist: this robot's I/O has no analog outputs")
+
+    def analog_output(self, n: int) -> float:
+        """Real-time: what analog output ``n`` (1-based) was last set to."""
+        raise IndexError(f"analog output {n} does not exist: this robot's I/O has no analog outputs")
+
     def start(self) -> None:
         pass
 
@@ -65,12 +73,14 @@ class DigitalIo(IoBackend):
     method is real-time (plain reads and assignments); a number out of range is an
     ``IndexError`` that says which exist."""
 
-    def __init__(self, n_inputs: int, n_outputs: int, owner: str, analog: tuple = ()):
+    def __init__(self, n_inputs: int, n_outputs: int, owner: str, analog: tuple = (), analog_outputs: tuple = ()):
         self._inputs: list[bool] | tuple[bool, ...] = [False] * n_inputs
         self._outputs = [False] * n_outputs
         self._owner = owner
         # (compiler.spec.AnalogChannel: each reads the middle of its range, a typical reading, until set)
         self._analog = [(channel.low + channel.high) / 2.0 for channel in analog]
+        # (each output at 0, or at its range's end nearest 0, until a program sets it)
+        self._analog_out = [min(max(0.0, channel.low), channel.high) for channel in analog_outputs]
 
     @property
     def inputs(self) -> tuple[bool, ...]:
@@ -105,6 +115,12 @@ class DigitalIo(IoBackend):
         if not self.forcible:
             raise PermissionError("an analog input is set on the simulated robot only")
         self._analog[self._index(n, len(self._analog), "input", "analog")] = float(value)
+
+    def set_analog_output(self, n: int, value: float) -> None:
+        self._analog_out[self._index(n, len(self._analog_out), "output", "analog")] = float(value)
+
+    def analog_output(self, n: int) -> float:
+        return self._analog_out[self._index(n, len(self._analog_out), "output", "analog")]
 
     def _index(self, n: int, count: int, what: str, kind: str = "digital") -> int:
         if not 1 <= n <= count:

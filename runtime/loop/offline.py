@@ -681,7 +681,7 @@ class _Run:
         self.spec, self.limits = spec, limits
         self.clock = SimClock(TICK)
         settings = Settings(spec)
-        self.backend = _OfflineIo(spec.inputs, spec.outputs, "the cell", spec.analog_inputs)
+        self.backend = _OfflineIo(spec.inputs, spec.outputs, "the cell", spec.analog_inputs, spec.analog_outputs)
         self.io = IoComponent(self.backend, None)
         self.io.configure()
         runs: dict[int, int] = {}

@@ -152,6 +152,13 @@ class MotionHost(Protocol):
     def read_output(self, n: int) -> bool:
         """Digital output n (from 1) as last set. May raise EvalError for a number out of range."""
 
+    def write_analog(self, n: int, value: float) -> None:
+        """Set analog output n (from 1) to ``value``. May raise EvalError for a number out
+        of range (the io error), ProgramError for a value outside its range (value)."""
+
+    def read_analog_output(self, n: int) -> float:
+        """What analog output n (from 1) was last set to. May raise EvalError."""
+
     def read_group(self, first: int, bits: int) -> int:
         """Digital inputs first .. first + bits - 1 as one unsigned integer (input first: its
         lowest bit). May raise EvalError (compiler.robotstate.group_problem)."""
@@ -300,7 +307,8 @@ _MOVE, _TIMEOUT, _ARITHMETIC_ERROR, _VALUE, _IO, _SEARCH = (
     ERROR_KINDS[name].number for name in ("move", "timeout", "arithmetic", "value", "io", "search"))
 #: The instructions whose errors are the program's arithmetic, and its I/O's.
 _ARITHMETIC_ONLY = _ARITHMETIC - {OP.CALL_BUILTIN}
-_IO_OPS = frozenset({OP.IN_GET, OP.OUT_SET, OP.OUT_GET, OP.PULSE_OUT, OP.AIN_GET, OP.GROUP_IN, OP.GROUP_OUT})
+_IO_OPS = frozenset({OP.IN_GET, OP.OUT_SET, OP.OUT_GET, OP.PULSE_OUT, OP.AIN_GET, OP.GROUP_IN, OP.GROUP_OUT,
+                     OP.AOUT_SET, OP.AOUT_GET})
 
 
 def error_number(exc: Exception, op: int) -> int | None:
@@ -1346,6 +1354,17 @@ class VM:
     def op_ain_get(self, _, pc):
         stack = self.memory.stack
         stack[-1] = float(self.host.read_analog(stack[-1]))
+        return pc + 1
+
+    def op_aout_set(self, _, pc):
+        stack = self.memory.stack
+        value = stack.pop()
+        self.host.write_analog(stack.pop(), value)
+        return pc + 1
+
+    def op_aout_get(self, _, pc):
+        stack = self.memory.stack
+        stack[-1] = float(self.host.read_analog_output(stack[-1]))
         return pc + 1
 
     def op_group_in(self, _, pc):

@@ -301,7 +301,7 @@ class SimRobot(RobotBackend, DigitalIo):
     FAULTS = FAULTS
 
     def __init__(self, spec, seed: int = 0):
-        DigitalIo.__init__(self, spec.inputs, spec.outputs, spec.name, spec.analog_inputs)
+        DigitalIo.__init__(self, spec.inputs, spec.outputs, spec.name, spec.analog_inputs, spec.analog_outputs)
         self.spec = spec
         self.seed = seed
         axes = spec.axes

@@ -132,6 +132,14 @@ class IoComponent(Component):
         PLC's register as its exchange last saw it)."""
         return self.backend.analog_input(n)
 
+    def analog_output(self, n: int) -> float:
+        """Analog output ``n`` (1..): what it was last set to."""
+        return self.backend.analog_output(n)
+
+    def set_analog_output(self, n: int, value: float) -> None:
+        """Analog output ``n`` (1..) to ``value`` (checked against its range by the caller)."""
+        self.backend.set_analog_output(n, value)
+
     def set_output(self, n: int, value: bool) -> None:
         """Digital output ``n`` (1..) to ``value``: the backend and the ``outputs`` port now."""
         backend = self.backend

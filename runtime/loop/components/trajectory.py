@@ -669,6 +669,24 @@ class TrajectoryGenerator(Component):
     def read_output(self, n: int) -> bool:
         return self.io.output(_io_number(n, self.spec.outputs, "output"))
 
+    def write_analog(self, n: int, value: float) -> None:
+        channels = self.spec.analog_outputs
+        n = _io_number(n, len(channels), "output", "analog")
+        problem = channels[n - 1].problem(n, value, "output")
+        if problem is not None:  # (the value's fault, not the I/O's)
+            raise ProgramError(problem, ERROR_KINDS["value"].number)
+        try:
+            self.io.set_analog_output(n, float(value))
+        except IndexError as exc:  # (a backend without them: a PLC's, for now)
+            raise EvalError(str(exc)) from None
+
+    def read_analog_output(self, n: int) -> float:
+        n = _io_number(n, len(self.spec.analog_outputs), "output", "analog")
+        try:
+            return self.io.analog_output(n)
+        except IndexError as exc:
+            raise EvalError(str(exc)) from None
+
     def read_group(self, first: int, bits: int) -> int:
         problem = group_problem(first, bits, self.spec.inputs, "input")
         if problem is not None:

@@ -29,6 +29,7 @@ from .clauses import CLAUSES as CLAUSE_TABLE
 from .clauses import NAMES as CLAUSES
 from .clauses import Clause, Motion
 from .zones import MARGIN as ZONE_MARGIN
+from .zones import forbidden as forbidden_zones
 from .configs import CONTEXTUAL_NAME, GROUPS as CONFIG_GROUPS, TURN_AXES, WORDS as CONFIG_WORDS, Config
 from .configs import turn_problem as config_turn_problem
 from .objcode import BUILTINS, MAX_ARRAY_ELEMENTS, MAX_COUNT, MAX_STRING_LENGTH
@@ -1055,7 +1056,7 @@ class Checker:
         if reach > 0 and distance > reach:
             self.error(target.span, f"pose out of reach{where}: its position is {distance:.1f} mm from the "
                                     f"shoulder, but {self.spec.name}'s arm reaches at most {reach:.1f} mm")
-        for zone in self.spec.zones:  # (the tool centre point: the flange's path is checked when it runs)
+        for zone in forbidden_zones(self.spec.zones):  # (the tool centre point: the flange's path when it runs)
             if zone.depth(p.x, p.y, p.z) > -ZONE_MARGIN:
                 self.error(target.span, f"the target{where} is in zone '{zone.name}' ({zone.describe()}), or within "
                                         f"{ZONE_MARGIN:g} mm of it: no move goes there",

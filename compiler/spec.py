@@ -412,7 +412,7 @@ def parse_spec(text: str, file: str = "<spec>") -> Spec:
 
     analog = _analog_channels(file, data, top, "input")
     analog_out = _analog_channels(file, data, top, "output")
-    zones = _zones(file, data, top)
+    zones = _zones(file, data, top, outputs)
     kinematics = _parameters(file, "kinematics", top.get("kinematics", "table", {}))
     tool, mounting = kinematics["tool"], kinematics["mounting"]
     named = _named_frames(file, data, top)
@@ -503,7 +503,7 @@ def _analog_channels(file: str, data: dict, top: "_Reader", what: str) -> tuple[
     return tuple(channels)
 
 
-def _zones(file: str, data: dict, top: "_Reader") -> tuple:
+def _zones(file: str, data: dict, top: "_Reader", outputs: int) -> tuple:
     """The ``[[zone]]`` tables (compiler.zones), in file order."""
     top.used.add("zone")
     tables = data.get("zone", [])
@@ -518,6 +518,12 @@ def _zones(file: str, data: dict, top: "_Reader") -> tuple:
                      expect="its name, 1 to 40 characters, not another zone's")
         shape = r.get("shape", "string", check=lambda v: v in zones.SHAPES,
                       expect=" or ".join(f'"{s}"' for s in zones.SHAPES))
+        kind = r.get("kind", "string", "forbidden", check=lambda v: v in zones.KINDS,
+                     expect=" or ".join(f'"{k}"' for k in zones.KINDS))
+        output = 0
+        if kind == "signal":
+            output = r.get("output", "integer", check=lambda v: 1 <= v <= outputs,
+                           expect=f"the digital output the zone switches, 1..{outputs}")
         values: dict = {}
         for key in zones.SHAPES[shape][1]:
             r.used.add(key)
@@ -528,7 +534,7 @@ def _zones(file: str, data: dict, top: "_Reader") -> tuple:
                 raise SpecError(file, r.key(key), said)
             values[key] = [float(v) for v in table[key]] if isinstance(table[key], list) else float(table[key])
         r.finish()
-        found.append(zones.zone_of(name, shape, values))
+        found.append(zones.zone_of(name, shape, values, kind, output))
     return tuple(found)
 
 

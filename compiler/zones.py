@@ -1,12 +1,16 @@
 """World zones (docs/language.md, "World zones"; ABB's World Zones, KUKA's workspaces):
 boxes and vertical cylinders of the cell, in the world frame, declared in the system
-specification (``[[zone]]``), that the tool centre point and the flange never enter.
+specification (``[[zone]]``), that the tool centre point and the flange never enter
+(forbidden zones), or whose digital output is true while the tool centre point is inside
+(signal zones: runtime.loop.components.io.ZoneSignals, every 1 ms).
 
-One declaration each: :data:`SHAPES` (a shape's keys, what they mean and their checks) and
-:class:`Zone` (the geometry: whether a point is inside, how far it is from the zone). The
+One declaration each: :data:`SHAPES` (a shape's keys, what they mean and their checks),
+:data:`KINDS` and :class:`Zone` (the geometry: whether a point is inside, how far it is from the zone). The
 specification's loader, the planners' check of every move before it starts
 (runtime.motion.zonecheck), the safety supervisor's check of every 1 ms reference
 (runtime.loop.components.safety) and the manual's table read them.
+
+Of the forbidden zones:
 
 * **Before a move starts** its whole path is checked (the flange's and the tool centre
   point's, sampled at most :data:`STEP` mm apart) against each zone grown by
@@ -27,7 +31,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-__all__ = ["MARGIN", "MAX_ZONES", "SHAPES", "STEP", "Zone", "markdown"]
+__all__ = ["KINDS", "MARGIN", "MAX_ZONES", "SHAPES", "STEP", "Zone", "forbidden", "markdown", "signals"]
 
 #: mm: how far from a zone a planned path must stay (the flange and the tool centre point).
 MARGIN = 5.0
@@ -53,6 +57,15 @@ SHAPES: dict[str, tuple[str, dict[str, str]]] = {
 }
 
 
+#: The kinds of zone (``kind``; "forbidden" when a zone does not say).
+KINDS: dict[str, str] = {
+    "forbidden": "the flange and the tool centre point never enter it (every move is checked before it starts, "
+                 "every 1 ms reference by the safety supervisor)",
+    "signal": "digital output `output` is true while the tool centre point is inside it, false while it is not, "
+              "every 1 ms (KUKA's workspace signals, ABB's WZDOSet); the robot may enter it",
+}
+
+
 @dataclass(frozen=True)
 class Zone:
     """A zone: ``low`` and ``high`` its bounding box's corners (x, y, z, mm, world); a
@@ -64,6 +77,8 @@ class Zone:
     high: tuple[float, float, float]
     centre: tuple[float, float] = (0.0, 0.0)
     radius: float = 0.0
+    kind: str = "forbidden"
+    output: int = 0  # a signal zone's digital output
 
     def depth(self, x: float, y: float, z: float) -> float:
         """How far the point is inside the zone (mm, > 0), or minus how far it is outside
@@ -89,14 +104,24 @@ def _point(p) -> str:
     return "(" + ", ".join(f"{v:g}" for v in p) + ")"
 
 
-def zone_of(name: str, shape: str, values: dict) -> Zone:
+def zone_of(name: str, shape: str, values: dict, kind: str = "forbidden", output: int = 0) -> Zone:
     """A zone from its checked keys (the specification's loader checks them: :data:`SHAPES`)."""
     if shape == "box":
-        return Zone(name, shape, tuple(values["min"]), tuple(values["max"]))
+        return Zone(name, shape, tuple(values["min"]), tuple(values["max"]), kind=kind, output=output)
     cx, cy = values["centre"]
     r = values["radius"]
     low, high = values["z"]
-    return Zone(name, shape, (cx - r, cy - r, low), (cx + r, cy + r, high), (cx, cy), r)
+    return Zone(name, shape, (cx - r, cy - r, low), (cx + r, cy + r, high), (cx, cy), r, kind, output)
+
+
+def forbidden(zones) -> tuple:
+    """The zones the flange and the tool centre point never enter."""
+    return tuple(z for z in zones if z.kind == "forbidden")
+
+
+def signals(zones) -> tuple:
+    """The zones that switch an output while the tool centre point is inside."""
+    return tuple(z for z in zones if z.kind == "signal")
 
 
 def problem(shape: str, key: str, value: object, values: dict) -> str | None:
@@ -123,7 +148,10 @@ def markdown() -> str:
     """The zone keys, for docs/language.md (``python -m runtime.cli.docgen``)."""
     lines = ["| shape | key | what it gives |", "|---|---|---|",
              "| every zone | `name` | its name, in messages (1 to 40 characters, each zone's own) |",
-             "| | `shape` | " + " or ".join(f"`\"{s}\"`" for s in SHAPES) + " |"]
+             "| | `shape` | " + " or ".join(f"`\"{s}\"`" for s in SHAPES) + " |",
+             "| | `kind` | " + "; ".join(f"`\"{k}\"`: {doc}" for k, doc in KINDS.items())
+             + " (default `\"forbidden\"`) |",
+             "| | `output` | a signal zone's digital output (1 .. `io.outputs`); a forbidden zone has none |"]
     for shape, (doc, keys) in SHAPES.items():
         first = True
         for key, text in keys.items():

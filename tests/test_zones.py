@@ -182,7 +182,41 @@ def test_the_safety_supervisor_stops_a_reference_that_enters_a_zone(cell):
     assert system.safety.at_rest
 
 
+def test_a_signal_zone_switches_its_output_while_the_tool_is_inside(cell):
+    (cell / "zoned.spc").write_text((cell / "zoned.spc").read_text(encoding="utf-8") + """
+[[zone]]
+name = "over the fixture"
+shape = "box"
+kind = "signal"
+output = 6
+min = [800, 200, 340]
+max = [1000, 400, 700]
+""", encoding="utf-8")
+    path = cell / "signal.irl"
+    path.write_text("""program signal;
+system_specification "zoned.spc";
+seq
+  move ptp pose(pos(900, -300, 500), rpy(180, 0, 90));
+  print out[6];
+  move lin pose(pos(900, 300, 500), rpy(180, 0, 90)) speed := 200;   -- into it (the robot may enter)
+  print out[6];
+  move lin pose(pos(900, -300, 500), rpy(180, 0, 90)) speed := 200;
+  print out[6];
+endseq
+endprogram;
+""", encoding="utf-8")
+    code, out, err = run_cli("run", path, "--json")
+    assert code == 0, err
+    assert [e["text"] for e in json.loads(out)["log"]] == ["false", "true", "false"]
+    assert run_cli("check", path)[0] == 0  # (irl check's run switches it alike: no path into a forbidden zone)
+
+
 @pytest.mark.parametrize("table, why", [
+    ('name = "a"\nshape = "box"\nmin = [0, 0, 0]\nmax = [1, 1, 1]\nkind = "signal"', r"zone\[1\]\.output: missing"),
+    ('name = "a"\nshape = "box"\nmin = [0, 0, 0]\nmax = [1, 1, 1]\nkind = "signal"\noutput = 17',
+     r"zone\[1\]\.output: expected the digital output the zone switches, 1..16"),
+    ('name = "a"\nshape = "box"\nmin = [0, 0, 0]\nmax = [1, 1, 1]\noutput = 3', r"zone\[1\]\.output: unknown key"),
+    ('name = "a"\nshape = "box"\nmin = [0, 0, 0]\nmax = [1, 1, 1]\nkind = "warn"', r"zone\[1\]\.kind: expected"),
     ('name = "a"\nshape = "sphere"\nmin = [0, 0, 0]', r"zone\[1\]\.shape: expected \"box\" or \"cylinder\""),
     ('name = "a"\nshape = "box"\nmin = [0, 0, 0]\nmax = [10, 0, 10]', r"zone\[1\]\.max: expected the corner"),
     ('name = "a"\nshape = "box"\nmin = [0, 0, 0]', r"zone\[1\]\.max: missing"),

@@ -57,12 +57,13 @@ from compiler.clauses import Motion, validate_move_clauses
 from compiler.configs import config_of, format_config
 from compiler.frames import IDENTITY, pose_of
 from compiler.objcode import OP, Program
+from compiler.zones import signals
 from compiler.semantics import compose
 from compiler.values import Joint, Pose
 
 from runtime.hardware.interface import DigitalIo, IoBackend
 from runtime.loop.component import DataPort
-from runtime.loop.components.io import IoComponent
+from runtime.loop.components.io import IoComponent, ZoneSignals
 from runtime.loop.components.trajectory import TrajectoryGenerator
 from runtime.loop.executive import SimClock
 from runtime.loop.vm import DONE, ERROR
@@ -687,6 +688,8 @@ class _Run:
         runs: dict[int, int] = {}
         self.world = AssumedWorld(self.backend, self.io, decisions or (), runs) if scenario is None else None
         self.host = OfflineHost(spec, settings, self.clock, self.io, self.world, runs, hints if hints is not None else {})
+        if signals(spec.zones) and self.host.tcp is not None:  # (the commanded tool: an offline run starts homed)
+            self.io.zone_signals = ZoneSignals(signals(spec.zones), self.host.tool_position)
         self.cell = self.io.cell = None
         if scenario is not None:  # (its contact sensors read where the host's tool is)
             from runtime.hardware.sim.cell import Cell
@@ -716,8 +719,8 @@ class _Run:
         outputs = io.outputs.value
         while True:
             now = clock.tick_time
-            if cell is not None:  # the tick's first task: the cell acts, the inputs are read
-                io.update(now)
+            if cell is not None or io.zone_signals is not None:  # the tick's first task: the cell acts, the
+                io.update(now)                                   # signal zones switch, the inputs are read
                 outputs = io.outputs.value
             host.update(now)
             if self.trace is not None:

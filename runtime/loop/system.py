@@ -12,12 +12,13 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from compiler.objcode import Program
+from compiler.zones import signals
 
 from runtime import accel
 from runtime.loop.batches import Events
 from runtime.loop.component import DataPort
 from runtime.loop.components.initialization import Initialization
-from runtime.loop.components.io import IoComponent, backend_of
+from runtime.loop.components.io import IoComponent, ZoneSignals, backend_of
 from runtime.loop.components.recorder import Recorder
 from runtime.loop.components.report import Report
 from runtime.motion.tcp import tcp_of
@@ -108,6 +109,9 @@ class RobotSystem:
         self.io = IoComponent(io_backend, self.cell, on_lost=self.emergency_stop)
         self.io.configure()  # the backend opened (a PLC's exchange starts), its I/O in the ports
         self.trajectory.io = self.io
+        if signals(spec.zones) and self.trajectory.tcp is not None:  # (the tool once the axes are referenced)
+            self.io.zone_signals = ZoneSignals(signals(spec.zones), lambda: self.trajectory.tool_position()
+                                               if all(self.safety.limits.referenced) else None)
         self.report = Report(spec, p["sens_pos"], p["drive_cmd"], self.servo, lambda: self.supervisor.fsm.path(),
                              settings.report.period, history=lambda: self.supervisor.fsm.history,
                              io=(self.io.inputs, self.io.outputs), settings=settings,

@@ -29,6 +29,35 @@ from runtime.timing import TICK
 LOST = "the fieldbus is lost: "  # the emergency stop's reason, then the backend's why
 
 
+class ZoneSignals:
+    """The signal zones (compiler.zones, ``kind = "signal"``): each one's digital output
+    true while the tool centre point is inside the zone, false while it is not; set where
+    that changes (so a program may still switch the output between changes). ``tcp()``
+    gives the tool centre point in the world (x, y, z, mm), or None while it is not known
+    (the axes not referenced yet: nothing is switched). Real-time: one forward kinematics
+    a tick."""
+
+    def __init__(self, zones: tuple, tcp):
+        self.zones, self.tcp = zones, tcp
+        self.reset()
+
+    def reset(self) -> None:
+        """A new cycle: each output is set at the first tick the tool is known."""
+        self.inside: list = [None] * len(self.zones)
+
+    def update(self, io: "IoComponent") -> None:
+        point = self.tcp()
+        if point is None:
+            return
+        x, y, z = point
+        inside = self.inside
+        for i, zone in enumerate(self.zones):
+            now = zone.depth(x, y, z) > 0.0
+            if now != inside[i]:
+                inside[i] = now
+                io.set_output(zone.output, now)
+
+
 def backend_of(robot) -> IoBackend:
     """The I/O backend of a robot backend: itself when it has I/O (the simulated robot), else
     :class:`NoIo`."""
@@ -53,6 +82,7 @@ class IoComponent(Component):
         super().__init__("io", tick)
         self.backend = backend
         self.cell = cell  # a runtime.hardware.sim.cell.Cell driving the simulated backend's inputs, or None
+        self.zone_signals: ZoneSignals | None = None  # the signal zones' outputs (set by the system)
         self.on_lost = on_lost  # callable(reason): the system's emergency stop
         self.inputs = DataPort("inputs", ())
         self.outputs = DataPort("outputs", ())
@@ -73,6 +103,8 @@ class IoComponent(Component):
 
     def on_start(self) -> bool:
         self.lost_reason = None  # a new cycle: a loss is taken once in each
+        if self.zone_signals is not None:
+            self.zone_signals.reset()
         self.refresh()
         return True
 
@@ -105,6 +137,8 @@ class IoComponent(Component):
         self._now = now
         if self.cell is not None:
             self.cell.update(now)
+        if self.zone_signals is not None:
+            self.zone_signals.update(self)
         inputs = tuple(self.backend.inputs)
         if len(inputs) == self.n_inputs:
             self.inputs.write(inputs, now)

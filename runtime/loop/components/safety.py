@@ -46,6 +46,7 @@ from __future__ import annotations
 import math
 
 from compiler.params import settle_time
+from compiler.zones import forbidden
 
 from runtime.accel import kernels
 from runtime.loop.component import Component, DataPort
@@ -332,7 +333,7 @@ class ZoneMonitor:
     zones)."""
 
     def __init__(self, spec, limits: "SafetyLimits"):
-        self.zones = tuple(spec.zones)
+        self.zones = forbidden(spec.zones)
         self.main = len(spec.main_axes)
         self.limits = limits
         self.kinematics: Kinematics | None = None

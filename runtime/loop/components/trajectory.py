@@ -34,6 +34,7 @@ from compiler.spec import DEFAULT_LOOKAHEAD
 from compiler.configs import config_of
 from compiler.recovery import BY_NAME as ERROR_KINDS
 from compiler.robotstate import group_problem, group_value_problem
+from compiler.zones import forbidden
 from compiler.semantics import EvalError, compose, inverse
 from compiler.triggers import MAX_PENDING as MAX_TRIGGERS
 from compiler.triggers import problem as trigger_problem
@@ -123,7 +124,8 @@ class TrajectoryGenerator(Component):
         self.started_at: float | None = None  # the time of the program's first step (None: not yet)
         # the robot's kinematics, built here (never in a tick), or why poses cannot be used
         kinematics, problem = _build_kinematics(spec)
-        self.planner = MovePlanner(spec.axes, spec.main_axes, motion_profile(spec), kinematics, problem, spec.zones)
+        self.planner = MovePlanner(spec.axes, spec.main_axes, motion_profile(spec), kinematics, problem,
+                                   forbidden(spec.zones))
         self.tcp = TcpOf(kinematics) if kinematics is not None else None  # the arm with each tool (cached)
         self.search = Search()  # a search move's watch (runtime.loop.search)
         self.motion = MotionQueue(self.planner, spec.axes, holds=self._holds, program_line=self._program_line)

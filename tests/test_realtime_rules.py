@@ -140,6 +140,57 @@ def test_no_io_threads_or_sleeps_in_a_tick_on_the_simulated_clock(tmp_path):
     assert seen == [], seen[:10]
 
 
+def test_no_io_threads_or_sleeps_in_a_tick_with_zones_a_search_and_the_cells_sensors(tmp_path):
+    """The production cell's language in the tick: a forbidden and a signal zone (the safety
+    supervisor's and the io component's checks), a search move stopped by a touch sensor
+    (the cell's [[contact]] rule, the trajectory generator's watch and the motion's cut),
+    group and analog outputs."""
+    from compiler.spec import load_spec
+    from runtime.hardware.sim.cell import parse_scenario
+
+    spec_file = tmp_path / "rt.spc"
+    spec_file.write_text(SPEC_PATH.read_text(encoding="utf-8") + """
+[[analog_output]]
+name = "pressure"
+min = 0
+max = 6
+
+[[zone]]
+name = "fixture"
+shape = "box"
+min = [800, 200, 0]
+max = [1000, 400, 340]
+
+[[zone]]
+name = "above"
+shape = "cylinder"
+kind = "signal"
+output = 6
+centre = [600, -500]
+radius = 100
+z = [0, 2000]
+""", encoding="utf-8")
+    spec = load_spec(spec_file)
+    text = (f'program rt;\nsystem_specification "{spec_file}";\nvar p : pose;\nseq\n'
+            '  move ptp pose(pos(600, -500, 450), rpy(180, 0, 180));\n'
+            '  move lin pose(pos(600, -500, 300), rpy(180, 0, 180)) search := 7 speed := 100;\n'
+            '  p := search_pose();\n'
+            '  call group_out(1, 4, 9);\n'
+            '  call analog_out(1, 2.5);\n'
+            '  move lin p + pos(0, 0, 100);\n'
+            'endseq\nendprogram;\n')
+    result = compile_source(text, "rt.irl", spec_file)
+    assert result.ok, result.diagnostics
+    scenario = parse_scenario({"contact": [{"input": 7, "z": 350.0}]}, spec)
+    system = RobotSystem(spec, RunOptions(cell=scenario))
+    seen = watch_tasks(system)
+    summary = run_cycle(system, result.program, 200_000)
+    assert summary["fault"] is None, summary["fault"]
+    assert [m["line"] for m in summary["moves"]] == [5, 6, 10]
+    assert system.io.output(6) and system.io.output(1) and system.io.output(4)  # (the signal zone; 9 = 0b1001)
+    assert seen == [], seen[:10]
+
+
 def test_no_io_threads_or_sleeps_in_a_tick_in_step_mode_from_a_line(tmp_path):
     """Step mode and a start from a line (runtime/loop/stepping.py): the run to line 8 without
     moving, the approach, and the moves held for steps given between ticks, as the loop's

@@ -629,7 +629,9 @@ class TrajectoryGenerator(Component):
         from the measured joints (the commanded ones where none are measured: an offline
         run). A simulated cell's sensors read it (runtime.hardware.sim.cell)."""
         joints = self.sens_pos.read() or self.motion.positions
-        return self._arm().forward(joints[:6])[:3]
+        if self.tcp is None:
+            raise EvalError(self.planner.kinematics_problem)
+        return self.tcp.kinematics.flange_and_tcp(joints[:6], self.frames.tool[:3])[1]  # (no tool's tables built)
 
     def tcp_speed(self) -> float:
         """The TCP's speed (mm/s) from the commanded joint velocities (0 without kinematics)."""

@@ -59,6 +59,8 @@ safety_check = kernels.safety_check
 direction_check = kernels.direction_check
 standstill_check = kernels.standstill_check
 
+_D2R = math.pi / 180.0
+
 #: Ticks without a fresh servo command before the robot stops (the command watchdog).
 WATCHDOG_TICKS = 2
 #: Ticks of the encoder-direction window.
@@ -329,8 +331,13 @@ class ZoneMonitor:
     ``tool_of()`` gives: the move's) of every 1 ms reference of the servo outside each,
     once every main axis is referenced. The planners keep every move
     :data:`compiler.zones.MARGIN` away, so this is the backstop of what no plan covers.
-    Real-time: :meth:`check` (one flange frame per tick, plain floats; nothing without
-    zones)."""
+
+    Real-time: :meth:`check`, plain floats, nothing without zones. A tick whose reference
+    cannot have brought either point to a zone is not computed: no point moves further
+    than the joints' motion (rad) times the longest lever any axis has on it (``lever``:
+    every link's length plus the tool's), so while the sum of the axes' motion since the
+    last computed tick, times that lever, is less than the points' clearance then, both
+    are still outside. Far from the zones, or at rest, that is most ticks."""
 
     def __init__(self, spec, limits: "SafetyLimits"):
         self.zones = forbidden(spec.zones)
@@ -342,21 +349,43 @@ class ZoneMonitor:
                 self.kinematics = Kinematics(spec)
             except ValueError:
                 self.zones = ()
+        self.links = sum(math.hypot(a.dh.a, a.dh.d) for a in spec.main_axes if a.dh is not None)
         self.default_tool = tuple(float(v) for v in spec.tool[:3])
         self.tool_of = None  # () -> the move's tool, set by the system
+        self.forget()
+
+    def forget(self) -> None:
+        """Real-time safe: the next reference is computed (a new cycle, a jump)."""
+        self.last: tuple | None = None  # the joints (deg) of the last computed reference
+        self.last_tool: tuple | None = None
+        self.clearance = 0.0  # how far both points were from every zone then (mm)
 
     def check(self, reference) -> str | None:
         """Real-time: why the reference is inside a zone, or None."""
         if not self.zones or not all(self.limits.referenced[:self.main]):
             return None
         tool = self.tool_of()[:3] if self.tool_of is not None else self.default_tool
-        flange, tcp = self.kinematics.flange_and_tcp(reference[:self.main], tool)
+        q = reference[:self.main]
+        last = self.last
+        if last is not None and tool == self.last_tool:
+            moved = 0.0
+            for a, b in zip(q, last):
+                moved += abs(a - b)
+            lever = self.links + math.sqrt(tool[0] * tool[0] + tool[1] * tool[1] + tool[2] * tool[2])
+            if moved * _D2R * lever < self.clearance:
+                return None
+        flange, tcp = self.kinematics.flange_and_tcp(q, tool)
+        clearance = math.inf
         for zone in self.zones:
             for name, (x, y, z) in (("the tool centre point", tcp), ("the flange", flange)):
                 depth = zone.depth(x, y, z)
                 if depth > 0.0:
+                    self.last = None
                     return (f"{name} entered zone '{zone.name}' ({depth:.1f} mm inside it, at ({x:.1f}, {y:.1f}, "
                             f"{z:.1f}))")
+                if -depth < clearance:
+                    clearance = -depth
+        self.last, self.last_tool, self.clearance = tuple(q), tool, clearance
         return None
 
 
@@ -517,6 +546,7 @@ class SafetySupervisor(Component):
         it may move at full speed) or not (its reference jumps: the T1 check starts anew)."""
         self.limits.set_referenced(axis, referenced)
         self.reduced.forget()
+        self.zones.forget()
 
     def use_tool_of(self, tool_of) -> None:
         """Not real-time: ``tool_of()`` gives the tool of the move under way (x, y, z, roll,
@@ -536,6 +566,7 @@ class SafetySupervisor(Component):
         self.stops: list[tuple[float, int, str]] = []  # (time, category, cause) of each stop begun or made stricter
         self.ramp.reset()
         self.reduced.forget()
+        self.zones.forget()
         self.reduced.peak = 0.0
         self.encoders.reset()
         self.standstill.reset()

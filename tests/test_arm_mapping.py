@@ -22,7 +22,7 @@ from compiler.spec import SpecError, parse_spec
 from runtime.motion.kinematics import Kinematics, KinematicsError
 from test_kinematics import LOLA_ROWS, angle_diff, np_dh, np_rpy, pose_error
 
-from conftest import SPEC, SPEC_PATH, run_cli
+from conftest import SPEC, SPEC_PATH, run_cli, examples
 
 LIMITS = [(ax.min, ax.max) for ax in SPEC.main_axes]
 TOOL = (5.0, -10.0, 120.0, 10.0, 20.0, -30.0)
@@ -65,7 +65,7 @@ def arm(dirs, couplings, mounting, limits=None):
                       mounting=mounting)
 
 
-@settings(max_examples=120, deadline=None, derandomize=True, database=None,
+@settings(max_examples=examples(120), deadline=None, derandomize=True, database=None,
           suppress_health_check=[HealthCheck.filter_too_much])
 @given(st.tuples(*[SIGNS] * 6), COUPLINGS, MOUNTINGS,
        st.tuples(*(st.floats(lo, hi, allow_nan=False) for lo, hi in LIMITS)))

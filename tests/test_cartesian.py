@@ -55,7 +55,7 @@ KIN = Kinematics(SPEC)
 AXES = SPEC.main_axes
 START = (0.0, -30.0, 30.0, 0.0, 45.0, 0.0)  # front, elbow up, A5 at 45 deg: far from singular
 
-SETTINGS = settings(max_examples=200, deadline=None, derandomize=True, database=None,
+SETTINGS = settings(max_examples=examples(200), deadline=None, derandomize=True, database=None,
                     suppress_health_check=[HealthCheck.too_slow])
 
 

@@ -14,7 +14,7 @@ from hypothesis import strategies as st
 from runtime.hardware.sim.cell import RULES, Cell, ScenarioError, load_scenario, parse_scenario
 from runtime.timing import TICK
 
-from conftest import ROOT, SPEC, run_cli as run
+from conftest import ROOT, SPEC, run_cli as run, examples
 PICK = ROOT / "programs" / "pick_place.irl"
 SCENARIO = ROOT / "programs" / "pick_place.cell.toml"
 
@@ -128,7 +128,7 @@ class FakeIO:
         return tuple(self._out)
 
 
-@settings(max_examples=150, deadline=None)
+@settings(max_examples=examples(150), deadline=None)
 @given(kind=st.sampled_from(["follow", "latch"]), delay_ticks=st.integers(0, 400), invert=st.booleans(),
        toggles=st.lists(st.tuples(st.integers(1, 600), st.sampled_from([1, 2])), max_size=12))
 def test_an_input_follows_its_rule_exactly_delay_after_each_edge(kind, delay_ticks, invert, toggles):

@@ -35,7 +35,7 @@ from runtime.cli.main import Environment, main
 from runtime.motion.planner import scaled_limits
 from runtime.loop.vm import VM, VMStatus
 
-from conftest import SPEC_PATH, SPEC
+from conftest import SPEC_PATH, SPEC, examples
 
 #: The rules as docs/language.md states them, written out independently of the table:
 #: (clause, motion) -> (low, low excluded, high or None).
@@ -195,7 +195,7 @@ def first_problem(kind, clauses) -> tuple[str, object] | None:
     return None
 
 
-@settings(max_examples=500, deadline=None, derandomize=True, database=None)
+@settings(max_examples=examples(500), deadline=None, derandomize=True, database=None)
 @example(kind="lin", clauses={"search": None})
 @example(kind="lin", clauses={"search": 3, "approx": 1.0})
 @example(kind="lin", clauses={"search": 3})
@@ -265,7 +265,7 @@ def test_problems_say_what_which_value_and_which_range():
     assert validate_move_clauses("ptp", [("speed_ptp", 0.5)], SPEC).startswith("the move's clauses must be a table")
 
 
-@settings(max_examples=300, deadline=None, derandomize=True, database=None)
+@settings(max_examples=examples(300), deadline=None, derandomize=True, database=None)
 @given(st.one_of(st.floats(), st.floats(min_value=-0.5, max_value=1.5)))
 def test_scaled_limits_holds_the_same_rule_as_the_table(fraction):
     """runtime.motion.planner.scaled_limits keeps its own guard (a library function);
@@ -317,7 +317,7 @@ def literal(value) -> str:
     return repr(value) if isinstance(value, float) else str(value)
 
 
-@settings(max_examples=300, deadline=None, derandomize=True, database=None)
+@settings(max_examples=examples(300), deadline=None, derandomize=True, database=None)
 @given(kind=st.sampled_from(MOTIONS), name=st.sampled_from([n for n in NAMES if n not in ("act_rob", "search")]),
        value=st.one_of(st.floats(allow_nan=False, allow_infinity=False), st.floats(min_value=-0.5, max_value=1.5),
                        st.floats(min_value=-10.0, max_value=1e4), st.integers(min_value=-10, max_value=10_000)))

@@ -712,7 +712,7 @@ def parses_or_config_error(text: str) -> Configurations | None:
         return None
 
 
-@settings(max_examples=400, **FUZZ)
+@settings(max_examples=examples(400), **FUZZ)
 @given(st.text(max_size=300))
 @example("[configurations.a.servo]\nkp = 10")
 @example("[[configurations]]\n")
@@ -722,7 +722,7 @@ def test_random_text_raises_only_config_error(text):
     parses_or_config_error(text)
 
 
-@settings(max_examples=300, **FUZZ)
+@settings(max_examples=examples(300), **FUZZ)
 @given(st.sampled_from([SAMPLE.read_text(encoding="utf-8")]), st.integers(0, 3000), st.integers(0, 40), TEXT)
 def test_mutated_sample_raises_only_config_error(sample, at, cut, insert):
     at %= len(sample) + 1
@@ -740,7 +740,7 @@ def test_random_documents_raise_only_config_error(data):
             assert validate_settings(config.settings, "again") == config.settings
 
 
-@settings(max_examples=300, **FUZZ)
+@settings(max_examples=examples(300), **FUZZ)
 @given(st.one_of(VALUES, st.dictionaries(st.one_of(KEYS, st.integers(), st.binary(max_size=3)),
                                          st.one_of(VALUES, st.dictionaries(KEYS, VALUES, max_size=3)), max_size=4)))
 def test_validate_settings_raises_only_config_error(value):
@@ -750,7 +750,7 @@ def test_validate_settings_raises_only_config_error(value):
         assert str(error).startswith("net: ")
 
 
-@settings(max_examples=200, **FUZZ)
+@settings(max_examples=examples(200), **FUZZ)
 @given(st.dictionaries(st.sampled_from(NAMES), valid_settings(), min_size=1), st.data())
 def test_valid_configurations_load_and_read_back(configs, data):
     names = list(configs)

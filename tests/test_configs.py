@@ -41,7 +41,7 @@ from runtime.motion.teach import PoseError, pose_literal
 from runtime.motion.kinematics import Kinematics, KinematicsError, configuration_name
 from runtime.motion.moves import Frames, MovePlanner, MoveRequest
 
-from conftest import PROGRAMS, ROOT, SPEC, SPEC_PATH, objcode, run_cli, submit, wait_end
+from conftest import PROGRAMS, ROOT, SPEC, SPEC_PATH, objcode, run_cli, submit, wait_end, examples
 
 ARMS = [PROGRAMS / "lola15.spc", *sorted((PROGRAMS / "robots").glob("*.spc"))]
 _SPECS = {path: load_spec(path) for path in ARMS}
@@ -450,7 +450,7 @@ def test_the_rounded_literal_is_to_a_thousandth_where_that_suffices():
                            "config(front, elbow_up, flip, 0, 0, 0))")  # (docs/language.md shows it)
 
 
-@settings(max_examples=150, suppress_health_check=[HealthCheck.too_slow])
+@settings(max_examples=examples(150), suppress_health_check=[HealthCheck.too_slow])
 @given(data=st.data(), index=st.integers(0, len(ARMS) - 1), config=CONFIGS.map(
     lambda c: Config(c.shoulder, c.elbow, c.wrist, None if c.turns is None else tuple(k % 5 - 2 for k in c.turns))))
 def test_a_ptp_to_a_pose_with_a_configuration_reaches_it_or_is_refused_with_a_reason(data, index, config):

@@ -19,6 +19,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from runtime.loop.fsm import AUTOMATIC, FSM, REACTIVE, FSMError, State, Transition
+from conftest import examples
 
 
 # ---- helpers -----------------------------------------------------------------------------
@@ -800,7 +801,7 @@ def _alternates(seq):
     return all(kind == ("entry" if i % 2 == 0 else "exit") for i, kind in enumerate(seq))
 
 
-@settings(derandomize=True, deadline=None, max_examples=300)
+@settings(derandomize=True, deadline=None, max_examples=examples(300))
 @given(random_machines())
 def test_property_random_machines_keep_the_invariants(spec):
     names, initial, final, rows, host, mode, actions, seed = spec

@@ -12,7 +12,7 @@ from hypothesis import strategies as st
 
 from compiler.robotstate import GROUP_BITS, group_problem, group_value_problem
 
-from conftest import SPEC_PATH, run_cli
+from conftest import SPEC_PATH, run_cli, examples
 
 PROGRAM = """program codes;
 system_specification "lola15.spc";
@@ -52,7 +52,7 @@ def test_a_group_written_is_the_group_read_back_through_the_cell(tmp_path):
     assert code == 1 and "116 does not fit a group of 2 outputs: expected 0..3" in summary["fault"], summary["fault"]
 
 
-@settings(max_examples=200, deadline=None, derandomize=True, database=None)
+@settings(max_examples=examples(200), deadline=None, derandomize=True, database=None)
 @given(first=st.integers(-3, 40), bits=st.integers(-2, 40), value=st.integers(-5, 1 << 34), count=st.integers(0, 40))
 def test_a_group_is_accepted_exactly_when_its_signals_exist_and_its_value_fits(first, bits, value, count):
     problem = group_problem(first, bits, count, "output")

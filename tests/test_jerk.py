@@ -42,6 +42,7 @@ from runtime.motion.jerk import (
     time_optimal_profile,
 )
 from runtime.motion.planner import DISTANCE_EPSILON, MAX_DURATION, PtpInput, Result
+from conftest import examples
 
 
 def jerk_plan(start, target, v_max, a_max, j_max, synchronization="line"):
@@ -52,7 +53,7 @@ EPS = float(np.finfo(float).eps)
 REL = 1e-9  # relative tolerance on limits
 N_SAMPLES = 2000
 
-PROPERTY = settings(derandomize=True, deadline=None, max_examples=150,
+PROPERTY = settings(derandomize=True, deadline=None, max_examples=examples(150),
                     suppress_health_check=[HealthCheck.too_slow])
 PLANNER_PROPERTY = settings(PROPERTY, max_examples=60)
 
@@ -789,7 +790,7 @@ extreme = st.floats(-1e300, 1e300, allow_nan=False)
 extreme_limit = st.floats(1e-300, 1e300)
 
 
-@settings(derandomize=True, deadline=None, max_examples=300)
+@settings(derandomize=True, deadline=None, max_examples=examples(300))
 @given(st.integers(1, 3).flatmap(lambda n: st.tuples(
     *(st.lists(x, min_size=n, max_size=n).map(tuple)
       for x in (extreme, extreme, extreme_limit, extreme_limit, extreme_limit)))),
@@ -807,7 +808,7 @@ def test_property_extreme_input_never_raises_nor_samples_non_finite(args, sync):
         assert traj.sample(traj.duration)[0] == tuple(args[1])
 
 
-@settings(max_examples=200, deadline=None, derandomize=True)
+@settings(max_examples=examples(200), deadline=None, derandomize=True)
 @given(st.lists(st.tuples(st.floats(-180, 180), st.floats(5, 300), st.floats(20, 2000), st.floats(200, 20000)),
                 min_size=6, max_size=6))
 def test_property_auto_is_time_optimal_and_a_straight_line_when_that_is_free(axes):
@@ -825,7 +826,7 @@ def test_property_auto_is_time_optimal_and_a_straight_line_when_that_is_free(axe
         assert auto.synchronization == "line"
 
 
-@settings(max_examples=300, deadline=None, derandomize=True)
+@settings(max_examples=examples(300), deadline=None, derandomize=True)
 @given(st.floats(0.0, 500.0), st.floats(-300.0, 300.0), st.floats(1.0, 400.0), st.floats(10.0, 5000.0))
 def test_property_jerk_stop_comes_to_rest_within_the_limits(v0, a0, a_max, j_max):
     """The stop from (v0, a0): never backwards, ends at rest at `distance`, |a| within

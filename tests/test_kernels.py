@@ -20,9 +20,9 @@ from hypothesis import strategies as st
 from runtime import accel
 from runtime import kernels as source
 
-from conftest import ROOT
+from conftest import ROOT, examples
 COMPILED = accel._compiled_module()
-SETTINGS = settings(max_examples=300, deadline=None, derandomize=True, database=None)
+SETTINGS = settings(max_examples=examples(300), deadline=None, derandomize=True, database=None)
 needs_build = pytest.mark.skipif(COMPILED is None, reason="no compiled kernels (test_the_build_compiled_the_kernels says why)")
 
 

@@ -45,7 +45,7 @@ from runtime.motion.kinematics import (
     rpy_to_matrix,
 )
 
-from conftest import SPEC_PATH, SPEC
+from conftest import SPEC_PATH, SPEC, examples
 KIN = Kinematics(SPEC)
 POS_TOL = 1e-6  # mm (1e-9 m)
 ROT_TOL = 1e-9  # rad
@@ -563,7 +563,7 @@ def test_geometry_that_is_not_a_spherical_wrist_arm_is_refused():
 JOINTS = st.tuples(*(st.floats(lo, hi, allow_nan=False) for lo, hi in KIN.limits))
 
 
-@settings(max_examples=400, deadline=None, derandomize=True, database=None,
+@settings(max_examples=examples(400), deadline=None, derandomize=True, database=None,
           suppress_health_check=[HealthCheck.filter_too_much])
 @given(JOINTS)
 def test_property_inverse_of_forward_is_identity(q):

@@ -40,7 +40,7 @@ from runtime.motion.profiles import (
     time_optimal_profile,
 )
 
-from conftest import ROOT
+from conftest import ROOT, examples
 EPS = np.finfo(float).eps
 SERVO_DT = 0.001  # s
 SETPOINT_DT = 0.005  # s
@@ -471,7 +471,7 @@ def test_property_ptp_within_limits_synchronised_time_optimal(inp):
     check_samples(inp, traj, ms_times(traj.duration), dense=True)
 
 
-@settings(derandomize=True, deadline=None, max_examples=150)
+@settings(derandomize=True, deadline=None, max_examples=examples(150))
 @given(six_axis_moves(v_range=(1e-3, 1e4), a_range=(1e-3, 1e5)))
 def test_property_wide_limits_analytic_checks(inp):
     result, traj, message = plan_ptp(inp)
@@ -670,7 +670,7 @@ def _servo_eval(interp: Interpolator, t: float):
 finite = st.floats(-1e3, 1e3, allow_nan=False)
 
 
-@settings(max_examples=200, deadline=None)
+@settings(max_examples=examples(200), deadline=None)
 @given(st.lists(st.tuples(st.floats(1e-3, 0.02), finite, finite, finite, finite, st.none() | st.tuples(finite, finite)),
                 min_size=0, max_size=4),
        st.lists(st.floats(-0.05, 0.1), min_size=1, max_size=8))

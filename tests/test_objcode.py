@@ -492,6 +492,7 @@ from hypothesis import strategies as st
 
 from runtime.loop.vm import VM, VMStatus
 from test_vm import FakeHost
+from conftest import examples
 
 _EXAMPLES = ("cycle_control", "joint_jog", "approach_retreat", "pick_place", "pallet_frame", "waypoints",
              "spot_weld", "pallet_and_glue")
@@ -529,7 +530,7 @@ def mutants(draw):
     return _dataclasses.replace(program, constants=tuple(constants))
 
 
-@settings(max_examples=150, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@settings(max_examples=examples(150), deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(program=mutants())
 # found by this test's search before the verifier typed the stack: a string where a number
 # belongs (cycle_control's first comparison), a number where a pose belongs (GET_FIELD)

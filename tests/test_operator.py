@@ -16,7 +16,7 @@ from runtime.motion.stops import REST_VELOCITY, StopRamp
 from runtime.loop.supervisor import MOVE, RECONFIGURE, STOP
 from runtime.loop.system import RobotSystem, RunOptions
 
-from conftest import ROOT
+from conftest import ROOT, examples
 PAPER = compile_file(ROOT / "programs" / "test.irl")
 SPEC = PAPER.spec
 COUNTS = [1.0 / a.counts_per_unit for a in SPEC.axes]
@@ -118,7 +118,7 @@ VELOCITIES = st.one_of(st.floats(-200, 200), st.sampled_from([0.0, -0.0, 2.2e-31
                                                               REST_VELOCITY * 0.999, -REST_VELOCITY]))
 
 
-@settings(max_examples=100, deadline=None, derandomize=True, database=None)
+@settings(max_examples=examples(100), deadline=None, derandomize=True, database=None)
 @given(st.lists(st.tuples(VELOCITIES, st.floats(0.5, 500)), min_size=1, max_size=6))
 def test_property_stop_ramp_respects_every_axis_limit_and_stays_proportional(axes):
     v0 = tuple(v for v, _ in axes)

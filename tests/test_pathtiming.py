@@ -28,7 +28,7 @@ from runtime.motion.pathtiming import (
 from runtime.motion.jerk import time_optimal_profile
 from runtime.motion.reachability import AveragedProfile
 
-from conftest import ROOT, SPEC
+from conftest import ROOT, SPEC, examples
 KIN = Kinematics(SPEC)
 AXES = SPEC.main_axes
 LIMITS = ([a.max_velocity for a in AXES], [a.max_acceleration for a in AXES], [a.max_jerk for a in AXES])
@@ -49,7 +49,7 @@ def segments(draw):
     return sum(lengths), bounds, tops, accs, jerks
 
 
-@settings(max_examples=300, deadline=None, derandomize=True, database=None, suppress_health_check=list(HealthCheck))
+@settings(max_examples=examples(300), deadline=None, derandomize=True, database=None, suppress_health_check=list(HealthCheck))
 @given(segments())
 def test_property_the_profile_keeps_each_segments_limits_from_rest_to_rest(drawn):
     """Whatever the segments, the profile runs from rest at 0 to rest at the length, never
@@ -89,7 +89,7 @@ def test_property_the_profile_keeps_each_segments_limits_from_rest_to_rest(drawn
         assert abs(before[2][0] - after[2][0]) <= 1e-4 * max(accs) + 1e-6 * max(jerks)
 
 
-@settings(max_examples=100, deadline=None, derandomize=True, database=None, suppress_health_check=list(HealthCheck))
+@settings(max_examples=examples(100), deadline=None, derandomize=True, database=None, suppress_health_check=list(HealthCheck))
 @given(segments(), st.floats(0.05, 1.0))
 def test_property_times_at_inverts_the_profile_and_scaling_slows_it_down(drawn, k):
     length, bounds, tops, accs, jerks = drawn

@@ -16,7 +16,7 @@ from compiler.values import Pose, Position, Quat, Rpy
 
 from test_vm import DISPATCHES, printed, raw_program, run
 
-from conftest import ROOT
+from conftest import ROOT, examples
 
 coordinate = st.floats(-2000, 2000, allow_nan=False)
 angle = st.floats(-180, 180, allow_nan=False)
@@ -54,7 +54,7 @@ def close(a: Pose, m: np.ndarray, tol: float = 1e-9) -> bool:
         np.abs(got[:3, :3] - m[:3, :3]).max() <= tol
 
 
-@settings(max_examples=300, deadline=None)
+@settings(max_examples=examples(300), deadline=None)
 @given(poses)
 def test_a_pose_composed_with_its_inverse_is_the_identity(a):
     for identity in (compose(a, inverse(a)), compose(inverse(a), a)):
@@ -62,7 +62,7 @@ def test_a_pose_composed_with_its_inverse_is_the_identity(a):
     assert type(inverse(a).orientation) is type(a.orientation)  # rpy stays rpy, quat stays quat
 
 
-@settings(max_examples=300, deadline=None)
+@settings(max_examples=examples(300), deadline=None)
 @given(poses, poses, positions)
 def test_composition_and_offsets_are_the_homogeneous_matrices(frame, target, offset):
     """A target written in a shifted (turned) frame is the matrix product, as computed by
@@ -85,7 +85,7 @@ def test_composition_and_offsets_are_the_homogeneous_matrices(frame, target, off
 GEOMETRIC_VALUES = st.one_of(positions, poses, orientations, st.integers(-5, 5), st.floats(-10, 10))
 
 
-@settings(max_examples=300, deadline=None)
+@settings(max_examples=examples(300), deadline=None)
 @given(op=st.sampled_from(["+", "-", "*", "/"]), a=GEOMETRIC_VALUES, b=GEOMETRIC_VALUES)
 def test_the_vm_computes_exactly_semantics_on_geometric_values(op, a, b):
     """Both dispatch loops (and their inline fast paths, which try the Python operator

@@ -38,7 +38,7 @@ from compiler.spec import load_spec
 from runtime.motion.kinematics import Kinematics
 from runtime.loop.system import RobotSystem, RunOptions
 
-from conftest import PROGRAMS, ROOT, run_cli
+from conftest import PROGRAMS, ROOT, run_cli, examples
 
 ROBOTS = PROGRAMS / "robots"
 
@@ -182,7 +182,7 @@ def joints_within_limits(spec) -> st.SearchStrategy:
 # ---- the kinematics -----------------------------------------------------------------------------
 
 @pytest.mark.parametrize("arm", ARMS, ids=IDS)
-@settings(max_examples=300)
+@settings(max_examples=examples(300))
 @given(data=st.data())
 def test_the_specification_is_the_urdf_chain(arm, data):
     """Forward kinematics of joint values anywhere within the limits: the TCP (the default
@@ -196,7 +196,7 @@ def test_the_specification_is_the_urdf_chain(arm, data):
 
 
 @pytest.mark.parametrize("arm", ARMS, ids=IDS)
-@settings(max_examples=100)
+@settings(max_examples=examples(100))
 @given(data=st.data())
 def test_the_inverse_of_a_urdf_pose_is_that_pose(arm, data):
     """Our inverse kinematics of the URDF's tool0 at joint values within the limits (away

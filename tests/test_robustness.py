@@ -335,7 +335,7 @@ def mutated_specs(draw) -> str:
     return text
 
 
-@settings(max_examples=150, **FUZZ)
+@settings(max_examples=examples(150), **FUZZ)
 @given(spec=mutated_specs())
 def test_mutated_specifications_never_crash_the_cli(tmp_path_factory, spec):
     d = tmp_path_factory.mktemp("spec", numbered=True)
@@ -461,7 +461,7 @@ def corrupted_objects(draw) -> tuple[str, bytes]:
     return kind, with_crc(body[:i] + draw(st.binary(max_size=16)) + body[j:])
 
 
-@settings(max_examples=300, **FUZZ)
+@settings(max_examples=examples(300), **FUZZ)
 @given(case=corrupted_objects())
 def test_corrupted_object_files(workdir, case):
     kind, data = case
@@ -486,7 +486,7 @@ OBJECTS = st.recursive(
 )
 
 
-@settings(max_examples=150, **FUZZ)
+@settings(max_examples=examples(150), **FUZZ)
 @given(body=st.one_of(OBJECTS, st.fixed_dictionaries({k: OBJECTS for k in BODY_KEYS})))
 def test_msgpack_of_the_wrong_shape(workdir, body):
     data = with_crc(pack(body))
@@ -583,7 +583,7 @@ def _unreachable_example() -> tuple[str, dict]:
     return "append_code", body
 
 
-@settings(max_examples=300, **FUZZ)
+@settings(max_examples=examples(300), **FUZZ)
 @given(case=near_miss_bodies())
 def test_near_miss_bodies_load_or_raise_object_code_error(case):
     kind, body = case
@@ -592,7 +592,7 @@ def test_near_miss_bodies_load_or_raise_object_code_error(case):
         assert program is None
 
 
-@settings(max_examples=300, **FUZZ)
+@settings(max_examples=examples(300), **FUZZ)
 @given(case=near_miss_bodies())
 @example(case=_unreachable_example())
 def test_near_miss_bodies_dis(workdir, case):

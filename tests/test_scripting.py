@@ -33,7 +33,9 @@ from runtime.wire.scripting import (
     parse,
 )
 
-PROPERTY = settings(derandomize=True, deadline=None, database=None, max_examples=500)
+from conftest import examples
+
+PROPERTY = settings(derandomize=True, deadline=None, database=None, max_examples=examples(500))
 
 
 def same(a: object, b: object) -> bool:

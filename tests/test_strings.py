@@ -13,11 +13,12 @@ from compiler.semantics import EvalError, call_builtin
 from runtime.loop.vm import VMStatus
 
 from test_vm import DISPATCHES, run_source
+from conftest import examples
 
 TEXT = st.text(alphabet=st.characters(codec="utf-8", exclude_categories=("Cs",)), max_size=40)
 
 
-@settings(max_examples=200, deadline=None, derandomize=True, database=None)
+@settings(max_examples=examples(200), deadline=None, derandomize=True, database=None)
 @given(TEXT, TEXT)
 def test_property_find_part_and_length_agree(s, part):
     """str_find gives where str_part finds the part again; 0 exactly when it does not occur."""
@@ -30,7 +31,7 @@ def test_property_find_part_and_length_agree(s, part):
         assert at == 0
 
 
-@settings(max_examples=200, deadline=None, derandomize=True, database=None)
+@settings(max_examples=examples(200), deadline=None, derandomize=True, database=None)
 @given(TEXT, st.integers(-3, 45), st.integers(-3, 45))
 def test_property_str_part_is_the_slice_or_an_error_naming_the_range(s, first, count):
     try:
@@ -42,7 +43,7 @@ def test_property_str_part_is_the_slice_or_an_error_naming_the_range(s, first, c
     assert got == s[first - 1:first - 1 + count] and len(got) == count
 
 
-@settings(max_examples=300, deadline=None, derandomize=True, database=None)
+@settings(max_examples=examples(300), deadline=None, derandomize=True, database=None)
 @given(st.floats(allow_nan=False, allow_infinity=False, min_value=-1e15, max_value=1e15), st.integers(0, 15))
 def test_property_num_to_str_rounds_to_its_decimals_and_reads_back(x, decimals):
     text = call_builtin("num_to_str", [x, decimals])

@@ -18,7 +18,7 @@ from compiler.values import Joint, Pose, Position, Rpy, format_value
 from runtime.loop import vm as vm_module
 from runtime.loop.vm import HANDLERS, VM, VMError, VMStatus, build_dispatch
 
-from conftest import PROGRAMS
+from conftest import PROGRAMS, examples
 DISPATCHES = ("inline", "table")
 
 
@@ -330,7 +330,7 @@ def _after_one(name: str, case: dict, dispatch: str) -> str:
                  machine.globals, machine.memory.locals))
 
 
-@settings(max_examples=400, deadline=None)
+@settings(max_examples=examples(400), deadline=None)
 @given(name=st.sampled_from(vm_module.INLINE), data=st.data())
 def test_each_inline_instruction_gives_what_its_handler_gives(name, data):
     """Each instruction the inline loop executes itself leaves exactly what its handler in
@@ -454,7 +454,7 @@ def test_string_bool_and_structured_values_agree_with_folding(tmp_path):
     assert out[0] == "abcd" and out[2] == "true" and out[14] == "false"
 
 
-@settings(max_examples=300, deadline=None)
+@settings(max_examples=examples(300), deadline=None)
 @given(op=st.sampled_from(["+", "-", "*", "/", "div", "mod", "=", "<>", "<", "<=", ">", ">="]),
        a=st.one_of(st.integers(-(2 ** 63), 2 ** 63 - 1), st.integers(-100, 100),
                    st.floats(allow_nan=False, allow_infinity=False)),

@@ -238,3 +238,13 @@ def test_the_specification_declares_them():
     post = spec.zones[1]
     assert post.depth(300.0, 700.0, 100.0) == 80.0 and post.depth(300.0, 800.0, 100.0) == -20.0
     assert spec.hash != SPEC.hash
+
+
+def test_a_home_position_in_a_zone_is_refused_before_anything_moves():
+    # (every move from home would be refused: the robot could not leave it)
+    spec = zoned(ZONES + '\n[[zone]]\nname = "lamp"\nshape = "cylinder"\ncentre = [1145, 0]\nradius = 30\n'
+                         'z = [1300, 1500]\n')
+    with pytest.raises(ValueError, match="the home position is in zone 'lamp'.*every move from there would be "
+                                         "refused"):
+        RobotSystem(spec, RunOptions())
+    RobotSystem(zoned(), RunOptions())  # (the zones of the other tests leave home clear)

@@ -21,6 +21,7 @@ from runtime.loop.components.initialization import Initialization
 from runtime.loop.components.io import IoComponent, ZoneSignals, backend_of
 from runtime.loop.components.recorder import Recorder
 from runtime.loop.components.report import Report
+from runtime.motion.zonecheck import home_problem
 from runtime.motion.tcp import tcp_of
 from runtime.loop.components.robot_interface import RobotInterface
 from runtime.loop.components.safety import SafetySupervisor
@@ -87,6 +88,11 @@ class RobotSystem:
         self.trajectory = TrajectoryGenerator(spec, self.robot, p["desi_pos"], p["sens_pos"], self.clock,
                                               settings.trajectory.period, settings)
         self.trajectory.safety = self.safety
+        planner = self.trajectory.planner
+        problem = home_problem(planner.kinematics, tuple(axis.home for axis in spec.main_axes), tuple(spec.tool[:3]),
+                               planner.zones)
+        if problem is not None:
+            raise ValueError(f"{spec.file}: {problem}")
         self.safety.use_tool_of(lambda: self.trajectory.frames_now().tool)  # T1 and the zones: the move's tool
         self.mode = "aut"
         self.set_mode(options.mode)

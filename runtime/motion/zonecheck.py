@@ -16,7 +16,7 @@ import math
 
 from compiler.zones import MARGIN, STEP
 
-__all__ = ["zone_problem"]
+__all__ = ["home_problem", "zone_problem"]
 
 #: s: the first step, and the bounds of the adapted one.
 _FIRST_STEP, _MIN_STEP, _MAX_STEP = 0.002, 1e-5, 0.05
@@ -67,3 +67,16 @@ def _closest(points: tuple, zones, t: float, duration: float, what: str) -> str 
                 return (f"{what} enters zone '{zone.name}' ({zone.describe()}) at {at}: {name} would be at "
                         f"({x:.1f}, {y:.1f}, {z:.1f}), {how}")
     return None
+
+
+def home_problem(kinematics, home: tuple, tool: tuple, zones) -> str | None:
+    """Why the robot's home position (where homing leaves it, and every program starts)
+    has the flange or the tool centre point within MARGIN of a zone (no move could leave
+    it), or None."""
+    if not zones or kinematics is None:
+        return None
+    said = _closest(kinematics.flange_and_tcp(tuple(home)[:6], tool), zones, 0.0, 0.0, "the home position")
+    if said is None:
+        return None
+    return said.replace(" enters zone", " is in zone", 1).replace(" at its start", "", 1) + \
+        ": every move from there would be refused (move the zone, or the axes' home)"

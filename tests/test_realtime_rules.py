@@ -20,6 +20,7 @@ from compiler.driver import compile_source
 from runtime.loop.system import RobotSystem, RunOptions
 
 from conftest import ROOT, SPEC_PATH, SPEC
+from test_zones import ZONES  # (a forbidden box and cylinder, clear of these moves)
 
 #: Audit events that must never happen inside a tick (prefixes).
 FORBIDDEN = ("open", "os.", "socket.", "subprocess.", "_thread.start_new_thread", "time.sleep", "shutil.",
@@ -149,17 +150,11 @@ def test_no_io_threads_or_sleeps_in_a_tick_with_zones_a_search_and_the_cells_sen
     from runtime.hardware.sim.cell import parse_scenario
 
     spec_file = tmp_path / "rt.spc"
-    spec_file.write_text(SPEC_PATH.read_text(encoding="utf-8") + """
+    spec_file.write_text(SPEC_PATH.read_text(encoding="utf-8") + ZONES + """
 [[analog_output]]
 name = "pressure"
 min = 0
 max = 6
-
-[[zone]]
-name = "fixture"
-shape = "box"
-min = [800, 200, 0]
-max = [1000, 400, 340]
 
 [[zone]]
 name = "above"

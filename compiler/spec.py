@@ -413,6 +413,9 @@ def parse_spec(text: str, file: str = "<spec>") -> Spec:
     analog = _analog_channels(file, data, top, "input")
     analog_out = _analog_channels(file, data, top, "output")
     zones = _zones(file, data, top, outputs)
+    if zones and any(axis.group == "additional" for axis in axes):
+        raise SpecError(file, "zone", "world zones need a robot without additional axes for now (a track or a "
+                                      "positioner would move the tool in ways the zone checks do not count)")
     kinematics = _parameters(file, "kinematics", top.get("kinematics", "table", {}))
     tool, mounting = kinematics["tool"], kinematics["mounting"]
     named = _named_frames(file, data, top)

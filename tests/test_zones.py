@@ -248,3 +248,12 @@ def test_a_home_position_in_a_zone_is_refused_before_anything_moves():
                                          "refused"):
         RobotSystem(spec, RunOptions())
     RobotSystem(zoned(), RunOptions())  # (the zones of the other tests leave home clear)
+
+
+def test_a_robot_with_additional_axes_takes_no_zones_yet():
+    # (a track or a positioner moves the tool in ways the zone checks do not count: refused, not ignored)
+    text = SPEC_PATH.read_text(encoding="utf-8")
+    a6 = text[text.rindex("[[axis]]"):].split("\n[", 1)[0]  # (the last axis's table, as a seventh: additional)
+    track = a6.replace('name = "A6"', 'name = "track"\ngroup = "additional"')
+    with pytest.raises(SpecError, match="world zones need a robot without additional axes"):
+        zoned("\n" + track + ZONES)

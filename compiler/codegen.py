@@ -9,18 +9,16 @@ from __future__ import annotations
 from pathlib import Path
 
 from . import ast
-from .check import (BOOL, CONFIG, FRAME, INTEGER, JOINT, ORIENTATION, POSE, POSITION, REAL, STRING, TOOL, ArrayT,
-                    CheckedProgram, Symbol, type_name)
+from .check import INTEGER, REAL, STRING, ArrayT, CheckedProgram, Symbol, type_name
 from .frames import BY_KEYWORD as FRAME_BY_KEYWORD
 from .frames import describe_name
 from .triggers import PLACE_INDEX, UNIT_INDEX
 from .clauses import CLAUSES as CLAUSE_TABLE
 from .clauses import Motion
 from .configs import CONTEXTUAL_NAME, WORDS as CONFIG_WORDS, Config, operand_of
-from .objcode import BUILTIN_NAMES, FIELDS, OP, HandlerInfo, InterruptInfo, ProcInfo, Program
+from .objcode import BUILTIN_NAMES, FIELDS, OP, HandlerInfo, InterruptInfo, ProcInfo, Program, zero_of
 from .robotstate import FUNCTIONS as STATE_FUNCTIONS, PROCEDURES as STATE_PROCEDURES
 from .semantics import STRING_BUILTINS
-from .values import Joint, Pose, Position, Rpy
 
 _BINARY_OPS = {"+": OP.ADD, "-": OP.SUB, "*": OP.MUL, "/": OP.DIV, "div": OP.IDIV, "mod": OP.MOD,
                "=": OP.EQ, "<>": OP.NE, "<": OP.LT, "<=": OP.LE, ">": OP.GT, ">=": OP.GE,
@@ -466,13 +464,8 @@ class CodeGen:
             self.default(t.element)
             self.emit(OP.MAKE_ARRAY, t.length)
             return
-        zeros = {INTEGER: 0, REAL: 0.0, BOOL: False, STRING: "",
-                 JOINT: Joint(tuple(0.0 for _ in self.checked.spec.main_axes),
-                              tuple(0.0 for _ in self.checked.spec.additional_axes)),
-                 POSITION: Position(0.0, 0.0, 0.0), ORIENTATION: Rpy(0.0, 0.0, 0.0),
-                 POSE: Pose(Position(0.0, 0.0, 0.0), Rpy(0.0, 0.0, 0.0)), CONFIG: Config()}
-        zeros[FRAME] = zeros[TOOL] = zeros[POSE]
-        self.constant(zeros[t])
+        spec = self.checked.spec
+        self.constant(zero_of(t, len(spec.main_axes), len(spec.additional_axes)))
 
     def init_vars(self, decls, lookup, zeros: bool = False) -> None:
         """Each variable of ``decls`` set to its initialiser (its zero value when it has

@@ -726,6 +726,38 @@ def declared_type(text: object) -> str | None:
     return typ if base in VALUE_TYPES else None
 
 
+def zero_of(text: object, main_axes: int = 6, additional_axes: int = 0) -> object:
+    """The zero value of a declared type (``array[1..3] of integer`` -> ``[0, 0, 0]``, a
+    fresh list), or None for no type of the language: what a variable holds before its
+    program stores into it (the code generator's initialiser, and the VM's global slots,
+    so that a slot read before any store still holds its declared type)."""
+    from .values import Config, Joint, Pose, Position, Rpy
+
+    if not isinstance(text, str):
+        return None
+    text = text.strip()
+    match = _ARRAY_DECL.match(text)
+    if match is not None:  # (at most MAX_ARRAY_ELEMENTS in all, however nested: object code is untrusted)
+        count, element = 1, text
+        while match is not None:
+            count *= int(match.group(2)) - int(match.group(1)) + 1
+            if not 0 <= count <= MAX_ARRAY_ELEMENTS:
+                return None
+            element = match.group(3).strip()
+            match = _ARRAY_DECL.match(element)
+        inner = _ARRAY_DECL.match(text)
+        length = int(inner.group(2)) - int(inner.group(1)) + 1
+        return [zero_of(inner.group(3).strip(), main_axes, additional_axes) for _ in range(length)]
+    pose = Pose(Position(0.0, 0.0, 0.0), Rpy(0.0, 0.0, 0.0))
+    zeros = {"integer": 0, "real": 0.0, "bool": False, "string": "", "position": Position(0.0, 0.0, 0.0),
+             "orientation": Rpy(0.0, 0.0, 0.0), "pose": pose, "frame": pose, "tool": pose, "config": Config(),
+             "joint": Joint((0.0,) * main_axes, (0.0,) * additional_axes)}
+    return zeros.get(text)
+
+
+_ARRAY_DECL = re.compile(r"array\s*\[\s*(-?\d+)\s*\.\.\s*(-?\d+)\s*\]\s*of\s+(.+)$", re.S)
+
+
 def value_type(value: object) -> str | None:
     """The stack type of a constant, or None (no value of the language)."""
     from .values import Config, Joint, Pose, Position, Quat, Rpy

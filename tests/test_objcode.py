@@ -530,8 +530,19 @@ def mutants(draw):
     return _dataclasses.replace(program, constants=tuple(constants))
 
 
+def _end_never_stored(name: str):
+    """``name``'s program with the first store into a for loop's hidden end slot sent to
+    slot 0 instead: the loop's test reads a slot never stored (found by this test's search:
+    the slot held None, and the comparison failed inside the VM)."""
+    program = _example_program(name)
+    ends = {i for i, (slot, _typ) in enumerate(program.globals) if slot.startswith("$end")}
+    at = next(i for i, instr in enumerate(program.code) if instr[0] == OP.STORE_GLOBAL and instr[1] in ends)
+    return _dataclasses.replace(program, code=program.code[:at] + ((OP.STORE_GLOBAL, 0),) + program.code[at + 1:])
+
+
 @settings(max_examples=examples(150), deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(program=mutants())
+@example(program=_end_never_stored("pallet_and_glue"))
 # found by this test's search before the verifier typed the stack: a string where a number
 # belongs (cycle_control's first comparison), a number where a pose belongs (GET_FIELD)
 @example(program=_dataclasses.replace(_example_program("cycle_control"), code=(

@@ -66,7 +66,7 @@ from typing import Protocol
 from time import perf_counter
 
 from compiler.clauses import CLAUSES, Motion
-from compiler.objcode import BUILTIN_NAMES, FIELDS, INSTRUCTIONS, MAX_ARRAY_ELEMENTS, OP, Program, clause_names
+from compiler.objcode import BUILTIN_NAMES, FIELDS, INSTRUCTIONS, MAX_ARRAY_ELEMENTS, OP, Program, clause_names, zero_of
 from compiler.semantics import (INT_MAX, INT_MIN, MAX_STRING_LENGTH, EvalError, binary, call_builtin,
                                 check_index, get_axis, get_field, make_joint, make_pos, make_pose, make_quat,
                                 make_rpy, set_axis, unary)
@@ -335,7 +335,9 @@ class Memory:
 
     def __init__(self, program: Program, max_call_depth: int):
         self.stack: list = []
-        self.globals: list = [None] * len(program.globals)
+        # (each slot its declared type's zero: a slot read before its first store, which verified
+        # object code need not rule out, still holds a value of its type)
+        self.globals: list = [zero_of(typ) for _name, typ in program.globals]
         self.locals: list = []  # the current procedure's slots (the main program has none)
         self.frames: list[tuple[int, list, int]] = []  # (return offset, caller's locals, the callee's stack base)
         self.max_call_depth = max_call_depth

@@ -337,7 +337,8 @@ class Memory:
         self.stack: list = []
         # (each slot its declared type's zero: a slot read before its first store, which verified
         # object code need not rule out, still holds a value of its type)
-        self.globals: list = [zero_of(typ) for _name, typ in program.globals]
+        self.globals: list = [zero_of(slot[1]) if isinstance(slot, tuple) and len(slot) == 2 else None
+                              for slot in program.globals]
         self.locals: list = []  # the current procedure's slots (the main program has none)
         self.frames: list[tuple[int, list, int]] = []  # (return offset, caller's locals, the callee's stack base)
         self.max_call_depth = max_call_depth

@@ -4,8 +4,8 @@ RAPID's SearchL): the trajectory generator's watch of digital input N while the 
 The program hands the move over with the robot at rest (``SEARCH_BEGIN``, a barrier). The
 search is *armed* then; an input already true ends it at once, found nothing, and the
 robot does not move. Every 5 ms update after the setpoint (:meth:`Search.watch`): where the
-input is true, the robot is *found* there (the setpoint of that update: the joints, and
-the move's tool and base) and the motion is cut (:meth:`MotionQueue.cut
+input is true, the robot is *found* there (its measured joints at that update, the
+setpoint's in an offline run, and the move's tool and base) and the motion is cut (:meth:`MotionQueue.cut
 <runtime.motion.motionqueue.MotionQueue.cut>`: a stop on the path, the rest dropped); where
 the move has ended without it, the search found nothing. ``SEARCH_END`` (a barrier: once
 the robot is at rest) then reads :meth:`Search.end`: nothing, or the program's search
@@ -62,15 +62,16 @@ class Search:
         self._setpoints, motion.setpoints = motion.setpoints, True
         return True
 
-    def watch(self, inputs: tuple, motion) -> float | None:
-        """Real-time, after each update's setpoint: the input true (found: the motion is
-        cut; returns the time within which the robot will be at rest), or the move ended
+    def watch(self, inputs: tuple, motion, measured: tuple | None = None) -> float | None:
+        """Real-time, after each update's setpoint: the input true (found where the robot
+        is, ``measured``: its measured joints, else the setpoint's; the motion is cut;
+        returns the time within which the robot will be at rest), or the move ended
         without it (found nothing). None otherwise."""
         n = self.input
         if n is None:
             return None
         if 0 < n <= len(inputs) and inputs[n - 1]:
-            self.found = (tuple(motion.positions), self.frames)
+            self.found = (tuple(measured or motion.positions), self.frames)
             self._disarm(motion)
             return motion.cut()
         if motion.done(triggers=False):

@@ -314,7 +314,7 @@ class TrajectoryGenerator(Component):
         motion.sample(now)
         self._take_motion_events()
         if self.search.armed:
-            self._expect_rest(self.search.watch(self.io.inputs.value, motion))
+            self._expect_rest(self.search.watch(self.io.inputs.value, motion, self.sens_pos.read()))
         if self.jogger is not None:
             self.jogger.update(now)
         accelerations = motion.accelerations

@@ -12,8 +12,9 @@ the robot is at rest) then reads :meth:`Search.end`: nothing, or the program's s
 error (compiler.recovery). ``search_pose()`` reads :attr:`Search.found`.
 
 How far it is from where the input changed: the watch sees the input at each 5 ms update,
-so the pose is at most one update's travel from it (0.5 mm at 100 mm/s): search slowly.
-The robot then stops on its path, at the move's acceleration, beyond that pose.
+so the pose (the measured joints then) is at most one update's travel past it (0.5 mm at
+100 mm/s), plus the sensor's delay: search slowly. The robot then stops on its path, at the
+move's acceleration, beyond that pose.
 
 Real-time: :meth:`watch` reads a port value and compares; nothing else happens in a tick.
 """
@@ -29,7 +30,6 @@ class Search:
     move's frames, None before any)."""
 
     def __init__(self):
-        self.found: tuple | None = None
         self.reset()
 
     def reset(self) -> None:
@@ -38,7 +38,7 @@ class Search:
         self.line = 0
         self.frames = None
         self.outcome: str | None = None
-        self.found = None
+        self.found: tuple | None = None
         self._setpoints = True
         #: an offline run in the assumed cell (runtime.loop.offline): the input becomes true
         #: where the move ends (for this search only)

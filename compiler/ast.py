@@ -220,6 +220,22 @@ def expression_text(expr) -> str:
     return "?"
 
 
+def reference_parts(expr) -> list:
+    """The selectors of ``a[i].f[k]`` (its Index and Field nodes), outermost (``a[i]``) first."""
+    parts = []
+    while isinstance(expr, (Index, Field)):
+        parts.append(expr)
+        expr = expr.base
+    return parts[::-1]
+
+
+def reference_root(expr) -> "Ref | None":
+    """The variable ``a`` of ``a``, ``a[i]``, ``a.f[k]``, ...; None when ``expr`` is no such path."""
+    while isinstance(expr, (Index, Field)):
+        expr = expr.base
+    return expr if isinstance(expr, Ref) else None
+
+
 def _operand_text(expr) -> str:
     text = expression_text(expr)
     return f"({text})" if isinstance(expr, Binary) else text
@@ -247,11 +263,21 @@ TypeExpr = Union[NamedType, ArrayType]
 # ---- statements ----------------------------------------------------------------------
 
 @node
-class Assign:
-    """``name := value`` or ``name[i]...[k] := value`` (array elements, a joint's axis)."""
+class Member:
+    """``.name`` in an assignment's target: a field of a record (compiler.records)."""
 
     name: str
-    indices: tuple[Expr, ...]
+    span: Span
+
+
+@node
+class Assign:
+    """``name := value``, or into a part of the variable: ``name[i].f[k] := value``
+    (array elements, a record's fields, a joint's axis). ``path``: its selectors, an
+    expression for each index, a :class:`Member` for each field."""
+
+    name: str
+    path: "tuple[Expr | Member, ...]"
     value: Expr
     span: Span
     name_span: Span
@@ -482,7 +508,32 @@ class InterruptSpec:
     span: Span
 
 
-Decl = Union[ConstDecl, VarDecl, Procedure]
+@node
+class RecordField:
+    """One ``a, b : TYPE;`` line of a record's declaration."""
+
+    names: tuple[str, ...]
+    type: TypeExpr
+    span: Span
+    spans: tuple[Span, ...]
+
+
+@node
+class RecordDecl:
+    """``record NAME FIELDS endrecord;`` (compiler.records). Its first and last words are
+    names to the parser (not reserved): as written, checked by the checker."""
+
+    name: str
+    fields: tuple[RecordField, ...]
+    span: Span
+    name_span: Span
+    word: str
+    word_span: Span
+    end_word: str
+    end_span: Span
+
+
+Decl = Union[ConstDecl, VarDecl, Procedure, RecordDecl]
 
 
 @node

@@ -32,8 +32,9 @@ from .zones import MARGIN as ZONE_MARGIN
 from .zones import forbidden as forbidden_zones
 from .configs import CONTEXTUAL_NAME, GROUPS as CONFIG_GROUPS, TURN_AXES, WORDS as CONFIG_WORDS, Config
 from .configs import turn_problem as config_turn_problem
-from .objcode import BUILTINS, MAX_ARRAY_ELEMENTS, MAX_COUNT, MAX_STRING_LENGTH
+from .objcode import BUILTINS, FIELDS, MAX_ARRAY_ELEMENTS, MAX_COUNT, MAX_STRING_LENGTH
 from .persistent import MAX_ELEMENTS as PERSISTENT_ELEMENTS, SECTION as PERSISTENT
+from .records import END_WORD as RECORD_END, MAX_FIELDS as RECORD_FIELDS, WORD as RECORD_WORD, RecordT
 from .recovery import HANDLER_WORD, USER_ERRORS, WORDS as HANDLER_WORDS
 from .robotstate import CLOCKS, ERROR_ROUTINES, FUNCTIONS as STATE_FUNCTIONS, PROCEDURES as STATE_PROCEDURES
 from .robotstate import group_problem, group_value_problem
@@ -73,8 +74,19 @@ class ArrayT:
         return self.high - self.low + 1
 
 
+def elements(t) -> int:
+    """How many values a variable of type ``t`` holds, all levels together (an array's
+    elements times each one's, a record's fields' summed; 1 for any other type)."""
+    if isinstance(t, ArrayT):
+        return t.length * elements(t.element)
+    if isinstance(t, RecordT):
+        return sum(elements(ft) for _n, ft in t.fields)
+    return 1
+
+
 GEOMETRIC_KINDS = (POSITION, POSE, ORIENTATION)
-_KIND_WORDS = {"const": "constant", "proc": "procedure", "func": "function", "interrupt": "interrupt"}  # a symbol's kind, as messages say it
+_KIND_WORDS = {"const": "constant", "proc": "procedure", "func": "function", "interrupt": "interrupt",
+               "record": "record type", "global": "variable", "local": "variable"}  # a symbol's kind, as messages say it
 
 
 def _kind(t) -> str:
@@ -181,6 +193,7 @@ class CheckedProgram:
     decl_files: dict = field(default_factory=dict)  # id(declaration) -> the module file it is in
     modules: dict = field(default_factory=dict)  # module path -> its name in the object code, in order
     interrupts: list = field(default_factory=list)  # the interrupts' ProcScopes, in table order
+    records: list = field(default_factory=list)  # the record types (compiler.records), in declaration order
 
 
 _NO_VALUE = object()
@@ -221,6 +234,7 @@ class Checker:
         self.moving: dict[str, str] = {}  # procedures a handler may not call: name -> what they do
         self.all_changes: frozenset = frozenset()  # what some statement of the program may make active
         self.in_handler = False  # checking an error handler's statements (compiler.recovery)
+        self.records: list[RecordT] = []  # the record types, in declaration order (compiler.records)
 
     # -- reporting --
     def error(self, span: ast.Span, message: str, hint: str | None = None, file: str | None = None) -> None:
@@ -302,9 +316,22 @@ class Checker:
         if isinstance(node, ast.NamedType):
             if node.name in NAMED_TYPES:
                 return node.name
-            guess = did_you_mean(node.name, NAMED_TYPES + ("array",))
+            symbol = self.lookup(node.name)
+            if symbol is not None and symbol.kind == "record":
+                return symbol.type
+            if symbol is not None:
+                self.error(node.span, f"'{node.name}' is {a(_KIND_WORDS.get(symbol.kind, symbol.kind))}, not a type")
+                return ERROR
+            hidden = self.hidden_hint(node.name)
+            if hidden is not None:
+                self.error(node.span, *hidden)
+                return ERROR
+            records = tuple(r.name for r in self.records)
+            guess = did_you_mean(node.name, NAMED_TYPES + records + ("array",))
             self.error(node.span, f"unknown type '{node.name}'",
-                       f"did you mean '{guess}'?" if guess else f"types are {', '.join(NAMED_TYPES)}, array")
+                       f"did you mean '{guess}'?" if guess else
+                       f"types are {', '.join(NAMED_TYPES + records)}, array, or a record type declared before "
+                       f"its use (record NAME ... endrecord;)")
             return ERROR
         low = self.const_int(node.low, "an array's lower bound")
         high = self.const_int(node.high, "an array's upper bound")
@@ -317,9 +344,7 @@ class Checker:
         if not -(2 ** 31) <= low <= high < 2 ** 31:
             self.error(node.span, f"array bounds {low}..{high} must lie within the 32-bit integer range")
             return ERROR
-        length = high - low + 1
-        if isinstance(element, ArrayT):
-            length *= element.length
+        length = (high - low + 1) * elements(element)
         if length > MAX_ARRAY_LENGTH:
             self.error(node.span, f"array of {length} elements is too large (limit {MAX_ARRAY_LENGTH})")
             return ERROR
@@ -413,6 +438,10 @@ class Checker:
             self.error(node.span, f"'{node.name}' is a procedure, not a value",
                        f"call it as a statement: call {node.name}(...);")
             return ERROR
+        if symbol.kind == "record":
+            self.error(node.span, f"'{node.name}' is a record type, not a value",
+                       f"make one with its fields' values: {node.name}({', '.join(symbol.type.names)})")
+            return ERROR
         if symbol.kind == "interrupt":
             self.error(node.span, f"'{node.name}' is an interrupt, not a value",
                        f"switch it with 'enable {node.name};' and 'disable {node.name};'")
@@ -472,8 +501,9 @@ class Checker:
             return ERROR
         if op in ("=", "<>"):
             if lt == rt or (lt in NUMERIC and rt in NUMERIC) or (lt in POSE_LIKE and rt in POSE_LIKE):
-                if isinstance(lt, ArrayT):
-                    self.error(node.op_span, "arrays cannot be compared")
+                if isinstance(lt, (ArrayT, RecordT)):
+                    self.error(node.op_span, f"{'arrays' if isinstance(lt, ArrayT) else 'records'} cannot be "
+                                             "compared", "compare their elements or fields")
                     return ERROR
                 return BOOL
             self.error(node.op_span, f"cannot compare {pair}")
@@ -534,6 +564,8 @@ class Checker:
         base = self.expr(node.base)
         if base == ERROR:
             return ERROR
+        if isinstance(base, RecordT):
+            return self.member_type(base, node.name, node.span)
         if base not in (POSITION, POSE):
             self.error(node.span, f"{a(base)} has no field '{node.name}'",
                        "fields x, y, z belong to positions and poses")
@@ -548,6 +580,42 @@ class Checker:
             position = value.position if isinstance(value, Pose) else value
             self.values[id(node)] = getattr(position, node.name)
         return REAL
+
+    def member_type(self, record, name: str, span: ast.Span):
+        """The type of field ``name`` of a value of type ``record`` (ERROR, reported, when it has none)."""
+        if record == ERROR:
+            return ERROR
+        if record in (POSITION, POSE) and name in FIELDS:
+            self.error(span, f"{a(record)}'s {', '.join(FIELDS)} are read, not assigned",
+                       "build a new one: pos(...), or pose(pos(...), ...)")
+            return ERROR
+        if not isinstance(record, RecordT):
+            self.error(span, f"{a(record)} has no field '{name}'", "only records have fields to assign")
+            return ERROR
+        i = record.index(name)
+        if i < 0:
+            guess = did_you_mean(name, record.names)
+            self.error(span, f"record {record.name} has no field '{name}'",
+                       f"did you mean '{guess}'?" if guess else f"its fields are {', '.join(record.names)}")
+            return ERROR
+        return record.fields[i][1]
+
+    def record_value(self, node: ast.Call, symbol: Symbol):
+        """``part_t(v1, ..., vn)``: a record made of its fields' values, in declaration order."""
+        record: RecordT = symbol.type
+        self.symbols[id(node)] = symbol
+        if len(node.args) != len(record.fields):
+            self.error(node.span, f"record {record.name} has {len(record.fields)} field"
+                                  f"{'s' if len(record.fields) != 1 else ''}: give a value for each, in order: "
+                                  f"{node.name}({', '.join(record.names)})")
+            for arg in node.args:
+                self.expr(arg)
+            return ERROR
+        for arg, (name, t) in zip(node.args, record.fields):
+            value = self.expr(arg)
+            if ERROR not in (t, value) and not assignable(t, value):
+                self.error(arg.span, f"field '{name}' of {record.name} is {a(t)}, not {a(value)}")
+        return record
 
     def e_Input(self, node: ast.Input):
         if self.expect(node.index, INTEGER, "an input number") != ERROR:
@@ -573,6 +641,8 @@ class Checker:
             self.hidden = None  # (a 'config' declared where this code cannot see it: the constructor here)
             return CONSTRUCTORS[name](self, node)
         symbol = self.lookup(name)
+        if symbol is not None and symbol.kind == "record":
+            return self.record_value(node, symbol)
         if name in BUILTINS and not (name in STRING_BUILTINS and symbol is not None and symbol.kind == "func"):
             return self.builtin(node)  # (a string function's name: a program's own function of it first)
         if name in STATE_FUNCTIONS and (symbol is None or symbol.kind != "func"):  # (a routine of its own first)
@@ -975,7 +1045,7 @@ class Checker:
         if symbol.kind == "const":
             self.error(span, f"'{name}' is a constant and cannot be assigned")
             return None
-        if symbol.kind in ("proc", "func"):
+        if symbol.kind in ("proc", "func", "record", "interrupt"):
             self.error(span, f"'{name}' is a {_KIND_WORDS[symbol.kind]} and cannot be assigned",
                        "a function's result is given with 'return VALUE;'" if symbol.kind == "func" else None)
             return None
@@ -988,16 +1058,22 @@ class Checker:
             self.error(node.name_span, f"'{node.name}' is the variable of an enclosing for loop",
                        "a for loop's variable cannot be assigned inside the loop")
         target = symbol.type if symbol is not None else ERROR
-        for k, index in enumerate(node.indices):
-            if target == JOINT and k < len(node.indices) - 1:
-                self.error(index.span, "a joint's axis value is a real and cannot be indexed")
+        path = node.path
+        for k, selector in enumerate(path):
+            if isinstance(selector, ast.Member):
+                target = self.member_type(target, selector.name, selector.span)
+                continue
+            if target == JOINT and k < len(path) - 1:
+                self.error(selector.span, "a joint's axis value is a real and cannot be indexed")
                 target = ERROR
-            target = self.element_type(target, index, node.name_span, f"'{node.name}'")
+            target = self.element_type(target, selector, node.name_span, f"'{node.name}'")
         value = self.expr(node.value)
         if ERROR not in (target, value) and not assignable(target, value):
-            self.error(node.value.span, f"cannot assign {a(value)} to '{node.name}', "
-                                        f"which is {a(target)}" if not node.indices else
-                                        f"cannot assign {a(value)} to an element of type {type_name(target)}")
+            last = path[-1] if path else None
+            self.error(node.value.span, f"cannot assign {a(value)} to '{node.name}', which is {a(target)}"
+                       if last is None else f"cannot assign {a(value)} to field '{last.name}', which is {a(target)}"
+                       if isinstance(last, ast.Member) else
+                       f"cannot assign {a(value)} to an element of type {type_name(target)}")
 
     def s_OutSet(self, node: ast.OutSet):
         if self.expect(node.index, INTEGER, "an output number") != ERROR:
@@ -1144,7 +1220,7 @@ class Checker:
         if symbol is None:
             self.error(node.var_span, f"undeclared loop variable '{node.var}'",
                        f"declare it: var {node.var} : integer;")
-        elif symbol.kind in ("const", "proc", "func"):
+        elif symbol.kind in ("const", "proc", "func", "record", "interrupt"):
             self.error(node.var_span, f"'{node.var}' is a {_KIND_WORDS[symbol.kind]} and cannot be a loop variable")
         elif symbol.type not in (INTEGER, ERROR):
             self.error(node.var_span, f"the loop variable '{node.var}' must be an integer, "
@@ -1307,14 +1383,20 @@ class Checker:
                                      f"not {type_name(t)}")
 
     def reference(self, node, i: int, arg: ast.Expr, param_t) -> None:
-        """Argument ``i`` of a call, for a 'var' parameter: a variable (its name alone) of
-        exactly the parameter's type, which takes the parameter's value when the procedure
-        returns."""
+        """Argument ``i`` of a call, for a 'var' parameter: a variable, or an element or a
+        field of one (``slots[k].part``: arrays' elements and records' fields only), of exactly
+        the parameter's type, which takes the parameter's value when the procedure returns."""
         t = self.expr(arg)
-        if not isinstance(arg, ast.Ref):
-            self.error(arg.span, f"argument {i} of '{node.name}' is a 'var' parameter: pass a variable, by its name",
+        root = ast.reference_root(arg)
+        if root is None or any(isinstance(part, ast.Index) and not isinstance(self.types.get(id(part.base)), ArrayT)
+                               or isinstance(part, ast.Field) and not isinstance(self.types.get(id(part.base)),
+                                                                                 RecordT)
+                               for part in ast.reference_parts(arg)):
+            self.error(arg.span, f"argument {i} of '{node.name}' is a 'var' parameter: pass a variable, by its name, "
+                                 "or an element or a field of one",
                        "the procedure puts its value back there")
             return
+        whole, arg = arg, root
         symbol = self.symbols.get(id(arg))
         if symbol is None or symbol.kind not in ("global", "local"):
             if symbol is not None:
@@ -1325,7 +1407,7 @@ class Checker:
             self.error(arg.span, f"'{arg.name}' is the variable of an enclosing for loop",
                        "a for loop's variable cannot be passed to a 'var' parameter")
         elif t != ERROR and t != param_t:
-            self.error(arg.span, f"argument {i} of '{node.name}' is a 'var' parameter of type "
+            self.error(whole.span, f"argument {i} of '{node.name}' is a 'var' parameter of type "
                                  f"{type_name(param_t)}: pass a variable of that type, not {a(t)}")
 
     def s_Print(self, node: ast.Print):
@@ -1436,11 +1518,48 @@ class Checker:
         t = self.expr(decl.value)
         value = self.value_of(decl.value)
         if t != ERROR and value is _NO_VALUE:
-            self.error(decl.value.span, f"the value of constant '{decl.name}' must be known at compile time")
+            self.error(decl.value.span, f"the value of constant '{decl.name}' must be known at compile time",
+                       "a record is no constant: declare a variable with it as its initial value"
+                       if isinstance(t, RecordT) else None)
         if t in (MAINJOINT, ADDJOINT):
             self.error(decl.value.span, f"{t} is only meaningful inside joint(...)")
             t = ERROR
         self.declare(self.globals, Symbol("const", decl.name, t, decl.span, value=value))
+
+    def record_decl(self, decl: ast.RecordDecl) -> None:
+        """A record type (compiler.records): its words, its fields (each named once, of a type
+        known here), its size; then its name, declared."""
+        for word, span, wanted in ((decl.word, decl.word_span, RECORD_WORD), (decl.end_word, decl.end_span,
+                                                                               RECORD_END)):
+            if word != wanted:
+                self.error(span, f"unexpected name '{word}': a record type is declared 'record NAME FIELDS "
+                                 f"endrecord;'", f"did you mean '{wanted}'?")
+        fields: list[tuple[str, object]] = []
+        seen: dict[str, ast.Span] = {}
+        for item in decl.fields:
+            t = self.resolve_type(item.type)
+            for name, span in zip(item.names, item.spans):
+                if name in seen:
+                    self.error(span, f"record {decl.name} has a field '{name}' already",
+                               f"the first is at line {seen[name].line}")
+                elif name in keywords():
+                    self.error(span, f"'{name}' is a reserved word and cannot be a field's name", "choose another name")
+                else:
+                    seen[name] = span
+                    fields.append((name, t))
+        record = RecordT(decl.name, tuple(fields))
+        if decl.name in NAMED_TYPES or decl.name in CONSTRUCTORS or decl.name in BUILTINS \
+                or decl.name in STATE_FUNCTIONS:
+            self.error(decl.name_span, f"'{decl.name}' is a {'type' if decl.name in NAMED_TYPES else 'function'} of "
+                                       "the language and cannot name a record type", "choose another name")
+            return
+        if len(fields) > RECORD_FIELDS:
+            self.error(decl.name_span, f"record {decl.name} has {len(fields)} fields (at most {RECORD_FIELDS})")
+        elif elements(record) > MAX_ARRAY_LENGTH:
+            self.error(decl.name_span, f"record {decl.name} holds {elements(record)} values (at most "
+                                       f"{MAX_ARRAY_LENGTH}, all its fields' elements together)")
+        if self.declare(self.globals, Symbol("record", decl.name, record, decl.name_span)):
+            self.records.append(record)
 
     def var_decl(self, decl: ast.VarDecl, table: dict, slots: list, kind: str) -> None:
         t = self.resolve_type(decl.type)
@@ -1458,15 +1577,11 @@ class Checker:
             self.error(decl.section_span, f"a {PERSISTENT} variable is global: declare it in the program's (or a "
                                           f"module's) var {PERSISTENT} section",
                        "a routine's variables live while it runs")
-        elif decl.section:
-            elements, inner = 1, t
-            while isinstance(inner, ArrayT):
-                elements, inner = elements * inner.length, inner.element
-            if elements > PERSISTENT_ELEMENTS:
-                self.error(decl.type.span, f"a {PERSISTENT} variable holds at most {PERSISTENT_ELEMENTS} elements, "
-                                           f"not {elements}",
-                           "the runtime copies it at every change and writes it while the robot moves: keep large "
-                           "data in plain variables")
+        elif decl.section and elements(t) > PERSISTENT_ELEMENTS:
+            self.error(decl.type.span, f"a {PERSISTENT} variable holds at most {PERSISTENT_ELEMENTS} elements, "
+                                       f"not {elements(t)}",
+                       "the runtime copies it at every change and writes it while the robot moves: keep large "
+                       "data in plain variables")
         for name, span in zip(decl.names, decl.spans):
             symbol = Symbol(kind, name, t, span, slot=len(slots),
                             persistent=decl.section == PERSISTENT and kind == "global")
@@ -1479,7 +1594,10 @@ class Checker:
         bodies = [d.body for d in program.decls if isinstance(d, ast.Procedure)]
         self.proc_changes = frozenset().union(*(_uses(s, self._changes)[0] for body in bodies for s in body))
         self.all_changes = self.proc_changes.union(*(_uses(s, self._changes)[0] for s in program.body))
-        # Procedures first, so a call may come before the procedure's declaration.
+        for decl in program.decls:  # record types first (each before its use), then procedures, so a
+            if isinstance(decl, ast.RecordDecl):  # call may come before the procedure's declaration
+                self.file = self.decl_files.get(id(decl), self.main_file)
+                self.record_decl(decl)
         for decl in program.decls:
             if isinstance(decl, ast.Procedure):
                 self.file = self.decl_files.get(id(decl), self.main_file)
@@ -1498,6 +1616,12 @@ class Checker:
             self.scope = scope
             self.file = self.decl_files.get(id(scope.node), self.main_file)
             for var in scope.node.variables:
+                if isinstance(var, ast.RecordDecl):
+                    self.error(var.name_span, f"record type '{var.name}' is declared inside "
+                                              f"{_KIND_WORDS.get(scope.symbol.kind, 'a routine')} "
+                                              f"'{scope.node.name}'",
+                               "declare record types at the program's or a module's level, beside its variables")
+                    continue
                 self.var_decl(var, scope.names, scope.slots, "local")
             self.start_frames(known=False)
             self.stmts(scope.node.body)
@@ -1518,7 +1642,7 @@ class Checker:
             self.robots.append(self.spec.name)
         return CheckedProgram(program, self.spec, self.types, self.values, self.symbols,
                               self.global_slots, self.globals, self.procs, tuple(self.robots), self.decl_files,
-                              interrupts=self.interrupts)
+                              interrupts=self.interrupts, records=self.records)
 
     def interrupt_options(self, node: ast.Procedure, index: int) -> InterruptDecl:
         """``priority N``, ``stop`` or ``continue``, ``then resume`` or ``then halt``
@@ -1701,7 +1825,8 @@ def _assigned(body) -> frozenset:
         elif isinstance(stmt, ast.For):
             names.add(stmt.var)
         elif isinstance(stmt, ast.CallProc):
-            names.update(a.name for a in stmt.args if isinstance(a, ast.Ref))  # (a 'var' parameter may change it)
+            names.update(root.name for root in map(ast.reference_root, stmt.args)
+                         if root is not None)  # (a 'var' parameter may change it)
         stack.extend(_children(stmt))
     return frozenset(names)
 

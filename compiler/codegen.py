@@ -16,7 +16,8 @@ from .triggers import PLACE_INDEX, UNIT_INDEX
 from .clauses import CLAUSES as CLAUSE_TABLE
 from .clauses import Motion
 from .configs import CONTEXTUAL_NAME, WORDS as CONFIG_WORDS, Config, operand_of
-from .objcode import BUILTIN_NAMES, FIELDS, OP, HandlerInfo, InterruptInfo, ProcInfo, Program, zero_of
+from .objcode import BUILTIN_NAMES, FIELDS, OP, HandlerInfo, InterruptInfo, ProcInfo, Program, RecordInfo, zero_of
+from .records import RecordT
 from .robotstate import FUNCTIONS as STATE_FUNCTIONS, PROCEDURES as STATE_PROCEDURES
 from .semantics import STRING_BUILTINS
 
@@ -55,6 +56,7 @@ class CodeGen:
                                   ast.Return, ast.Use, ast.Enable, ast.Trigger, ast.Word)}
         self.handlers: list[HandlerInfo] = []  # the error handlers (compiler.recovery)
         self.statements: list[tuple[int, int]] | None = None  # of the body a handler protects, while generated
+        self.records = {record.name: i for i, record in enumerate(checked.records)}  # -> its index in the table
 
     # -- emitting --
     def emit(self, op: int, *operands: int) -> int:
@@ -119,8 +121,8 @@ class CodeGen:
         t = self.types[key]
         if want == REAL and t == INTEGER:
             self.emit(OP.TO_REAL)
-        elif isinstance(t, ArrayT) and isinstance(node, (ast.Ref, ast.Index)):
-            self.emit(OP.COPY)  # arrays are values: a stored or passed array is a copy
+        elif isinstance(t, (ArrayT, RecordT)) and isinstance(node, (ast.Ref, ast.Index, ast.Field)):
+            self.emit(OP.COPY)  # arrays and records are values: a stored or passed one is a copy
 
     def e_Ref(self, node: ast.Ref) -> None:
         symbol = self.symbols[id(node)]
@@ -149,14 +151,23 @@ class CodeGen:
 
     def e_raw(self, node: ast.Expr) -> None:
         """Push a value without copying it (to read from it, not to keep it)."""
-        if isinstance(node, ast.Ref) and id(node) not in self.values:
+        if id(node) in self.values:
+            self.value(node)
+        elif isinstance(node, ast.Ref):
             self.e_Ref(node)
-        elif isinstance(node, ast.Index) and id(node) not in self.values:
+        elif isinstance(node, ast.Index):
             self.e_Index(node)
+        elif isinstance(node, ast.Field):
+            self.e_Field(node)
         else:
             self.value(node)
 
     def e_Field(self, node: ast.Field) -> None:
+        base_t = self.types[id(node.base)]
+        if isinstance(base_t, RecordT):
+            self.e_raw(node.base)
+            self.emit(OP.GET_MEMBER, base_t.index(node.name))
+            return
         self.value(node.base)
         self.emit(OP.GET_FIELD, FIELDS.index(node.name))
 
@@ -175,6 +186,10 @@ class CodeGen:
             for arg, param_t in zip(node.args, symbol.params):
                 self.value(arg, param_t)
             self.emit(OP.CALL_FUNC, symbol.index)
+        elif symbol is not None and symbol.kind == "record":  # part_t(v1, ..., vn)
+            for arg, (_name, field_t) in zip(node.args, symbol.type.fields):
+                self.value(arg, field_t)
+            self.emit(OP.MAKE_RECORD, self.records[symbol.type.name])
         elif name in STATE_FUNCTIONS:
             self.state_routine(node, STATE_FUNCTIONS[name])
         elif name in _BUILTIN_INDEX:
@@ -257,47 +272,70 @@ class CodeGen:
             self.emit(OP.PERS_STORE, symbol.slot)
 
     def assign(self, node: ast.Assign, symbol: Symbol) -> None:
-        indices = node.indices
-        if not indices:
+        path = node.path
+        if not path:
             self.value(node.value, symbol.type)
             self.emit(self.store_op(symbol), symbol.slot)
             return
-        # Walk down to the container of the last index: arrays are references in the VM,
-        # so changing an element of a nested array changes the variable.
-        container = symbol.type
-        for index in indices[:-1]:
-            container = container.element if isinstance(container, ArrayT) else REAL
-        if isinstance(container, ArrayT):
-            self.load_path(symbol, indices[:-1])
-            self.value(indices[-1])
-            self.value(node.value, container.element)
-            self.emit(OP.SET_ITEM, container.low)
-        elif len(indices) == 1:  # an axis of a joint variable
+        # Walk down to the container of the last selector: arrays and records are
+        # references in the VM, so changing a part of one changes the variable.
+        types = self.path_types(symbol.type, path)
+        container = types[-2]
+        if isinstance(container, (ArrayT, RecordT)):
+            self.load_path(symbol, path[:-1])
+            self.store_into(container, path[-1], node.value)
+        elif len(path) == 1:  # an axis of a joint variable
             self.emit(self.load_op(symbol), symbol.slot)
-            self.value(indices[0])
+            self.value(path[0])
             self.value(node.value, REAL)
             self.emit(OP.SET_AXIS)
             self.emit(self.store_op(symbol), symbol.slot)
-        else:  # an axis of a joint inside an array: a[i]...[k][axis] := v
-            holder = symbol.type
-            for index in indices[:-2]:
-                holder = holder.element
-            self.load_path(symbol, indices[:-2])
-            self.value(indices[-2])
-            self.load_path(symbol, indices[:-1])
-            self.value(indices[-1])
+        else:  # an axis of a joint inside an array or a record: a[i].j[axis] := v
+            holder, member = types[-3], isinstance(path[-2], ast.Member)
+            self.load_path(symbol, path[:-2])
+            if not member:
+                self.value(path[-2])
+            self.load_path(symbol, path[:-1])  # (the joint: a value, changed into a new one)
+            self.value(path[-1])
             self.value(node.value, REAL)
             self.emit(OP.SET_AXIS)
-            self.emit(OP.SET_ITEM, holder.low)
+            if member:
+                self.emit(OP.SET_MEMBER, holder.index(path[-2].name))
+            else:
+                self.emit(OP.SET_ITEM, holder.low)
 
-    def load_path(self, symbol: Symbol, indices) -> None:
-        """Push the (uncopied) array ``symbol[i]...[k]``."""
+    def store_into(self, container, selector, value: ast.Expr) -> None:
+        """The container on the stack: its element or field ``selector`` := ``value``."""
+        if isinstance(container, RecordT):
+            self.value(value, container.fields[container.index(selector.name)][1])
+            self.emit(OP.SET_MEMBER, container.index(selector.name))
+        else:
+            self.value(selector)
+            self.value(value, container.element)
+            self.emit(OP.SET_ITEM, container.low)
+
+    @staticmethod
+    def path_types(t, path) -> list:
+        """The types along an assignment's ``path``: the variable's, then each selector's."""
+        types = [t]
+        for selector in path:
+            t = t.fields[t.index(selector.name)][1] if isinstance(selector, ast.Member) else \
+                t.element if isinstance(t, ArrayT) else REAL
+            types.append(t)
+        return types
+
+    def load_path(self, symbol: Symbol, path) -> None:
+        """Push the (uncopied) array or record ``symbol[i].f...[k]``."""
         self.emit(self.load_op(symbol), symbol.slot)
         t = symbol.type
-        for index in indices:
-            self.value(index)
-            self.emit(OP.GET_ITEM, t.low)
-            t = t.element
+        for selector in path:
+            if isinstance(selector, ast.Member):
+                self.emit(OP.GET_MEMBER, t.index(selector.name))
+                t = t.fields[t.index(selector.name)][1]
+            else:
+                self.value(selector)
+                self.emit(OP.GET_ITEM, t.low)
+                t = t.element
 
     def s_OutSet(self, node: ast.OutSet) -> None:
         self.value(node.index)
@@ -390,16 +428,61 @@ class CodeGen:
         if symbol is None:  # (the checker found none of the program's: a built-in)
             self.state_routine(node, STATE_PROCEDURES[node.name])
             return
-        for arg, param_t in zip(node.args, symbol.params):
-            self.value(arg, param_t)
+        indices: dict[int, list] = {}  # a 'var' argument's path: each index computed once, into a hidden slot
+        for k, (arg, param_t) in enumerate(zip(node.args, symbol.params)):
+            if k < len(symbol.refs) and symbol.refs[k] and not isinstance(arg, ast.Ref):
+                indices[k] = self.fixed_path(arg)
+                self.load_fixed(arg, indices[k])
+                if isinstance(self.types[id(arg)], (ArrayT, RecordT)):
+                    self.emit(OP.COPY)
+            else:
+                self.value(arg, param_t)
         self.emit(OP.CALL, symbol.index)
         for slot, (arg, by_ref) in enumerate(zip(node.args, symbol.refs)):  # 'var' parameters: their values back
-            if by_ref:
-                variable = self.symbols[id(arg)]
+            if not by_ref:
+                continue
+            variable = self.symbols[id(ast.reference_root(arg))]
+            if slot not in indices:
                 self.emit(OP.TAKE, symbol.index, slot)
                 self.emit(self.store_op(variable), variable.slot)
-                if variable.persistent:
-                    self.emit(OP.PERS_STORE, variable.slot)
+            else:  # into the element or field the argument named (its indices as they were at the call)
+                parts, fixed = ast.reference_parts(arg), indices[slot]
+                self.load_fixed(parts[-1].base, fixed[:-1])
+                last = parts[-1]
+                if isinstance(last, ast.Field):
+                    self.emit(OP.TAKE, symbol.index, slot)
+                    self.emit(OP.SET_MEMBER, self.types[id(last.base)].index(last.name))
+                else:
+                    self.emit(fixed[-1][0], fixed[-1][1])
+                    self.emit(OP.TAKE, symbol.index, slot)
+                    self.emit(OP.SET_ITEM, self.types[id(last.base)].low)
+            if variable.persistent:
+                self.emit(OP.PERS_STORE, variable.slot)
+
+    def fixed_path(self, arg: ast.Expr) -> list:
+        """Each selector of a 'var' argument's path (``a[i].f[k]``): an index's value stored in
+        a hidden slot now, as (load op, slot); None for a field."""
+        fixed = []
+        for part in ast.reference_parts(arg):
+            if isinstance(part, ast.Field):
+                fixed.append(None)
+                continue
+            load, slot = self.temp(f"$index@{part.span.line}:{part.span.col}", INTEGER)
+            self.value(part.index)
+            self.emit(OP.STORE_LOCAL if load == OP.LOAD_LOCAL else OP.STORE_GLOBAL, slot)
+            fixed.append((load, slot))
+        return fixed
+
+    def load_fixed(self, expr: ast.Expr, fixed: list) -> None:
+        """Push (uncopied) what ``expr`` (a variable's path) names, its indices from ``fixed``."""
+        self.e_Ref(ast.reference_root(expr))
+        for part, index in zip(ast.reference_parts(expr), fixed):
+            base_t = self.types[id(part.base)]
+            if index is None:
+                self.emit(OP.GET_MEMBER, base_t.index(part.name))
+            else:
+                self.emit(*index)
+                self.emit(OP.GET_ITEM, base_t.low)
 
     def state_routine(self, node, routine) -> None:
         """A built-in routine of the robot's state: its arguments, then its instruction."""
@@ -464,6 +547,11 @@ class CodeGen:
             self.default(t.element)
             self.emit(OP.MAKE_ARRAY, t.length)
             return
+        if isinstance(t, RecordT):
+            for _name, field_t in t.fields:
+                self.default(field_t)
+            self.emit(OP.MAKE_RECORD, self.records[t.name])
+            return
         spec = self.checked.spec
         self.constant(zero_of(t, len(spec.main_axes), len(spec.additional_axes)))
 
@@ -507,7 +595,7 @@ class CodeGen:
             self.refs = [slot for slot, by_ref in enumerate(scope.symbol.refs) if by_ref]
             entry = len(self.code)
             self.result = scope.result
-            self.init_vars(scope.node.variables, scope.names.__getitem__)
+            self.init_vars([v for v in scope.node.variables if isinstance(v, ast.VarDecl)], scope.names.__getitem__)
             self.in_file_of(scope.node)
             # a procedure returns at its end; a function never gets there (the checker saw a
             # return on every path): HALT keeps any jump to its end inside the code
@@ -535,7 +623,9 @@ class CodeGen:
                        tuple(self.globals), tuple(procedures),
                        files=modules, line_files=tuple(self.line_files) if modules else (),
                        interrupts=tuple(interrupts), handlers=tuple(self.handlers),
-                       persistent=tuple(s.slot for s in checked.global_symbols.values() if s.persistent))
+                       persistent=tuple(s.slot for s in checked.global_symbols.values() if s.persistent),
+                       records=tuple(RecordInfo(r.name, tuple((n, type_name(t)) for n, t in r.fields))
+                                     for r in checked.records))
 
 
 def generate(checked: CheckedProgram, source_file: str) -> Program:

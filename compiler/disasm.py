@@ -53,6 +53,11 @@ def _argrepr(program: Program, definition, operands: tuple[int, ...], routine_lo
             parts.append(UNITS[value].name)
         elif kind == "config":
             parts.append(config_operand_text(value))
+        elif kind == "record":
+            record = program.records[value]
+            parts.append(f"{record.name}({', '.join(record.names)})")
+        elif kind == "member":
+            parts.append(f"field {value}")
     return "; ".join(parts)
 
 

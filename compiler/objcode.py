@@ -15,6 +15,7 @@ import re
 import struct
 import zlib
 from dataclasses import dataclass
+from functools import cached_property
 from typing import Callable
 
 from .clauses import BY_NAME as _CLAUSES_BY_NAME
@@ -23,9 +24,10 @@ from .clauses import NAMES as _CLAUSE_NAMES
 from .configs import TURN_AXES as _TURN_AXES
 from .configs import TURNS_FLAG as _TURNS_FLAG
 from .configs import operand_problem as _config_operand_problem
+from .records import MAX_FIELDS as _MAX_FIELDS
 from .semantics import MAX_STRING_LENGTH as _MAX_STRING_LENGTH
 from .semantics import STRING_BUILTINS as _STRING_BUILTINS
-from .values import from_plain, to_plain
+from .values import Record, from_plain, to_plain
 
 MAGIC = b"IRLO"
 FORMAT_VERSION = 1
@@ -75,6 +77,8 @@ OPERAND_KINDS = {
     "config": "the words of config(...) (compiler.configs): two bits per group, the shoulder's lowest (0 free, "
               "1 front, 2 back; bits 2-3: 0 free, 1 elbow_up, 2 elbow_down; bits 4-5: 0 free, 1 noflip, 2 flip); "
               "bit 6: the turns of A1, A4, A6 follow on the stack; two bits of 3 are refused",
+    "record": "index into the record table (compiler.records)",
+    "member": f"a field's number in the record on the stack, from 0 in declaration order (at most {_MAX_FIELDS - 1})",
 }
 
 #: Built-in functions: name -> number of arguments. Angles in degrees.
@@ -296,14 +300,22 @@ _DEFS = [
     ("AOUT_SET", (), 2, 0, "Set analog output n to value (real, in its unit: the specification's [[analog_output]] "
                            "n).", "n value ->", "next", True),
     ("AOUT_GET", (), 1, 1, "Push what analog output n was last set to (real).", "n -> real", "next", True),
+    ("MAKE_RECORD", (("r", "record"),), lambda ops, p: len(p.records[ops[0]].fields), 1,
+     "Build a record of type r (the record table's) from its fields' values, in declaration order "
+     "(compiler.records).", "f1..fn -> record", "next", False),
+    ("GET_MEMBER", (("f", "member"),), 1, 1, "Push field f of a record.", "record -> value", "next", False),
+    ("SET_MEMBER", (("f", "member"),), 2, 0, "Store into field f of a record (the record is changed in place).",
+     "record value ->", "next", False),
 ]
 
 #: The types of the values on the stack (what a popped value must be, what is pushed). A
-#: value has one of the language's types (compiler.semantics) or is an array,
-#: ``array of T``. In patterns: ``number`` is an integer or a real, ``real`` accepts an
-#: integer too (it is converted), ``array`` any array, ``any`` anything, ``a|b`` either;
-#: ``@g`` / ``@l`` the declared type of the global / local slot the instruction names,
-#: ``@item`` the element type of the array popped first, ``@params`` the called routine's
+#: value has one of the language's types (compiler.semantics), is an array, ``array of
+#: T``, or a record of the record table, ``record NAME``. In patterns: ``number`` is an
+#: integer or a real, ``real`` accepts an integer too (it is converted), ``array`` any
+#: array, ``record`` any record, ``any`` anything, ``a|b`` either; ``@g`` / ``@l`` the
+#: declared type of the global / local slot the instruction names, ``@item`` the element
+#: type of the array popped first, ``@member`` the type of field f of the record popped
+#: first, ``@fields`` the fields of record type r, ``@params`` the called routine's
 #: parameters, ``@clauses`` the move's clause values, ``@result`` the function's result.
 VALUE_TYPES = ("integer", "real", "bool", "string", "joint", "position", "orientation", "pose", "config")
 
@@ -322,12 +334,14 @@ TYPE_RULES = {
     "@result": "the called function's result type",
     "@order": "bool, of two numbers or two strings",
     "@kept": "the declared type of the called procedure's local slot",
+    "@record": "a record of type r",
+    "@member": "the type of field f of the record popped",
 }
 
 #: The stack types of each instruction: (takes, gives), see InstrDef.
 _TYPES: dict[str, tuple[str, str]] = {
     "NOP": ("", ""), "CONST": ("", "@const"), "LOAD_GLOBAL": ("", "@g"), "STORE_GLOBAL": ("@g", ""),
-    "LOAD_LOCAL": ("", "@l"), "STORE_LOCAL": ("@l", ""), "COPY": ("array", "@same"), "TO_REAL": ("number", "real"),
+    "LOAD_LOCAL": ("", "@l"), "STORE_LOCAL": ("@l", ""), "COPY": ("array|record", "@same"), "TO_REAL": ("number", "real"),
     "NEG": ("number|position", "@same"), "NOT": ("bool", "bool"),
     "ADD": ("integer|real|string|position|pose integer|real|string|position", "@arith"),
     "SUB": ("number|position|pose number|position", "@arith"),
@@ -361,6 +375,7 @@ _TYPES: dict[str, tuple[str, str]] = {
     "SEARCH_BEGIN": ("", ""), "SEARCH_END": ("", ""), "SEARCH_POSE": ("", "pose"),
     "GROUP_IN": ("integer integer", "integer"), "GROUP_OUT": ("integer integer integer", ""),
     "AOUT_SET": ("integer real", ""), "AOUT_GET": ("integer", "real"),
+    "MAKE_RECORD": ("@fields", "@record"), "GET_MEMBER": ("record", "@member"), "SET_MEMBER": ("record @member", ""),
 }
 _missing_types = [d[0] for d in _DEFS if d[0] not in _TYPES]
 if _missing_types:  # pragma: no cover - the table is complete
@@ -430,6 +445,20 @@ class HandlerInfo:
 
 
 @dataclass(frozen=True)
+class RecordInfo:
+    """A record type (compiler.records): its name and its fields, ``(name, declared type)``
+    each, in declaration order (a field's type: one of the language's, an array, or a record
+    type earlier in the table)."""
+
+    name: str
+    fields: tuple[tuple[str, str], ...]
+
+    @property
+    def names(self) -> tuple[str, ...]:
+        return tuple(name for name, _t in self.fields)
+
+
+@dataclass(frozen=True)
 class Program:
     """Object code as plain data. ``code`` holds (opcode, operand, ...) tuples."""
 
@@ -455,6 +484,13 @@ class Program:
     handlers: tuple[HandlerInfo, ...] = ()
     #: The global slots of persistent variables (compiler.persistent; empty: no such key).
     persistent: tuple[int, ...] = ()
+    #: The record types (compiler.records; empty: no such key).
+    records: tuple[RecordInfo, ...] = ()
+
+    @cached_property
+    def record_table(self) -> dict[str, RecordInfo]:
+        """The record types by name."""
+        return {record.name: record for record in self.records}
 
     def handler_at(self, offset: int) -> HandlerInfo | None:
         """The error handler that protects ``offset`` (None: none does)."""
@@ -527,7 +563,8 @@ def _body(program: Program) -> dict:
          if program.interrupts else {}) \
       | ({"handlers": [[h.start, h.end, h.entry, [x for span in h.statements for x in span]]
                        for h in program.handlers]} if program.handlers else {}) \
-      | ({"persistent": list(program.persistent)} if program.persistent else {})
+      | ({"persistent": list(program.persistent)} if program.persistent else {}) \
+      | ({"records": [[r.name, [list(f) for f in r.fields]] for r in program.records]} if program.records else {})
 
 
 def encode(program: Program) -> bytes:
@@ -655,9 +692,16 @@ def decode(data: bytes) -> Program:
     persistent = body.get("persistent", [])
     _expect(isinstance(persistent, list) and ("persistent" not in body or persistent)
             and all(map(_is_int, persistent)), "body: persistent must be a non-empty list of global slots")
+    raw = body.get("records", [])
+    _expect(isinstance(raw, list) and ("records" not in body or raw), "body: records must be a non-empty list")
+    records = []
+    for i, r in enumerate(raw):
+        _expect(isinstance(r, list) and len(r) == 2 and _is_str(r[0]), f"record {i}: expected [name, fields]")
+        records.append(RecordInfo(r[0], _pairs(r[1], f"record {r[0]!r:.40} fields")))
     return Program(body["name"], body["source"], spec[0], spec[1], tuple(robots), tuple(constants),
                    tuple(code), line_table, _pairs(body["globals"], "globals"), tuple(procedures), version,
-                   tuple(files), tuple(line_files), tuple(interrupts), tuple(handlers), tuple(persistent))
+                   tuple(files), tuple(line_files), tuple(interrupts), tuple(handlers), tuple(persistent),
+                   tuple(records))
 
 
 # ---- verification ------------------------------------------------------------------------
@@ -700,6 +744,10 @@ def _check_operand(kind: str, value: int, program: Program, nlocals: int | None)
         ok, limit = 0 <= value < len(program.interrupts), f"0..{len(program.interrupts) - 1}"
     elif kind == "config":
         return _config_operand_problem(value)
+    elif kind == "record":
+        ok, limit = 0 <= value < len(program.records), f"0..{len(program.records) - 1}"
+    elif kind == "member":
+        ok, limit = 0 <= value < _MAX_FIELDS, f"0..{_MAX_FIELDS - 1}"
     elif kind == "name":
         ok, limit = 0 <= value < len(program.constants), f"0..{len(program.constants) - 1}"
         if ok and not isinstance(program.constants[value], str):
@@ -714,23 +762,51 @@ def _check_operand(kind: str, value: int, program: Program, nlocals: int | None)
 _BOUNDS = re.compile(r"array\s*\[[^\]]*\]\s*of\s+")
 
 
-def declared_type(text: object) -> str | None:
-    """The stack type of a declared type (``array[1..7] of joint`` -> ``array of joint``),
-    or None when ``text`` is no type of the language."""
+def declared_type(text: object, records=()) -> str | None:
+    """The stack type of a declared type (``array[1..7] of joint`` -> ``array of joint``,
+    ``part_t`` -> ``record part_t`` when ``records`` holds that name), or None when ``text``
+    is no type of the language or of the records."""
     if not isinstance(text, str):
         return None
     typ = _BOUNDS.sub("array of ", text.strip())
     base = typ
     while base.startswith("array of "):
         base = base[len("array of "):]
-    return typ if base in VALUE_TYPES else None
+    if base in VALUE_TYPES:
+        return typ
+    return typ[:len(typ) - len(base)] + "record " + base if base in records else None
 
 
-def zero_of(text: object, main_axes: int = 6, additional_axes: int = 0) -> object:
+def declared_elements(text: str, records) -> int | None:
+    """How many values a variable of declared type ``text`` holds, all levels together (a
+    record's fields' summed; ``records``: name -> :class:`RecordInfo`), or None when more
+    than :data:`MAX_ARRAY_ELEMENTS` or no type (object code is untrusted: every nesting)."""
+    count, text = 1, text.strip()
+    match = _ARRAY_DECL.match(text)
+    while match is not None:
+        count *= int(match.group(2)) - int(match.group(1)) + 1
+        if not 0 <= count <= MAX_ARRAY_ELEMENTS:
+            return None
+        text = match.group(3).strip()
+        match = _ARRAY_DECL.match(text)
+    record = records.get(text) if records else None
+    if record is not None:
+        inner = 0
+        for _name, field_type in record.fields:
+            n = declared_elements(field_type, records)
+            if n is None:
+                return None
+            inner += n
+        count *= inner
+    return count if count <= MAX_ARRAY_ELEMENTS else None
+
+
+def zero_of(text: object, main_axes: int = 6, additional_axes: int = 0, records=None) -> object:
     """The zero value of a declared type (``array[1..3] of integer`` -> ``[0, 0, 0]``, a
-    fresh list), or None for no type of the language: what a variable holds before its
-    program stores into it (the code generator's initialiser, and the VM's global slots,
-    so that a slot read before any store still holds its declared type)."""
+    fresh list; a record of ``records``, name -> :class:`RecordInfo`, with each field's
+    zero), or None for no type of the language: what a variable holds before its program
+    stores into it (the code generator's initialiser, and the VM's global slots, so that a
+    slot read before any store still holds its declared type)."""
     from .values import Config, Joint, Pose, Position, Rpy
 
     if not isinstance(text, str):
@@ -738,16 +814,14 @@ def zero_of(text: object, main_axes: int = 6, additional_axes: int = 0) -> objec
     text = text.strip()
     match = _ARRAY_DECL.match(text)
     if match is not None:  # (at most MAX_ARRAY_ELEMENTS in all, however nested: object code is untrusted)
-        count, element = 1, text
-        while match is not None:
-            count *= int(match.group(2)) - int(match.group(1)) + 1
-            if not 0 <= count <= MAX_ARRAY_ELEMENTS:
-                return None
-            element = match.group(3).strip()
-            match = _ARRAY_DECL.match(element)
-        inner = _ARRAY_DECL.match(text)
-        length = int(inner.group(2)) - int(inner.group(1)) + 1
-        return [zero_of(inner.group(3).strip(), main_axes, additional_axes) for _ in range(length)]
+        if declared_elements(text, records) is None:
+            return None
+        length = int(match.group(2)) - int(match.group(1)) + 1
+        return [zero_of(match.group(3).strip(), main_axes, additional_axes, records) for _ in range(length)]
+    record = records.get(text) if records else None
+    if record is not None:
+        return Record(record.name, record.names,
+                      [zero_of(t, main_axes, additional_axes, records) for _n, t in record.fields])
     pose = Pose(Position(0.0, 0.0, 0.0), Rpy(0.0, 0.0, 0.0))
     zeros = {"integer": 0, "real": 0.0, "bool": False, "string": "", "position": Position(0.0, 0.0, 0.0),
              "orientation": Rpy(0.0, 0.0, 0.0), "pose": pose, "frame": pose, "tool": pose, "config": Config(),
@@ -774,7 +848,8 @@ def fits(actual: str, pattern: str) -> bool:
     """Does a value of type ``actual`` fit ``pattern`` (see :data:`VALUE_TYPES`)?"""
     for alt in pattern.split("|"):
         if alt in ("any", actual) or (alt in ("number", "real") and actual in ("integer", "real")) \
-                or (alt == "array" and actual.startswith("array of ")):
+                or (alt == "array" and actual.startswith("array of ")) or (alt == "record" and
+                                                                          actual.startswith("record ")):
             return True
     return False
 
@@ -823,15 +898,18 @@ def _stack_types(definition: InstrDef, operands: tuple, program: Program, local_
     def operand(name: str) -> int:
         return operands[names.index(name)]
 
+    records = program.record_table
     patterns: list[str] = []
     for t in definition.takes:
         if t == "@params":
             callee = program.procedures[operands[0]]
-            patterns.extend(declared_type(typ) or "?" for _n, typ in callee.locals[:callee.params])
+            patterns.extend(declared_type(typ, records) or "?" for _n, typ in callee.locals[:callee.params])
+        elif t == "@fields":
+            patterns.extend(declared_type(typ, records) or "?" for _n, typ in program.records[operand("r")].fields)
         elif t == "@clauses":
             patterns.extend(_CLAUSES_BY_NAME[c].stack_type for c in clause_names(operands[0]))
         elif t == "@g":
-            patterns.append(declared_type(program.globals[operand("g")][1]) or "?")
+            patterns.append(declared_type(program.globals[operand("g")][1], records) or "?")
         elif t == "@l":
             patterns.append(local_types[operand("l")])
         elif t == "@result":
@@ -845,6 +923,8 @@ def _stack_types(definition: InstrDef, operands: tuple, program: Program, local_
     for i, (actual, pattern) in enumerate(zip(popped, patterns)):
         if pattern == "@item":
             pattern = popped[0][len("array of "):]
+        elif pattern == "@member":
+            pattern = _member_type(program, popped[0], operand("f"))
         if not fits(actual, pattern):
             which = f"value {i + 1} of {pops}" if pops > 1 else "its value"
             raise ObjectCodeError(f"{definition.name}: {which} must be {pattern.replace('|', ' or ')}, "
@@ -857,7 +937,7 @@ def _stack_types(definition: InstrDef, operands: tuple, program: Program, local_
         if gives is None:
             raise ObjectCodeError(f"CONST: constant {operands[0]} is no value of the language")
     elif rule == "@g":
-        gives = declared_type(program.globals[operand("g")][1])
+        gives = declared_type(program.globals[operand("g")][1], records)
     elif rule == "@l":
         gives = local_types[operand("l")]
     elif rule == "@same":
@@ -867,7 +947,11 @@ def _stack_types(definition: InstrDef, operands: tuple, program: Program, local_
     elif rule == "@array":
         gives = "array of " + popped[0]
     elif rule == "@result":
-        gives = declared_type(program.procedures[operands[0]].result)
+        gives = declared_type(program.procedures[operands[0]].result, records)
+    elif rule == "@record":
+        gives = "record " + program.records[operand("r")].name
+    elif rule == "@member":
+        gives = _member_type(program, popped[0], operand("f"))
     elif rule == "@arith":
         gives = _arith_type(definition.name, *popped)
         if gives is None:
@@ -882,7 +966,7 @@ def _stack_types(definition: InstrDef, operands: tuple, program: Program, local_
         callee = program.procedures[operands[0]]
         if not operands[1] < len(callee.locals):
             raise ObjectCodeError(f"TAKE: procedure {callee.name!r} has no local slot {operands[1]}")
-        gives = declared_type(callee.locals[operands[1]][1])
+        gives = declared_type(callee.locals[operands[1]][1], records)
     elif rule == "@builtin":
         fn = BUILTIN_NAMES[operands[0]]
         gives = _builtin_type(fn, popped)
@@ -893,20 +977,30 @@ def _stack_types(definition: InstrDef, operands: tuple, program: Program, local_
     return stack[:len(stack) - pops] + (gives,), gives
 
 
+def _member_type(program: Program, record: str, f: int) -> str:
+    """The stack type of field ``f`` of a value of stack type ``record`` (``record NAME``)."""
+    info = program.record_table.get(record[len("record "):]) if record.startswith("record ") else None
+    if info is None:  # (the pattern "record" was checked first: this is a program's record type)
+        raise ObjectCodeError(f"{record} is no record")
+    if not f < len(info.fields):
+        raise ObjectCodeError(f"record {info.name} has no field {f} (it has {len(info.fields)})")
+    return declared_type(info.fields[f][1], program.record_table) or "?"
+
+
 def _routine_types(program: Program, proc: ProcInfo | None) -> tuple[tuple, str]:
     """The declared types of a routine's local slots and its result, checked."""
     if proc is None:
         return (), ""
     local_types = []
     for name, typ in proc.locals:
-        checked = declared_type(typ)
+        checked = declared_type(typ, program.record_table)
         if checked is None:
             raise ObjectCodeError(f"procedure {proc.name!r}: local {name!r} has type {typ!r}, no type of the "
                                   f"language ({', '.join(VALUE_TYPES)}, or an array of one)")
         local_types.append(checked)
     result = ""
     if proc.result:
-        result = declared_type(proc.result) or ""
+        result = declared_type(proc.result, program.record_table) or ""
         if not result:
             raise ObjectCodeError(f"function {proc.name!r}: result type {proc.result!r} is no type of the language")
     return tuple(local_types), result
@@ -1086,6 +1180,9 @@ def verify(program: Program, spec_hash: str | None = None) -> int:
             raise ObjectCodeError(f"{definition.name} takes {n} operand{'s' if n != 1 else ''}, "
                                   f"not {len(instr) - 1}", offset)
     previous = -1
+    problem = _records_problem(program)
+    if problem is not None:
+        raise ObjectCodeError(problem)
     for offset, line, column in program.lines:
         if not (0 <= offset < len(program.code)) or offset < previous or line < 1 or column < 1:
             raise ObjectCodeError(f"line table entry ({offset}, {line}, {column}) is invalid")
@@ -1110,9 +1207,10 @@ def verify(program: Program, spec_hash: str | None = None) -> int:
         if problem is not None:
             raise ObjectCodeError(f"interrupt {interrupt.name!r}: {problem}")
     for slot, (name, typ) in enumerate(program.globals):
-        if declared_type(typ) is None:
-            raise ObjectCodeError(f"global {slot} ({name!r}) has type {typ!r}, no type of the language "
-                                  f"({', '.join(VALUE_TYPES)}, or an array of one)")
+        if declared_type(typ, program.record_table) is None or declared_elements(typ, program.record_table) is None:
+            raise ObjectCodeError(f"global {slot} ({name!r}) has type {typ!r:.80}, no type of the language "
+                                  f"({', '.join(VALUE_TYPES)}, a record type of the program, or an array of one, "
+                                  f"at most {MAX_ARRAY_ELEMENTS} values)")
     if len(set(program.persistent)) != len(program.persistent) or \
             not all(0 <= g < len(program.globals) for g in program.persistent):
         raise ObjectCodeError(f"the persistent slots {list(program.persistent)[:20]} are not distinct global slots "
@@ -1137,6 +1235,34 @@ def verify(program: Program, spec_hash: str | None = None) -> int:
                 or owner[handler.entry] != routine:
             raise ObjectCodeError(f"error handler {k}: the code it protects and its own code must be of one routine")
     return deepest
+
+
+_IDENTIFIER = re.compile(r"[a-z_][a-z0-9_]*")
+
+
+def _records_problem(program: Program) -> str | None:
+    """What is wrong with the record table, or None: each record named once (a name, no
+    type of the language), with 1 to MAX_FIELDS fields named once, each of a type of the
+    language or of a record before it (so no record holds itself), holding at most
+    MAX_ARRAY_ELEMENTS values."""
+    earlier: dict[str, RecordInfo] = {}
+    for i, record in enumerate(program.records):
+        what = f"record {i} ({record.name!r:.40})"
+        if not _IDENTIFIER.fullmatch(record.name) or record.name in VALUE_TYPES or record.name in earlier \
+                or record.name == "array":
+            return f"{what}: its name must be a name, no type of the language, and given once"
+        names = record.names
+        if not 1 <= len(names) <= _MAX_FIELDS or len(set(names)) != len(names) \
+                or not all(_IDENTIFIER.fullmatch(n) for n in names):
+            return f"{what}: 1..{_MAX_FIELDS} fields, each named once by a name"
+        for name, typ in record.fields:
+            if declared_type(typ, earlier) is None:
+                return (f"{what}: field {name!r} has type {typ!r:.80}, no type of the language or of a record "
+                        "before it")
+        earlier[record.name] = record
+        if declared_elements(record.name, earlier) is None:
+            return f"{what}: it holds more than {MAX_ARRAY_ELEMENTS} values"
+    return None
 
 
 def _handler_problem(program: Program, k: int, handler: HandlerInfo) -> str | None:

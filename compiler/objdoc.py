@@ -26,6 +26,7 @@ import msgpack
 
 from . import objcode
 from .clauses import CLAUSES as CLAUSE_TABLE
+from .records import MAX_FIELDS
 from .objcode import (
     BUILTIN_NAMES,
     BUILTINS,
@@ -36,6 +37,7 @@ from .objcode import (
     FORMAT_VERSION,
     INSTRUCTIONS,
     MAGIC,
+    MAX_ARRAY_ELEMENTS,
     MAX_SIZE,
     MOTION_KINDS,
     OPERAND_KINDS,
@@ -43,6 +45,7 @@ from .objcode import (
     VALUE_TYPES,
     InstrDef,
     ProcInfo,
+    RecordInfo,
     Program,
     encode,
     verify,
@@ -107,6 +110,10 @@ _TABLE_RANGES = {
     "local": "0 .. (the procedure's number of local slots − 1); only inside a procedure",
     "target": "0 .. (number of instructions − 1)",
     "proc": "0 .. (number of procedures − 1)",
+    "interrupt": "0 .. (number of interrupts − 1)",
+    "record": "0 .. (number of record types − 1)",
+    "member": f"0 .. (the record's number of fields − 1), at most {MAX_FIELDS - 1} (checked against the record on "
+              "the stack)",
 }
 
 
@@ -146,8 +153,10 @@ def _probe_program() -> Program:
     """A program whose procedure i has _PROBE_PARAMS[i] parameters (for CALL's pops)."""
     procs = tuple(ProcInfo(f"p{i}", 0, n, tuple((f"a{j}", "integer") for j in range(n)))
                   for i, n in enumerate(_PROBE_PARAMS))
+    records = tuple(RecordInfo(f"r{i}", tuple((f"f{j}", "integer") for j in range(n)))
+                    for i, n in enumerate(_PROBE_PARAMS) if n)
     return Program("probe", "probe.irl", "probe", "0" * 64, (), (0, 0.0, ""), ((BY_NAME["END"].code,),) * 3,
-                   (), (("g", "integer"),) * 3, procs)
+                   (), (("g", "integer"),) * 3, procs, records=records)
 
 
 def _samples(kind: str) -> list[int]:
@@ -160,6 +169,8 @@ def _samples(kind: str) -> list[int]:
         return list(range(1 << len(CLAUSES)))
     if kind == "proc":
         return list(range(len(_PROBE_PARAMS)))
+    if kind == "record":
+        return list(range(len([n for n in _PROBE_PARAMS if n])))
     if kind == "builtin":
         return list(range(len(BUILTIN_NAMES)))
     if kind == "field":
@@ -179,6 +190,8 @@ def _measure(kind: str, value: int) -> int | None:
         return bin(value).count("1")
     if kind == "proc":
         return _PROBE_PARAMS[value]
+    if kind == "record":
+        return [n for n in _PROBE_PARAMS if n][value]
     if kind == "config":
         return 1 if value & TURNS_FLAG else 0
     return None
@@ -189,6 +202,8 @@ def _measure_words(kind: str, name: str) -> str:
         return f"one per clause bit set in `{name}`"
     if kind == "proc":
         return f"the parameter count of procedure `{name}`"
+    if kind == "record":
+        return f"the field count of record type `{name}`"
     if kind == "config":
         return f"bit 6 of `{name}`"
     return f"`{name}`"
@@ -332,6 +347,15 @@ def _section_format() -> list[str]:
         "A program with persistent variables (`persistent`, compiler.persistent) has the key "
         "`persistent`: the list of their global slots (distinct). Only those slots may be the "
         "operand of `PERS_LOAD` and `PERS_STORE`. A program without has no such key.",
+        "",
+        "A program with record types (`record NAME ... endrecord;`, compiler.records) has the key "
+        "`records`: a list of `[name, [[field, type], ...]]`, one per record type, in declaration "
+        "order. A record type's name is a name and no type of the language; its fields (at least "
+        "one, each named once) have the language's types, arrays, or a record type *earlier* in "
+        "the list (so no record holds itself), and it holds at most "
+        f"{MAX_ARRAY_ELEMENTS:,} values in all. A slot's or a field's declared type may then be a "
+        "record's name (`part_t`, `array[1..4] of part_t`); on the stack it is `record NAME`. "
+        "A program without has no such key.",
         "",
         "Offsets (jump targets, procedure entries, line-table offsets) count *instructions*, "
         "not integers of the flat `code` list: offset 0 is the first instruction, offset 1 the "

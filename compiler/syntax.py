@@ -102,8 +102,19 @@ class _Builder(Transformer):
         kw, *items = c
         if items and isinstance(items[0], Token):  # var persistent ...
             word = items.pop(0)
-            return [ast.replace(item, section=word.value.lower(), section_span=_span(word)) for item in items]
+            return [ast.replace(item, section=word.value.lower(), section_span=_span(word))
+                    if isinstance(item, ast.VarDecl) else item for item in items]
         return list(items)
+
+    def record_decl(self, c):
+        word, name, *fields, end = c
+        return ast.RecordDecl(name.value.lower(), tuple(fields), _span(word).to(_span(end)), _span(name),
+                              word.value.lower(), _span(word), end.value.lower(), _span(end))
+
+    def record_field(self, c):
+        *names, type_ = c
+        return ast.RecordField(tuple(n.value.lower() for n in names), type_, _span(names[0]).to(type_.span),
+                               tuple(_span(n) for n in names))
 
     def var_item(self, c):
         items = c
@@ -194,8 +205,12 @@ class _Builder(Transformer):
 
     # -- statements --
     def assign(self, c):
-        name, *indices, value = c
-        return ast.Assign(name.value.lower(), tuple(indices), value, _span(name).to(value.span), _span(name))
+        name, *path, value = c
+        return ast.Assign(name.value.lower(), tuple(path), value, _span(name).to(value.span), _span(name))
+
+    def member(self, c):
+        name, = c
+        return ast.Member(name.value.lower(), _span(name))
 
     def out_stmt(self, c):
         kw, index, value = c
@@ -365,7 +380,7 @@ def _header(items) -> tuple[tuple, tuple, tuple]:
             spec = (item[1], item[2])
         elif isinstance(item, list):
             decls.extend(item)
-        elif isinstance(item, ast.Procedure):
+        elif isinstance(item, (ast.Procedure, ast.RecordDecl)):
             decls.append(item)
         elif isinstance(item, ast.Import):
             imports.append(item)

@@ -118,8 +118,62 @@ def _nums(values) -> str:
     return ", ".join(format_number(v) for v in values)
 
 
+class Record(list):
+    """A record's value (compiler.records): its fields' values in declaration order, a list
+    that the VM changes in place (as an array), with its type's name and its fields' names
+    (to show it). Not immutable: a record stored or passed is a copy (:func:`copy_value`)."""
+
+    __slots__ = ("type_name", "field_names")
+
+    def __init__(self, type_name: str, field_names: tuple[str, ...], values=()):
+        super().__init__(values)
+        self.type_name = type_name
+        self.field_names = field_names
+
+    def __repr__(self) -> str:
+        return f"Record({self.type_name!r}, {self.field_names!r}, {list(self)!r})"
+
+    def __eq__(self, other):  # (a record of another type, or an array, is never equal)
+        return type(other) is Record and other.type_name == self.type_name and list.__eq__(self, other)
+
+    def __ne__(self, other):
+        return not self == other
+
+    __hash__ = None
+
+
+#: The values the VM changes in place: arrays (lists) and records.
+_MUTABLE = (list, Record)
+
+
+def copy_value(value):
+    """A deep copy of an array or a record (they hold arrays, records or immutable values);
+    any other value is immutable and comes back as it is."""
+    t = type(value)
+    if t is list:
+        return [copy_value(item) for item in value] if value and type(value[0]) in _MUTABLE else value[:]
+    if t is Record:
+        return Record(value.type_name, value.field_names,
+                      [copy_value(item) if type(item) in _MUTABLE else item for item in value])
+    return value
+
+
+def elements_of(value) -> int:
+    """How many values an array or a record holds, all levels together (1 for any other)."""
+    t = type(value)
+    if t is list:
+        return len(value) * elements_of(value[0]) if value else 0
+    if t is Record:
+        return sum(elements_of(item) for item in value)
+    return 1
+
+
 def format_value(value) -> str:
-    """A value as L-IRL source text."""
+    """A value as L-IRL source text (a record as its type's name with each field named:
+    ``part_t(name: "A", height: 12.5)``)."""
+    if type(value) is Record:
+        return f"{value.type_name}(" + ", ".join(f"{name}: {format_value(v)}"
+                                                 for name, v in zip(value.field_names, value)) + ")"
     if isinstance(value, bool):
         return "true" if value else "false"
     if isinstance(value, str):

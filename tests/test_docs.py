@@ -21,6 +21,7 @@ from compiler.objcode import (
     BY_CODE,
     BY_NAME,
     InterruptInfo,
+    RecordInfo,
     CLAUSES,
     FIELDS,
     INSTRUCTIONS,
@@ -140,7 +141,7 @@ def test_every_operand_kind_is_described():
 _OPERAND_VALUE = {
     "const": 0, "global": 0, "local": 0, "target": 0, "proc": 0, "count": 1, "int": 1,
     "builtin": 0, "field": 0, "clauses": 0b100001, "flag": 1, "name": 2, "interrupt": 0, "place": 1, "unit": 0,
-    "config": 0b1100001,
+    "config": 0b1100001, "record": 0, "member": 0,
 }
 
 
@@ -158,6 +159,7 @@ def _one_of_each() -> Program:
         globals=(("g", "integer"),),
         procedures=(ProcInfo("p", 0, 1, (("a", "real"),)),),
         interrupts=(InterruptInfo("i", 0, 0, 1, True, False),),
+        records=(RecordInfo("r", (("a", "real"),)),),
     )
 
 
@@ -169,7 +171,8 @@ def test_every_instruction_has_a_disassembly_form():
         assert record.offset == d.code
         assert isinstance(record.argrepr, str)
         assert len(record.operands) == len(d.operands)
-        if any(kind in ("const", "global", "proc", "builtin", "field", "clauses", "target", "name", "interrupt", "place", "unit", "config")
+        if any(kind in ("const", "global", "proc", "builtin", "field", "clauses", "target", "name", "interrupt", "place", "unit", "config",
+                            "record", "member")
                for _, kind in d.operands):
             assert record.argrepr, f"{d.name}: operands are not resolved in the disassembly"
 

@@ -25,15 +25,18 @@ import time
 from pathlib import Path
 
 from compiler.persistent import FILE, FORMAT, MAX_FILE_BYTES
-from compiler.values import Joint, from_plain, to_plain
+from compiler.values import Joint, Record, copy_value, from_plain, to_plain
 
 __all__ = ["PersistentStore", "fitted", "plain_of", "shown_plain", "value_of"]
 
 
 def plain_of(value):
-    """A value of the language as the store writes it (an array: ``["array", [items]]``)."""
+    """A value of the language as the store writes it (an array: ``["array", [items]]``; a
+    record: ``["record", type name, {field: item, ...}]``)."""
     if type(value) is list:
         return ["array", [plain_of(item) for item in value]]
+    if type(value) is Record:
+        return ["record", value.type_name, {name: plain_of(item) for name, item in zip(value.field_names, value)}]
     return to_plain(value)
 
 
@@ -41,31 +44,33 @@ def value_of(plain):
     """The inverse of :func:`plain_of`; ValueError on anything malformed."""
     if isinstance(plain, list) and len(plain) == 2 and plain[0] == "array" and isinstance(plain[1], list):
         return [value_of(item) for item in plain[1]]
+    if isinstance(plain, list) and len(plain) == 3 and plain[0] == "record" and isinstance(plain[1], str) \
+            and isinstance(plain[2], dict) and all(isinstance(name, str) for name in plain[2]):
+        return Record(plain[1], tuple(plain[2]), [value_of(item) for item in plain[2].values()])
     return from_plain(plain)
 
 
 def fitted(value, like):
     """``value`` as it goes into a variable that holds ``like`` (of the same type and shape:
-    an array of the same lengths, a joint of the same axes; an integer where a real is
-    becomes a real, at every level), or None when it does not fit there."""
+    an array of the same lengths, a record of the same type and fields, a joint of the same
+    axes; an integer where a real is becomes a real, at every level), or None when it does
+    not fit there."""
     if type(like) is list:
         if type(value) is not list or len(value) != len(like):
             return None
         items = [fitted(v, w) for v, w in zip(value, like)]
         return None if any(item is None for item in items) else items
+    if type(like) is Record:
+        if type(value) is not Record or value.type_name != like.type_name or value.field_names != like.field_names:
+            return None
+        items = [fitted(v, w) for v, w in zip(value, like)]
+        return None if any(item is None for item in items) else Record(like.type_name, like.field_names, items)
     if type(like) is float:
         return float(value) if type(value) in (float, int) else None
     if isinstance(like, Joint):
         fits = isinstance(value, Joint) and len(value.main) == len(like.main) and len(value.add) == len(like.add)
         return value if fits else None
     return value if type(value) is type(like) else None
-
-
-def _copy(value):
-    """A value the VM may change in place (an array) copied; the others are immutable."""
-    if type(value) is list:
-        return [_copy(item) for item in value] if value and type(value[0]) is list else value[:]
-    return value
 
 
 def shown_plain(plain) -> str:
@@ -161,7 +166,7 @@ class PersistentStore:
     def set(self, program: str, name: str, type_: str, value) -> None:
         """The operator's value for ``program``'s ``name`` (checked by the caller), kept as a
         program's change is."""
-        self.latest[(program, name)] = (type_, _copy(value))
+        self.latest[(program, name)] = (type_, copy_value(value))
         self._wake.set()
 
     def reset(self, program: str, name: str | None = None) -> int:
@@ -184,11 +189,11 @@ class PersistentStore:
         entry = self.latest.get((program, name)) or self.values.get((program, name))
         if entry is None or entry[0] != type_:
             return None
-        return _copy(entry[1])
+        return copy_value(entry[1])
 
     def keep(self, program: str, name: str, type_: str, value) -> None:
         """Keep ``value`` of ``program``'s ``name``: written soon by the writer."""
-        self.latest[(program, name)] = (type_, _copy(value))
+        self.latest[(program, name)] = (type_, copy_value(value))
         self._wake.set()
 
     # ---- the writer ----

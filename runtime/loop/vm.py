@@ -73,7 +73,7 @@ from compiler.semantics import (INT_MAX, INT_MIN, MAX_STRING_LENGTH, EvalError, 
 from compiler.configs import TURNS_FLAG, from_operand
 from compiler.recovery import BY_NAME as ERROR_KINDS, USER_ERRORS, error_kind
 from compiler.robotstate import CLOCKS
-from compiler.values import Pose, format_number, format_value
+from compiler.values import Pose, Record, copy_value, elements_of, format_number, format_value
 
 from runtime.loop.persistence import fitted
 from runtime.recording import HALT, HANDLED, INTERRUPT, PAUSE, PRINT, TIMEOUT
@@ -252,22 +252,8 @@ _COMPARE = {OP.LE: operator.le, OP.LT: operator.lt, OP.GE: operator.ge, OP.GT: o
 _COMPARISON_OPS = frozenset(_COMPARE)
 
 
-def array_elements(value) -> int:
-    """How many elements an array value holds, all levels together (1 for a non-array)."""
-    count = 1
-    while type(value) is list:
-        count *= len(value)
-        if not value:
-            return 0
-        value = value[0]
-    return count
-
-
-def copy_array(array: list) -> list:
-    """A deep copy of an array value (arrays hold arrays or immutable values)."""
-    if array and type(array[0]) is list:
-        return [copy_array(item) for item in array]
-    return array[:]
+#: The values an instruction changes in place, which a stored or passed value is a copy of.
+_MUTABLE = (list, Record)
 
 
 #: The instructions whose ZeroDivisionError or OverflowError is the program's arithmetic.
@@ -337,8 +323,9 @@ class Memory:
         self.stack: list = []
         # (each slot its declared type's zero: a slot read before its first store, which verified
         # object code need not rule out, still holds a value of its type)
-        self.globals: list = [zero_of(slot[1]) if isinstance(slot, tuple) and len(slot) == 2 else None
-                              for slot in program.globals]
+        self.globals: list = [zero_of(slot[1], records=program.record_table)
+                              if isinstance(slot, tuple) and len(slot) == 2 else None for slot in program.globals]
+        self.records = program.records
         self.locals: list = []  # the current procedure's slots (the main program has none)
         self.frames: list[tuple[int, list, int]] = []  # (return offset, caller's locals, the callee's stack base)
         self.max_call_depth = max_call_depth
@@ -401,8 +388,8 @@ class Memory:
 
     def op_copy(self, _, pc):
         stack = self.stack
-        if type(stack[-1]) is list:
-            stack[-1] = copy_array(stack[-1])
+        if type(stack[-1]) in _MUTABLE:
+            stack[-1] = copy_value(stack[-1])
         return pc + 1
 
     def op_to_real(self, _, pc):
@@ -517,11 +504,11 @@ class Memory:
     def op_make_array(self, n, pc):
         stack = self.stack
         element = stack[-1]
-        if n * array_elements(element) > MAX_ARRAY_ELEMENTS:
-            raise EvalError(f"an array of {n} x {array_elements(element)} elements is larger than "
+        if n * elements_of(element) > MAX_ARRAY_ELEMENTS:
+            raise EvalError(f"an array of {n} x {elements_of(element)} elements is larger than "
                             f"{MAX_ARRAY_ELEMENTS} elements, the largest allowed")
-        if type(element) is list:
-            stack[-1] = [copy_array(element) for _ in range(n)]
+        if type(element) in _MUTABLE:
+            stack[-1] = [copy_value(element) for _ in range(n)]
         else:
             stack[-1] = [element] * n
         return pc + 1
@@ -552,6 +539,22 @@ class Memory:
         value = stack.pop()
         axis = stack.pop()
         stack[-1] = set_axis(stack[-1], axis, value)
+        return pc + 1
+
+    def op_make_record(self, r, pc):
+        record = self.records[r]
+        self.stack.append(Record(record.name, record.names, self.pop_n(len(record.fields))))
+        return pc + 1
+
+    def op_get_member(self, f, pc):
+        stack = self.stack
+        stack[-1] = stack[-1][f]
+        return pc + 1
+
+    def op_set_member(self, f, pc):
+        stack = self.stack
+        value = stack.pop()
+        stack.pop()[f] = value
         return pc + 1
 
     def op_get_field(self, f, pc):

@@ -355,3 +355,17 @@ endprocedure;"""
         texts(tmp_path, body, decls, dispatch)
     body = body.replace("      call grow(slots[2].home[3], 1);\n", "")
     assert texts(tmp_path, body, decls, dispatch) == ["true true false 3 2.5"]
+
+
+def test_a_module_declares_a_record_type_its_importers_use(tmp_path):
+    (tmp_path / "parts.irl").write_text("module parts;\n" + RECORDS + """
+function made(n : string) : part_t;
+seq
+  return part_t(n, 10, 1);
+endseq
+endfunction;
+endmodule;
+""")
+    text = program_text("p := made(\"x\");\np.height := p.height * 2;\nprint p;", 'import "parts.irl";\nvar p : part_t;')
+    machine, host = run(compile_text(tmp_path, text))
+    assert host.texts == ['part_t(name: "x", height: 20, width: 1)']

@@ -534,7 +534,7 @@ def test_the_production_cell_retries_its_missed_grip_and_loads_every_part():
     code, out, err = run_cli("run", program, "--cell-scenario", cell, "--json", "--max-time", "45")
     texts = [e["text"] for e in json.loads(out)["log"]][1:]  # (after: kept for this run only)
     assert texts[:3] == ["wait for timed out after 2 s",
-                         "timeout error at line 52: wait for timed out after 2 s (handled at line 74)",
+                         "timeout error at line 58: wait for timed out after 2 s (handled at line 80)",
                          "grip 1 missed: open, retract and grip again"]
     loaded = [t for t in texts if " loaded in " in t]  # (the first three parts, in 45 s)
     assert [t.split(" (")[0] for t in loaded] == [f"part {n} of 10" for n in range(1, 4)]

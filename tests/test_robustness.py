@@ -614,7 +614,7 @@ def test_near_miss_bodies_dis_hand_picked(workdir):
         invalid.append({**body, "constants": body["constants"] + [bad]})
     invalid.append({**body, "code": [OP.JUMP, 10 ** 6] + body["code"]})
     invalid.append({**body, "code": [OP.CONST, -1] + body["code"]})
-    invalid.append({**body, "code": body["code"][:-1]})
+    invalid.append({**body, "code": body["code"] + [OP.JUMP]})  # (ends inside its operands)
     invalid.append({**body, "code": []})
     invalid.append({**body, "lines": [0, 0, 0]})
     invalid.append({**body, "procedures": body["procedures"] + [["q", 10 ** 9, 0, []]]})

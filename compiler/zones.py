@@ -31,7 +31,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-__all__ = ["KINDS", "MARGIN", "MAX_ZONES", "SHAPES", "STEP", "Zone", "forbidden", "markdown", "signals"]
+__all__ = ["KINDS", "MARGIN", "MAX_ZONES", "SHAPES", "STEP", "Zone", "forbidden", "markdown", "shown", "signals"]
 
 #: mm: how far from a zone a planned path must stay (the flange and the tool centre point).
 MARGIN = 5.0
@@ -101,7 +101,13 @@ class Zone:
 
 
 def _point(p) -> str:
-    return "(" + ", ".join(f"{v:g}" for v in p) + ")"
+    return "(" + ", ".join(shown(v, "g") for v in p) + ")"
+
+
+def shown(value: float, spec: str = ".1f") -> str:
+    """A coordinate as a message shows it (``-0.0`` as ``0.0``: a rounded small negative)."""
+    text = format(value, spec)
+    return text[1:] if text.startswith("-") and float(text) == 0.0 else text
 
 
 def zone_of(name: str, shape: str, values: dict, kind: str = "forbidden", output: int = 0) -> Zone:

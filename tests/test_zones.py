@@ -257,3 +257,12 @@ def test_a_robot_with_additional_axes_takes_no_zones_yet():
     track = a6.replace('name = "A6"', 'name = "track"\ngroup = "additional"')
     with pytest.raises(SpecError, match="world zones need a robot without additional axes"):
         zoned("\n" + track + ZONES)
+
+
+def test_a_message_shows_no_negative_zero():
+    """A coordinate that rounds to zero from below is shown as 0 (a planner's message said
+    "(-0.0, 412.3, 300.0)")."""
+    from compiler.zones import shown
+
+    assert [shown(-0.04), shown(-0.06), shown(0.0), shown(-0.0, "g"), shown(-3.2, "g")] == \
+        ["0.0", "-0.1", "0.0", "0", "-3.2"]

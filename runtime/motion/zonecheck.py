@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import math
 
-from compiler.zones import MARGIN, STEP
+from compiler.zones import MARGIN, STEP, shown
 
 __all__ = ["home_problem", "zone_problem"]
 
@@ -65,7 +65,7 @@ def _closest(points: tuple, zones, t: float, duration: float, what: str) -> str 
                 how = (f"{depth:.1f} mm inside it" if depth > 0.0 else
                        f"{-depth:.1f} mm from it (a move keeps {MARGIN:g} mm away)")
                 return (f"{what} enters zone '{zone.name}' ({zone.describe()}) at {at}: {name} would be at "
-                        f"({x:.1f}, {y:.1f}, {z:.1f}), {how}")
+                        f"({shown(x)}, {shown(y)}, {shown(z)}), {how}")
     return None
 
 

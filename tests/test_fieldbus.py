@@ -18,13 +18,13 @@ from runtime.hardware.backends import FieldbusError, load_fieldbus, parse_fieldb
 from runtime.hardware.fieldbus import ModbusIo, parse_modbus
 
 from conftest import ROOT, SPEC_PATH, SPEC
-COILS, DISCRETE = 1, 2  # Modbus function codes: read coils, read discrete inputs
+COILS, DISCRETE, HOLDING, INPUT_REGISTERS = 1, 2, 3, 4  # Modbus function codes: read coils, discrete inputs, ...
 
 
 class Plc:
-    """pymodbus's TCP server with one device (64 coils, 64 discrete inputs) on loopback,
-    in a thread of its own; ``coils``/``set_input`` reach its data as the PLC's own
-    program would."""
+    """pymodbus's TCP server with one device (64 coils, 64 discrete inputs, 16 holding and 16
+    input registers) on loopback, in a thread of its own; ``coils``/``set_input``,
+    ``holding``/``set_register`` reach its data as the PLC's own program would."""
 
     def __init__(self, port: int):
         from pymodbus.server import ModbusTcpServer
@@ -32,7 +32,7 @@ class Plc:
 
         logging.getLogger("pymodbus").setLevel(logging.CRITICAL)
         bits = lambda: [SimData(0, count=64, values=False, datatype=DataType.BITS)]  # noqa: E731
-        words = lambda: [SimData(0, count=1, values=0, datatype=DataType.REGISTERS)]  # noqa: E731
+        words = lambda: [SimData(0, count=16, values=0, datatype=DataType.REGISTERS)]  # noqa: E731
         device = SimDevice(1, simdata=(bits(), bits(), words(), words()))
         self.port = port
         self.loop = asyncio.new_event_loop()
@@ -62,6 +62,13 @@ class Plc:
     def set_input(self, n: int, value: bool) -> None:
         """Discrete input of the robot's in[n] (address n - 1)."""
         self._run(self.server.async_setValues(1, DISCRETE, n - 1, [value]))
+
+    def holding(self, count: int = 4) -> list[int]:
+        return list(self._run(self.server.async_getValues(1, HOLDING, 0, count)))
+
+    def set_register(self, address: int, raw: int) -> None:
+        """Input register ``address`` (what an analog input module puts there)."""
+        self._run(self.server.async_setValues(1, INPUT_REGISTERS, address, [raw]))
 
     def stop(self) -> None:
         if self.server is not None:
@@ -103,15 +110,15 @@ def test_a_bad_fieldbus_file_says_where_and_what_is_allowed(tmp_path, text, word
 
 
 @contextlib.contextmanager
-def plc_and_exchange(timeout: float):
+def plc_and_exchange(timeout: float, spec=SPEC, **fields):
     """A real PLC on a free port and the exchange thread (ModbusIo) connected to it, polling
-    every 5 ms with this timeout; both closed afterwards."""
+    every 5 ms with this timeout (and ``fields`` of [modbus]); both closed afterwards."""
     from conftest import free_port
 
     port = free_port()
     plc = Plc(port)
-    io = ModbusIo(parse_modbus({"host": "127.0.0.1", "port": port, "poll": 0.005, "timeout": timeout}, SPEC),
-                  SPEC.inputs, SPEC.outputs)
+    io = ModbusIo(parse_modbus({"host": "127.0.0.1", "port": port, "poll": 0.005, "timeout": timeout} | fields, spec),
+                  spec.inputs, spec.outputs, spec.analog_inputs, spec.analog_outputs)
     io.start()
     try:
         assert io.wait_connected(5.0), io.lost()
@@ -374,3 +381,62 @@ def test_the_plc_io_numbers_its_inputs_and_outputs_from_1_and_says_which_exist()
     assert io.outputs[-1] and io.output(SPEC.outputs) and not io.input(1)
     with pytest.raises(PermissionError):
         io.set_input(1, True)
+
+
+def _until(condition, what: str, seconds: float = 5.0) -> None:
+    deadline = time.monotonic() + seconds
+    while not condition():
+        assert time.monotonic() < deadline, what
+        time.sleep(0.005)
+
+
+def test_analog_channels_and_groups_over_modbus_registers():
+    """Issue 33 item 4 over a real PLC: an analog input is an input register scaled to its
+    channel's range (0 its low end, analog_counts its high end), an analog output a holding
+    register; a reading beyond the high end is beyond the channel's range (the program's io
+    error when it reads it: runtime.loop.components.trajectory); a group of outputs is
+    sent in one exchange."""
+    from compiler.spec import load_spec
+
+    cell = load_spec(ROOT / "programs" / "lola15_cell.spc")  # part height 0..100 mm, glue pressure 0..6 bar
+    with plc_and_exchange(0.5, cell, analog_inputs=2, analog_outputs=1, analog_counts=27648) as (plc, io):
+        plc.set_register(2, 13824)  # the middle of the channel
+        _until(lambda: io.analog_input(1) == pytest.approx(50.0), "the analog input never followed the PLC")
+        plc.set_register(2, 32767)  # a Siemens module's overflow: beyond the channel's range
+        _until(lambda: io.analog_input(1) > 100.0, "an overflowing register was not taken as it reads")
+        assert cell.analog_inputs[0].problem(1, io.analog_input(1)) is not None
+        io.set_analog_output(1, 4.5)
+        _until(lambda: plc.holding(2)[1] == round(4.5 / 6.0 * 27648), "the analog output never reached the PLC")
+        assert io.analog_output(1) == 4.5
+        writes = io.exchanges
+        io.set_outputs(3, [True, False, True, True])
+        _until(lambda: plc.coils(8)[2:6] == [True, False, True, True], "the group never reached the PLC")
+        assert io.exchanges > writes
+
+
+def test_an_analog_channel_the_fieldbus_does_not_map_says_so():
+    from compiler.spec import load_spec
+
+    cell = load_spec(ROOT / "programs" / "lola15_cell.spc")
+    with plc_and_exchange(0.5, cell) as (plc, io):
+        with pytest.raises(IndexError, match=r"analog input 1 is not on the PLC: its fieldbus file maps no analog "
+                                             r"inputs \(analog_inputs in \[modbus\]\)"):
+            io.analog_input(1)
+        with pytest.raises(IndexError, match="analog output 1 is not on the PLC"):
+            io.set_analog_output(1, 2.0)
+
+
+def test_a_plc_reply_without_the_registers_is_a_failed_exchange():
+    from compiler.spec import load_spec
+    from pymodbus.pdu.register_message import ReadInputRegistersResponse
+
+    cell = load_spec(ROOT / "programs" / "lola15_cell.spc")
+
+    def no_registers(pdu):
+        if pdu.function_code == INPUT_REGISTERS:
+            return ReadInputRegistersResponse(dev_id=pdu.dev_id, transaction_id=pdu.transaction_id, registers=[])
+        return None
+    with plc_and_exchange(0.2, cell, analog_inputs=0) as (plc, io):
+        plc.misreply = no_registers
+        _until(lambda: io.lost() is not None, "a PLC that answers without the registers is never lost")
+        assert "held 0 registers for the 1 analog inputs asked for" in io.lost(), io.lost()

@@ -88,7 +88,7 @@ def _parse_modbus(table: dict, spec, where: str):
 def _modbus_io(config, spec) -> IoBackend:
     from runtime.hardware.fieldbus import ModbusIo
 
-    return ModbusIo(config, spec.inputs, spec.outputs)
+    return ModbusIo(config, spec.inputs, spec.outputs, spec.analog_inputs, spec.analog_outputs)
 
 
 #: The fieldbuses, by the top-level table of their file.

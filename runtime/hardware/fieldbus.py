@@ -11,8 +11,17 @@ outputs to the PLC's coils:
     device = 1        # the Modbus unit (device) id
     inputs = 0        # the discrete input address of in[1] (in[n] at inputs + n - 1)
     outputs = 0       # the coil address of out[1]
+    analog_inputs = 0     # the input register of analog input 1 (optional)
+    analog_outputs = 0    # the holding register of analog output 1 (optional)
+    analog_counts = 27648 # a register's value at its channel's high end (0: the low end)
     poll = 0.01       # s between exchanges
     timeout = 0.5     # s without a good exchange: the PLC is lost
+
+The analog channels are the specification's (``[[analog_input]]``, ``[[analog_output]]``:
+their names, units and ranges); a register holds a channel's value scaled linearly, 0 at
+its range's low end and ``analog_counts`` at its high end (a reading beyond is outside the
+channel's range: the program's ``io`` error when it reads it). A group of digital outputs
+(``group_out``) reaches the PLC in one exchange.
 
 Every field is declared once (:data:`FIELDS`, with its type, range and meaning): the
 loader, its messages and docs/runtime.md read the table.
@@ -43,10 +52,11 @@ __all__ = ["FIELDS", "FieldbusError", "ModbusConfig", "ModbusIo", "parse_modbus"
 @dataclass(frozen=True)
 class Field:
     kind: str  # "host", "int", "seconds"
-    default: object  # None: required
+    default: object  # None: required (unless optional)
     low: float
     high: float
     doc: str
+    optional: bool = False  # left out: None (nothing of that kind on the PLC)
 
     def allowed(self) -> str:
         if self.kind == "host":
@@ -62,6 +72,13 @@ FIELDS: dict[str, Field] = {
     "device": Field("int", 1, 0, 255, "the Modbus unit (device) id"),
     "inputs": Field("int", 0, 0, 65535, "the discrete input address of in[1]"),
     "outputs": Field("int", 0, 0, 65535, "the coil address of out[1]"),
+    "analog_inputs": Field("int", None, 0, 65535, "the input register of analog input 1 (analog input n at "
+                           "analog_inputs + n - 1); left out: the PLC has none of the robot's analog inputs",
+                           optional=True),
+    "analog_outputs": Field("int", None, 0, 65535, "the holding register of analog output 1; left out: the PLC "
+                            "has none of the robot's analog outputs", optional=True),
+    "analog_counts": Field("int", 65535, 1, 65535, "a register's value at its channel's high end (0 at its low "
+                           "end, linear between: 27648 for a Siemens PLC's analog modules)"),
     "poll": Field("seconds", FIELDBUS_POLL, TICK, 1.0, "time between exchanges"),
     "timeout": Field("seconds", 0.5, 0.05, 10.0, "time without a good exchange after which the PLC is lost"),
 }
@@ -74,6 +91,9 @@ class ModbusConfig:
     device: int
     inputs: int
     outputs: int
+    analog_inputs: int | None
+    analog_outputs: int | None
+    analog_counts: int
     poll: float
     timeout: float
 
@@ -92,7 +112,7 @@ def parse_modbus(table: dict, spec, name: str = "fieldbus") -> ModbusConfig:
     for key, field in FIELDS.items():
         where = f"{name}: [modbus] {key}"
         if key not in table:
-            if field.default is None:
+            if field.default is None and not field.optional:
                 raise FieldbusError(f"{where} is missing ({field.doc}: {field.allowed()})")
             values[key] = field.default
             continue
@@ -110,6 +130,10 @@ def parse_modbus(table: dict, spec, name: str = "fieldbus") -> ModbusConfig:
     if values["inputs"] + spec.inputs - 1 > 65535 or values["outputs"] + spec.outputs - 1 > 65535:
         raise FieldbusError(f"{name}: [modbus] the {spec.inputs} inputs and {spec.outputs} outputs must fit below "
                             "address 65536")
+    for key, channels in (("analog_inputs", spec.analog_inputs), ("analog_outputs", spec.analog_outputs)):
+        if values[key] is not None and values[key] + len(channels) - 1 > 65535:
+            raise FieldbusError(f"{name}: [modbus] {key}: the {len(channels)} {key.replace('_', ' ')} from register "
+                                f"{values[key]} must fit below address 65536")
     return ModbusConfig(**values)
 
 
@@ -117,7 +141,7 @@ def markdown() -> str:
     """The ``[modbus]`` fields, for docs/runtime.md (``python -m runtime.cli.docgen``)."""
     lines = ["| field | allowed | default | meaning |", "|---|---|---|---|"]
     for key, field in FIELDS.items():
-        default = "required" if field.default is None else f"{field.default:g}"
+        default = "none" if field.optional else "required" if field.default is None else f"{field.default:g}"
         lines.append(f"| `{key}` | {field.allowed()} | {default} | {field.doc} |")
     return "\n".join(lines) + "\n"
 
@@ -129,11 +153,20 @@ class ModbusIo(DigitalIo):
     its exchange thread). The thread replaces the inputs as a whole (one tuple: the loop
     never sees half an exchange)."""
 
-    def __init__(self, config: ModbusConfig, n_inputs: int, n_outputs: int):
-        super().__init__(n_inputs, n_outputs, f"the robot on the PLC at {config.host}:{config.port}")
+    def __init__(self, config: ModbusConfig, n_inputs: int, n_outputs: int, analog: tuple = (),
+                 analog_outputs: tuple = ()):
+        super().__init__(n_inputs, n_outputs, f"the robot on the PLC at {config.host}:{config.port}",
+                         analog if config.analog_inputs is not None else (),
+                         analog_outputs if config.analog_outputs is not None else ())
         self.config = config
         self._inputs = tuple(self._inputs)
+        self._analog = tuple(self._analog)
+        #: (low, high) of each analog channel on the PLC (the specification's ranges)
+        self._ranges_in = tuple((c.low, c.high) for c in analog) if config.analog_inputs is not None else ()
+        self._ranges_out = tuple((c.low, c.high) for c in analog_outputs) if config.analog_outputs is not None \
+            else ()
         self._written: tuple | None = None  # what the PLC has (None: not known: write all)
+        self._written_analog: tuple | None = None
         self.last_ok: float | None = None  # monotonic time of the last good exchange
         self.error: str | None = None  # why the last exchange failed
         self.exchanges = 0
@@ -143,6 +176,30 @@ class ModbusIo(DigitalIo):
         self._thread: threading.Thread | None = None
 
     # ---- the loop's side: DigitalIo's (real-time: plain reads and writes) ----
+    def set_outputs(self, first: int, values) -> None:
+        """Outputs ``first``.. to ``values`` at once: the exchange thread sees all or none."""
+        outputs = list(self._outputs)
+        for i, value in enumerate(values):
+            outputs[self._index(first + i, len(outputs), "output")] = bool(value)
+        self._outputs = outputs
+
+    def analog_input(self, n: int) -> float:
+        self._mapped(n, self._ranges_in, "input")
+        return super().analog_input(n)
+
+    def set_analog_output(self, n: int, value: float) -> None:
+        self._mapped(n, self._ranges_out, "output")
+        super().set_analog_output(n, value)
+
+    def analog_output(self, n: int) -> float:
+        self._mapped(n, self._ranges_out, "output")
+        return super().analog_output(n)
+
+    def _mapped(self, n: int, ranges: tuple, what: str) -> None:
+        if not ranges:
+            raise IndexError(f"analog {what} {n} is not on the PLC: its fieldbus file maps no analog {what}s "
+                             f"(analog_{what}s in [modbus])")
+
     def lost(self, now: float | None = None) -> str | None:
         """Why the PLC counts as lost (no good exchange for ``timeout`` s), or None."""
         now = time.monotonic() if now is None else now
@@ -188,7 +245,7 @@ class ModbusIo(DigitalIo):
                 except Exception as exc:  # noqa: BLE001 - a failed exchange, whatever failed
                     self.failures += 1
                     self.error = self._why(exc)
-                    self._written = None  # after a reconnection the PLC gets every output again
+                    self._written = self._written_analog = None  # after a reconnection: every output again
                     try:
                         client.close()
                     except Exception:  # noqa: BLE001 - closing a broken connection
@@ -230,6 +287,8 @@ class ModbusIo(DigitalIo):
                               if len(bits) < n else
                               f"the PLC's reply to reading {asked} held {len(bits)} bits for the {n} inputs asked for")
         self._inputs = tuple(bool(b) for b in bits[:n])
+        if self._ranges_in:
+            self._analog = self._read_analog(client)
         wanted = tuple(self._outputs)
         if wanted != self._written:
             coils = f"the coils {c.outputs}..{c.outputs + len(wanted) - 1}"
@@ -239,6 +298,8 @@ class ModbusIo(DigitalIo):
                 raise BadExchange(f"the PLC's reply to writing {coils} confirmed {reply.count} coils from "
                                   f"{reply.address}")
             self._written = wanted
+        if self._ranges_out:
+            self._write_analog(client)
         self.round_trips.append(time.perf_counter() - started)
         if len(self.round_trips) > 1000:
             del self.round_trips[:500]
@@ -247,7 +308,36 @@ class ModbusIo(DigitalIo):
         self.last_ok = time.monotonic()
 
 
-READ_DISCRETE_INPUTS, WRITE_COILS = 2, 15  # the Modbus function codes of the exchange
+    def _read_analog(self, client) -> tuple[float, ...]:
+        """The analog inputs' registers, in their channels' units."""
+        c, ranges = self.config, self._ranges_in
+        asked = f"the input registers {c.analog_inputs}..{c.analog_inputs + len(ranges) - 1}"
+        reply = client.read_input_registers(c.analog_inputs, count=len(ranges), device_id=c.device)
+        _check_reply(reply, READ_INPUT_REGISTERS, f"reading {asked}")
+        raw = list(reply.registers)
+        if len(raw) != len(ranges) or not all(isinstance(r, int) and 0 <= r <= 65535 for r in raw):
+            raise BadExchange(f"the PLC's reply to reading {asked} held {len(raw)} registers for the "
+                              f"{len(ranges)} analog inputs asked for")
+        return tuple(low + (high - low) * r / c.analog_counts for r, (low, high) in zip(raw, ranges))
+
+    def _write_analog(self, client) -> None:
+        """The analog outputs into their registers, when the program changed them."""
+        c, wanted = self.config, tuple(self._analog_out)
+        if wanted == self._written_analog:
+            return
+        raw = [min(c.analog_counts, max(0, round((v - low) / (high - low) * c.analog_counts))) if high > low else 0
+               for v, (low, high) in zip(wanted, self._ranges_out)]
+        asked = f"the holding registers {c.analog_outputs}..{c.analog_outputs + len(raw) - 1}"
+        reply = client.write_registers(c.analog_outputs, raw, device_id=c.device)
+        _check_reply(reply, WRITE_REGISTERS, f"writing {asked}")
+        if (reply.address, reply.count) != (c.analog_outputs, len(raw)):
+            raise BadExchange(f"the PLC's reply to writing {asked} confirmed {reply.count} registers from "
+                              f"{reply.address}")
+        self._written_analog = wanted
+
+
+# the Modbus function codes of the exchange
+READ_DISCRETE_INPUTS, READ_INPUT_REGISTERS, WRITE_COILS, WRITE_REGISTERS = 2, 4, 15, 16
 
 
 class BadExchange(Exception):

@@ -32,6 +32,12 @@ class IoBackend:
     def set_output(self, n: int, value: bool) -> None:
         raise NotImplementedError
 
+    def set_outputs(self, first: int, values) -> None:
+        """Outputs ``first``, ``first + 1``, ... to ``values`` at once (a group's: a fieldbus
+        sends them in one exchange)."""
+        for i, value in enumerate(values):
+            self.set_output(first + i, value)
+
     def lost(self) -> str | None:
         """Why the backend counts as lost now (a PLC not heard from), or None."""
         return None
@@ -100,6 +106,11 @@ class DigitalIo(IoBackend):
 
     def set_output(self, n: int, value: bool) -> None:
         self._outputs[self._index(n, len(self._outputs), "output")] = bool(value)
+
+    def set_outputs(self, first: int, values) -> None:
+        """Outputs ``first``, ``first + 1``, ... to ``values`` at once (a group's)."""
+        for i, value in enumerate(values):
+            self.set_output(first + i, value)
 
     def set_input(self, n: int, value: bool) -> None:
         """Between ticks, on a forcible backend (the world's side: tests and scenarios)."""

@@ -180,6 +180,12 @@ class IoComponent(Component):
         backend.set_output(n, value)
         self.outputs.write(tuple(backend.outputs), self._now)
 
+    def set_outputs(self, first: int, values) -> None:
+        """Digital outputs ``first``.. to ``values`` at once (a group: one exchange on a fieldbus)."""
+        backend = self.backend
+        backend.set_outputs(first, values)
+        self.outputs.write(tuple(backend.outputs), self._now)
+
     # -- the scripting interface (between ticks) --
     def element(self, name: str, n: int) -> bool:
         values = self.inputs.value if name == "in" else self.outputs.value

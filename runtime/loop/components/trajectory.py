@@ -660,7 +660,7 @@ class TrajectoryGenerator(Component):
         channels = self.spec.analog_inputs
         try:
             value = self.io.analog_input(_io_number(n, len(channels), "input", "analog"))
-        except IndexError as exc:  # (a backend without them: a PLC's, for now)
+        except IndexError as exc:  # (a backend without them: a PLC whose fieldbus file maps none)
             raise EvalError(str(exc)) from None
         problem = channels[n - 1].problem(n, value)
         if problem is not None:  # (a reading the sensor's range does not hold: its fault, the program's error)
@@ -681,7 +681,7 @@ class TrajectoryGenerator(Component):
             raise ProgramError(problem, ERROR_KINDS["value"].number)
         try:
             self.io.set_analog_output(n, float(value))
-        except IndexError as exc:  # (a backend without them: a PLC's, for now)
+        except IndexError as exc:  # (a backend without them: a PLC whose fieldbus file maps none)
             raise EvalError(str(exc)) from None
 
     def read_analog_output(self, n: int) -> float:
@@ -705,8 +705,7 @@ class TrajectoryGenerator(Component):
         problem = group_value_problem(value, bits)
         if problem is not None:  # (the value's fault, not the I/O's)
             raise ProgramError(problem, ERROR_KINDS["value"].number)
-        for i in range(bits):
-            self.io.set_output(first + i, bool(value >> i & 1))
+        self.io.set_outputs(first, [bool(value >> i & 1) for i in range(bits)])
 
     def pulse_output(self, n: int, seconds: float) -> None:
         """Output ``n`` on now and off ``seconds`` later (:meth:`_end_pulses`, every update)."""

@@ -533,7 +533,24 @@ class RecordDecl:
     end_span: Span
 
 
-Decl = Union[ConstDecl, VarDecl, Procedure, RecordDecl]
+@node
+class ZoneDecl:
+    """``zone NAME := SHAPE [signal N];`` (compiler.zones): a world zone of the program. Its
+    words are names to the parser (not reserved), checked by the checker; ``output`` is the
+    signal zone's output (None: a forbidden zone)."""
+
+    name: str
+    shape: Expr
+    output: "Expr | None"
+    span: Span
+    name_span: Span
+    word: str
+    word_span: Span
+    signal_word: str
+    signal_span: "Span | None"
+
+
+Decl = Union[ConstDecl, VarDecl, Procedure, RecordDecl, ZoneDecl]
 
 
 @node

@@ -28,6 +28,7 @@ from .clauses import BY_NAME as CLAUSE_BY_NAME
 from .clauses import CLAUSES as CLAUSE_TABLE
 from .clauses import NAMES as CLAUSES
 from .clauses import Clause, Motion
+from . import zones as world_zones
 from .zones import MARGIN as ZONE_MARGIN
 from .zones import forbidden as forbidden_zones
 from .configs import CONTEXTUAL_NAME, GROUPS as CONFIG_GROUPS, TURN_AXES, WORDS as CONFIG_WORDS, Config
@@ -86,7 +87,7 @@ def elements(t) -> int:
 
 GEOMETRIC_KINDS = (POSITION, POSE, ORIENTATION)
 _KIND_WORDS = {"const": "constant", "proc": "procedure", "func": "function", "interrupt": "interrupt",
-               "record": "record type", "global": "variable", "local": "variable"}  # a symbol's kind, as messages say it
+               "record": "record type", "global": "variable", "local": "variable", "zone": "world zone"}  # a symbol's kind, as messages say it
 
 
 def _kind(t) -> str:
@@ -194,6 +195,7 @@ class CheckedProgram:
     modules: dict = field(default_factory=dict)  # module path -> its name in the object code, in order
     interrupts: list = field(default_factory=list)  # the interrupts' ProcScopes, in table order
     records: list = field(default_factory=list)  # the record types (compiler.records), in declaration order
+    zones: list = field(default_factory=list)  # the program's world zones (compiler.zones), in declaration order
 
 
 _NO_VALUE = object()
@@ -235,6 +237,7 @@ class Checker:
         self.all_changes: frozenset = frozenset()  # what some statement of the program may make active
         self.in_handler = False  # checking an error handler's statements (compiler.recovery)
         self.records: list[RecordT] = []  # the record types, in declaration order (compiler.records)
+        self.zones: list = []  # the program's own world zones (compiler.zones.Zone), in declaration order
 
     # -- reporting --
     def error(self, span: ast.Span, message: str, hint: str | None = None, file: str | None = None) -> None:
@@ -437,6 +440,11 @@ class Checker:
         if symbol.kind == "proc":
             self.error(node.span, f"'{node.name}' is a procedure, not a value",
                        f"call it as a statement: call {node.name}(...);")
+            return ERROR
+        if symbol.kind == "zone":
+            self.error(node.span, f"'{node.name}' is a world zone, not a value",
+                       "a zone is declared for the whole program: the planner and the safety supervisor keep the "
+                       "robot out of it")
             return ERROR
         if symbol.kind == "record":
             self.error(node.span, f"'{node.name}' is a record type, not a value",
@@ -1132,10 +1140,13 @@ class Checker:
         if reach > 0 and distance > reach:
             self.error(target.span, f"pose out of reach{where}: its position is {distance:.1f} mm from the "
                                     f"shoulder, but {self.spec.name}'s arm reaches at most {reach:.1f} mm")
-        for zone in forbidden_zones(self.spec.zones):  # (the tool centre point: the flange's path when it runs)
+        for zone in forbidden_zones(self.spec.zones + tuple(self.zones)):  # (the tool centre point: the flange's
+            # path when it runs)
             if zone.depth(p.x, p.y, p.z) > -ZONE_MARGIN:
                 self.error(target.span, f"the target{where} is in zone '{zone.name}' ({zone.describe()}), or within "
                                         f"{ZONE_MARGIN:g} mm of it: no move goes there",
+                           "the program's zone declarations are where the tool and the flange never go"
+                           if zone in self.zones else
                            "the specification's [[zone]] tables are where the tool and the flange never go")
 
     def clauses(self, node: ast.Move) -> None:
@@ -1561,6 +1572,72 @@ class Checker:
         if self.declare(self.globals, Symbol("record", decl.name, record, decl.name_span)):
             self.records.append(record)
 
+    def zone_decl(self, decl: ast.ZoneDecl) -> None:
+        """A world zone of the program (compiler.zones): its words, its shape (a constructor
+        with constant arguments, each checked as the specification's keys are), a signal
+        zone's output; then its name, declared."""
+        if decl.word != world_zones.WORD:
+            self.error(decl.word_span, f"unexpected name '{decl.word}': a world zone is declared 'zone NAME := "
+                                       f"box(LOW, HIGH);' or '... := cylinder(FOOT, RADIUS, HEIGHT);'",
+                       f"did you mean '{world_zones.WORD}'?")
+            return
+        zone = self.zone_shape(decl)
+        output = 0
+        if decl.signal_span is not None:
+            if decl.signal_word != world_zones.SIGNAL_WORD:
+                self.error(decl.signal_span, f"unexpected name '{decl.signal_word}' after the zone's shape",
+                           f"a signal zone ends with '{world_zones.SIGNAL_WORD} N': output N is true while the tool "
+                           "centre point is inside")
+            elif self.expect(decl.output, INTEGER, "a signal zone's output") != ERROR:
+                output = self.value_of(decl.output)
+                if output is _NO_VALUE:
+                    self.error(decl.output.span, "a signal zone's output must be an integer known at compile time")
+                    zone = None
+                else:
+                    self.check_io_index(decl.output, self.spec.outputs, "output")
+                    zone = zone if 1 <= output <= self.spec.outputs else None
+        if not self.declare(self.globals, Symbol("zone", decl.name, "zone", decl.name_span)) or zone is None:
+            return
+        zone = world_zones.zone_of(decl.name, *zone, "signal" if output else "forbidden", output)
+        problem = world_zones.run_problem(self.spec, tuple(self.zones) + (zone,))
+        if problem is not None:
+            self.error(decl.name_span, problem)
+            return
+        self.zones.append(zone)
+
+    def zone_shape(self, decl: ast.ZoneDecl):
+        """(shape, its keys' values) of a zone's declaration, or None (reported)."""
+        shape = decl.shape
+        if not isinstance(shape, ast.Call) or shape.name not in world_zones.CONSTRUCTORS:
+            for part in shape.args if isinstance(shape, ast.Call) else (shape,):
+                self.expr(part)
+            self.error(shape.span, "a zone's shape is " + " or ".join(
+                f"{name}({params})" for name, (params, _doc) in world_zones.CONSTRUCTORS.items()))
+            return None
+        params, doc = world_zones.CONSTRUCTORS[shape.name]
+        wanted = (POSITION, POSITION) if shape.name == "box" else (POSITION, NUMERIC, NUMERIC)
+        if not self.arity(shape, len(wanted)):
+            return None
+        args = []
+        for arg, t in zip(shape.args, wanted):
+            if self.expect(arg, t, f"an argument of {shape.name}({params})") == ERROR:
+                return None
+            value = self.value_of(arg)
+            if value is _NO_VALUE:
+                self.error(arg.span, f"a zone's {shape.name}({params}) needs values known at compile time",
+                           f"{params}: {doc}")
+                return None
+            args.append((value.x, value.y, value.z) if t == POSITION else value)
+        values, checked = world_zones.values_of(shape.name, tuple(args)), {}
+        for key, value in values.items():
+            problem = world_zones.problem(shape.name, key, value, checked)
+            if problem is not None:
+                said = {"min": "LOW", "max": "HIGH", "centre": "FOOT", "radius": "RADIUS", "z": "HEIGHT"}[key]
+                self.error(shape.span, f"zone '{decl.name}': {said}: {problem}", f"{params}: {doc}")
+                return None
+            checked[key] = value
+        return shape.name, checked
+
     def var_decl(self, decl: ast.VarDecl, table: dict, slots: list, kind: str) -> None:
         t = self.resolve_type(decl.type)
         if decl.init is not None:
@@ -1606,6 +1683,8 @@ class Checker:
             self.file = self.decl_files.get(id(decl), self.main_file)
             if isinstance(decl, ast.ConstDecl):
                 self.const_decl(decl)
+            elif isinstance(decl, ast.ZoneDecl):
+                self.zone_decl(decl)
             elif isinstance(decl, ast.VarDecl):
                 self.var_decl(decl, self.globals, self.global_slots, "global")
         self.moving = _moving_procedures(self.procs)
@@ -1616,11 +1695,13 @@ class Checker:
             self.scope = scope
             self.file = self.decl_files.get(id(scope.node), self.main_file)
             for var in scope.node.variables:
-                if isinstance(var, ast.RecordDecl):
-                    self.error(var.name_span, f"record type '{var.name}' is declared inside "
+                if isinstance(var, (ast.RecordDecl, ast.ZoneDecl)):
+                    self.error(var.name_span, f"{'record type' if isinstance(var, ast.RecordDecl) else 'zone'} "
+                                              f"'{var.name}' is declared inside "
                                               f"{_KIND_WORDS.get(scope.symbol.kind, 'a routine')} "
                                               f"'{scope.node.name}'",
-                               "declare record types at the program's or a module's level, beside its variables")
+                               "declare record types and zones at the program's or a module's level, beside its "
+                               "variables")
                     continue
                 self.var_decl(var, scope.names, scope.slots, "local")
             self.start_frames(known=False)
@@ -1642,7 +1723,7 @@ class Checker:
             self.robots.append(self.spec.name)
         return CheckedProgram(program, self.spec, self.types, self.values, self.symbols,
                               self.global_slots, self.globals, self.procs, tuple(self.robots), self.decl_files,
-                              interrupts=self.interrupts, records=self.records)
+                              interrupts=self.interrupts, records=self.records, zones=self.zones)
 
     def interrupt_options(self, node: ast.Procedure, index: int) -> InterruptDecl:
         """``priority N``, ``stop`` or ``continue``, ``then resume`` or ``then halt``

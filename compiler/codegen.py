@@ -625,7 +625,8 @@ class CodeGen:
                        interrupts=tuple(interrupts), handlers=tuple(self.handlers),
                        persistent=tuple(s.slot for s in checked.global_symbols.values() if s.persistent),
                        records=tuple(RecordInfo(r.name, tuple((n, type_name(t)) for n, t in r.fields))
-                                     for r in checked.records))
+                                     for r in checked.records),
+                       zones=tuple(checked.zones))
 
 
 def generate(checked: CheckedProgram, source_file: str) -> Program:

@@ -25,6 +25,7 @@ from .configs import TURN_AXES as _TURN_AXES
 from .configs import TURNS_FLAG as _TURNS_FLAG
 from .configs import operand_problem as _config_operand_problem
 from .records import MAX_FIELDS as _MAX_FIELDS
+from . import zones as _zones
 from .semantics import MAX_STRING_LENGTH as _MAX_STRING_LENGTH
 from .semantics import STRING_BUILTINS as _STRING_BUILTINS
 from .values import Record, from_plain, to_plain
@@ -486,6 +487,8 @@ class Program:
     persistent: tuple[int, ...] = ()
     #: The record types (compiler.records; empty: no such key).
     records: tuple[RecordInfo, ...] = ()
+    #: The program's own world zones (compiler.zones.Zone; empty: no such key).
+    zones: tuple = ()
 
     @cached_property
     def record_table(self) -> dict[str, RecordInfo]:
@@ -564,7 +567,8 @@ def _body(program: Program) -> dict:
       | ({"handlers": [[h.start, h.end, h.entry, [x for span in h.statements for x in span]]
                        for h in program.handlers]} if program.handlers else {}) \
       | ({"persistent": list(program.persistent)} if program.persistent else {}) \
-      | ({"records": [[r.name, [list(f) for f in r.fields]] for r in program.records]} if program.records else {})
+      | ({"records": [[r.name, [list(f) for f in r.fields]] for r in program.records]} if program.records else {}) \
+      | ({"zones": [_zones.to_plain(z) for z in program.zones]} if program.zones else {})
 
 
 def encode(program: Program) -> bytes:
@@ -698,10 +702,20 @@ def decode(data: bytes) -> Program:
     for i, r in enumerate(raw):
         _expect(isinstance(r, list) and len(r) == 2 and _is_str(r[0]), f"record {i}: expected [name, fields]")
         records.append(RecordInfo(r[0], _pairs(r[1], f"record {r[0]!r:.40} fields")))
+    raw = body.get("zones", [])
+    _expect(isinstance(raw, list) and ("zones" not in body or raw) and len(raw) <= _zones.MAX_ZONES,
+            f"body: zones must be a non-empty list of at most {_zones.MAX_ZONES}")
+    zones = []
+    for i, z in enumerate(raw):
+        try:
+            zones.append(_zones.from_plain(z))
+        except ValueError as exc:
+            raise ObjectCodeError(f"zone {i}: {exc}") from None
+    _expect(len({z.name for z in zones}) == len(zones), "body: zones must each have a name of their own")
     return Program(body["name"], body["source"], spec[0], spec[1], tuple(robots), tuple(constants),
                    tuple(code), line_table, _pairs(body["globals"], "globals"), tuple(procedures), version,
                    tuple(files), tuple(line_files), tuple(interrupts), tuple(handlers), tuple(persistent),
-                   tuple(records))
+                   tuple(records), tuple(zones))
 
 
 # ---- verification ------------------------------------------------------------------------

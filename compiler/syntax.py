@@ -111,6 +111,13 @@ class _Builder(Transformer):
         return ast.RecordDecl(name.value.lower(), tuple(fields), _span(word).to(_span(end)), _span(name),
                               word.value.lower(), _span(word), end.value.lower(), _span(end))
 
+    def zone_decl(self, c):
+        word, name, shape, signal, output = c
+        end = output.span if output is not None else shape.span
+        return ast.ZoneDecl(name.value.lower(), shape, output, _span(word).to(end), _span(name), word.value.lower(),
+                            _span(word), signal.value.lower() if signal is not None else "",
+                            _span(signal) if signal is not None else None)
+
     def record_field(self, c):
         *names, type_ = c
         return ast.RecordField(tuple(n.value.lower() for n in names), type_, _span(names[0]).to(type_.span),
@@ -380,7 +387,7 @@ def _header(items) -> tuple[tuple, tuple, tuple]:
             spec = (item[1], item[2])
         elif isinstance(item, list):
             decls.extend(item)
-        elif isinstance(item, (ast.Procedure, ast.RecordDecl)):
+        elif isinstance(item, (ast.Procedure, ast.RecordDecl, ast.ZoneDecl)):
             decls.append(item)
         elif isinstance(item, ast.Import):
             imports.append(item)

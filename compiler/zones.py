@@ -31,13 +31,14 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-__all__ = ["KINDS", "MARGIN", "MAX_ZONES", "SHAPES", "STEP", "Zone", "forbidden", "markdown", "shown", "signals"]
+__all__ = ["CONSTRUCTORS", "KINDS", "MARGIN", "MAX_ZONES", "SHAPES", "SIGNAL_WORD", "STEP", "WORD", "Zone",
+           "forbidden", "from_plain", "markdown", "run_problem", "shown", "signals", "to_plain", "values_of"]
 
 #: mm: how far from a zone a planned path must stay (the flange and the tool centre point).
 MARGIN = 5.0
 #: mm: the most the flange or the tool centre point moves between two samples of the check.
 STEP = 2.0
-#: The most zones a specification may declare.
+#: The most zones a specification and a program may declare together.
 MAX_ZONES = 64
 #: The largest coordinate a zone may have (mm).
 MAX_COORDINATE = 100_000.0
@@ -64,6 +65,25 @@ KINDS: dict[str, str] = {
     "signal": "digital output `output` is true while the tool centre point is inside it, false while it is not, "
               "every 1 ms (KUKA's workspace signals, ABB's WZDOSet); the robot may enter it",
 }
+
+
+#: A program's own zones (``zone NAME := box(LOW, HIGH);``, ``zone NAME := cylinder(FOOT,
+#: RADIUS, HEIGHT) signal N;``): the declaration's words (names to the parser, checked by the
+#: checker), and each shape's constructor: its parameters and what they give.
+WORD, SIGNAL_WORD = "zone", "signal"
+CONSTRUCTORS: dict[str, tuple[str, str]] = {
+    "box": ("LOW, HIGH", "two positions: the corners with the least and the greatest x, y and z"),
+    "cylinder": ("FOOT, RADIUS, HEIGHT", "a position, the centre of its bottom; its radius and its height (mm)"),
+}
+
+
+def values_of(shape: str, args: tuple) -> dict:
+    """A program's shape's constructor arguments (positions as (x, y, z), numbers) as the
+    specification's keys of that shape (:data:`SHAPES`), to be checked by :func:`problem`."""
+    if shape == "box":
+        return {"min": [float(v) for v in args[0]], "max": [float(v) for v in args[1]]}
+    (x, y, z), radius, height = args
+    return {"centre": [float(x), float(y)], "radius": float(radius), "z": [float(z), float(z) + float(height)]}
 
 
 @dataclass(frozen=True)
@@ -118,6 +138,56 @@ def zone_of(name: str, shape: str, values: dict, kind: str = "forbidden", output
     r = values["radius"]
     low, high = values["z"]
     return Zone(name, shape, (cx - r, cy - r, low), (cx + r, cy + r, high), (cx, cy), r, kind, output)
+
+
+def to_plain(zone: Zone) -> list:
+    """A zone as the object code holds it: ``[name, shape, kind, output, {key: value}]``."""
+    if zone.shape == "box":
+        values = {"min": list(zone.low), "max": list(zone.high)}
+    else:
+        values = {"centre": list(zone.centre), "radius": zone.radius, "z": [zone.low[2], zone.high[2]]}
+    return [zone.name, zone.shape, zone.kind, zone.output, values]
+
+
+def from_plain(data) -> Zone:
+    """The inverse of :func:`to_plain`, every key checked as the specification's are;
+    ValueError says what is wrong."""
+    if not (isinstance(data, list) and len(data) == 5 and isinstance(data[0], str) and 0 < len(data[0]) <= 40
+            and data[1] in SHAPES and data[2] in KINDS and isinstance(data[3], int) and not isinstance(data[3], bool)
+            and (data[3] >= 1 if data[2] == "signal" else data[3] == 0) and isinstance(data[4], dict)
+            and set(data[4]) == set(SHAPES[data[1]][1])):
+        raise ValueError("expected [name (1..40 characters), shape, kind, output (a signal zone's: 1.., else 0), "
+                         "{the shape's keys}]")
+    name, shape, kind, output, table = data
+    values: dict = {}
+    for key in SHAPES[shape][1]:
+        said = problem(shape, key, table[key], values)
+        if said is not None:
+            raise ValueError(f"zone {name!r:.40}: {key}: {said}")
+        values[key] = [float(v) for v in table[key]] if isinstance(table[key], list) else float(table[key])
+    return zone_of(name, shape, values, kind, output)
+
+
+def run_problem(spec, zones: tuple) -> str | None:
+    """What is wrong with a program's ``zones`` on the robot of ``spec`` (beside its own),
+    or None: at most :data:`MAX_ZONES` in all, each named once, a signal zone's output one
+    the robot has, and a robot without additional axes."""
+    if not zones:
+        return None
+    together = tuple(spec.zones) + tuple(zones)
+    names = [zone.name for zone in together]
+    if len(together) > MAX_ZONES:
+        return f"{len(zones)} zones of the program and {len(spec.zones)} of the specification: at most {MAX_ZONES}"
+    if len(set(names)) != len(names):
+        twice = next(n for n in names if names.count(n) > 1)
+        return f"two zones are called {twice!r}: a zone of the program needs a name of its own"
+    for zone in zones:
+        if zone.kind == "signal" and not 1 <= zone.output <= spec.outputs:
+            return f"zone {zone.name!r} switches output {zone.output}: the robot has outputs 1..{spec.outputs}"
+    if any(axis.group == "additional" for axis in spec.axes):
+        return ("world zones need a robot without additional axes for now (a track or a positioner would move the "
+                "tool in ways the zone checks do not count)")
+    return None
 
 
 def forbidden(zones) -> tuple:

@@ -168,8 +168,8 @@ def test_the_safety_supervisor_stops_a_reference_that_enters_a_zone(cell):
     result = compile_source(text, str(source), cell / "zoned.spc")
     assert result.ok, result.diagnostics
     system = RobotSystem(zoned(), RunOptions())
-    system.trajectory.planner.zones = ()
     system.begin(result.program, None)
+    system.trajectory.planner.zones = ()  # (after begin, which gives the planner the cycle's zones)
     for _ in range(400_000):
         if system.supervisor.done:
             break

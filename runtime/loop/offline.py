@@ -57,7 +57,7 @@ from compiler.clauses import Motion, validate_move_clauses
 from compiler.configs import config_of, format_config
 from compiler.frames import IDENTITY, pose_of
 from compiler.objcode import OP, Program
-from compiler.zones import signals
+from compiler.zones import forbidden, signals
 from compiler.semantics import compose
 from compiler.values import Joint, Pose
 
@@ -688,8 +688,11 @@ class _Run:
         runs: dict[int, int] = {}
         self.world = AssumedWorld(self.backend, self.io, decisions or (), runs) if scenario is None else None
         self.host = OfflineHost(spec, settings, self.clock, self.io, self.world, runs, hints if hints is not None else {})
-        if signals(spec.zones) and self.host.tcp is not None:  # (the commanded tool: an offline run starts homed)
-            self.io.zone_signals = ZoneSignals(signals(spec.zones), self.host.tool_position)
+        zones = tuple(spec.zones) + program.zones  # (the specification's, the program's own: compiler.zones)
+        if self.host.planner.kinematics is not None:
+            self.host.planner.zones = forbidden(zones)
+        if signals(zones) and self.host.tcp is not None:  # (the commanded tool: an offline run starts homed)
+            self.io.zone_signals = ZoneSignals(signals(zones), self.host.tool_position)
         self.cell = self.io.cell = None
         if scenario is not None:  # (its contact sensors read where the host's tool is)
             from runtime.hardware.sim.cell import Cell

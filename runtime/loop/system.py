@@ -12,7 +12,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from compiler.objcode import Program
-from compiler.zones import signals
+from compiler.zones import forbidden, run_problem, signals
 
 from runtime import accel
 from runtime.loop.batches import Events
@@ -115,9 +115,7 @@ class RobotSystem:
         self.io = IoComponent(io_backend, self.cell, on_lost=self.emergency_stop)
         self.io.configure()  # the backend opened (a PLC's exchange starts), its I/O in the ports
         self.trajectory.io = self.io
-        if signals(spec.zones) and self.trajectory.tcp is not None:  # (the tool once the axes are referenced)
-            self.io.zone_signals = ZoneSignals(signals(spec.zones), lambda: self.trajectory.tool_position()
-                                               if all(self.safety.limits.referenced) else None)
+        self._use_zones(None)
         self.report = Report(spec, p["sens_pos"], p["drive_cmd"], self.servo, lambda: self.supervisor.fsm.path(),
                              settings.report.period, history=lambda: self.supervisor.fsm.history,
                              io=(self.io.inputs, self.io.outputs), settings=settings,
@@ -193,6 +191,19 @@ class RobotSystem:
         self.executive.set_period(component.name, period)
         component.period = period
 
+    def _use_zones(self, program: Program | None) -> None:
+        """Not real-time (building the system, a cycle's begin): the world zones of the cycle,
+        the specification's and, while it is the program loaded, the program's own
+        (compiler.zones): the planner's, the safety supervisor's, the signal zones' outputs."""
+        zones = tuple(self.spec.zones) + (program.zones if program is not None else ())
+        planner = self.trajectory.planner
+        planner.zones = forbidden(zones) if planner.kinematics is not None else ()
+        self.safety.zones.use(forbidden(zones))
+        self.io.zone_signals = None
+        if signals(zones) and self.trajectory.tcp is not None:  # (the tool once the axes are referenced)
+            self.io.zone_signals = ZoneSignals(signals(zones), lambda: self.trajectory.tool_position()
+                                               if all(self.safety.limits.referenced) else None)
+
     def begin(self, program: Program | None, report: str | Path | None = None, settings: dict | None = None,
               record: str | Path | None = None, job: int | None = None, jog: bool = False, step: bool = False,
               from_line: int | None = None) -> None:
@@ -209,6 +220,14 @@ class RobotSystem:
         (runtime.loop.stepping; ValueError: a line without a move)."""
         if jog and self.mode != "t1":
             raise ValueError("jogging needs operating mode T1 (manual reduced speed): switch with irl mode t1")
+        if program is not None and program.zones:  # (object code is untrusted: checked here, for this robot)
+            planner = self.trajectory.planner
+            problem = run_problem(self.spec, program.zones) or (
+                "world zones need the robot's kinematics" if planner.kinematics is None else
+                home_problem(planner.kinematics, tuple(axis.home for axis in self.spec.main_axes),
+                             tuple(self.spec.tool[:3]), forbidden(program.zones)))
+            if problem is not None:
+                raise ValueError(f"the program cannot start: {problem}")
         if from_line is not None and program is not None:
             from compiler.objcode import from_line_problem
 
@@ -231,6 +250,7 @@ class RobotSystem:
         self.supervisor.load_calibration()
         self.safety.set_referenced(None, self.memory.initialized)
         self.trajectory.load(program, jog=jog, step=step, from_line=from_line)
+        self._use_zones(program)
         self.trajectory.override = self.options.override
         self.report.open(report)
         self.recorder.open(record, program, job, "simulated" if self.clock.simulated else "wall")

@@ -340,18 +340,26 @@ class ZoneMonitor:
     are still outside. Far from the zones, or at rest, that is most ticks."""
 
     def __init__(self, spec, limits: "SafetyLimits"):
-        self.zones = forbidden(spec.zones)
+        self.spec = spec
         self.main = len(spec.main_axes)
         self.limits = limits
         self.kinematics: Kinematics | None = None
-        if self.zones:
-            try:
-                self.kinematics = Kinematics(spec)
-            except ValueError:
-                self.zones = ()
+        self.zones: tuple = ()
+        self.use(forbidden(spec.zones))
         self.links = sum(math.hypot(a.dh.a, a.dh.d) for a in spec.main_axes if a.dh is not None)
         self.default_tool = tuple(float(v) for v in spec.tool[:3])
         self.tool_of = None  # () -> the move's tool, set by the system
+        self.forget()
+
+    def use(self, zones: tuple) -> None:
+        """Not real-time (between cycles): the forbidden zones to keep the robot out of (the
+        specification's, and a program's own: compiler.zones); none without kinematics."""
+        if zones and self.kinematics is None:
+            try:
+                self.kinematics = Kinematics(self.spec)
+            except ValueError:
+                zones = ()
+        self.zones = tuple(zones)
         self.forget()
 
     def forget(self) -> None:

@@ -357,6 +357,15 @@ def _section_format() -> list[str]:
         "record's name (`part_t`, `array[1..4] of part_t`); on the stack it is `record NAME`. "
         "A program without has no such key.",
         "",
+        "A program with world zones of its own (`zone NAME := box(...);`, compiler.zones) has the key "
+        "`zones`: a list of `[name, shape, kind, output, {key: value}]`, one per zone, the shape's keys "
+        "those of a specification's `[[zone]]` table (a box's `min` and `max`, a cylinder's `centre`, "
+        "`radius` and `z`), checked as the specification's are when the object code is read; the "
+        "output is a signal zone's (1..), 0 for a forbidden zone. A runtime refuses to start a "
+        "program whose zones do not fit its robot (more than 64 with its specification's, a name "
+        "one of them has, an output it lacks, a zone over its home position). A program without "
+        "has no such key.",
+        "",
         "Offsets (jump targets, procedure entries, line-table offsets) count *instructions*, "
         "not integers of the flat `code` list: offset 0 is the first instruction, offset 1 the "
         "instruction after it, however many operands the first one has. Execution starts at "

@@ -266,3 +266,124 @@ def test_a_message_shows_no_negative_zero():
 
     assert [shown(-0.04), shown(-0.06), shown(0.0), shown(-0.0, "g"), shown(-3.2, "g")] == \
         ["0.0", "-0.1", "0.0", "0", "-3.2"]
+
+
+# ---- zones declared in a program ------------------------------------------------------------
+
+PROGRAM_ZONES = """program own_zones;
+system_specification "lola15.spc";
+zone pillar := cylinder(pos(600, 0, 0), 60, 2000);
+zone over_table := box(pos(300, -600, 0), pos(900, -200, 1500)) signal 6;
+const
+  left := pose(pos(600, -400, 600), rpy(180, 0, 180));
+  right := pose(pos(600, 400, 600), rpy(180, 0, 180));
+seq
+  move ptp left;
+  print "at left, out[6] is ", out[6];
+  move lin right speed := 200;
+  print "not here";
+when error do
+  print error_name(), ": ", error_message();
+  halt;
+endseq
+endprogram;
+"""
+
+
+def test_a_program_s_own_zones_refuse_a_path_and_switch_an_output(tmp_path):
+    """The pillar the program declares stands between left and right: the lin move is the
+    program's move error at run time and irl check says so before; the signal zone's output
+    is true at left."""
+    import shutil
+
+    from conftest import ROOT
+
+    shutil.copy(ROOT / "programs" / "lola15.spc", tmp_path / "lola15.spc")
+    source = tmp_path / "own_zones.irl"
+    source.write_text(PROGRAM_ZONES, encoding="utf-8")
+    code, out, err = run_cli("run", source, "--json")
+    assert code == 0, err
+    texts = [e["text"] for e in json.loads(out)["log"]]
+    assert texts[0] == "at left, out[6] is true"
+    assert texts[-1].startswith("move: the path enters zone 'pillar' (cylinder at (600, 0), radius 60 mm"), texts
+    code, out, err = run_cli("check", source)
+    said = out + err
+    assert code == 0 and "the path enters zone 'pillar'" in said and "handler at line 14 takes it" in said, said
+
+
+def test_a_cycle_s_zones_are_the_specification_s_and_the_loaded_program_s(cell):
+    """begin gives the planner, the safety supervisor and the signal zones the program's
+    zones beside the specification's; the next program without any has the specification's
+    alone again."""
+    from compiler.driver import compile_source
+
+    spec = zoned()
+    with_zones = compile_source(PROGRAM_ZONES, str(cell / "own.irl"), cell / "zoned.spc")
+    plain = compile_source("program plain;\nseq\n  wait 0.1 sec;\nendseq\nendprogram;\n", str(cell / "plain.irl"),
+                           cell / "zoned.spc")
+    assert with_zones.ok and plain.ok, (with_zones.diagnostics, plain.diagnostics)
+    system = RobotSystem(spec, RunOptions())
+    names = lambda zones: [z.name for z in zones]  # noqa: E731
+    assert names(system.trajectory.planner.zones) == ["fixture", "post"]
+    system.begin(with_zones.program, None)
+    assert names(system.trajectory.planner.zones) == ["fixture", "post", "pillar"]
+    assert names(system.safety.zones.zones) == ["fixture", "post", "pillar"]
+    assert names(system.io.zone_signals.zones) == ["over_table"]
+    system.begin(plain.program, None)
+    assert names(system.trajectory.planner.zones) == names(system.safety.zones.zones) == ["fixture", "post"]
+    assert system.io.zone_signals is None
+
+
+@pytest.mark.parametrize("zone, words", [
+    (Zone("lamp", "box", (0.0, 0.0, 0.0), (10.0, 10.0, 10.0), kind="signal", output=99),
+     "zone 'lamp' switches output 99: the robot has outputs 1..16"),
+    (Zone("fixture", "box", (0.0, 0.0, 0.0), (10.0, 10.0, 10.0)), "two zones are called 'fixture'"),
+    (Zone("everything", "box", (-5000.0, -5000.0, -5000.0), (5000.0, 5000.0, 5000.0)),
+     "the home position is in zone 'everything'"),
+])
+def test_object_code_whose_zones_do_not_fit_the_robot_does_not_start(cell, zone, words):
+    """Object code is untrusted: a zone table the compiler would not have written for this
+    robot (an output it lacks, a name its specification uses, a zone over home) is refused
+    when the program is to start, with the reason."""
+    import dataclasses
+
+    from compiler.driver import compile_source
+
+    spec = zoned()
+    result = compile_source("program p;\nseq\n  wait 0.1 sec;\nendseq\nendprogram;\n", str(cell / "p.irl"),
+                            cell / "zoned.spc")
+    system = RobotSystem(spec, RunOptions())
+    with pytest.raises(ValueError, match="the program cannot start: ") as error:
+        system.begin(dataclasses.replace(result.program, zones=(zone,)), None)
+    assert words in str(error.value), str(error.value)
+
+
+@pytest.mark.parametrize("entry, words", [
+    (["z", "box", "forbidden", 0, {"min": [0, 0, 0], "max": [0, 10, 10]}], "each more than min's"),
+    (["z", "sphere", "forbidden", 0, {}], "expected [name"),
+    (["z", "box", "signal", 0, {"min": [0, 0, 0], "max": [1, 1, 1]}], "expected [name"),
+    (["z", "cylinder", "forbidden", 0, {"centre": [0, 0], "radius": float("nan"), "z": [0, 1]}], "radius"),
+])
+def test_a_malformed_zone_table_is_refused_when_the_object_code_is_read(tmp_path, entry, words):
+    import msgpack
+    import zlib
+
+    from compiler.objcode import _HEADER, ObjectCodeError, decode, encode
+
+    program = compile_source_ok(tmp_path)
+    data = encode(program)
+    body = msgpack.unpackb(data[_HEADER.size:], raw=False)
+    body["zones"] = [entry]
+    packed = msgpack.packb(body, use_bin_type=True)
+    with pytest.raises(ObjectCodeError, match=None) as error:
+        decode(_HEADER.pack(b"IRLO", 1, zlib.crc32(packed)) + packed)
+    assert words in str(error.value), str(error.value)
+
+
+def compile_source_ok(tmp_path):
+    from compiler.driver import compile_source
+
+    result = compile_source(PROGRAM_ZONES.replace('"lola15.spc"', f'"{SPEC_PATH}"'), str(tmp_path / "own.irl"))
+    assert result.ok, result.diagnostics
+    assert [z.name for z in result.program.zones] == ["pillar", "over_table"]
+    return result.program

@@ -87,8 +87,9 @@ QUAT_NORM_TOLERANCE = 1e-3
 REPORT_COLUMNS = ("sens_pos", "desi_pos", "out_vel", "following_error", "tcp")
 #: Columns a report may also have (not by default): io, every digital input then output (0/1);
 #: move, the number and source line of the program's move under way (runtime.loop.components.report).
-#: frame, the names of the active tool and base and the tool centre point in that base.
-REPORT_COLUMNS_OPTIONAL = ("io", "move", "frame")
+#: frame, the names of the active tool and base and the tool centre point in that base;
+#: analog, every analog input then output, in its unit (the specification's [[analog_input]], [[analog_output]]).
+REPORT_COLUMNS_OPTIONAL = ("io", "move", "frame", "analog")
 
 
 class ParamError(ValueError):

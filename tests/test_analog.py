@@ -82,11 +82,19 @@ def test_a_wrong_declaration_names_its_key(tmp_path, table, why):
 
 
 def test_a_program_reads_the_cells_values_as_they_change(cell):
-    code, out, err = run_cli("run", cell / "heights.irl", "--cell-scenario", cell / "heights.cell.toml", "--json")
+    from runtime.cli.plot import analog_lines, read_report
+
+    code, out, err = run_cli("run", cell / "heights.irl", "--cell-scenario", cell / "heights.cell.toml", "--json",
+                             "--report", cell / "r.csv")
     assert code == 0, err
     # (the height changes 1.5 s after the program starts: between the second and the third part)
     assert [e["text"] for e in json.loads(out)["log"]] == ["part 1: 42.5 mm, air 6 bar", "part 2: 42.5 mm, air 6 bar",
                                                           "part 3: 57.3 mm, air 6 bar"]
+    # the report's analog columns (a cell adds them): the inputs as the cell set them, row by row
+    times, states, cols = read_report(cell / "r.csv")
+    assert analog_lines(cols) == ["ain_1", "ain_2"]
+    moving = [k for k, s in enumerate(states) if s.startswith("Move Robot")]
+    assert cols["ain_1"][moving[0]] == 42.5 and cols["ain_1"][moving[-1]] == 57.25 and cols["ain_2"][moving[-1]] == 6
     code, out, err = run_cli("check", cell / "heights.irl", "--cell-scenario", cell / "heights.cell.toml")
     assert code == 0 and err == "", err
     code, out, err = run_cli("check", cell / "heights.irl")  # (no scenario: each reads the middle of its range)

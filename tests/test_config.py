@@ -434,13 +434,13 @@ def test_period_out_of_range(component, period):
 
 @pytest.mark.parametrize("value, expected", [
     ("'sens_pos'", "expected a non-empty list of distinct names from sens_pos, desi_pos, out_vel, "
-                   "following_error, tcp, io, move, frame, got 'sens_pos'"),
+                   "following_error, tcp, io, move, frame, analog, got 'sens_pos'"),
     ("[]", "expected a non-empty list of distinct names from sens_pos, desi_pos, out_vel, following_error, "
-           "tcp, io, move, frame, got []"),
+           "tcp, io, move, frame, analog, got []"),
     ("['sens_pos', 3]", "expected column names (strings), got 3 at index 1"),
     ("['sens_pos', 'out_vell']", "unknown column 'out_vell' (did you mean 'out_vel'?); "
-                                 "known: sens_pos, desi_pos, out_vel, following_error, tcp, io, move, frame"),
-    ("['torque']", "unknown column 'torque'; known: sens_pos, desi_pos, out_vel, following_error, tcp, io, move, frame"),
+                                 "known: sens_pos, desi_pos, out_vel, following_error, tcp, io, move, frame, analog"),
+    ("['torque']", "unknown column 'torque'; known: sens_pos, desi_pos, out_vel, following_error, tcp, io, move, frame, analog"),
     ("['out_vel', 'sens_pos', 'out_vel']", "duplicate column 'out_vel'"),
 ])
 def test_bad_columns(value, expected):

@@ -190,6 +190,24 @@ def io_lanes(cols) -> list[str]:
     return [name for name in cols if is_io(name) and cols[name].max() > 0]
 
 
+def analog_lines(cols) -> list[str]:
+    """The analog inputs and outputs of a report (its analog columns) that hold a value."""
+    import numpy as np
+
+    return [name for name in cols if name.partition("_")[0] in ("ain", "aout") and name.partition("_")[2].isdigit()
+            and np.isfinite(cols[name]).any()]
+
+
+def _analog_panel(ax, times, cols, lines: list[str]) -> None:
+    """One line per analog input (solid) or output (dashed), in its unit (the specification's)."""
+    for name in lines:
+        ax.plot(times, cols[name], lw=1.2, ls="-" if name.startswith("ain_") else "--",
+                label=name.replace("_", "[") + "]")
+    ax.set_ylabel("analog")
+    ax.legend(loc="upper right", fontsize=7)
+    ax.grid(alpha=0.3)
+
+
 def _io_panel(ax, times, cols, lanes: list[str]) -> None:
     """One step lane per input or output, high while it is on."""
     for k, name in enumerate(lanes):
@@ -256,12 +274,14 @@ def figure(report: str | Path):
                                            if f"{kind}_{a}" in cols)] or axes_names[:1]
     has_tcp = all(f"tcp_{c}" in cols for c in ("x", "y", "z"))
     lanes = io_lanes(cols)
-    rows = max(len(moving) + (1 if lanes else 0), 2 if has_tcp else 1)
+    analog = analog_lines(cols)
+    extra = (1 if lanes else 0) + (1 if analog else 0)
+    rows = max(len(moving) + extra, 2 if has_tcp else 1)
     fig = plt.figure(figsize=(15 if has_tcp else 10, 1.9 * rows + 1))
     grid = fig.add_gridspec(rows, 3 if has_tcp else 1)
     first = fig.add_subplot(grid[0, :2] if has_tcp else grid[0, 0])
     panels = np.array([[first]] + [[fig.add_subplot(grid[i, :2] if has_tcp else grid[i, 0], sharex=first)]
-                                   for i in range(1, len(moving) + (1 if lanes else 0))])
+                                   for i in range(1, len(moving) + extra)])
     if has_tcp:
         _tcp_views(fig, grid, rows, times, states, cols)
     colors = ["#dde8f5", "#f5e6d3", "#e1f0dc", "#f3dbe7", "#ececec"]
@@ -275,7 +295,9 @@ def figure(report: str | Path):
             ax.axvline(t, color=MOVE_COLOR, lw=0.7, ls=":", zorder=1,
                        label="move start (its line)" if k == 0 and ax is first else None)
     if lanes:
-        _io_panel(panels[-1, 0], times, cols, lanes)
+        _io_panel(panels[len(moving), 0], times, cols, lanes)
+    if analog:
+        _analog_panel(panels[-1, 0], times, cols, analog)
     events = read_events(report)
     for ax, name in zip(panels[:, 0], moving):
         ax.plot(times, cols[f"sens_pos_{name}"], lw=2.2, color="#1f4e99", alpha=0.55, label="encoder")

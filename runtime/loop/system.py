@@ -126,8 +126,11 @@ class RobotSystem:
         self.recorder = Recorder(spec, p["sens_pos"], self.robot, self.trajectory, (self.io.inputs, self.io.outputs),
                                  lambda: self.supervisor.fsm.path(), lambda: self.supervisor.fsm.history,
                                  Events(self.trajectory, lambda: self.supervisor, self.safety), tcp_of(spec))
-        if (options.cell is not None or options.fieldbus is not None) and "io" not in self.report.columns:
-            self.report.columns = [*self.report.columns, "io"]  # the cell's I/O in every row
+        if options.cell is not None or options.fieldbus is not None:  # the cell's I/O in every row
+            analog = ("analog",) if spec.analog_inputs or spec.analog_outputs else ()
+            self.report.columns = [*self.report.columns, *(c for c in ("io", *analog) if c not in self.report.columns)]
+        counts = (len(spec.analog_inputs), len(spec.analog_outputs))
+        self.report.analog = lambda: self.io.analog_values(*counts)
         self.executive = Executive(self.clock, TICK)
         identity = {"robot": spec.name, "spec_hash": spec.hash,
                     "backend": ROBOTS[options.robot].identity(options.robot, options.seed) if backend is None

@@ -174,6 +174,19 @@ class IoComponent(Component):
         """Analog output ``n`` (1..) to ``value`` (checked against its range by the caller)."""
         self.backend.set_analog_output(n, value)
 
+    def analog_values(self, inputs: int, outputs: int) -> tuple:
+        """Real-time: analog inputs 1..``inputs`` as read now, then outputs 1..``outputs`` as
+        last set (the report's analog columns); NaN for one the backend does not have (a PLC
+        whose fieldbus file maps none)."""
+        backend, values = self.backend, []
+        for read, count in ((backend.analog_input, inputs), (backend.analog_output, outputs)):
+            for n in range(1, count + 1):
+                try:
+                    values.append(read(n))
+                except IndexError:
+                    values.append(float("nan"))
+        return tuple(values)
+
     def set_output(self, n: int, value: bool) -> None:
         """Digital output ``n`` (1..) to ``value``: the backend and the ``outputs`` port now."""
         backend = self.backend

@@ -37,6 +37,7 @@ TCP = "tcp"  # the tool centre point: x, y, z (mm), roll, pitch, yaw (deg), from
 TCP_FIELDS = ("x", "y", "z", "roll", "pitch", "yaw")
 FRAME = "frame"  # the active tool's and base's names, and the tool centre point in that base
 IO = "io"  # every digital input, then every output: in_1.., out_1.. (0 or 1)
+ANALOG = "analog"  # every analog input, then every output, in its unit: ain_1.., aout_1..
 MOVE = "move"  # the move under way: its number (moves started so far) and source line (0: at rest)
 MOVE_FIELDS = ("move", "line")
 
@@ -129,6 +130,9 @@ class Report(Component):
         self.state_of = state_of  # callable -> the FSM's current state path
         self.io = io  # the io component's ports (inputs, outputs): the io columns
         self.motion = None  # the trajectory generator's motion queue (the move columns; set by the supervisor)
+        # real-time: () -> every analog input, then output, now (the analog columns; set by the system)
+        nan = (float("nan"),) * (len(spec.analog_inputs) + len(spec.analog_outputs))
+        self.analog = lambda: nan
         # the rows, with the FSM's transitions ((time, from, to)) and the events, to the writer
         self.batches = Batches(history, events)
         self.names = [a.name for a in spec.axes]
@@ -159,6 +163,9 @@ class Report(Component):
                 [f"out_{n}" for n in range(1, self.spec.outputs + 1)]
         if kind == MOVE:
             return list(MOVE_FIELDS)
+        if kind == ANALOG:
+            return [f"ain_{n}" for n in range(1, len(self.spec.analog_inputs) + 1)] + \
+                [f"aout_{n}" for n in range(1, len(self.spec.analog_outputs) + 1)]
         if kind == FRAME:
             return ["tool", "base"] + [f"base_{f}" for f in TCP_FIELDS]
         return [f"{kind}_{n}" for n in self.names]
@@ -218,6 +225,8 @@ class Report(Component):
             values[IO] = (*inputs.value, *outputs.value)
         if MOVE in self.columns:
             values[MOVE] = self._move()
+        if ANALOG in self.columns:
+            values[ANALOG] = self.analog()
         if TCP in self.columns or FRAME in self.columns:  # the writer turns these joints into the TCP
             values[TCP] = values[FRAME] = (*pos[:self.main], self.frames_now())
         row = (now, self.state_of())

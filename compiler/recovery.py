@@ -49,8 +49,9 @@ ERRORS: tuple[ErrorKind, ...] = (
     ErrorKind("value", 4, "a value an operation cannot take: an array index out of range, a string that is no "
                           "number, a zero quaternion, a pose the arm cannot compute, too deep a recursion",
               "ERR_ILLDIM, ERR_STRTOOLONG, ERR_ARGVALERR"),
-    ErrorKind("io", 5, "a digital input, output or pulse, or an analog input, of a number the robot does not have; "
-                       "an analog reading outside its input's range (the sensor's fault)",
+    ErrorKind("io", 5, "a digital input, output, pulse or group, or an analog input or output, of a number the "
+                       "robot does not have (or its PLC does not map); an analog reading outside its input's range "
+                       "(the sensor's fault)",
               "ERR_NORUNUNIT, ERR_SIG_NOT_VALID"),
     ErrorKind("search", 6, "a search move (move lin ... search := N) whose input did not become true before the "
                            "move reached its target, or was true already when it began", "ERR_WHLSEARCH, "

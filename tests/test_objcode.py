@@ -492,7 +492,7 @@ from hypothesis import strategies as st
 
 from runtime.loop.vm import VM, VMStatus
 from test_vm import FakeHost
-from conftest import examples
+from conftest import SPEC_PATH, examples
 
 _EXAMPLES = ("cycle_control", "joint_jog", "approach_retreat", "pick_place", "pallet_frame", "waypoints",
              "spot_weld", "pallet_and_glue")
@@ -540,9 +540,28 @@ def _end_never_stored(name: str):
     return _dataclasses.replace(program, code=program.code[:at] + ((OP.STORE_GLOBAL, 0),) + program.code[at + 1:])
 
 
+def _local_end_never_stored():
+    """The same in a procedure: its for loop's hidden end slot (a local) never stored, the
+    store sent to its parameter's slot (the VM started a call's locals as None: the loop's
+    test compared an integer with None inside the VM)."""
+    from compiler.driver import compile_source
+
+    result = compile_source(f'program p;\nsystem_specification "{SPEC_PATH}";\nvar total : integer;\n'
+                            "procedure count(n : integer);\nvar i : integer;\nseq\n  for i := 1 to n do\n"
+                            "    total := total + i;\n  endfor;\nendseq\nendprocedure;\n"
+                            "seq\n  call count(3);\n  print total;\nendseq\nendprogram;\n", "p.irl")
+    assert result.ok, result.diagnostics
+    program = result.program
+    proc = program.procedures[0]
+    end = next(i for i, (slot, _typ) in enumerate(proc.locals) if slot.startswith("$end"))
+    at = next(i for i, instr in enumerate(program.code) if instr == (OP.STORE_LOCAL, end))
+    return _dataclasses.replace(program, code=program.code[:at] + ((OP.STORE_LOCAL, 0),) + program.code[at + 1:])
+
+
 @settings(max_examples=examples(150), deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(program=mutants())
 @example(program=_end_never_stored("pallet_and_glue"))
+@example(program=_local_end_never_stored())
 # found by this test's search before the verifier typed the stack: a string where a number
 # belongs (cycle_control's first comparison), a number where a pose belongs (GET_FIELD)
 @example(program=_dataclasses.replace(_example_program("cycle_control"), code=(

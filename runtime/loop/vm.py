@@ -331,6 +331,13 @@ class Memory:
         self.max_call_depth = max_call_depth
         self.consts = list(program.constants)
         self.procs = [(p.entry, p.params, len(p.locals), p.name) for p in program.procedures]
+        # each routine's local slots as a call starts them: its declared types' zeros (as the
+        # globals': a slot read before its first store still holds its type), and which of
+        # them are arrays or records (copied for each call, never shared)
+        self.zeros = []
+        for p in program.procedures:
+            template = [zero_of(typ, records=program.record_table) for _name, typ in p.locals]
+            self.zeros.append((template, tuple(i for i, v in enumerate(template) if type(v) in _MUTABLE)))
         self.kept: dict = {}  # local slot -> the value a returning procedure kept for its caller (KEEP, TAKE)
 
     def pop_n(self, n: int) -> list:
@@ -344,10 +351,18 @@ class Memory:
     def enter_handler(self, proc: int) -> int:
         """An interrupt's handler (procedure ``proc``, without parameters) starts: a frame
         whose return goes back to the program (:data:`_FROM_INTERRUPT`). Returns its entry."""
-        entry, _params, slots, _name = self.procs[proc]
+        entry = self.procs[proc][0]
         self.frames.append((_FROM_INTERRUPT, self.locals, len(self.stack)))
-        self.locals = [None] * slots
+        self.locals = self.fresh_locals(proc)
         return entry
+
+    def fresh_locals(self, proc: int) -> list:
+        """Routine ``proc``'s local slots as a call starts them (see ``zeros``)."""
+        template, mutable = self.zeros[proc]
+        frame = template[:]
+        for i in mutable:
+            frame[i] = copy_value(frame[i])
+        return frame
 
     def leave(self) -> int:
         """The routine running returns: the caller's slots again; returns where to go on
@@ -569,11 +584,14 @@ class Memory:
         return pc + 1 if self.stack.pop() else target
 
     def op_call(self, p, pc):
-        entry, params, slots, name = self.procs[p]
+        entry, params, _slots, name = self.procs[p]
         if len(self.frames) >= self.max_call_depth:
             raise EvalError(f"too many nested procedure or function calls (more than {self.max_call_depth}) "
                             f"calling {name}: is the recursion endless?")
-        frame = [None] * slots
+        template, mutable = self.zeros[p]
+        frame = template[:]  # (fresh_locals, inline: a call is frequent)
+        for i in mutable:
+            frame[i] = copy_value(frame[i])
         if params:
             stack = self.stack
             frame[:params] = stack[-params:]

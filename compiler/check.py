@@ -237,6 +237,8 @@ class Checker:
         self.all_changes: frozenset = frozenset()  # what some statement of the program may make active
         self.in_handler = False  # checking an error handler's statements (compiler.recovery)
         self.records: list[RecordT] = []  # the record types, in declaration order (compiler.records)
+        self.later_records: dict = {}  # the record types not declared yet, while they are (by name)
+        self.declaring: str | None = None  # the record type whose fields are being checked
         self.zones: list = []  # the program's own world zones (compiler.zones.Zone), in declaration order
 
     # -- reporting --
@@ -329,12 +331,21 @@ class Checker:
             if hidden is not None:
                 self.error(node.span, *hidden)
                 return ERROR
+            later = self.later_records.get(node.name)
+            if later is not None and self.declaring is not None:
+                self.error(node.span, f"record {self.declaring} cannot hold itself" if later.name == self.declaring
+                           else f"record type '{node.name}' is declared after record {self.declaring} (line "
+                                f"{later.name_span.line})",
+                           "a record's fields have the record types declared before it (an array of them too); a "
+                           "record that holds itself would never end" if later.name == self.declaring else
+                           f"declare {node.name} first: a record's fields have the record types declared before it")
+                return ERROR
             records = tuple(r.name for r in self.records)
             guess = did_you_mean(node.name, NAMED_TYPES + records + ("array",))
             self.error(node.span, f"unknown type '{node.name}'",
                        f"did you mean '{guess}'?" if guess else
-                       f"types are {', '.join(NAMED_TYPES + records)}, array, or a record type declared before "
-                       f"its use (record NAME ... endrecord;)")
+                       f"types are {', '.join(NAMED_TYPES + records)}, array, or a record type of the program "
+                       f"(record NAME ... endrecord;)")
             return ERROR
         low = self.const_int(node.low, "an array's lower bound")
         high = self.const_int(node.high, "an array's upper bound")
@@ -1053,7 +1064,7 @@ class Checker:
         if symbol.kind == "const":
             self.error(span, f"'{name}' is a constant and cannot be assigned")
             return None
-        if symbol.kind in ("proc", "func", "record", "interrupt"):
+        if symbol.kind in ("proc", "func", "record", "interrupt", "zone"):
             self.error(span, f"'{name}' is a {_KIND_WORDS[symbol.kind]} and cannot be assigned",
                        "a function's result is given with 'return VALUE;'" if symbol.kind == "func" else None)
             return None
@@ -1231,7 +1242,7 @@ class Checker:
         if symbol is None:
             self.error(node.var_span, f"undeclared loop variable '{node.var}'",
                        f"declare it: var {node.var} : integer;")
-        elif symbol.kind in ("const", "proc", "func", "record", "interrupt"):
+        elif symbol.kind in ("const", "proc", "func", "record", "interrupt", "zone"):
             self.error(node.var_span, f"'{node.var}' is a {_KIND_WORDS[symbol.kind]} and cannot be a loop variable")
         elif symbol.type not in (INTEGER, ERROR):
             self.error(node.var_span, f"the loop variable '{node.var}' must be an integer, "
@@ -1403,8 +1414,12 @@ class Checker:
                                or isinstance(part, ast.Field) and not isinstance(self.types.get(id(part.base)),
                                                                                  RecordT)
                                for part in ast.reference_parts(arg)):
+            axis = any(isinstance(part, ast.Index) and self.types.get(id(part.base)) == JOINT
+                       for part in ast.reference_parts(arg))
             self.error(arg.span, f"argument {i} of '{node.name}' is a 'var' parameter: pass a variable, by its name, "
-                                 "or an element or a field of one",
+                                 "or an element or a field of one" + (" (an array's element or a record's field; not "
+                                                                      "an axis of a joint)" if axis else ""),
+                       "pass the whole joint, or a real variable and put it back with j[k] := x" if axis else
                        "the procedure puts its value back there")
             return
         whole, arg = arg, root
@@ -1547,6 +1562,7 @@ class Checker:
                                  f"endrecord;'", f"did you mean '{wanted}'?")
         fields: list[tuple[str, object]] = []
         seen: dict[str, ast.Span] = {}
+        self.declaring = decl.name
         for item in decl.fields:
             t = self.resolve_type(item.type)
             for name, span in zip(item.names, item.spans):
@@ -1558,6 +1574,7 @@ class Checker:
                 else:
                     seen[name] = span
                     fields.append((name, t))
+        self.declaring = None
         record = RecordT(decl.name, tuple(fields))
         if decl.name in NAMED_TYPES or decl.name in CONSTRUCTORS or decl.name in BUILTINS \
                 or decl.name in STATE_FUNCTIONS:
@@ -1628,15 +1645,11 @@ class Checker:
                            f"{params}: {doc}")
                 return None
             args.append((value.x, value.y, value.z) if t == POSITION else value)
-        values, checked = world_zones.values_of(shape.name, tuple(args)), {}
-        for key, value in values.items():
-            problem = world_zones.problem(shape.name, key, value, checked)
-            if problem is not None:
-                said = {"min": "LOW", "max": "HIGH", "centre": "FOOT", "radius": "RADIUS", "z": "HEIGHT"}[key]
-                self.error(shape.span, f"zone '{decl.name}': {said}: {problem}", f"{params}: {doc}")
-                return None
-            checked[key] = value
-        return shape.name, checked
+        problem = world_zones.shape_problem(shape.name, tuple(args))
+        if problem is not None:
+            self.error(shape.span, f"zone '{decl.name}': {problem}", f"{shape.name}({params}): {doc}")
+            return None
+        return shape.name, world_zones.values_of(shape.name, tuple(args))
 
     def var_decl(self, decl: ast.VarDecl, table: dict, slots: list, kind: str) -> None:
         t = self.resolve_type(decl.type)
@@ -1671,10 +1684,12 @@ class Checker:
         bodies = [d.body for d in program.decls if isinstance(d, ast.Procedure)]
         self.proc_changes = frozenset().union(*(_uses(s, self._changes)[0] for body in bodies for s in body))
         self.all_changes = self.proc_changes.union(*(_uses(s, self._changes)[0] for s in program.body))
+        self.later_records = {d.name: d for d in program.decls if isinstance(d, ast.RecordDecl)}
         for decl in program.decls:  # record types first (each before its use), then procedures, so a
             if isinstance(decl, ast.RecordDecl):  # call may come before the procedure's declaration
                 self.file = self.decl_files.get(id(decl), self.main_file)
                 self.record_decl(decl)
+                self.later_records.pop(decl.name, None)
         for decl in program.decls:
             if isinstance(decl, ast.Procedure):
                 self.file = self.decl_files.get(id(decl), self.main_file)

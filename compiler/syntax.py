@@ -16,6 +16,7 @@ from . import ast
 from .clauses import NAMES as CLAUSE_NAMES
 from .clauses import Motion
 from .recovery import WORDS
+from .records import END_WORD as RECORD_END, MAX_FIELDS, WORD as RECORD_WORD
 from .diagnostics import CompileError, Diagnostic, did_you_mean
 from .semantics import INT_MAX
 
@@ -529,6 +530,17 @@ def _classify(err: UnexpectedInput, text: str, file: str, tokens: list[Token]):
         if guess and guess != prev.value.lower():
             return _misspelled_keyword(file, prev, guess)
 
+    record = _open_record(tokens, tok)
+    if record is not None:
+        opener, fields = record
+        if not fields and prev is not None and prev.value.lower() == RECORD_END:
+            return (_diag(file, _span(opener).to(_span(prev)), f"record {tokens[tokens.index(opener) + 1].value} has no "
+                          f"fields: a record has 1 to {MAX_FIELDS} (a line NAME : TYPE; each)"), None)
+        if tok.type != "NAME" or tok.value.lower() in _keywords():
+            return (_diag(file, _span(tok), f"the record '{tokens[tokens.index(opener) + 1].value}' at line "
+                          f"{opener.line} is not closed: expected '{RECORD_END};' before '{tok.value}'",
+                          f"add '{RECORD_END};' after its last field"), None)
+
     hint = None
     if tok.type == "NAME" and tok.value.lower() not in _keywords():
         words = [_describe_terminal(n).strip("'") for n in expected if n not in _REGEX_NAMES]
@@ -554,6 +566,26 @@ def _classify(err: UnexpectedInput, text: str, file: str, tokens: list[Token]):
 
     return (_diag(file, _span(tok), f"unexpected '{tok.value}'; expected {_expected_text(expected)}", hint),
             ("resync", tok.start_pos))
+
+
+def _open_record(tokens: list[Token], tok: Token) -> tuple[Token, int] | None:
+    """When ``tok`` comes inside a record's declaration not closed yet (``record NAME`` at a
+    declaration's start, no ``endrecord;`` since): its ``record`` word and how many fields
+    (``:``) came before ``tok``."""
+    found, fields = None, 0
+    for i, candidate in enumerate(tokens):
+        if candidate.start_pos is None or tok.start_pos is None or candidate.start_pos >= tok.start_pos:
+            break
+        word = candidate.value.lower() if candidate.type == "NAME" else ""
+        if word == RECORD_WORD and i + 1 < len(tokens) and tokens[i + 1].type == "NAME" and \
+                (i == 0 or tokens[i - 1].type == "SEMICOLON"):
+            found, fields = candidate, 0
+        elif found is not None and word == RECORD_END and i + 1 < len(tokens) and tokens[i + 1].type == "SEMICOLON" \
+                and tokens[i + 1].start_pos < tok.start_pos:
+            found = None
+        elif found is not None and candidate.type == "COLON":
+            fields += 1
+    return (found, fields) if found is not None else None
 
 
 def _misspelled_keyword(file: str, word: Token, guess: str):

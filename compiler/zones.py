@@ -32,7 +32,8 @@ import math
 from dataclasses import dataclass
 
 __all__ = ["CONSTRUCTORS", "KINDS", "MARGIN", "MAX_ZONES", "SHAPES", "SIGNAL_WORD", "STEP", "WORD", "Zone",
-           "forbidden", "from_plain", "markdown", "run_problem", "shown", "signals", "to_plain", "values_of"]
+           "forbidden", "from_plain", "markdown", "run_problem", "shape_problem", "shown", "signals", "to_plain",
+           "values_of"]
 
 #: mm: how far from a zone a planned path must stay (the flange and the tool centre point).
 MARGIN = 5.0
@@ -84,6 +85,32 @@ def values_of(shape: str, args: tuple) -> dict:
         return {"min": [float(v) for v in args[0]], "max": [float(v) for v in args[1]]}
     (x, y, z), radius, height = args
     return {"centre": [float(x), float(y)], "radius": float(radius), "z": [float(z), float(z) + float(height)]}
+
+
+def shape_problem(shape: str, args: tuple) -> str | None:
+    """What is wrong with a program's ``box(LOW, HIGH)`` or ``cylinder(FOOT, RADIUS,
+    HEIGHT)`` (positions as (x, y, z), numbers), in the program's words, or None. Whether
+    it is wrong is :func:`problem`'s to say (one rule for both)."""
+    values, checked = values_of(shape, args), {}
+    for key, value in values.items():
+        if problem(shape, key, value, checked) is None:
+            checked[key] = value
+            continue
+        far = [v for v in (value if isinstance(value, list) else [value]) if not abs(v) <= MAX_COORDINATE]
+        if far:
+            return f"{far[0]:g} mm is beyond the cell's extent: each coordinate and size is at most " \
+                   f"{MAX_COORDINATE:g} mm"
+        if key == "max":
+            low, high = values["min"], value
+            axes = [axis for axis, lo, hi in zip("xyz", low, high) if not hi > lo]
+            swapped = all(hi < lo for lo, hi in zip(low, high))
+            return (f"HIGH {_point(high)} is not above LOW {_point(low)} in {', '.join(axes)}: box(LOW, HIGH) takes "
+                    "the corner with the least x, y and z first, and a box has a size in each axis"
+                    + (": swap them" if swapped else ""))
+        if key == "radius":
+            return f"its RADIUS must be more than 0 mm, not {value:g}"
+        return f"its HEIGHT must be more than 0 mm, not {value[1] - value[0]:g}"
+    return None
 
 
 @dataclass(frozen=True)
@@ -175,7 +202,7 @@ def run_problem(spec, zones: tuple) -> str | None:
     if not zones:
         return None
     together = tuple(spec.zones) + tuple(zones)
-    names = [zone.name for zone in together]
+    names = [zone.name.lower() for zone in together]  # (a program's are names, lower-cased: "Clamp" is clamp)
     if len(together) > MAX_ZONES:
         return f"{len(zones)} zones of the program and {len(spec.zones)} of the specification: at most {MAX_ZONES}"
     if len(set(names)) != len(names):

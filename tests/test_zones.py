@@ -387,3 +387,22 @@ def compile_source_ok(tmp_path):
     assert result.ok, result.diagnostics
     assert [z.name for z in result.program.zones] == ["pillar", "over_table"]
     return result.program
+
+
+def test_irl_check_says_at_the_zone_that_a_program_whose_zone_holds_home_cannot_start(tmp_path):
+    """A zone of the program over the home position: the runtime would refuse the program
+    (every move from home would be refused); irl check says so at the zone's declaration,
+    once, and checks no move."""
+    import shutil
+
+    from conftest import ROOT
+
+    shutil.copy(ROOT / "programs" / "lola15.spc", tmp_path / "lola15.spc")
+    source = tmp_path / "over_home.irl"
+    source.write_text('program over_home;\nsystem_specification "lola15.spc";\nvar n : integer;\n'
+                      "  zone overhome := box(pos(1100, -50, 1350), pos(1200, 50, 1450));\n"
+                      "seq\n  move ptp joint(mainjoint(10, 0, 0, 0, 0, 0));\nendseq\nendprogram;\n", encoding="utf-8")
+    code, out, err = run_cli("check", source)
+    assert code == 1
+    assert f"{source}:4:3: error: the program cannot start: the home position is in zone 'overhome'" in err, err
+    assert err.count("error:") == 1 and "motion: 0 moves, no cycle time: the program cannot start" in out, out

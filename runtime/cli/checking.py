@@ -15,7 +15,8 @@ __all__ = ["MotionCheck", "report"]
 #: How a run of the main path ended, as the summary says it.
 ENDED = {"completed": "", "stopped": "the program stops with an error (above)",
          "bounded": "the check stopped it at a bound (below): what comes after is not checked", "idles": "the program does not end (below)",
-         "waits": "the program does not end: it waits for ever (above)"}
+         "waits": "the program does not end: it waits for ever (above)",
+         "cannot start": "the program cannot start (above): its moves are not checked"}
 
 
 class MotionCheck:
@@ -42,11 +43,55 @@ class MotionCheck:
                 scenario, _fieldbus = load_io_files(self.scenario_path, None, self.result.spec)
             except ValueError as exc:
                 raise UsageError(str(exc)) from None
+        if self._cannot_start():
+            from runtime.loop.offline import Outcome
+
+            self.outcome = Outcome(ended="cannot start", paths=0)
+            return
         self.outcome = check_motion(self.result.program, self.result.spec, scenario, max_moves=self.max_moves)
         for finding in self.outcome.findings:
             diagnostic, extra = self._diagnostic(finding)
             self.diagnostics.append(diagnostic)
             self.extras.append(extra)
+
+    def _cannot_start(self) -> bool:
+        """A program whose own world zones the runtime would refuse (one over the home
+        position, where every program starts): said at the zone's declaration, and nothing
+        else is checked (every move would be refused)."""
+        from runtime.motion.kinematics import Kinematics
+        from runtime.motion.zonecheck import start_problem
+
+        program, spec = self.result.program, self.result.spec
+        if not program.zones:
+            return False
+        try:
+            kinematics = Kinematics(spec)
+        except ValueError:
+            kinematics = None
+        problem = start_problem(spec, kinematics, program.zones)
+        if problem is None:
+            return False
+        name, what = problem
+        path, line, column = self._declaration_of(name)
+        text = source_lines(self._text(path))
+        end = len(text[line - 1].rstrip()) + 1 if 1 <= line <= len(text) else column + 1
+        self.diagnostics.append(Diagnostic(path, line, column, line, max(end, column + 1), "error",
+                                           f"the program cannot start: {what}"))
+        self.extras.append({"motion": True, "kind": "zone", "count": 1, "first": 1, "assumed": []})
+        return True
+
+    def _declaration_of(self, zone: str) -> tuple[str, int, int]:
+        """(file, line, column) of world zone ``zone``'s declaration (``zone NAME :=``) in the
+        program or a module it imports; the program's first line when none is found."""
+        import re
+
+        pattern = re.compile(rf"^([ \t]*)zone[ \t]+{re.escape(zone)}[ \t]*:=", re.I | re.M)
+        result = self.result
+        for path, text in ((result.file, result.source), *result.sources.items()):
+            found = pattern.search(text or "")
+            if found is not None:
+                return path, text.count("\n", 0, found.start()) + 1, len(found.group(1)) + 1
+        return result.file, 1, 1
 
     def _text(self, path: str) -> str | None:
         result = self.result

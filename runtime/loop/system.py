@@ -12,7 +12,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from compiler.objcode import Program
-from compiler.zones import forbidden, run_problem, signals
+from compiler.zones import forbidden, signals
 
 from runtime import accel
 from runtime.loop.batches import Events
@@ -21,7 +21,7 @@ from runtime.loop.components.initialization import Initialization
 from runtime.loop.components.io import IoComponent, ZoneSignals, backend_of
 from runtime.loop.components.recorder import Recorder
 from runtime.loop.components.report import Report
-from runtime.motion.zonecheck import home_problem
+from runtime.motion.zonecheck import home_problem, start_problem
 from runtime.motion.tcp import tcp_of
 from runtime.loop.components.robot_interface import RobotInterface
 from runtime.loop.components.safety import SafetySupervisor
@@ -224,13 +224,9 @@ class RobotSystem:
         if jog and self.mode != "t1":
             raise ValueError("jogging needs operating mode T1 (manual reduced speed): switch with irl mode t1")
         if program is not None and program.zones:  # (object code is untrusted: checked here, for this robot)
-            planner = self.trajectory.planner
-            problem = run_problem(self.spec, program.zones) or (
-                "world zones need the robot's kinematics" if planner.kinematics is None else
-                home_problem(planner.kinematics, tuple(axis.home for axis in self.spec.main_axes),
-                             tuple(self.spec.tool[:3]), forbidden(program.zones)))
+            problem = start_problem(self.spec, self.trajectory.planner.kinematics, program.zones)
             if problem is not None:
-                raise ValueError(f"the program cannot start: {problem}")
+                raise ValueError(f"the program cannot start: {problem[1]}")
         if from_line is not None and program is not None:
             from compiler.objcode import from_line_problem
 

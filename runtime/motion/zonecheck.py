@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import math
 
-from compiler.zones import MARGIN, STEP, shown
+from compiler.zones import MARGIN, STEP, forbidden, run_problem, shown
 
 __all__ = ["home_problem", "zone_problem"]
 
@@ -80,3 +80,22 @@ def home_problem(kinematics, home: tuple, tool: tuple, zones) -> str | None:
         return None
     return said.replace(" enters zone", " is in zone", 1).replace(" at its start", "", 1) + \
         ": every move from there would be refused (move the zone, or the axes' home)"
+
+
+def start_problem(spec, kinematics, zones: tuple) -> tuple[str, str] | None:
+    """Why a program with its own world ``zones`` (compiler.zones) cannot start on the robot of
+    ``spec`` (its ``kinematics``, None when it has none): ``(the zone's name, what)``, or
+    None. The runtime refuses such object code; ``irl check`` says so at the zone."""
+    if not zones:
+        return None
+    problem = run_problem(spec, zones)
+    if problem is not None:
+        return zones[0].name, problem
+    if kinematics is None:
+        return zones[0].name, "world zones need the robot's kinematics ([kinematics] in its specification)"
+    home, tool = tuple(axis.home for axis in spec.main_axes), tuple(spec.tool[:3])
+    for zone in forbidden(zones):
+        problem = home_problem(kinematics, home, tool, (zone,))
+        if problem is not None:
+            return zone.name, problem
+    return None

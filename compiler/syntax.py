@@ -530,6 +530,10 @@ def _classify(err: UnexpectedInput, text: str, file: str, tokens: list[Token]):
         if guess and guess != prev.value.lower():
             return _misspelled_keyword(file, prev, guess)
 
+    if tok.type in ("LSQB", "DOT") and prev is not None and prev.type == "NAME" and _after_trigger_do(tokens, prev):
+        return (_diag(file, _span(tok), f"a trigger sets a global variable by its name: '{prev.value}{tok.value}...' is "
+                      "an element or a field", "set a plain global in the trigger, and the element or field from it "
+                                               "after the move"), None)
     record = _open_record(tokens, tok)
     if record is not None:
         opener, fields = record
@@ -566,6 +570,19 @@ def _classify(err: UnexpectedInput, text: str, file: str, tokens: list[Token]):
 
     return (_diag(file, _span(tok), f"unexpected '{tok.value}'; expected {_expected_text(expected)}", hint),
             ("resync", tok.start_pos))
+
+
+def _after_trigger_do(tokens: list[Token], name: Token) -> bool:
+    """Whether ``name`` is the first token after a trigger's ``do``."""
+    i = next((k for k, t in enumerate(tokens) if t.start_pos == name.start_pos), None)
+    if i is None or i == 0 or tokens[i - 1].type != "DO":
+        return False
+    for k in range(i - 2, -1, -1):
+        if tokens[k].type in _STMT_BOUNDARY or tokens[k].type in _STRUCTURE:
+            return False
+        if tokens[k].type == "TRIGGER":
+            return True
+    return False
 
 
 def _open_record(tokens: list[Token], tok: Token) -> tuple[Token, int] | None:

@@ -11,6 +11,7 @@ from typing import Iterator
 from .objcode import BUILTIN_NAMES, BY_CODE, FIELDS, Program, checksum_of, clause_names
 from .configs import operand_text as config_operand_text
 from .triggers import PLACES, UNITS
+from .zones import to_plain as to_plain_zone
 from .values import format_value, to_plain
 
 
@@ -141,6 +142,9 @@ def format_text(program: Program, data: bytes | None = None, source: str | None 
         out.append(f"globals ({len(program.globals)}):")
         for i, (name, type_) in enumerate(program.globals):
             out.append(f"  {i:4d}  {name} : {type_}")
+    _section(out, "records", [f"{r.name}({'; '.join(f'{n} : {t}' for n, t in r.fields)})" for r in program.records])
+    _section(out, "zones", [f"{z.name}: {z.kind} {z.describe()}" + (f", output {z.output}" if z.output else "")
+                            for z in program.zones])
     _section(out, "interrupts", [f"{x.name}: when {program.procedures[x.condition].name}, priority {x.priority}, "
                                  f"{'stop' if x.stop else 'continue'}, then {'halt' if x.halt else 'resume'}"
                                  for x in program.interrupts])
@@ -192,6 +196,8 @@ def format_json(program: Program, data: bytes | None = None) -> dict:
                         "stop": x.stop, "halt": x.halt} for x in program.interrupts],
         "handlers": [{"start": h.start, "end": h.end, "entry": h.entry, "statements": [list(s) for s in h.statements]}
                      for h in program.handlers],
+        "records": [{"name": r.name, "fields": [{"name": n, "type": t} for n, t in r.fields]} for r in program.records],
+        "zones": [to_plain_zone(z) for z in program.zones],
         "code": [{"offset": i.offset, "name": i.name, "operands": list(i.operands), "argrepr": i.argrepr,
                   "line": i.line, "column": i.column, "file": program.file_at(i.offset) or None}
                  for i in instructions(program)],

@@ -86,8 +86,9 @@ def elements(t) -> int:
 
 
 GEOMETRIC_KINDS = (POSITION, POSE, ORIENTATION)
+# a symbol's kind, as messages say it
 _KIND_WORDS = {"const": "constant", "proc": "procedure", "func": "function", "interrupt": "interrupt",
-               "record": "record type", "global": "variable", "local": "variable", "zone": "world zone"}  # a symbol's kind, as messages say it
+               "record": "record type", "global": "variable", "local": "variable", "zone": "world zone"}
 
 
 def _kind(t) -> str:
@@ -179,6 +180,19 @@ def always_returns(body) -> bool:
 
 
 @dataclass
+class Declared:
+    """What a program declares beside its variables and routines: its record types
+    (compiler.records) and its own world zones (compiler.zones), in declaration order; while
+    the record types are checked, those not declared yet (by name) and the one whose fields
+    are being checked."""
+
+    records: list = field(default_factory=list)  # RecordT
+    zones: list = field(default_factory=list)  # compiler.zones.Zone
+    later: dict = field(default_factory=dict)  # name -> its ast.RecordDecl
+    declaring: str | None = None
+
+
+@dataclass
 class CheckedProgram:
     """The AST plus everything the checker learned; input to code generation."""
 
@@ -236,10 +250,7 @@ class Checker:
         self.moving: dict[str, str] = {}  # procedures a handler may not call: name -> what they do
         self.all_changes: frozenset = frozenset()  # what some statement of the program may make active
         self.in_handler = False  # checking an error handler's statements (compiler.recovery)
-        self.records: list[RecordT] = []  # the record types, in declaration order (compiler.records)
-        self.later_records: dict = {}  # the record types not declared yet, while they are (by name)
-        self.declaring: str | None = None  # the record type whose fields are being checked
-        self.zones: list = []  # the program's own world zones (compiler.zones.Zone), in declaration order
+        self.declared = Declared()  # its record types and world zones
 
     # -- reporting --
     def error(self, span: ast.Span, message: str, hint: str | None = None, file: str | None = None) -> None:
@@ -331,16 +342,17 @@ class Checker:
             if hidden is not None:
                 self.error(node.span, *hidden)
                 return ERROR
-            later = self.later_records.get(node.name)
-            if later is not None and self.declaring is not None:
-                self.error(node.span, f"record {self.declaring} cannot hold itself" if later.name == self.declaring
-                           else f"record type '{node.name}' is declared after record {self.declaring} (line "
+            later, declaring = self.declared.later.get(node.name), self.declared.declaring
+            if later is not None and declaring is not None:
+                itself = later.name == declaring
+                self.error(node.span, f"record {declaring} cannot hold itself" if itself
+                           else f"record type '{node.name}' is declared after record {declaring} (line "
                                 f"{later.name_span.line})",
                            "a record's fields have the record types declared before it (an array of them too); a "
-                           "record that holds itself would never end" if later.name == self.declaring else
+                           "record that holds itself would never end" if itself else
                            f"declare {node.name} first: a record's fields have the record types declared before it")
                 return ERROR
-            records = tuple(r.name for r in self.records)
+            records = tuple(r.name for r in self.declared.records)
             guess = did_you_mean(node.name, NAMED_TYPES + records + ("array",))
             self.error(node.span, f"unknown type '{node.name}'",
                        f"did you mean '{guess}'?" if guess else
@@ -1151,13 +1163,13 @@ class Checker:
         if reach > 0 and distance > reach:
             self.error(target.span, f"pose out of reach{where}: its position is {distance:.1f} mm from the "
                                     f"shoulder, but {self.spec.name}'s arm reaches at most {reach:.1f} mm")
-        for zone in forbidden_zones(self.spec.zones + tuple(self.zones)):  # (the tool centre point: the flange's
-            # path when it runs)
+        # (the tool centre point: the flange's path when it runs)
+        for zone in forbidden_zones(self.spec.zones + tuple(self.declared.zones)):
             if zone.depth(p.x, p.y, p.z) > -ZONE_MARGIN:
                 self.error(target.span, f"the target{where} is in zone '{zone.name}' ({zone.describe()}), or within "
                                         f"{ZONE_MARGIN:g} mm of it: no move goes there",
                            "the program's zone declarations are where the tool and the flange never go"
-                           if zone in self.zones else
+                           if zone in self.declared.zones else
                            "the specification's [[zone]] tables are where the tool and the flange never go")
 
     def clauses(self, node: ast.Move) -> None:
@@ -1562,7 +1574,7 @@ class Checker:
                                  f"endrecord;'", f"did you mean '{wanted}'?")
         fields: list[tuple[str, object]] = []
         seen: dict[str, ast.Span] = {}
-        self.declaring = decl.name
+        self.declared.declaring = decl.name
         for item in decl.fields:
             t = self.resolve_type(item.type)
             for name, span in zip(item.names, item.spans):
@@ -1574,7 +1586,7 @@ class Checker:
                 else:
                     seen[name] = span
                     fields.append((name, t))
-        self.declaring = None
+        self.declared.declaring = None
         record = RecordT(decl.name, tuple(fields))
         if decl.name in NAMED_TYPES or decl.name in CONSTRUCTORS or decl.name in BUILTINS \
                 or decl.name in STATE_FUNCTIONS:
@@ -1587,7 +1599,7 @@ class Checker:
             self.error(decl.name_span, f"record {decl.name} holds {elements(record)} values (at most "
                                        f"{MAX_ARRAY_LENGTH}, all its fields' elements together)")
         if self.declare(self.globals, Symbol("record", decl.name, record, decl.name_span)):
-            self.records.append(record)
+            self.declared.records.append(record)
 
     def zone_decl(self, decl: ast.ZoneDecl) -> None:
         """A world zone of the program (compiler.zones): its words, its shape (a constructor
@@ -1616,11 +1628,11 @@ class Checker:
         if not self.declare(self.globals, Symbol("zone", decl.name, "zone", decl.name_span)) or zone is None:
             return
         zone = world_zones.zone_of(decl.name, *zone, "signal" if output else "forbidden", output)
-        problem = world_zones.run_problem(self.spec, tuple(self.zones) + (zone,))
+        problem = world_zones.run_problem(self.spec, tuple(self.declared.zones) + (zone,))
         if problem is not None:
             self.error(decl.name_span, problem)
             return
-        self.zones.append(zone)
+        self.declared.zones.append(zone)
 
     def zone_shape(self, decl: ast.ZoneDecl):
         """(shape, its keys' values) of a zone's declaration, or None (reported)."""
@@ -1684,12 +1696,12 @@ class Checker:
         bodies = [d.body for d in program.decls if isinstance(d, ast.Procedure)]
         self.proc_changes = frozenset().union(*(_uses(s, self._changes)[0] for body in bodies for s in body))
         self.all_changes = self.proc_changes.union(*(_uses(s, self._changes)[0] for s in program.body))
-        self.later_records = {d.name: d for d in program.decls if isinstance(d, ast.RecordDecl)}
+        self.declared.later = {d.name: d for d in program.decls if isinstance(d, ast.RecordDecl)}
         for decl in program.decls:  # record types first (each before its use), then procedures, so a
             if isinstance(decl, ast.RecordDecl):  # call may come before the procedure's declaration
                 self.file = self.decl_files.get(id(decl), self.main_file)
                 self.record_decl(decl)
-                self.later_records.pop(decl.name, None)
+                self.declared.later.pop(decl.name, None)
         for decl in program.decls:
             if isinstance(decl, ast.Procedure):
                 self.file = self.decl_files.get(id(decl), self.main_file)
@@ -1738,7 +1750,8 @@ class Checker:
             self.robots.append(self.spec.name)
         return CheckedProgram(program, self.spec, self.types, self.values, self.symbols,
                               self.global_slots, self.globals, self.procs, tuple(self.robots), self.decl_files,
-                              interrupts=self.interrupts, records=self.records, zones=self.zones)
+                              interrupts=self.interrupts, records=self.declared.records,
+                              zones=self.declared.zones)
 
     def interrupt_options(self, node: ast.Procedure, index: int) -> InterruptDecl:
         """``priority N``, ``stop`` or ``continue``, ``then resume`` or ``then halt``

@@ -342,7 +342,8 @@ TYPE_RULES = {
 #: The stack types of each instruction: (takes, gives), see InstrDef.
 _TYPES: dict[str, tuple[str, str]] = {
     "NOP": ("", ""), "CONST": ("", "@const"), "LOAD_GLOBAL": ("", "@g"), "STORE_GLOBAL": ("@g", ""),
-    "LOAD_LOCAL": ("", "@l"), "STORE_LOCAL": ("@l", ""), "COPY": ("array|record", "@same"), "TO_REAL": ("number", "real"),
+    "LOAD_LOCAL": ("", "@l"), "STORE_LOCAL": ("@l", ""), "COPY": ("array|record", "@same"),
+    "TO_REAL": ("number", "real"),
     "NEG": ("number|position", "@same"), "NOT": ("bool", "bool"),
     "ADD": ("integer|real|string|position|pose integer|real|string|position", "@arith"),
     "SUB": ("number|position|pose number|position", "@arith"),

@@ -531,17 +531,18 @@ def _classify(err: UnexpectedInput, text: str, file: str, tokens: list[Token]):
             return _misspelled_keyword(file, prev, guess)
 
     if tok.type in ("LSQB", "DOT") and prev is not None and prev.type == "NAME" and _after_trigger_do(tokens, prev):
-        return (_diag(file, _span(tok), f"a trigger sets a global variable by its name: '{prev.value}{tok.value}...' is "
-                      "an element or a field", "set a plain global in the trigger, and the element or field from it "
-                                               "after the move"), None)
+        return (_diag(file, _span(tok), f"a trigger sets a global variable by its name: '{prev.value}{tok.value}...' "
+                      "is an element or a field", "set a plain global in the trigger, and the element or field from "
+                                                  "it after the move"), None)
     record = _open_record(tokens, tok)
     if record is not None:
         opener, fields = record
+        name = tokens[tokens.index(opener) + 1].value
         if not fields and prev is not None and prev.value.lower() == RECORD_END:
-            return (_diag(file, _span(opener).to(_span(prev)), f"record {tokens[tokens.index(opener) + 1].value} has no "
-                          f"fields: a record has 1 to {MAX_FIELDS} (a line NAME : TYPE; each)"), None)
+            return (_diag(file, _span(opener).to(_span(prev)), f"record {name} has no fields: a record has 1 to "
+                          f"{MAX_FIELDS} (a line NAME : TYPE; each)"), None)
         if tok.type != "NAME" or tok.value.lower() in _keywords():
-            return (_diag(file, _span(tok), f"the record '{tokens[tokens.index(opener) + 1].value}' at line "
+            return (_diag(file, _span(tok), f"the record '{name}' at line "
                           f"{opener.line} is not closed: expected '{RECORD_END};' before '{tok.value}'",
                           f"add '{RECORD_END};' after its last field"), None)
 

@@ -97,7 +97,8 @@ endprocedure;"""
       print s.full, " ", s.part.name, " ", one.name;
       print taller(part_t("x", 1, 2), 0.5);
     """
-    assert texts(tmp_path, body, decls, dispatch) == ["13 12", "true bolt bolt", 'part_t(name: "x", height: 1.5, width: 2)']
+    assert texts(tmp_path, body, decls, dispatch) == ["13 12", "true bolt bolt",
+                                                      'part_t(name: "x", height: 1.5, width: 2)']
 
 
 def test_an_array_of_records_holds_separate_records(tmp_path):
@@ -366,6 +367,7 @@ endseq
 endfunction;
 endmodule;
 """)
-    text = program_text("p := made(\"x\");\np.height := p.height * 2;\nprint p;", 'import "parts.irl";\nvar p : part_t;')
+    text = program_text("p := made(\"x\");\np.height := p.height * 2;\nprint p;",
+                        'import "parts.irl";\nvar p : part_t;')
     machine, host = run(compile_text(tmp_path, text))
     assert host.texts == ['part_t(name: "x", height: 20, width: 1)']

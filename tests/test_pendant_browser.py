@@ -230,6 +230,7 @@ def test_homing_moves_only_while_a_jog_button_is_held(cell):
     page.close()
 
 
+@pytest.mark.long  # (a long wall-clock test: started first, not left for the run's tail)
 def test_holding_a_jog_button_moves_the_robot_and_releasing_it_stops_it(cell, tmp_path):
     page = cell.open()
     _take(page)
@@ -307,6 +308,7 @@ def test_the_pause_button_pauses_a_running_program(cell):
     page.close()
 
 
+@pytest.mark.long  # (a long wall-clock test: started first, not left for the run's tail)
 def test_the_estop_of_a_page_without_control_stops_another_clients_program(cell):
     page = cell.open()
     other = cell.client

@@ -315,6 +315,7 @@ def test_disconnecting_clients_do_not_stop_programs(server):
 
 
 # ---- 6a. pause on the wall clock --------------------------------------------------------------------
+@pytest.mark.long  # (a long wall-clock test: started first, not left for the run's tail)
 def test_pause_stops_the_robot_and_resume_completes(wall_server):
     client = wall_server.client()
     program = submit(client, PROGRAMS / "pause.irl", wall_server)

@@ -12,6 +12,8 @@ from __future__ import annotations
 import io
 import time
 
+import pytest
+
 from tests.browser import LOAD, View, browser  # noqa: F401 (browser: the fixture)
 from tests.conftest import SPEC_PATH, ServerProcess, objcode, run_irl
 
@@ -109,6 +111,7 @@ def _set_time(page, t: float) -> None:
     box.press("Enter")
 
 
+@pytest.mark.long  # (a long wall-clock test: started first, not left for the run's tail)
 def test_program_paths_and_the_arm(browser, tmp_path):
     """A program (a new user's first one, with moves the robot would refuse): the arm drawn,
     the refused moves listed with their lines, a move picked from the list marks its line
@@ -135,6 +138,7 @@ def test_program_paths_and_the_arm(browser, tmp_path):
         assert view.stop() == 0
 
 
+@pytest.mark.long  # (a long wall-clock test: started first, not left for the run's tail)
 def test_replay_follows_the_slider(browser, tmp_path):
     report = tmp_path / "test.csv"
     done = run_irl("run", "programs/test.irl", "--report", report, "--report-columns", "+move")
@@ -158,6 +162,7 @@ def test_replay_follows_the_slider(browser, tmp_path):
         assert view.stop() == 0
 
 
+@pytest.mark.long  # (a long wall-clock test: started first, not left for the run's tail)
 def test_live_follows_the_robot(browser, tmp_path):
     # the simulated clock: the view follows the telemetry whatever its pace (a wall-clock loop
     # would spend 20 s of a core on the homing and the moves, and take from the tests that

@@ -235,3 +235,29 @@ def test_any_file_named_mcap_is_refused_with_the_reason(tmp_path_factory, data):
     path.write_bytes(b"\x89MCAP0\r\n" + data if data[:1] == b"M" else data)
     with pytest.raises(ReplayError):
         read_recorded(path, load_spec(SPEC_PATH))
+
+
+def test_the_stage_draws_the_world_zones_where_they_are():
+    """The cell's zones (lola15_cell.spc: a box and a cylinder) and a program's own (a
+    signal box): each drawn once, at its place and size (m), forbidden red, signal amber;
+    tests/test_view_browser.py looks at the page itself."""
+    from compiler.zones import Zone
+    from runtime.view.stage import ZONE_COLOURS, Stage
+    from tests.conftest import free_port
+
+    stage = Stage(load_spec(ROOT / "programs" / "lola15_cell.spc"), free_port())
+    try:
+        assert set(stage.zones) == {"fixture body", "guard post"}
+        body = stage.zones["fixture body"]
+        assert tuple(body.dimensions) == pytest.approx((0.14, 0.14, 0.32)) and \
+            tuple(body.position) == pytest.approx((0.9, 0.3, 0.16))
+        post = stage.zones["guard post"]
+        assert (post.radius, post.height) == pytest.approx((0.06, 2.2)) and \
+            tuple(post.position) == pytest.approx((1.0, 0.7, 1.1))
+        belt = Zone("belt", "box", (300.0, -600.0, 0.0), (900.0, -200.0, 1500.0), kind="signal", output=6)
+        stage.show_zones((belt, belt))
+        assert set(stage.zones) == {"fixture body", "guard post", "belt"}
+        assert tuple(stage.zones["belt"].color) == ZONE_COLOURS["signal"]
+        assert tuple(body.color) == ZONE_COLOURS["forbidden"]
+    finally:
+        stage.close()

@@ -137,6 +137,7 @@ def _program(args, env):
     waiting = stage.server.gui.add_markdown(f"planning the moves of {args.file} ...")
     outcome = check_motion(result.program, result.spec, scenario, trace=True)
     waiting.remove()
+    stage.show_zones(result.program.zones)  # (the program's own, beside the specification's)
     view = ProgramView(stage, args.file, Path(args.file).read_text(encoding="utf-8"), outcome)
     refused = len(view.reasons)
     common.say(env, f"irl view: {args.file}: {len(view.records)} moves, {refused} refused, shown in "

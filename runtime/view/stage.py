@@ -30,6 +30,9 @@ DEFAULT_PORT = 8765
 SOURCE_WINDOW = 15
 
 MM = 1 / 1000  # the scene's metres per mm
+#: How a world zone is drawn (compiler.zones.KINDS): its colour by kind, and how opaque.
+ZONE_COLOURS = {"forbidden": (220, 40, 40), "signal": (235, 160, 20)}
+ZONE_OPACITY = 0.3
 
 
 class Stage:
@@ -73,6 +76,8 @@ class Stage:
         self.tool = self.server.scene.add_frame("/tool", axes_length=0.06, axes_radius=0.004)
         self.base = self.server.scene.add_frame("/base", axes_length=0.12, axes_radius=0.004)
         self.base_label = self.server.scene.add_label("/base/label", "world", font_screen_scale=0.8)
+        self.zones: dict = {}  # the world zones shown: name -> its shape's handle (compiler.zones)
+        self.show_zones(spec.zones)
         self.joints: tuple | None = None  # what the arm shows (deg)
         self.announced = False  # its URL said
         self.show([a.home for a in spec.main_axes])
@@ -98,6 +103,27 @@ class Stage:
                 self.base.position, self.base.wxyz = _m(base[:3]), rpy_to_quat(*base[3:])
                 if self.base_label.text != frames.base_name:
                     self.base_label.text = frames.base_name
+
+    def show_zones(self, zones) -> None:
+        """Draw the world ``zones`` (compiler.zones: the specification's, a program's own):
+        translucent, a forbidden zone red, a signal zone amber, each named above it."""
+        scene = self.server.scene
+        for zone in zones:
+            if zone.name in self.zones:
+                continue
+            node = f"/zones/{len(self.zones)}"
+            colour = ZONE_COLOURS[zone.kind]
+            (lx, ly, lz), (hx, hy, hz) = zone.low, zone.high
+            if zone.shape == "box":
+                handle = scene.add_box(node, colour, _m((hx - lx, hy - ly, hz - lz)), opacity=ZONE_OPACITY,
+                                       position=_m(((lx + hx) / 2, (ly + hy) / 2, (lz + hz) / 2)), cast_shadow=False)
+            else:  # (viser's cylinder stands along its z: the world's up)
+                handle = scene.add_cylinder(node, zone.radius * MM, (hz - lz) * MM, colour, opacity=ZONE_OPACITY,
+                                            position=_m((zone.centre[0], zone.centre[1], (lz + hz) / 2)),
+                                            cast_shadow=False)
+            scene.add_label(f"{node}/label", f"{zone.name} ({zone.kind})", font_screen_scale=0.7,
+                            position=(0.0, 0.0, (hz - lz) * MM / 2))
+            self.zones[zone.name] = handle
 
     def tcp_points(self, joints_list, frames_list) -> list:
         """The tool centre point (m, world) of each joint values, each with its frames."""

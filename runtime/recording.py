@@ -173,6 +173,13 @@ SCHEMAS: dict[str, dict] = {
         "irl.DigitalIO", "every digital input and output (input n at index n - 1)",
         {"timestamp": _time("the robot's time of the change"),
          "inputs": _array("boolean", "the digital inputs"), "outputs": _array("boolean", "the digital outputs")}),
+    "irl.AnalogIO": _object(
+        "irl.AnalogIO", "every analog input as read and output as last set, in its unit (the metadata's "
+                        "analog_inputs and analog_outputs name each and its unit: [[name, unit], ...]; input n at "
+                        "index n - 1); null for one the robot's I/O does not have (a PLC that maps none)",
+        {"timestamp": _time("the robot's time of the change"),
+         "inputs": {"type": "array", "items": {"type": ["number", "null"]}, "description": "the analog inputs"},
+         "outputs": {"type": "array", "items": {"type": ["number", "null"]}, "description": "the analog outputs"}}),
     "irl.Phase": _object(
         "irl.Phase", "the supervisor's state, by name",
         {"timestamp": _time("the robot's time of the change"),
@@ -214,6 +221,8 @@ TOPICS: tuple[Topic, ...] = (
     Topic("/frames", "irl.Frames", "at the start and on a change",
           "the active tool's and base's names and poses (use tool, use base)"),
     Topic("/io", "irl.DigitalIO", "at the start and on a change", "every digital input and output"),
+    Topic("/io/analog", "irl.AnalogIO", "at the start and on a change (a robot with analog channels)",
+          "every analog input (as read) and output (as last set), in its unit"),
     Topic("/phase", "irl.Phase", "at the start and on a change",
           "the supervisor's state by name: at each transition's tick, and each homing step at its first row"),
     Topic("/line", "irl.SourceLine", "at the start and on a change", "the program's current source line and file"),
@@ -323,6 +332,8 @@ def read_recording(path: str | Path, links: bool = False) -> dict:
     - ``phases`` [(time, state path)], ``lines`` [(time, line, file)], ``frames`` [(time,
       tool, base)], ``logs`` [{time, level (its name), kind, text, file, line}];
     - ``io``: {times (k,), inputs (k, n) bool, outputs (k, n) bool}, one row per change;
+    - ``analog``: {times (k,), inputs (k, n), outputs (k, m)}, in their units (NaN: none), one
+      row per change (k = 0 for a robot without analog channels);
     - with ``links``: ``links`` {child link: (parent link, (n, 4, 4) transforms in mm)} from
       ``/tf`` (read only when asked: the largest topic).
 
@@ -338,6 +349,17 @@ def read_recording(path: str | Path, links: bool = False) -> dict:
     joints = by_topic["/joint_states"]
     tcp = by_topic["/tcp"]
     io = by_topic["/io"]
+    analog = by_topic["/io/analog"]
+
+    def values(key: str):
+        rows = [[np.nan if v is None else v for v in m[key]] for m in analog]
+        if rows:
+            return np.array(rows, dtype=float).reshape(len(rows), -1)
+        try:  # (none recorded: as many columns as the metadata names; a recording of an earlier build: none)
+            width = len(json.loads(metadata.get(f"analog_{key}", "[]")))
+        except (TypeError, ValueError):
+            width = 0
+        return np.zeros((0, width))
     out = {
         "metadata": metadata, "complete": complete,
         "times": np.array([_seconds(m["timestamp"]) for m in joints]),
@@ -356,6 +378,8 @@ def read_recording(path: str | Path, links: bool = False) -> dict:
         "io": {"times": np.array([_seconds(m["timestamp"]) for m in io]),
                "inputs": np.array([m["inputs"] for m in io], dtype=bool).reshape(len(io), -1),
                "outputs": np.array([m["outputs"] for m in io], dtype=bool).reshape(len(io), -1)},
+        "analog": {"times": np.array([_seconds(m["timestamp"]) for m in analog]), "inputs": values("inputs"),
+                   "outputs": values("outputs")},
     }
     if links:
         out["links"] = _links(by_topic["/tf"])

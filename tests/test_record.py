@@ -389,3 +389,27 @@ def test_the_tables_name_every_schema_and_every_event_kind_a_level():
     assert recording.recording_name("s", 5, "../..").endswith("-program-5-program.mcap")
     markdown = recording.topics_markdown()
     assert all(f"`{t.name}`" in markdown for t in TOPICS)
+
+
+def test_the_analog_channels_are_recorded_at_the_start_and_on_each_change(tmp_path):
+    """A robot with analog channels (lola15_cell.spc: the part's height in, the glue's pressure
+    out): /io/analog at the start and where the program sets the output, in their units, as
+    its schema says; the metadata names each channel and its unit; read_recording gives them."""
+    shutil.copy(PROGRAMS / "lola15_cell.spc", tmp_path / "cell.spc")
+    program = tmp_path / "glue.irl"
+    program.write_text('program glue;\nsystem_specification "cell.spc";\nseq\n  wait 0.2 sec;\n'
+                       "  call analog_out(1, 3.5);\n  wait 0.2 sec;\n  call analog_out(1, 0);\nendseq\nendprogram;\n",
+                       encoding="utf-8")
+    code, out, err = run("run", program, "--record", tmp_path / "r.mcap")
+    assert code == 0, err
+    summary, topics = messages(tmp_path / "r.mcap")
+    validator = jsonschema.Draft202012Validator(SCHEMAS["irl.AnalogIO"])
+    sent = [m for _l, _p, m in topics["/io/analog"]]
+    for m in sent:
+        validator.validate(m)
+    assert [(m["inputs"], m["outputs"]) for m in sent] == [([50.0], [0.0]), ([50.0], [3.5]), ([50.0], [0.0])]
+    recorded = read_recording(tmp_path / "r.mcap")
+    assert json.loads(recorded["metadata"]["analog_outputs"]) == [["glue pressure", "bar"]]
+    times = recorded["analog"]["times"]
+    assert recorded["analog"]["outputs"][:, 0].tolist() == [0.0, 3.5, 0.0]
+    assert times[2] - times[1] == pytest.approx(0.2, abs=0.011)  # (the 10 ms rows)

@@ -130,7 +130,7 @@ class RobotSystem:
             analog = ("analog",) if spec.analog_inputs or spec.analog_outputs else ()
             self.report.columns = [*self.report.columns, *(c for c in ("io", *analog) if c not in self.report.columns)]
         counts = (len(spec.analog_inputs), len(spec.analog_outputs))
-        self.report.analog = lambda: self.io.analog_values(*counts)
+        self.report.analog = self.recorder.analog = lambda: self.io.analog_values(*counts)
         self.executive = Executive(self.clock, TICK)
         identity = {"robot": spec.name, "spec_hash": spec.hash,
                     "backend": ROBOTS[options.robot].identity(options.robot, options.seed) if backend is None

@@ -64,6 +64,7 @@ class Recorder:
         self.period = RECORD_PERIOD
         self.batches = Batches(history, events)
         self._zeros = (0.0,) * len(spec.axes)
+        self.analog = lambda: ()  # real-time: () -> the analog inputs, then outputs (set by the system)
 
     @property
     def recording(self) -> bool:
@@ -82,7 +83,8 @@ class Recorder:
         trajectory = self.trajectory
         line, offset = trajectory.source()
         self.batches.append((now, self.state_of(), self.sens_pos.value or self._zeros, self.robot.velocities,
-                             trajectory.frames_now(), self.inputs.value, self.outputs.value, line, offset))
+                             trajectory.frames_now(), self.inputs.value, self.outputs.value, line, offset,
+                             self.analog()))
 
     def close(self) -> str | None:
         """Not real-time: the last batch, the file finished; what went wrong, or None."""
@@ -109,6 +111,8 @@ class RecordWriter(BatchWriter):
                          "spec_hash": spec.hash, "spec_file": os.path.abspath(spec.file) if spec.file else "",
                          "job": "" if job is None else str(job), "clock": clock,
                          "axes": json.dumps(self.names), "units": json.dumps([a.unit for a in spec.axes]),
+                         "analog_inputs": json.dumps([[c.name, c.unit] for c in spec.analog_inputs]),
+                         "analog_outputs": json.dumps([[c.name, c.unit] for c in spec.analog_outputs]),
                          "period": repr(RECORD_PERIOD), "recorded": time.strftime("%Y-%m-%dT%H:%M:%S%z")}
         self.mcap = self.stream = None
         self.channels: dict[str, int] = {}
@@ -226,7 +230,7 @@ class RecordWriter(BatchWriter):
         return [("/phase", _json({"timestamp": _time(t), "state": state, "phase": phase, "step": step}))]
 
     def _row(self, row) -> list:
-        t, state, positions, velocities, frames, inputs, outputs, line, offset = row
+        t, state, positions, velocities, frames, inputs, outputs, line, offset, analog = row
         if not isfinite(sum(positions) + sum(velocities)):
             raise ValueError("a position or velocity that is not a number")
         sec, nsec = _stamp(t)
@@ -248,6 +252,11 @@ class RecordWriter(BatchWriter):
             self.last["/io"] = io
             out.append(("/io", _json({"timestamp": _time(t), "inputs": [bool(v) for v in inputs],
                                       "outputs": [bool(v) for v in outputs]})))
+        shown = [v if isfinite(v) else None for v in analog]  # (NaN: a channel the I/O does not have)
+        if shown and shown != self.last.get("/io/analog"):
+            self.last["/io/analog"] = shown
+            n = len(self.spec.analog_inputs)
+            out.append(("/io/analog", _json({"timestamp": _time(t), "inputs": shown[:n], "outputs": shown[n:]})))
         source = (line, self._file(offset) if line else "")
         if source != self.last.get("/line"):
             self.last["/line"] = source

@@ -17,6 +17,7 @@ from .clauses import NAMES as CLAUSE_NAMES
 from .clauses import Motion
 from .recovery import WORDS
 from .records import END_WORD as RECORD_END, MAX_FIELDS, WORD as RECORD_WORD
+from .zones import WORD as ZONE_WORD
 from .diagnostics import CompileError, Diagnostic, did_you_mean
 from .semantics import INT_MAX
 
@@ -534,6 +535,10 @@ def _classify(err: UnexpectedInput, text: str, file: str, tokens: list[Token]):
         return (_diag(file, _span(tok), f"a trigger sets a global variable by its name: '{prev.value}{tok.value}...' "
                       "is an element or a field", "set a plain global in the trigger, and the element or field from "
                                                   "it after the move"), None)
+    if tok.type == "NAME" and tok.value.lower() in (RECORD_WORD, ZONE_WORD) and {"VAR", "SEQ"} <= expected:
+        what = "record types" if tok.value.lower() == RECORD_WORD else "world zones"
+        return (_diag(file, _span(tok), f"{what} are declared at the program's or a module's level, not in a "
+                      "procedure, function or interrupt", "move the declaration before the routine"), None)
     record = _open_record(tokens, tok)
     if record is not None:
         opener, fields = record

@@ -371,3 +371,17 @@ endmodule;
                         'import "parts.irl";\nvar p : part_t;')
     machine, host = run(compile_text(tmp_path, text))
     assert host.texts == ['part_t(name: "x", height: 20, width: 1)']
+
+
+def test_an_operators_value_for_a_persistent_record_fits_only_its_type_and_fields():
+    """persistent_set's rule (runtime.loop.robotloop: fitted of value_of): the plain form irl
+    persistent --json shows, with an integer where a real is taken as a real; another type's
+    name, a field missing or renamed, a value of another type are not taken."""
+    like = Record("part_t", ("name", "height"), ["bolt", 12.5])
+    good = value_of(["record", "part_t", {"name": "nut", "height": 13}])
+    assert fitted(good, like) == Record("part_t", ("name", "height"), ["nut", 13.0])
+    assert type(fitted(good, like)[1]) is float
+    for plain in (["record", "slot_t", {"name": "nut", "height": 13}], ["record", "part_t", {"name": "nut"}],
+                  ["record", "part_t", {"nom": "nut", "height": 13}], ["record", "part_t", {"name": 3, "height": 13}],
+                  ["array", ["nut", 13]]):
+        assert fitted(value_of(plain), like) is None, plain

@@ -190,6 +190,7 @@ class Declared:
     zones: list = field(default_factory=list)  # compiler.zones.Zone
     later: dict = field(default_factory=dict)  # name -> its ast.RecordDecl
     declaring: str | None = None
+    zone_lines: dict = field(default_factory=dict)  # a zone's name -> (its file, its line)
 
 
 @dataclass
@@ -1168,8 +1169,8 @@ class Checker:
             if zone.depth(p.x, p.y, p.z) > -ZONE_MARGIN:
                 self.error(target.span, f"the target{where} is in zone '{zone.name}' ({zone.describe()}), or within "
                                         f"{ZONE_MARGIN:g} mm of it: no move goes there",
-                           "the program's zone declarations are where the tool and the flange never go"
-                           if zone in self.declared.zones else
+                           "zone '{}' is declared at {}:{}: the tool and the flange never go there".format(
+                               zone.name, *self.declared.zone_lines[zone.name]) if zone in self.declared.zones else
                            "the specification's [[zone]] tables are where the tool and the flange never go")
 
     def clauses(self, node: ast.Move) -> None:
@@ -1633,6 +1634,7 @@ class Checker:
             self.error(decl.name_span, problem)
             return
         self.declared.zones.append(zone)
+        self.declared.zone_lines[zone.name] = (self.file, decl.name_span.line)
 
     def zone_shape(self, decl: ast.ZoneDecl):
         """(shape, its keys' values) of a zone's declaration, or None (reported)."""

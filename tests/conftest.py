@@ -20,6 +20,8 @@ worker.
 """
 from __future__ import annotations
 
+import contextlib
+import fcntl
 import io
 import os
 import signal
@@ -251,11 +253,52 @@ def no_traceback(proc: subprocess.CompletedProcess) -> None:
     assert "internal error" not in proc.stderr, proc.stderr
 
 
+#: The lock of the machine's real-time capacity (every worker of a run, every run of this user).
+_REALTIME_LOCK = Path(os.environ.get("TMPDIR", "/tmp")) / f"irl-tests-realtime-{os.getuid()}.lock"
+
+
+_SHARES_HELD = [0]  # the shares this process holds (a module's wall-clock server keeps one)
+
+
+@contextlib.contextmanager
+def realtime_share(whole: bool = False, wait: float = 120.0):
+    """The machine's real-time capacity, which the tests that run a SCHED_FIFO loop share (a
+    wall-clock server, ``irl run --realtime``: taken shared, they may run together); a test
+    that asserts a firm 1 ms loop holds under its own load takes it ``whole``: no other
+    test's real-time loop then competes with it for the cores (two SCHED_FIFO loops and a
+    probe on two cores made its loop miss deadlines its probe did not: a failure that was the
+    suite's, not the server's). Never a deadlock: a process that holds a share itself does
+    not wait for the whole, and no one waits longer than ``wait`` s (then it goes on
+    without, as before the lock)."""
+    if whole and _SHARES_HELD[0]:
+        yield
+        return
+    with open(_REALTIME_LOCK, "a+") as f:
+        deadline, got = time.monotonic() + wait, False
+        while not got:
+            try:
+                fcntl.flock(f, (fcntl.LOCK_EX if whole else fcntl.LOCK_SH) | fcntl.LOCK_NB)
+                got = True
+            except BlockingIOError:
+                if time.monotonic() > deadline:
+                    break
+                time.sleep(0.05)
+        _SHARES_HELD[0] += got and not whole
+        try:
+            yield
+        finally:
+            if got:
+                _SHARES_HELD[0] -= not whole
+                fcntl.flock(f, fcntl.LOCK_UN)
+
+
 class ServerProcess:
-    """One ``irl serve`` subprocess on free loopback ports."""
+    """One ``irl serve`` subprocess on free loopback ports; on the wall clock (a SCHED_FIFO
+    loop), holding its share of the machine's real-time capacity (:func:`realtime_share`;
+    ``whole``: all of it) while it runs."""
 
     def __init__(self, directory: Path, state_dir: Path, sim_clock: bool = True, keys: Path | None = None,
-                 telemetry: str | None = None, spec: Path | None = None, extra: tuple = ()):
+                 telemetry: str | None = None, spec: Path | None = None, extra: tuple = (), whole: bool = False):
         self.spec = spec  # None: programs/lola15.spc
         self.extra = tuple(extra)  # more arguments of irl serve
         self.directory = directory
@@ -268,8 +311,13 @@ class ServerProcess:
         self.log_path = directory / f"serve-{self.endpoint.rsplit(':', 1)[1]}.log"
         self.proc: subprocess.Popen | None = None
         self.clients: list[Client] = []
+        self.whole = whole
+        self._share: contextlib.AbstractContextManager | None = None  # held while a wall-clock server runs
 
     def start(self) -> "ServerProcess":
+        if not self.sim_clock and self._share is None:
+            self._share = realtime_share(self.whole)
+            self._share.__enter__()
         cmd = [*IRL, "serve", "--spec", self.spec or SPEC_PATH, "--state-dir", self.state_dir,
                "--endpoint", self.endpoint, "--telemetry", self.telemetry]
         if self.sim_clock:
@@ -315,16 +363,21 @@ class ServerProcess:
         for c in self.clients:
             c.close()
         self.clients = []
-        if self.proc is None:
-            return None
-        if self.proc.poll() is None:
-            self.proc.send_signal(signal.SIGTERM)
-            try:
-                self.proc.wait(10)
-            except subprocess.TimeoutExpired:
-                self.proc.kill()
-                self.proc.wait()
-        return self.proc.returncode
+        try:
+            if self.proc is None:
+                return None
+            if self.proc.poll() is None:
+                self.proc.send_signal(signal.SIGTERM)
+                try:
+                    self.proc.wait(10)
+                except subprocess.TimeoutExpired:
+                    self.proc.kill()
+                    self.proc.wait()
+            return self.proc.returncode
+        finally:
+            if self._share is not None:
+                share, self._share = self._share, None
+                share.__exit__(None, None, None)
 
     def kill9(self) -> None:
         self.proc.send_signal(signal.SIGKILL)
@@ -345,9 +398,9 @@ def start_server(tmp_path):
     servers: list[ServerProcess] = []
 
     def start(sim_clock: bool = True, keys: Path | None = None, state_dir: Path | None = None,
-              telemetry: str | None = None, spec: Path | None = None) -> ServerProcess:
+              telemetry: str | None = None, spec: Path | None = None, whole: bool = False) -> ServerProcess:
         server = ServerProcess(tmp_path / f"server{len(servers)}", state_dir or tmp_path / f"state{len(servers)}",
-                               sim_clock, keys, telemetry, spec)
+                               sim_clock, keys, telemetry, spec, whole=whole)
         servers.append(server)
         return server.start()
 

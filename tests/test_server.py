@@ -400,7 +400,7 @@ def test_kill9_leaves_complete_report_and_state_file(wall_server, start_server):
 
 
 def test_program_after_a_deadline_fault_runs(start_server):
-    server = start_server(sim_clock=False)  # the firm deadline policy of programs/lola15.spc
+    server = start_server(sim_clock=False, whole=True)  # the firm deadline policy of programs/lola15.spc
     client = server.client()
     first = submit(client, PROGRAMS / "long.irl")
     deadline = time.monotonic() + SAFETY

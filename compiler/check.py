@@ -624,13 +624,12 @@ class Checker:
         if not isinstance(record, RecordT):
             self.error(span, f"{a(record)} has no field '{name}'", "only records have fields to assign")
             return ERROR
-        i = record.index(name)
-        if i < 0:
+        if name not in record.names:
             guess = did_you_mean(name, record.names)
             self.error(span, f"record {record.name} has no field '{name}'",
                        f"did you mean '{guess}'?" if guess else f"its fields are {', '.join(record.names)}")
             return ERROR
-        return record.fields[i][1]
+        return record.type_of(name)
 
     def record_value(self, node: ast.Call, symbol: Symbol):
         """``part_t(v1, ..., vn)``: a record made of its fields' values, in declaration order."""

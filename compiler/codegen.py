@@ -93,11 +93,13 @@ class CodeGen:
             self.constants.append(value)
         return index
 
-    def temp(self, name: str, type_: str) -> tuple[int, int]:
-        """A hidden variable slot: (load op, slot)."""
+    def temp(self, name: str, type_: str) -> tuple[int, int, int]:
+        """A hidden variable slot: (load op, store op, slot)."""
         slots = self.locals if self.locals is not None else self.globals
         slots.append((name, type_))
-        return (OP.LOAD_LOCAL if self.locals is not None else OP.LOAD_GLOBAL), len(slots) - 1
+        if self.locals is not None:
+            return OP.LOAD_LOCAL, OP.STORE_LOCAL, len(slots) - 1
+        return OP.LOAD_GLOBAL, OP.STORE_GLOBAL, len(slots) - 1
 
     @staticmethod
     def load_op(symbol: Symbol) -> int:
@@ -307,7 +309,7 @@ class CodeGen:
     def store_into(self, container, selector, value: ast.Expr) -> None:
         """The container on the stack: its element or field ``selector`` := ``value``."""
         if isinstance(container, RecordT):
-            self.value(value, container.fields[container.index(selector.name)][1])
+            self.value(value, container.type_of(selector.name))
             self.emit(OP.SET_MEMBER, container.index(selector.name))
         else:
             self.value(selector)
@@ -319,7 +321,7 @@ class CodeGen:
         """The types along an assignment's ``path``: the variable's, then each selector's."""
         types = [t]
         for selector in path:
-            t = t.fields[t.index(selector.name)][1] if isinstance(selector, ast.Member) else \
+            t = t.type_of(selector.name) if isinstance(selector, ast.Member) else \
                 t.element if isinstance(t, ArrayT) else REAL
             types.append(t)
         return types
@@ -331,7 +333,7 @@ class CodeGen:
         for selector in path:
             if isinstance(selector, ast.Member):
                 self.emit(OP.GET_MEMBER, t.index(selector.name))
-                t = t.fields[t.index(selector.name)][1]
+                t = t.type_of(selector.name)
             else:
                 self.value(selector)
                 self.emit(OP.GET_ITEM, t.low)
@@ -394,9 +396,9 @@ class CodeGen:
         step = self.values[id(node.step)] if node.step is not None else 1
         self.value(node.start)
         self.emit(self.store_op(var), var.slot)
-        load_end, end_slot = self.temp(f"$end@{node.span.line}:{node.span.col}", INTEGER)
+        load_end, store_end, end_slot = self.temp(f"$end@{node.span.line}:{node.span.col}", INTEGER)
         self.value(node.stop)
-        self.emit(OP.STORE_LOCAL if load_end == OP.LOAD_LOCAL else OP.STORE_GLOBAL, end_slot)
+        self.emit(store_end, end_slot)
         top = len(self.code)
         self.emit(self.load_op(var), var.slot)
         self.emit(load_end, end_slot)
@@ -467,9 +469,9 @@ class CodeGen:
             if isinstance(part, ast.Field):
                 fixed.append(None)
                 continue
-            load, slot = self.temp(f"$index@{part.span.line}:{part.span.col}", INTEGER)
+            load, store, slot = self.temp(f"$index@{part.span.line}:{part.span.col}", INTEGER)
             self.value(part.index)
-            self.emit(OP.STORE_LOCAL if load == OP.LOAD_LOCAL else OP.STORE_GLOBAL, slot)
+            self.emit(store, slot)
             fixed.append((load, slot))
         return fixed
 

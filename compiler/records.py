@@ -51,6 +51,10 @@ class RecordT:
                 return i
         return -1
 
+    def type_of(self, name: str):
+        """The type of field ``name`` (which the record has)."""
+        return self.fields[self.index(name)][1]
+
     def layout(self) -> str:
         """The type with its fields, as the manual and a message write it:
         ``part_t(name: string; height: real)``."""

@@ -527,15 +527,10 @@ def _zones(file: str, data: dict, top: "_Reader", outputs: int) -> tuple:
         if kind == "signal":
             output = r.get("output", "integer", check=lambda v: 1 <= v <= outputs,
                            expect=f"the digital output the zone switches, 1..{outputs}")
-        values: dict = {}
-        for key in zones.SHAPES[shape][1]:
-            r.used.add(key)
-            if key not in table:
-                raise SpecError(file, r.key(key), f"missing; expected {zones.SHAPES[shape][1][key]}")
-            said = zones.problem(shape, key, table[key], values)
-            if said is not None:
-                raise SpecError(file, r.key(key), said)
-            values[key] = [float(v) for v in table[key]] if isinstance(table[key], list) else float(table[key])
+        r.used.update(zones.SHAPES[shape][1])
+        values, wrong = zones.checked_values(shape, table)
+        if wrong is not None:
+            raise SpecError(file, r.key(wrong[0]), wrong[1])
         r.finish()
         found.append(zones.zone_of(name, shape, values, kind, output))
     return tuple(found)

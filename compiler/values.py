@@ -143,7 +143,7 @@ class Record(list):
 
 
 #: The values the VM changes in place: arrays (lists) and records.
-_MUTABLE = (list, Record)
+MUTABLE = (list, Record)
 
 
 def copy_value(value):
@@ -151,10 +151,10 @@ def copy_value(value):
     any other value is immutable and comes back as it is."""
     t = type(value)
     if t is list:
-        return [copy_value(item) for item in value] if value and type(value[0]) in _MUTABLE else value[:]
+        return [copy_value(item) for item in value] if value and type(value[0]) in MUTABLE else value[:]
     if t is Record:
         return Record(value.type_name, value.field_names,
-                      [copy_value(item) if type(item) in _MUTABLE else item for item in value])
+                      [copy_value(item) if type(item) in MUTABLE else item for item in value])
     return value
 
 

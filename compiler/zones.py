@@ -32,8 +32,8 @@ import math
 from dataclasses import dataclass
 
 __all__ = ["CONSTRUCTORS", "KINDS", "MARGIN", "MAX_ZONES", "SHAPES", "SIGNAL_WORD", "STEP", "WORD", "Zone",
-           "forbidden", "from_plain", "markdown", "run_problem", "shape_problem", "shown", "signals", "to_plain",
-           "values_of"]
+           "checked_values", "forbidden", "from_plain", "markdown", "run_problem", "shape_problem", "shown", "signals",
+           "to_plain", "values_of"]
 
 #: mm: how far from a zone a planned path must stay (the flange and the tool centre point).
 MARGIN = 5.0
@@ -176,6 +176,21 @@ def to_plain(zone: Zone) -> list:
     return [zone.name, zone.shape, zone.kind, zone.output, values]
 
 
+def checked_values(shape: str, table: dict) -> tuple[dict, tuple[str, str] | None]:
+    """The keys of a ``shape`` (:data:`SHAPES`) from ``table``, in order: each present and
+    right by :func:`problem`, converted to floats. (the values, None), or (the values checked
+    so far, (the first key missing or wrong, what is wrong with it))."""
+    values: dict = {}
+    for key, expect in SHAPES[shape][1].items():
+        if key not in table:
+            return values, (key, f"missing; expected {expect}")
+        said = problem(shape, key, table[key], values)
+        if said is not None:
+            return values, (key, said)
+        values[key] = [float(v) for v in table[key]] if isinstance(table[key], list) else float(table[key])
+    return values, None
+
+
 def from_plain(data) -> Zone:
     """The inverse of :func:`to_plain`, every key checked as the specification's are;
     ValueError says what is wrong."""
@@ -186,12 +201,9 @@ def from_plain(data) -> Zone:
         raise ValueError("expected [name (1..40 characters), shape, kind, output (a signal zone's: 1.., else 0), "
                          "{the shape's keys}]")
     name, shape, kind, output, table = data
-    values: dict = {}
-    for key in SHAPES[shape][1]:
-        said = problem(shape, key, table[key], values)
-        if said is not None:
-            raise ValueError(f"zone {name!r:.40}: {key}: {said}")
-        values[key] = [float(v) for v in table[key]] if isinstance(table[key], list) else float(table[key])
+    values, wrong = checked_values(shape, table)
+    if wrong is not None:
+        raise ValueError(f"zone {name!r:.40}: {wrong[0]}: {wrong[1]}")
     return zone_of(name, shape, values, kind, output)
 
 

@@ -73,7 +73,7 @@ from compiler.semantics import (INT_MAX, INT_MIN, MAX_STRING_LENGTH, EvalError, 
 from compiler.configs import TURNS_FLAG, from_operand
 from compiler.recovery import BY_NAME as ERROR_KINDS, USER_ERRORS, error_kind
 from compiler.robotstate import CLOCKS
-from compiler.values import Pose, Record, copy_value, elements_of, format_number, format_value
+from compiler.values import MUTABLE, Pose, Record, copy_value, elements_of, format_number, format_value
 
 from runtime.loop.persistence import fitted
 from runtime.recording import HALT, HANDLED, INTERRUPT, PAUSE, PRINT, TIMEOUT
@@ -252,10 +252,6 @@ _COMPARE = {OP.LE: operator.le, OP.LT: operator.lt, OP.GE: operator.ge, OP.GT: o
 _COMPARISON_OPS = frozenset(_COMPARE)
 
 
-#: The values an instruction changes in place, which a stored or passed value is a copy of.
-_MUTABLE = (list, Record)
-
-
 #: The instructions whose ZeroDivisionError or OverflowError is the program's arithmetic.
 _ARITHMETIC = frozenset({OP.ADD, OP.SUB, OP.MUL, OP.DIV, OP.IDIV, OP.MOD, OP.NEG, OP.TO_REAL, OP.CALL_BUILTIN})
 
@@ -337,7 +333,7 @@ class Memory:
         self.zeros = []
         for p in program.procedures:
             template = [zero_of(typ, records=program.record_table) for _name, typ in p.locals]
-            self.zeros.append((template, tuple(i for i, v in enumerate(template) if type(v) in _MUTABLE)))
+            self.zeros.append((template, tuple(i for i, v in enumerate(template) if type(v) in MUTABLE)))
         self.kept: dict = {}  # local slot -> the value a returning procedure kept for its caller (KEEP, TAKE)
 
     def pop_n(self, n: int) -> list:
@@ -403,7 +399,7 @@ class Memory:
 
     def op_copy(self, _, pc):
         stack = self.stack
-        if type(stack[-1]) in _MUTABLE:
+        if type(stack[-1]) in MUTABLE:
             stack[-1] = copy_value(stack[-1])
         return pc + 1
 
@@ -522,7 +518,7 @@ class Memory:
         if n * elements_of(element) > MAX_ARRAY_ELEMENTS:
             raise EvalError(f"an array of {n} x {elements_of(element)} elements is larger than "
                             f"{MAX_ARRAY_ELEMENTS} elements, the largest allowed")
-        if type(element) in _MUTABLE:
+        if type(element) in MUTABLE:
             stack[-1] = [copy_value(element) for _ in range(n)]
         else:
             stack[-1] = [element] * n
